@@ -1,0 +1,139 @@
+"""The render scene of one frame: flat numpy arrays, ready for the C++ core.
+
+This module is the contract between the USD reader (:mod:`cmlt.usd`) and the
+core (:mod:`cmlt._core`, driven from :mod:`cmlt.shot`). It imports neither.
+
+Conventions
+-----------
+* World space is the stage's world space converted to metres
+  (``metersPerUnit`` applied) and kept in the stage's up axis; the camera
+  carries its own orientation, so the up axis matters only where cmlt invents
+  something (the framing camera, the default dome light).
+* Matrices are ``float64 (4, 4)`` in the column-vector convention:
+  ``p_world = M @ [x, y, z, 1]`` (the transpose of a ``Gf.Matrix4d``).
+* Colours are linear RGB in the rendering space, already converted from their
+  authored colour space at load time.
+* Point arrays handed to the core are ``float32 (N, 3)``, C-contiguous, and
+  come from :func:`padded_points`: Embree reads the last vertex as 16 bytes,
+  so the buffer carries one spare row that is not part of the view.
+* Index arrays are ``uint32 (M, 3)`` triangles, counter-clockwise seen from
+  the front (``orientation = leftHanded`` is flipped at load time).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+
+def padded_points(points) -> np.ndarray:
+    """Return ``points`` as float32 (N, 3) whose buffer has one spare row.
+
+    The spare row lets Embree read the last vertex as a 16-byte vector
+    without reading past the allocation (Embree's shared-buffer padding rule).
+    """
+    pts = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    buf = np.zeros((pts.shape[0] + 1, 3), dtype=np.float32)
+    buf[:-1] = pts
+    return buf[:-1]
+
+
+@dataclass
+class Material:
+    """A UsdPreviewSurface (or fallback) material, in rendering-space RGB."""
+
+    name: str                                   # material prim path
+    diffuse: Tuple[float, float, float] = (0.18, 0.18, 0.18)
+    emission: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # Read now, used by the light-transport issue:
+    specular: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    use_specular_workflow: bool = False
+    metallic: float = 0.0
+    roughness: float = 0.5
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.01
+    opacity: float = 1.0
+    opacity_threshold: float = 0.0
+    ior: float = 1.5
+    # every authored input of the surface shader, by name (textures, normal maps …)
+    inputs: Dict[str, object] = field(default_factory=dict)
+
+
+@dataclass
+class Mesh:
+    """A triangle mesh in its own object space (a prototype for instances)."""
+
+    name: str                                   # prim path of the source gprim
+    points: np.ndarray                          # float32 (N, 3), from padded_points
+    indices: np.ndarray                         # uint32 (M, 3)
+    normals: Optional[np.ndarray] = None        # float32 (N, 3) per vertex, or None
+    uvs: Optional[np.ndarray] = None            # float32 (N, 2) per vertex, or None
+    material_ids: Optional[np.ndarray] = None   # uint32 (M,) index into FrameScene.materials
+    deforming: bool = False                     # points are time-varying
+
+
+@dataclass
+class Instance:
+    """One placement of a mesh in the world."""
+
+    name: str                                   # prim path (or instancer path + index)
+    mesh: int                                   # index into FrameScene.meshes
+    transform: np.ndarray                       # float64 (4, 4), object -> world
+
+
+@dataclass
+class Light:
+    """An analytic UsdLux light. Emissive meshes are not listed here: the
+    core finds them from materials with non-zero emission."""
+
+    name: str                                   # light prim path
+    kind: str                                   # 'rect' | 'disk' | 'sphere' | 'distant' | 'dome' | 'cylinder'
+    transform: np.ndarray                       # float64 (4, 4), light -> world (metres)
+    # Emitted radiance in rendering-space RGB: intensity * 2^exposure * color
+    # (* colour temperature), divided by the surface area when `normalize` is on.
+    radiance: Tuple[float, float, float] = (1.0, 1.0, 1.0)
+    width: float = 1.0                          # rect, along local X (metres)
+    height: float = 1.0                         # rect, along local Y (metres)
+    radius: float = 0.5                         # disk, sphere, cylinder (metres)
+    length: float = 1.0                         # cylinder, along local X (metres)
+    angle: float = 0.53                         # distant: angular diameter, degrees
+    treat_as_point: bool = False                # sphere
+    texture: Optional[str] = None               # rect / dome texture file
+    normalize: bool = False
+
+
+@dataclass
+class Camera:
+    """A UsdGeom.Camera. Looks down local -Z with +Y up, as USD's cameras do."""
+
+    name: str                                   # camera prim path, or '<framing>'
+    transform: np.ndarray                       # float64 (4, 4), camera -> world (metres)
+    projection: str = "perspective"             # 'perspective' | 'orthographic'
+    focal_length: float = 50.0                  # in the same unit as the apertures
+    horizontal_aperture: float = 20.955
+    vertical_aperture: float = 15.2908
+    horizontal_aperture_offset: float = 0.0
+    vertical_aperture_offset: float = 0.0
+    near: float = 0.01                          # clipping range, metres
+    far: float = 1.0e6
+    f_stop: float = 0.0                         # 0 = pinhole (kept for depth of field)
+    focus_distance: float = 0.0                 # metres
+    shutter_open: float = 0.0
+    shutter_close: float = 0.0
+
+
+@dataclass
+class FrameScene:
+    """Everything the core needs to render one time code."""
+
+    time: float                                 # USD time code
+    meshes: List[Mesh] = field(default_factory=list)
+    instances: List[Instance] = field(default_factory=list)
+    materials: List[Material] = field(default_factory=list)
+    lights: List[Light] = field(default_factory=list)
+    camera: Optional[Camera] = None
+    resolution: Tuple[int, int] = (640, 480)    # (width, height), from RenderSettings or default
+    meters_per_unit: float = 0.01
+    up_axis: str = "Y"
+    warnings: List[str] = field(default_factory=list)
