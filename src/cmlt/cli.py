@@ -1,0 +1,186 @@
+"""The ``cmlt`` command line.
+
+::
+
+    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N] [--integrator pt]
+                     [--seed S] [--threads N] [--res WxH] [--max-depth N]
+                     [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
+                     [--resume] [--quiet]
+    cmlt inspect SHOT
+    cmlt --version
+
+Exit codes: 0 done; 1 the shot or the render failed; 2 a bad flag or path;
+130 interrupted (Ctrl-C; finished frames stay, ``--resume`` continues).
+Errors are one line on stderr (``cmlt: error: ...``), never a traceback,
+unless ``CMLT_DEBUG=1`` is set in the environment.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import sys
+from typing import List, Optional, Sequence
+
+from . import __version__
+
+__all__ = ["main", "build_parser", "parse_resolution"]
+
+EXIT_OK, EXIT_RENDER, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but errors are one line: ``cmlt: error: ...``, exit 2."""
+
+    def error(self, message):                      # noqa: D401 - argparse API
+        sys.stderr.write(f"cmlt: error: {message} (see `{self.prog} --help`)\n")
+        raise SystemExit(EXIT_USAGE)
+
+
+def parse_resolution(text: str):
+    """``640x480`` -> (640, 480); argparse turns ValueError into a usage error."""
+    parts = text.lower().replace("*", "x").split("x")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        w, h = int(parts[0]), int(parts[1])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT, e.g. 640x480") from None
+    if w < 1 or h < 1 or w > 65536 or h > 65536:
+        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be 1..65536")
+    return (w, h)
+
+
+def _int_at_least(lo: int):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{text!r}: must be at least {lo}")
+        return v
+    return parse
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .shot.sequence import DEFAULT_MAX_DEPTH, DEFAULT_SPP
+    from .io.exr import COMPRESSIONS
+
+    p = _Parser(prog="cmlt", description="Render animated USD shots with coherent "
+                "Metropolis light transport.")
+    p.add_argument("--version", action="version", version=f"cmlt {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    r = sub.add_parser("render", help="render frames of a shot to OpenEXR",
+                       description="Render frames of a USD shot to scene-linear OpenEXR, "
+                       "with a JSON statistics sidecar (IMAGE.json) beside each image.")
+    r.add_argument("shot", metavar="SHOT", help="USD stage (.usda, .usdc, .usd, .usdz)")
+    r.add_argument("--frames", metavar="SPEC",
+                   help="time codes: 7, 1.5, 1:24, 1:24x2 (stride), 1,5,9, all "
+                   "(the stage's range); default: the stage's start time code")
+    r.add_argument("--out", metavar="PATTERN",
+                   help="output image; the frame number replaces #### (zero-padded to the "
+                   "number of #), ####.### (decimals), $F4/$F or %%04d; fractional frames "
+                   "get three decimals (0001.500); default renders/<shot>.####.exr")
+    r.add_argument("--spp", type=_int_at_least(1), default=DEFAULT_SPP,
+                   help=f"samples per pixel (default {DEFAULT_SPP})")
+    r.add_argument("--integrator", default="pt", metavar="NAME",
+                   help="light transport algorithm (default pt)")
+    r.add_argument("--seed", type=_int_at_least(0), default=0,
+                   help="shot seed; the same for every frame (default 0)")
+    r.add_argument("--threads", type=_int_at_least(0), default=0,
+                   help="worker threads, 0 = all cores (default 0)")
+    r.add_argument("--res", type=parse_resolution, metavar="WxH",
+                   help="resolution, overriding the stage's render settings")
+    r.add_argument("--max-depth", type=_int_at_least(1), default=DEFAULT_MAX_DEPTH,
+                   dest="max_depth",
+                   help=f"scattering events per path, 1 = direct light only "
+                   f"(default {DEFAULT_MAX_DEPTH}; paths end by Russian roulette)")
+    r.add_argument("--camera", metavar="PATH", help="camera prim path (default: the "
+                   "render settings' camera, else the stage's camera)")
+    r.add_argument("--half", action="store_true", help="write 16-bit half floats")
+    r.add_argument("--compression", choices=COMPRESSIONS, default="zip",
+                   help="EXR compression (default zip)")
+    r.add_argument("--resume", action="store_true",
+                   help="skip frames whose image already exists")
+    r.add_argument("--quiet", "-q", action="store_true",
+                   help="no progress display, warnings and errors only")
+
+    i = sub.add_parser("inspect", help="describe a shot: time range, cameras, lights, "
+                       "what the render will need")
+    i.add_argument("shot", metavar="SHOT", help="USD stage")
+    return p
+
+
+def _error(message: str, code: int) -> int:
+    sys.stderr.write(f"cmlt: error: {message}\n")
+    return code
+
+
+def _resume_command(argv: Sequence[str]) -> str:
+    args = list(argv)
+    if "--resume" not in args:
+        args.append("--resume")
+    return shlex.join(["cmlt", *args])
+
+
+def _cmd_render(args, argv: Sequence[str]) -> int:
+    from .shot import RenderCancelled, RenderError, RenderOptions, UsageError, render_sequence
+
+    opts = RenderOptions(spp=args.spp, integrator=args.integrator, seed=args.seed,
+                         threads=args.threads, resolution=args.res, max_depth=args.max_depth,
+                         camera=args.camera, half=args.half, compression=args.compression)
+    try:
+        res = render_sequence(args.shot, args.frames, args.out, opts, resume=args.resume,
+                              progress=not args.quiet, quiet=args.quiet)
+    except UsageError as exc:
+        return _error(str(exc), EXIT_USAGE)
+    except RenderError as exc:
+        return _error(str(exc), EXIT_RENDER)
+    except RenderCancelled as exc:
+        sys.stderr.write(f"cmlt: {exc}\ncmlt: to continue: {_resume_command(argv)}\n")
+        return EXIT_INTERRUPTED
+    if not args.quiet:
+        n = len(res.written)
+        sys.stderr.write(f"cmlt: {n} frame(s) written"
+                         + (f", {len(res.skipped)} skipped (already rendered)" if res.skipped else "")
+                         + "\n")
+    return EXIT_OK
+
+
+def _cmd_inspect(args) -> int:
+    from .usd import UsdLoadError, open_stage, stage_info
+
+    if not os.path.exists(args.shot):
+        return _error(f"{args.shot}: no such file", EXIT_USAGE)
+    try:
+        report = stage_info(open_stage(args.shot)).format()
+    except UsdLoadError as exc:
+        return _error(str(exc), EXIT_RENDER)
+    sys.stdout.write(report.rstrip("\n") + "\n")
+    return EXIT_OK
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Entry point of the ``cmlt`` console script; returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:           # --help, --version, usage errors
+        return int(exc.code or 0)
+    try:
+        if args.command == "render":
+            return _cmd_render(args, argv)
+        if args.command == "inspect":
+            return _cmd_inspect(args)
+    except KeyboardInterrupt:
+        return _error("interrupted", EXIT_INTERRUPTED)
+    except Exception as exc:            # a bug: still one line unless asked for more
+        if os.environ.get("CMLT_DEBUG"):
+            raise
+        return _error(f"internal error: {type(exc).__name__}: {exc} "
+                      "(set CMLT_DEBUG=1 for a traceback)", EXIT_RENDER)
+    return _error(f"unknown command {args.command!r}", EXIT_USAGE)

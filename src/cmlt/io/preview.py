@@ -1,0 +1,106 @@
+"""Display-referred previews of scene-linear frames (PNG / JPEG).
+
+A frame is ACEScg; a preview is that frame through an OpenColorIO
+display/view (default "sRGB - Display" and the config's default view, an ACES
+output transform), quantised to 8 bits and written with OpenImageIO to a
+temporary name that is then renamed into place.
+"""
+from __future__ import annotations
+
+import os
+from typing import Any, Dict, Optional
+
+import numpy as np
+import OpenImageIO as oiio
+
+from ..color import ColorConfig, get_config
+from .atomic import atomic_path
+
+__all__ = ["write_preview", "write_display_image", "PREVIEW_EXTENSIONS"]
+
+PREVIEW_EXTENSIONS = (".png", ".jpg", ".jpeg")
+
+
+def _as_rgb(image) -> np.ndarray:
+    """(H, W), (H, W, 1), (H, W, 3) or (H, W, 4) -> float32 (H, W, 3|4)."""
+    arr = np.asarray(image, dtype=np.float32)
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    if arr.ndim != 3 or arr.shape[2] not in (1, 3, 4) or arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise ValueError(f"preview: expected an image of shape (H, W[, 1|3|4]), got {arr.shape}")
+    if arr.shape[2] == 1:
+        arr = np.repeat(arr, 3, axis=2)
+    return arr
+
+
+def _check_extension(path: str) -> str:
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in PREVIEW_EXTENSIONS:
+        raise ValueError(f"preview '{path}': the extension must be one of "
+                         f"{', '.join(PREVIEW_EXTENSIONS)}")
+    return ext
+
+
+def write_display_image(pixels: np.ndarray, path: str,
+                        attributes: Optional[Dict[str, Any]] = None,
+                        jpeg_quality: int = 92) -> str:
+    """Write display-referred uint8 pixels (H, W, 3|4) as PNG or JPEG,
+    atomically (temporary name + ``os.replace``). Returns ``path``."""
+    ext = _check_extension(path)
+    pix = np.ascontiguousarray(pixels, dtype=np.uint8)
+    if ext in (".jpg", ".jpeg") and pix.shape[2] == 4:
+        pix = np.ascontiguousarray(pix[..., :3])          # JPEG has no alpha
+    h, w, c = pix.shape
+    spec = oiio.ImageSpec(w, h, c, oiio.UINT8)
+    if c == 4:
+        spec.alpha_channel = 3
+    for key, value in (attributes or {}).items():
+        spec.attribute(key, value)
+    if ext in (".jpg", ".jpeg"):
+        spec.attribute("Compression", f"jpeg:{int(jpeg_quality)}")
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(tmp)
+        if out is None:
+            raise OSError(f"preview '{path}': OpenImageIO has no writer: {oiio.geterror()}")
+        try:
+            if not out.open(tmp, spec):
+                raise OSError(f"preview '{path}': cannot open for writing: {out.geterror()}")
+            if not out.write_image(pix):
+                raise OSError(f"preview '{path}': write failed: {out.geterror()}")
+        finally:
+            out.close()
+    return path
+
+
+def display_attributes(config: ColorConfig, display: str, view: str) -> Dict[str, Any]:
+    """Header attributes saying how a preview was made."""
+    attrs: Dict[str, Any] = {
+        "ImageDescription": f"cmlt preview: OCIO display '{display}', view '{view}', "
+                            f"config '{config.name}'",
+        "Software": "cmlt",
+    }
+    cs_name = config.ocio.getDisplayViewColorSpaceName(display, view)
+    cs = config.ocio.getColorSpace(cs_name) if cs_name else None
+    interop = cs.getInteropID() if cs is not None and hasattr(cs, "getInteropID") else ""
+    # the display colour space, e.g. srgb_rec709_display; OIIO ignores names it does not know
+    if interop:
+        attrs["oiio:ColorSpace"] = interop
+    return attrs
+
+
+def write_preview(image_acescg, path: str, display: Optional[str] = None,
+                  view: Optional[str] = None, *, config: Optional[ColorConfig] = None,
+                  jpeg_quality: int = 92) -> str:
+    """Write an ACEScg image as a display-referred PNG or JPEG (by extension).
+
+    ``display``/``view`` default to "sRGB - Display" (else the config's
+    default display) and that display's default view. Alpha (RGBA input) is
+    kept in PNGs and dropped from JPEGs. Returns ``path``.
+    """
+    _check_extension(path)
+    cfg = config or get_config()
+    display, view = cfg.check_display_view(display, view)
+    rgb = _as_rgb(image_acescg)
+    pixels = cfg.display_transform(rgb, display, view, dtype=np.uint8)
+    return write_display_image(pixels, path, display_attributes(cfg, display, view),
+                               jpeg_quality=jpeg_quality)

@@ -1,0 +1,239 @@
+"""FrameScene (:mod:`cmlt.scene`) -> ``cmlt._core.Scene``, frame after frame.
+
+The first frame builds the core scene. Each following frame sends only what
+changed:
+
+* instance transforms that differ -> ``set_instance_transform``;
+* meshes whose points (or normals) differ -> ``update_mesh_points`` (the
+  core refits that mesh's BVH instead of rebuilding it);
+* materials that differ -> ``set_materials``;
+* lights and the camera are cheap and always re-set.
+
+The scene is rebuilt from scratch when its structure changes: a different
+number or order of meshes or instances, a mesh whose topology (indices,
+point count, UVs, material ids, presence of normals) changed, or an instance
+that now points at another mesh. "Changed" is decided by comparing arrays
+with the previous frame, not by trusting ``Mesh.deforming`` alone: a
+comparison costs far less than a render, and a wrong flag must not give a
+stale image.
+
+:meth:`SceneBridge.last_update` says what the last :meth:`update` did, for
+the sidecar and the tests.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import List, Optional, Tuple
+
+import numpy as np
+
+from ..scene import FrameScene, Mesh, padded_points
+
+__all__ = ["SceneBridge", "UpdateReport", "BridgeError"]
+
+
+class BridgeError(ValueError):
+    """A FrameScene the core cannot take (message names the prim)."""
+
+
+@dataclass
+class UpdateReport:
+    rebuilt: bool = False
+    reason: str = ""
+    transforms_updated: int = 0
+    meshes_updated: int = 0
+    materials_updated: bool = False
+
+    def as_dict(self) -> dict:
+        return {
+            "rebuilt": self.rebuilt, "reason": self.reason,
+            "transforms_updated": self.transforms_updated,
+            "meshes_updated": self.meshes_updated,
+            "materials_updated": self.materials_updated,
+        }
+
+
+def _optional_equal(a: Optional[np.ndarray], b: Optional[np.ndarray]) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and np.array_equal(a, b)
+
+
+def _topology_key(mesh: Mesh) -> Tuple:
+    return (
+        mesh.name,
+        int(np.asarray(mesh.points).reshape(-1, 3).shape[0]),
+        mesh.normals is None,
+        mesh.uvs is None,
+    )
+
+
+@dataclass
+class _MeshState:
+    key: Tuple
+    points: np.ndarray
+    normals: Optional[np.ndarray]
+    indices: np.ndarray
+    uvs: Optional[np.ndarray]
+    material_ids: Optional[np.ndarray]
+
+
+def _f32(a, cols: int) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float32).reshape(-1, cols))
+
+
+def _mat(m) -> np.ndarray:
+    t = np.ascontiguousarray(np.asarray(m, dtype=np.float64))
+    if t.shape != (4, 4):
+        raise BridgeError(f"transform must be 4x4, got shape {t.shape}")
+    return t
+
+
+class SceneBridge:
+    """Keeps one ``core.Scene`` in step with a sequence of FrameScenes."""
+
+    def __init__(self, core=None):
+        if core is None:
+            import cmlt._core as core          # noqa: F811 - imported lazily
+        self._core = core
+        self.scene = None
+        self._meshes: List[_MeshState] = []
+        self._mesh_ids: List[int] = []
+        self._instances: List[Tuple[str, int]] = []
+        self._instance_ids: List[int] = []
+        self._transforms: List[np.ndarray] = []
+        self._materials: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        self.last_update = UpdateReport()
+
+    # -- helpers ---------------------------------------------------------
+    @staticmethod
+    def _material_arrays(fs: FrameScene) -> Tuple[np.ndarray, np.ndarray]:
+        if not fs.materials:
+            # The core wants at least one material; the USD reader always
+            # provides a fallback, a hand-built scene may not.
+            diffuse = np.full((1, 3), 0.18, dtype=np.float32)
+            emission = np.zeros((1, 3), dtype=np.float32)
+            return diffuse, emission
+        diffuse = np.array([m.diffuse for m in fs.materials], dtype=np.float32).reshape(-1, 3)
+        emission = np.array([m.emission for m in fs.materials], dtype=np.float32).reshape(-1, 3)
+        return diffuse, emission
+
+    def _structure_change(self, fs: FrameScene) -> str:
+        """Why the scene must be rebuilt, or '' if updates suffice."""
+        if self.scene is None:
+            return "first frame"
+        if len(fs.meshes) != len(self._meshes):
+            return f"mesh count {len(self._meshes)} -> {len(fs.meshes)}"
+        for mesh, old in zip(fs.meshes, self._meshes):
+            if _topology_key(mesh) != old.key:
+                return f"{mesh.name}: topology changed"
+            idx = np.asarray(mesh.indices)
+            if idx.shape != old.indices.shape or not np.array_equal(idx, old.indices):
+                return f"{mesh.name}: indices changed"
+            if not _optional_equal(None if mesh.uvs is None else np.asarray(mesh.uvs), old.uvs):
+                return f"{mesh.name}: uvs changed"
+            mids = None if mesh.material_ids is None else np.asarray(mesh.material_ids)
+            if not _optional_equal(mids, old.material_ids):
+                return f"{mesh.name}: material ids changed"
+        inst = [(i.name, int(i.mesh)) for i in fs.instances]
+        if inst != self._instances:
+            if len(inst) != len(self._instances):
+                return f"instance count {len(self._instances)} -> {len(inst)}"
+            return "instances changed"
+        return ""
+
+    # -- building ---------------------------------------------------------
+    def _build(self, fs: FrameScene) -> None:
+        core = self._core
+        scene = core.Scene()
+        meshes, mesh_ids = [], []
+        for mesh in fs.meshes:
+            points = padded_points(mesh.points)
+            indices = np.ascontiguousarray(np.asarray(mesh.indices, dtype=np.uint32).reshape(-1, 3))
+            normals = None if mesh.normals is None else padded_points(mesh.normals)
+            uvs = None if mesh.uvs is None else _f32(mesh.uvs, 2)
+            mids = (None if mesh.material_ids is None else
+                    np.ascontiguousarray(np.asarray(mesh.material_ids, dtype=np.uint32).reshape(-1)))
+            mesh_ids.append(scene.add_mesh(mesh.name, points, indices,
+                                           normals=normals, uvs=uvs, material_ids=mids))
+            # keep the very arrays handed over: the core may share their
+            # buffers (zero-copy), so they must stay alive and unchanged
+            meshes.append(_MeshState(_topology_key(mesh), points, normals, indices, uvs, mids))
+        inst_ids, transforms = [], []
+        for inst in fs.instances:
+            if not 0 <= inst.mesh < len(mesh_ids):
+                raise BridgeError(f"{inst.name}: instance refers to mesh {inst.mesh}, "
+                                  f"but the frame has {len(mesh_ids)} meshes")
+            t = _mat(inst.transform)
+            inst_ids.append(scene.add_instance(mesh_ids[inst.mesh], t))
+            transforms.append(t.copy())
+        diffuse, emission = self._material_arrays(fs)
+        scene.set_materials(diffuse, emission)
+
+        self.scene = scene
+        self._meshes, self._mesh_ids = meshes, mesh_ids
+        self._instances = [(i.name, int(i.mesh)) for i in fs.instances]
+        self._instance_ids, self._transforms = inst_ids, transforms
+        self._materials = (diffuse.copy(), emission.copy())
+
+    def _incremental(self, fs: FrameScene, report: UpdateReport) -> None:
+        scene = self.scene
+        for k, (mesh, old) in enumerate(zip(fs.meshes, self._meshes)):
+            points = np.asarray(mesh.points, dtype=np.float32).reshape(-1, 3)
+            normals = (None if mesh.normals is None else
+                       np.asarray(mesh.normals, dtype=np.float32).reshape(-1, 3))
+            if np.array_equal(points, old.points) and _optional_equal(normals, old.normals):
+                continue
+            p = padded_points(points)
+            n = None if normals is None else padded_points(normals)
+            scene.update_mesh_points(self._mesh_ids[k], p, normals=n)
+            old.points, old.normals = p, n
+            report.meshes_updated += 1
+        for k, inst in enumerate(fs.instances):
+            t = _mat(inst.transform)
+            if np.array_equal(t, self._transforms[k]):
+                continue
+            scene.set_instance_transform(self._instance_ids[k], t)
+            self._transforms[k] = t.copy()
+            report.transforms_updated += 1
+        diffuse, emission = self._material_arrays(fs)
+        if not (np.array_equal(diffuse, self._materials[0]) and
+                np.array_equal(emission, self._materials[1])):
+            scene.set_materials(diffuse, emission)
+            self._materials = (diffuse.copy(), emission.copy())
+            report.materials_updated = True
+
+    def _lights_and_camera(self, fs: FrameScene) -> None:
+        scene = self.scene
+        scene.clear_lights()
+        for light in fs.lights:
+            scene.add_light(light.kind, _mat(light.transform),
+                            tuple(float(c) for c in light.radiance),
+                            width=float(light.width), height=float(light.height),
+                            radius=float(light.radius), length=float(light.length),
+                            angle=float(light.angle), treat_as_point=bool(light.treat_as_point))
+        cam = fs.camera
+        if cam is None:
+            raise BridgeError(f"time {fs.time:g}: the frame has no camera")
+        scene.set_camera(_mat(cam.transform), float(cam.focal_length),
+                         float(cam.horizontal_aperture), float(cam.vertical_aperture),
+                         horizontal_aperture_offset=float(cam.horizontal_aperture_offset),
+                         vertical_aperture_offset=float(cam.vertical_aperture_offset),
+                         near=float(cam.near), far=float(cam.far),
+                         f_stop=float(cam.f_stop), focus_distance=float(cam.focus_distance),
+                         projection=str(cam.projection))
+
+    # -- public ----------------------------------------------------------
+    def update(self, fs: FrameScene):
+        """Bring the core scene to ``fs``; returns the committed ``core.Scene``."""
+        reason = self._structure_change(fs)
+        report = UpdateReport()
+        if reason:
+            self._build(fs)
+            report.rebuilt, report.reason = True, reason
+        else:
+            self._incremental(fs, report)
+        self._lights_and_camera(fs)
+        self.scene.commit()
+        self.last_update = report
+        return self.scene

@@ -1,0 +1,222 @@
+"""Frame specs (``--frames``) and output patterns (``--out``).
+
+Frame specs follow usdrecord's ``--frames`` syntax:
+
+==============  ==============================================
+``7``           one frame (time code 7)
+``1.5``         one fractional frame (time code 1.5)
+``1:24``        24 frames, both ends included
+``1:24x2``      every second frame: 1, 3, ..., 23
+``1:2x0.25``    sub-frames: 1, 1.25, 1.5, 1.75, 2
+``1,5,9``       a comma list; each item may itself be a range
+``all``         the stage's ``startTimeCode:endTimeCode`` (step 1)
+==============  ==============================================
+
+Frames are time codes. Negative frames are rejected: an output name cannot
+carry a sign in a way that sorts or pads sensibly, and husk/usdrecord users
+render negative pre-roll through an offset layer instead. A frame listed twice
+is rendered once (first occurrence wins; order is otherwise kept).
+
+Output patterns substitute the frame number for a token:
+
+==============  ==============================================
+``####``        zero-padded to the number of ``#`` (``0007``)
+``####.###``    fractional frames with fixed decimals (``0001.500``)
+``$F4``, ``$F`` Houdini: padded to 4 / unpadded
+``%04d``, ``%d``  printf style
+==============  ==============================================
+
+A fractional frame with a token that has no explicit decimals is written
+with three decimals (``cornell.0001.500.exr``); integral frames keep the plain
+form (``cornell.0001.exr``). So a frame's name depends only on the frame,
+never on the rest of the spec, and ``--resume`` works across specs. Two
+frames that would get the same name (``1.0001`` and ``1.0002`` at three
+decimals) are an error, as is a pattern without a token when more than one
+frame is rendered.
+"""
+from __future__ import annotations
+
+import math
+import re
+from typing import List, Optional, Sequence
+
+from .errors import UsageError
+
+__all__ = [
+    "FrameSpecError",
+    "OutputPatternError",
+    "parse_frames",
+    "default_frames",
+    "format_frame",
+    "expand_pattern",
+    "expand_outputs",
+]
+
+#: decimals used for fractional frames when the pattern does not say
+DEFAULT_DECIMALS = 3
+#: a frame within this distance of an integer counts as that integer
+_INTEGRAL_EPS = 1e-6
+#: upper bound on frames from one spec (a typo like 1:1e9 must not hang)
+MAX_FRAMES = 1_000_000
+
+
+class FrameSpecError(UsageError):
+    """A ``--frames`` spec that cannot be parsed or makes no sense."""
+
+
+class OutputPatternError(UsageError):
+    """An ``--out`` pattern that cannot name the frames being rendered."""
+
+
+def _number(text: str, spec: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise FrameSpecError(
+            f"--frames {spec!r}: {text.strip()!r} is not a frame number") from None
+    if not math.isfinite(value):
+        raise FrameSpecError(f"--frames {spec!r}: {text.strip()!r} is not a finite frame number")
+    if value < 0:
+        raise FrameSpecError(
+            f"--frames {spec!r}: negative frame {text.strip()} is not supported "
+            "(output names cannot carry a sign)")
+    return value
+
+
+def _clean(value: float) -> float:
+    """Round away float noise from stride arithmetic (1 + 3*0.1 -> 1.3)."""
+    rounded = round(value, 9)
+    return float(round(rounded)) if abs(rounded - round(rounded)) < _INTEGRAL_EPS else rounded
+
+
+def _range(start: float, end: float, stride: float, spec: str) -> List[float]:
+    if end < start:
+        raise FrameSpecError(
+            f"--frames {spec!r}: range ends ({end:g}) before it starts ({start:g})")
+    count = int(math.floor((end - start) / stride + 1e-9)) + 1
+    if count > MAX_FRAMES:
+        raise FrameSpecError(f"--frames {spec!r}: {count} frames is more than the limit of {MAX_FRAMES}")
+    return [_clean(start + i * stride) for i in range(count)]
+
+
+def _item(item: str, spec: str, start: float, end: float, has_range: bool) -> List[float]:
+    text = item.strip()
+    if not text:
+        raise FrameSpecError(f"--frames {spec!r}: empty item in the list")
+    if text.lower() == "all":
+        if not has_range:
+            # No authored range: USD's start/end are both 0 (or only one
+            # is authored); render the one start frame, as husk does.
+            return [_clean(start)]
+        return _range(start, end, 1.0, spec)
+    stride = 1.0
+    if "x" in text.lower():
+        if ":" not in text:
+            raise FrameSpecError(f"--frames {spec!r}: a stride (x) needs a range, as in 1:24x2")
+        text, stride_text = re.split(r"[xX]", text, maxsplit=1)
+        try:
+            stride = float(stride_text)
+        except ValueError:
+            raise FrameSpecError(
+                f"--frames {spec!r}: stride {stride_text.strip()!r} is not a number") from None
+        if not math.isfinite(stride) or stride <= 0:
+            raise FrameSpecError(f"--frames {spec!r}: stride must be positive, got {stride_text.strip()}")
+    if ":" in text:
+        parts = text.split(":")
+        if len(parts) != 2:
+            raise FrameSpecError(f"--frames {spec!r}: a range is START:END or START:ENDxSTRIDE")
+        return _range(_number(parts[0], spec), _number(parts[1], spec), stride, spec)
+    return [_clean(_number(text, spec))]
+
+
+def parse_frames(spec: str, start: float = 0.0, end: float = 0.0,
+                 has_range: bool = True) -> List[float]:
+    """Parse a ``--frames`` spec into a list of time codes.
+
+    ``start``/``end``/``has_range`` describe the stage (``stage_info``) and
+    are used only by ``all``.
+    """
+    if spec is None or not str(spec).strip():
+        raise FrameSpecError("--frames: empty frame spec")
+    spec = str(spec).strip()
+    frames: List[float] = []
+    seen = set()
+    for item in spec.split(","):
+        for f in _item(item, spec, float(start), float(end), has_range):
+            if f not in seen:
+                seen.add(f)
+                frames.append(f)
+    if len(frames) > MAX_FRAMES:
+        raise FrameSpecError(f"--frames {spec!r}: more than {MAX_FRAMES} frames")
+    return frames
+
+
+def default_frames(start: float) -> List[float]:
+    """Without ``--frames``: the stage's start time code only (husk's rule)."""
+    return [_clean(float(start))]
+
+
+def _is_integral(frame: float) -> bool:
+    return abs(frame - round(frame)) < _INTEGRAL_EPS
+
+
+def format_frame(frame: float, width: int = 0, decimals: Optional[int] = None) -> str:
+    """Format one frame number: zero-padded integer part, then decimals.
+
+    ``decimals=None`` means: none for integral frames, three otherwise.
+    """
+    if frame < 0:
+        raise OutputPatternError(f"--out: negative frame {frame:g} cannot be named")
+    if decimals is None:
+        decimals = 0 if _is_integral(frame) else DEFAULT_DECIMALS
+    if decimals == 0:
+        return f"{int(round(frame)):0{width}d}"
+    text = f"{frame:.{decimals}f}"
+    whole, frac = text.split(".")
+    return f"{int(whole):0{width}d}.{frac}"
+
+
+# One regex for every token; alternatives are tried left to right.
+_TOKEN = re.compile(
+    r"(?P<hash>#+)(?:\.(?P<hdec>#+))?"     # #### or ####.###
+    r"|\$F(?P<fw>\d*)"                      # $F4, $F
+    r"|%(?P<pw>0?\d*)d"                     # %04d, %d
+)
+
+
+def has_frame_token(pattern: str) -> bool:
+    return _TOKEN.search(pattern) is not None
+
+
+def expand_pattern(pattern: str, frame: float) -> str:
+    """Substitute ``frame`` for every frame token in ``pattern``."""
+    def repl(m: "re.Match[str]") -> str:
+        if m.group("hash") is not None:
+            width = len(m.group("hash"))
+            dec = len(m.group("hdec")) if m.group("hdec") else None
+            return format_frame(frame, width, dec)
+        if m.group("fw") is not None:
+            return format_frame(frame, int(m.group("fw") or 0))
+        return format_frame(frame, int(m.group("pw") or 0))
+    return _TOKEN.sub(repl, pattern)
+
+
+def expand_outputs(pattern: str, frames: Sequence[float]) -> List[str]:
+    """Output path of every frame; checks that the names are distinct."""
+    if not pattern:
+        raise OutputPatternError("--out: empty output path")
+    if not has_frame_token(pattern):
+        if len(frames) > 1:
+            raise OutputPatternError(
+                f"--out {pattern!r}: {len(frames)} frames need a frame token "
+                "in the name (####, $F4 or %04d)")
+        return [pattern] * len(frames)
+    paths = [expand_pattern(pattern, f) for f in frames]
+    seen = {}
+    for f, p in zip(frames, paths):
+        if p in seen:
+            raise OutputPatternError(
+                f"--out {pattern!r}: frames {seen[p]:g} and {f:g} both map to {p!r}; "
+                "add decimals to the token (####.####)")
+        seen[p] = f
+    return paths

@@ -1,0 +1,282 @@
+"""The frame loop: open the stage once, then per frame load -> bridge ->
+render -> write EXR + sidecar.
+
+Guarantees:
+
+* a frame's image appears under its final name only when it is complete
+  (temporary name + rename); its sidecar is written just before it, so an
+  image on disk always has its sidecar;
+* Ctrl-C cancels the frame being rendered (the core's progress callback
+  returns False), does not write it, keeps the finished frames and raises
+  :class:`RenderCancelled`; ``resume=True`` then skips frames whose image
+  exists;
+* one seed for the whole shot, the same for every frame (DESIGN.md §4:
+  random streams are keyed by shot seed, not frame, so that noise is
+  correlated in time).
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .. import __version__
+from ..io.exr import COMPRESSIONS, write_exr
+from ..io.sidecar import write_sidecar
+from .bridge import BridgeError, SceneBridge
+from .errors import RenderCancelled, RenderError, UsageError
+from .frames import default_frames, expand_outputs, parse_frames
+from .progress import Reporter
+
+__all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
+           "DEFAULT_SPP", "DEFAULT_MAX_DEPTH"]
+
+#: samples per pixel when neither the flag nor the stage says
+DEFAULT_SPP = 16
+#: path length cap; paths normally end by Russian roulette long before it
+DEFAULT_MAX_DEPTH = 64
+
+
+def default_output(shot: str) -> str:
+    """``renders/<shot stem>.####.exr`` relative to the working directory."""
+    stem = os.path.splitext(os.path.basename(shot))[0] or "shot"
+    return os.path.join("renders", f"{stem}.####.exr")
+
+
+@dataclass
+class RenderOptions:
+    spp: int = DEFAULT_SPP
+    integrator: str = "pt"
+    seed: int = 0
+    threads: int = 0                              # 0 = all cores
+    resolution: Optional[Tuple[int, int]] = None  # (w, h); None = stage's
+    max_depth: int = DEFAULT_MAX_DEPTH
+    camera: Optional[str] = None                  # prim path; None = stage's
+    half: bool = False
+    compression: str = "zip"
+    colorspace: str = "ACEScg"                    # rendering space, in the EXR header
+
+    def check(self) -> None:
+        """Flag-level checks that need neither the stage nor the core."""
+        if int(self.spp) < 1:
+            raise UsageError(f"--spp {self.spp}: must be at least 1")
+        if int(self.max_depth) < 1:
+            raise UsageError(f"--max-depth {self.max_depth}: must be at least 1")
+        if int(self.threads) < 0:
+            raise UsageError(f"--threads {self.threads}: must be 0 (all cores) or more")
+        if int(self.seed) < 0:
+            raise UsageError(f"--seed {self.seed}: must be 0 or more")
+        if self.resolution is not None:
+            w, h = self.resolution
+            if int(w) < 1 or int(h) < 1:
+                raise UsageError(f"--res {w}x{h}: width and height must be at least 1")
+        if self.compression not in COMPRESSIONS:
+            raise UsageError(f"--compression {self.compression!r}: choose one of "
+                             f"{', '.join(COMPRESSIONS)}")
+
+    def as_dict(self) -> dict:
+        return {
+            "integrator": self.integrator, "spp": int(self.spp), "max_depth": int(self.max_depth),
+            "seed": int(self.seed), "threads": int(self.threads),
+            "resolution": None if self.resolution is None else list(self.resolution),
+            "camera": self.camera, "half": bool(self.half), "compression": self.compression,
+            "colorspace": self.colorspace,
+        }
+
+
+@dataclass
+class SequenceResult:
+    frames: List[float] = field(default_factory=list)     # all requested frames
+    written: List[str] = field(default_factory=list)      # image paths written now
+    skipped: List[str] = field(default_factory=list)      # existing, skipped by resume
+    stats: Dict[float, dict] = field(default_factory=dict)
+    warnings: List[str] = field(default_factory=list)     # distinct, in order of appearance
+
+
+def _core_settings(core, opts: RenderOptions):
+    """core.RenderSettings from the options; a rejected value names its flag."""
+    st = core.RenderSettings()
+    for attr, flag, value in (("integrator", "--integrator", opts.integrator),
+                              ("spp", "--spp", int(opts.spp)),
+                              ("max_depth", "--max-depth", int(opts.max_depth)),
+                              ("seed", "--seed", int(opts.seed)),
+                              ("threads", "--threads", int(opts.threads))):
+        try:
+            setattr(st, attr, value)
+        except (core.SettingsError, ValueError, TypeError) as exc:
+            raise UsageError(f"{flag} {value!r}: {exc}") from None
+    return st
+
+
+def _check_camera(stage, path: str, shot: str) -> None:
+    from pxr import Sdf, UsdGeom
+
+    if not Sdf.Path.IsValidPathString(path) or not Sdf.Path(path).IsAbsolutePath():
+        raise UsageError(f"--camera {path!r}: not an absolute prim path")
+    prim = stage.GetPrimAtPath(path)
+    if not prim:
+        raise UsageError(f"--camera {path}: no prim at that path in {shot}")
+    if not prim.IsA(UsdGeom.Camera):
+        raise UsageError(f"--camera {path}: prim is a {prim.GetTypeName() or 'typeless prim'}, "
+                         f"not a Camera, in {shot}")
+
+
+def _render_interruptible(core, scene, st, reporter: Reporter):
+    """Run core.render on a worker thread so that Ctrl-C reaches the main
+    thread promptly; the progress callback then asks the core to stop.
+    Returns (result, interrupted, units_total)."""
+    cancel = threading.Event()
+    box: dict = {}
+    last_total = [None]
+
+    def progress(done, total):
+        last_total[0] = total
+        reporter.frame_progress(done, total)
+        return not cancel.is_set()
+
+    def work():
+        try:
+            box["result"] = core.render(scene, st, progress=progress)
+        except BaseException as exc:          # re-raised on the main thread
+            box["error"] = exc
+
+    worker = threading.Thread(target=work, name="cmlt-render", daemon=True)
+    worker.start()
+    interrupted = False
+    while worker.is_alive():
+        try:
+            worker.join(0.05)
+        except KeyboardInterrupt:
+            if interrupted:
+                reporter.warn("still cancelling; waiting for the render threads to stop")
+            interrupted = True
+            cancel.set()
+    if "error" in box:
+        raise box["error"]
+    return box["result"], interrupted, last_total[0]
+
+
+def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
+                    out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
+                    resume: bool = False, progress: bool = True, quiet: bool = False,
+                    reporter: Optional[Reporter] = None, core=None) -> SequenceResult:
+    """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
+    :mod:`cmlt.shot.frames`).
+
+    ``frames``: None (the stage's start frame), a ``--frames`` spec, or a
+    list of time codes. Raises :class:`UsageError`, :class:`RenderError` or
+    :class:`RenderCancelled`.
+    """
+    opts = options or RenderOptions()
+    opts.check()
+    if not os.path.exists(shot):
+        raise UsageError(f"{shot}: no such file")
+    if os.path.isdir(shot):
+        raise UsageError(f"{shot}: is a directory, not a USD file")
+    from ..usd import UsdLoadError, load_frame, open_stage, stage_info
+    if core is None:
+        try:
+            import cmlt._core as core
+        except ImportError as exc:
+            raise RenderError(f"the C++ core cmlt._core is not built: {exc}") from None
+    st = _core_settings(core, opts)
+
+    try:
+        stage = open_stage(shot)
+        info = stage_info(stage)
+    except UsdLoadError as exc:
+        raise RenderError(str(exc)) from None
+
+    if frames is None:
+        frame_list = default_frames(info.start)
+    elif isinstance(frames, str):
+        frame_list = parse_frames(frames, info.start, info.end, info.has_authored_time_range)
+    else:
+        frame_list = [float(f) for f in frames]
+    outputs = expand_outputs(out or default_output(shot), frame_list)
+    if opts.camera:
+        _check_camera(stage, opts.camera, shot)
+
+    result = SequenceResult(frames=list(frame_list))
+    todo = []
+    for f, path in zip(frame_list, outputs):
+        if resume and os.path.isfile(path):
+            result.skipped.append(path)
+        else:
+            todo.append((f, path))
+
+    rep = reporter or Reporter(show_progress=progress, quiet=quiet)
+    bridge = SceneBridge(core)
+    shot_abs = os.path.abspath(shot)
+    with rep:
+        rep.warnings(info.warnings)
+        result.warnings.extend(info.warnings)
+        if result.skipped:
+            rep.info(f"resume: {len(result.skipped)} frame(s) already rendered, "
+                     f"{len(todo)} to go")
+        rep.start_sequence(len(todo))
+        for k, (frame, path) in enumerate(todo):
+            try:
+                rep.start_frame(frame)
+                t0 = time.perf_counter()
+                try:
+                    fs = load_frame(stage, frame, camera=opts.camera, resolution=opts.resolution)
+                except UsdLoadError as exc:
+                    raise RenderError(str(exc)) from None
+                for w in fs.warnings:
+                    if w not in result.warnings:
+                        result.warnings.append(w)
+                rep.warnings(fs.warnings)
+                width, height = opts.resolution or fs.resolution
+                st.width, st.height = int(width), int(height)
+                try:
+                    scene = bridge.update(fs)
+                except (core.SceneError, BridgeError) as exc:
+                    raise RenderError(f"{shot}: frame {frame:g}: {exc}") from None
+                try:
+                    r, interrupted, units = _render_interruptible(core, scene, st, rep)
+                except core.SettingsError as exc:
+                    raise UsageError(f"{exc}") from None
+                except core.SceneError as exc:
+                    raise RenderError(f"{shot}: frame {frame:g}: {exc}") from None
+                if interrupted or r.cancelled:
+                    raise KeyboardInterrupt
+                stats = dict(r.stats)
+                stats["wall_time_s"] = time.perf_counter() - t0
+                image = np.asarray(r.image)
+                if not np.isfinite(image).all():
+                    raise RenderError(f"{shot}: frame {frame:g}: the core returned "
+                                      f"{int((~np.isfinite(image)).sum())} non-finite pixel values")
+                record = {
+                    "image": os.path.basename(path), "shot": shot_abs, "frame": frame,
+                    "time_code": float(fs.time),
+                    "camera": fs.camera.name if fs.camera is not None else None,
+                    "resolution": [int(width), int(height)],
+                    "settings": opts.as_dict(), "stats": stats,
+                    "scene_update": bridge.last_update.as_dict(),
+                    "warnings": list(fs.warnings), "cmlt_version": __version__,
+                }
+                metadata = {
+                    "frame": float(frame), "timeCode": float(fs.time), "shot": shot_abs,
+                    "camera": record["camera"] or "", "integrator": opts.integrator,
+                    "spp": int(opts.spp), "maxDepth": int(opts.max_depth), "seed": int(opts.seed),
+                    "renderTime": float(stats.get("time_s", stats["wall_time_s"])),
+                    "samples": int(stats.get("samples", 0)), "version": __version__,
+                }
+                try:
+                    write_sidecar(path, record)
+                    write_exr(path, image, half=opts.half, compression=opts.compression,
+                              colorspace=opts.colorspace, metadata=metadata)
+                except OSError as exc:
+                    raise RenderError(f"{path}: cannot write: {exc.strerror or exc}") from None
+                result.written.append(path)
+                result.stats[frame] = stats
+                rep.end_frame(frame, path, stats, units)
+            except KeyboardInterrupt:
+                rep.abort_frame()
+                raise RenderCancelled(frame, result.written, len(todo) - k) from None
+    return result
