@@ -85,7 +85,13 @@ class Instance:
 @dataclass
 class Light:
     """An analytic UsdLux light. Emissive meshes are not listed here: the
-    core finds them from materials with non-zero emission."""
+    core finds them from materials with non-zero emission.
+
+    ``transform`` is rigid (rotation + translation in metres): the scale of
+    the light's world transform, metersPerUnit included, is taken out of it
+    and applied to the sizes, which are therefore world sizes in metres.
+    A normalised light's radiance is divided by that world area in m²
+    (distant light: by the solid angle of its cone)."""
 
     name: str                                   # light prim path
     kind: str                                   # 'rect' | 'disk' | 'sphere' | 'distant' | 'dome' | 'cylinder'
@@ -98,14 +104,18 @@ class Light:
     radius: float = 0.5                         # disk, sphere, cylinder (metres)
     length: float = 1.0                         # cylinder, along local X (metres)
     angle: float = 0.53                         # distant: angular diameter, degrees
-    treat_as_point: bool = False                # sphere
-    texture: Optional[str] = None               # rect / dome texture file
+    treat_as_point: bool = False                # sphere treatAsPoint; cylinder treatAsLine
+    texture: Optional[str] = None               # rect / dome texture file (resolved path)
     normalize: bool = False
 
 
 @dataclass
 class Camera:
-    """A UsdGeom.Camera. Looks down local -Z with +Y up, as USD's cameras do."""
+    """A UsdGeom.Camera. Looks down local -Z with +Y up, as USD's cameras do.
+
+    ``transform`` is rigid (rotation + translation in metres; any authored
+    scale is removed). Focal length and apertures stay in the authored lens
+    unit (see ``lens_unit``); near, far and focus_distance are metres."""
 
     name: str                                   # camera prim path, or '<framing>'
     transform: np.ndarray                       # float64 (4, 4), camera -> world (metres)
@@ -121,6 +131,9 @@ class Camera:
     focus_distance: float = 0.0                 # metres
     shutter_open: float = 0.0
     shutter_close: float = 0.0
+    # metres per lens unit (focal length, apertures): USD lens values are in
+    # tenths of a scene unit, so this is metersPerUnit / 10 (0.001 = mm).
+    lens_unit: float = 0.001
 
 
 @dataclass

@@ -1,0 +1,110 @@
+"""UsdGeom.Camera -> :class:`cmlt.scene.Camera`, and the framing camera.
+
+Camera.transform is rigid (rotation + translation in metres); USD cameras
+look down local -Z with +Y up. Focal length and apertures are kept in their
+authored lens unit (tenths of a scene unit, i.e. mm on a cm stage) -- only
+their ratios matter to a pinhole -- and ``Camera.lens_unit`` says how many
+metres one lens unit is (metersPerUnit / 10). Clipping range and
+focusDistance are converted to metres.
+"""
+from __future__ import annotations
+
+import math
+from typing import List, Optional, Tuple
+
+import numpy as np
+from pxr import Gf, UsdGeom
+
+from ..scene import Camera
+from .lights import rigid_and_scale
+
+
+def gf_to_np(m) -> np.ndarray:
+    """Gf.Matrix4d (row-vector) -> float64 (4, 4) column-vector matrix."""
+    return np.array(m, dtype=np.float64).reshape(4, 4).T.copy()
+
+
+def _finite(v, default):
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return default
+    return f if math.isfinite(f) else default
+
+
+def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]) -> Camera:
+    """Read a UsdGeom.Camera at ``time``; ``world_m`` is camera->world in metres."""
+    path = str(prim.GetPath())
+    cam = UsdGeom.Camera(prim)
+
+    def get(attr, default):
+        v = attr.Get(time) if attr else None
+        return _finite(v, default) if v is not None else default
+
+    xf, _ = rigid_and_scale(world_m)
+    proj = cam.GetProjectionAttr().Get(time) or "perspective"
+    near, far = 1.0, 1.0e6
+    cr = cam.GetClippingRangeAttr().Get(time)
+    if cr is not None:
+        near, far = _finite(cr[0], near), _finite(cr[1], far)
+    c = Camera(
+        name=path,
+        transform=xf,
+        projection=str(proj) if str(proj) in ("perspective", "orthographic") else "perspective",
+        focal_length=get(cam.GetFocalLengthAttr(), 50.0),
+        horizontal_aperture=get(cam.GetHorizontalApertureAttr(), 20.955),
+        vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
+        horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
+        vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
+        near=near * mpu,
+        far=far * mpu,
+        f_stop=get(cam.GetFStopAttr(), 0.0),
+        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * mpu,
+        shutter_open=get(cam.GetShutterOpenAttr(), 0.0),
+        shutter_close=get(cam.GetShutterCloseAttr(), 0.0),
+        lens_unit=mpu / 10.0,
+    )
+    if c.focal_length <= 0:
+        warnings.append(f"{path}: focalLength is {c.focal_length:g}; using 50")
+        c.focal_length = 50.0
+    if c.horizontal_aperture <= 0 or c.vertical_aperture <= 0:
+        warnings.append(f"{path}: apertures must be > 0 ({c.horizontal_aperture:g}, "
+                        f"{c.vertical_aperture:g}); using 20.955 x 15.2908")
+        c.horizontal_aperture, c.vertical_aperture = 20.955, 15.2908
+    if not (0 < c.near < c.far):
+        warnings.append(f"{path}: clippingRange ({near:g}, {far:g}) is not 0 < near < far; "
+                        f"using (0.01, 1e6) m")
+        c.near, c.far = 0.01, 1.0e6
+    return c
+
+
+def framing_camera(bounds: Optional[Tuple[np.ndarray, np.ndarray]], up_axis: str,
+                   resolution: Tuple[int, int]) -> Camera:
+    """A camera that frames ``bounds`` (world, metres), as usdrecord does
+    without a camera: a front view along the up-axis convention -- for a
+    Y-up stage it sits on +Z looking down -Z with +Y up; for a Z-up stage it
+    sits on -Y looking down +Y with +Z up. The whole bounding sphere fits in
+    the narrower field of view (50 mm lens, 35 mm-style 20.955 mm aperture,
+    vertical aperture from the image aspect)."""
+    w, h = resolution
+    focal, hap = 50.0, 20.955
+    vap = hap * h / max(w, 1)
+    if bounds is None:
+        centre, radius = np.zeros(3), 1.0
+    else:
+        lo, hi = bounds
+        centre = 0.5 * (lo + hi)
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+    half_fov = math.atan(0.5 * min(hap, vap) / focal)
+    dist = radius / math.sin(half_fov) * 1.05
+    m = np.eye(4)
+    if up_axis == "Z":
+        # camera -Z -> world +Y, camera +Y -> world +Z, camera +X -> world +X
+        m[:3, :3] = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+        m[:3, 3] = centre + np.array([0.0, -dist, 0.0])
+    else:
+        m[:3, 3] = centre + np.array([0.0, 0.0, dist])
+    near = max(dist - 2.0 * radius, dist * 1e-3)
+    return Camera(name="<framing>", transform=m, focal_length=focal,
+                  horizontal_aperture=hap, vertical_aperture=vap,
+                  near=near, far=dist + 2.0 * radius, lens_unit=0.001)

@@ -1,0 +1,470 @@
+"""One time code of a stage -> :class:`cmlt.scene.FrameScene`.
+
+Traversal rules
+---------------
+* Prims are visited with instance proxies, so every placement of an
+  instanceable prototype is seen; its gprims are read once from the
+  prototype (keyed by ``GetPrimInPrototype``) and shared between placements.
+* ``visibility``: an invisible prim hides its subtree. ``purpose``: ``guide``
+  is never rendered; ``proxy`` is rendered only where no sibling subtree of the
+  proxy scope carries ``render`` purpose; default and ``render`` always are.
+* ``UsdGeom.PointInstancer``: its children are not rendered in place; every
+  instance renders its prototype subtree (nested instancers too) with
+  ``world = instancer_world @ instance_xform (incl. prototype root xform) @
+  relative_xform``. Masked (``invisibleIds``/``inactiveIds``) instances are
+  skipped; visibility inside the prototype is respected.
+* Each rendered gprim is one :class:`Instance` of one :class:`Mesh` (object
+  space, scene units); ``Instance.transform`` is object -> world in metres.
+"""
+from __future__ import annotations
+
+import math
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdRender
+
+from ..scene import FrameScene, Instance, Mesh
+from . import shapes
+from .camera import framing_camera, gf_to_np, read_camera
+from .errors import UsdLoadError
+from .lights import default_dome, read_light
+from .materials import MaterialTable, subset_bindings
+from .mesh import MeshReader, SkipPrim
+from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, _stage_file,
+                    check_time_metadata, composition_warnings, ignored_reason, stage_state)
+
+DEFAULT_RESOLUTION = (640, 480)
+_PROTO_PREDICATE = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded)
+
+
+def _time_code(stage, time) -> Usd.TimeCode:
+    if isinstance(time, Usd.TimeCode):
+        tc = time
+    elif time is None:
+        tc = Usd.TimeCode.Default()
+    else:
+        try:
+            t = float(time)
+        except (TypeError, ValueError):
+            raise UsdLoadError(f"{_stage_file(stage)}: time {time!r} is not a number") from None
+        if not math.isfinite(t):
+            raise UsdLoadError(f"{_stage_file(stage)}: time {t} is not finite")
+        tc = Usd.TimeCode(t)
+    return tc
+
+
+def _tstr(tc) -> str:
+    return "default" if tc.IsDefault() else f"{tc.GetValue():g}"
+
+
+class _Frame:
+    """State of one load_frame call."""
+
+    def __init__(self, stage, tc, warnings):
+        self.stage = stage
+        self.tc = tc
+        self.warnings = warnings
+        self.state = stage_state(stage)
+        self.xc = UsdGeom.XformCache(tc)
+        mpu = UsdGeom.GetStageMetersPerUnit(stage)
+        if not (math.isfinite(mpu) and mpu > 0):
+            warnings.append(f"{_stage_file(stage)}: metersPerUnit is {mpu:g}; using 0.01")
+            mpu = 0.01
+        self.mpu = mpu
+        self.S = np.diag([mpu, mpu, mpu, 1.0])
+        self.materials = MaterialTable(tc, warnings)
+        self.meshes: List[Mesh] = []
+        self.instances = []
+        self.lights = []
+        self._mesh_index: Dict[object, int] = {}
+        self._render_scope_cache: Dict[str, bool] = {}
+        self._warned: set = set()
+
+    def warn(self, msg: str):
+        if msg not in self._warned:
+            self._warned.add(msg)
+            self.warnings.append(msg)
+
+    # ---------------------------------------------------------- visibility
+    def _hidden(self, prim) -> bool:
+        """Own visibility/purpose of ``prim`` hides its subtree."""
+        vis = prim.GetAttribute("visibility")
+        if vis and vis.HasAuthoredValue() and vis.Get(self.tc) == UsdGeom.Tokens.invisible:
+            return True
+        pur = prim.GetAttribute("purpose")
+        if pur and pur.HasAuthoredValue():
+            p = pur.Get()
+            if p == UsdGeom.Tokens.guide:
+                return True
+            if p == UsdGeom.Tokens.proxy and self._has_render_sibling(prim):
+                return True
+        return False
+
+    def _has_render_sibling(self, prim) -> bool:
+        parent = prim.GetParent()
+        key = str(parent.GetPath())
+        hit = self._render_scope_cache.get(key)
+        if hit is None:
+            hit = False
+            for p in Usd.PrimRange(parent, _PROTO_PREDICATE):
+                a = p.GetAttribute("purpose")
+                if a and a.HasAuthoredValue() and a.Get() == UsdGeom.Tokens.render:
+                    hit = True
+                    break
+            self._render_scope_cache[key] = hit
+        return hit
+
+    # ---------------------------------------------------------- traversal
+    def traverse(self, root, outer: Optional[np.ndarray], depth: int = 0):
+        """Visit ``root``'s subtree. ``outer`` None: top level (world
+        transforms from the XformCache); else a PointInstancer prototype
+        placed by the column matrix ``outer`` (scene units)."""
+        if depth > 8:
+            self.warn(f"{root.GetPath()}: point instancers nested deeper than 8; not rendered")
+            return
+        if outer is None:
+            rng = Usd.PrimRange(root, Usd.TraverseInstanceProxies())
+        else:
+            rng = Usd.PrimRange(root, _PROTO_PREDICATE)
+        it = iter(rng)
+        for prim in it:
+            if prim.IsPseudoRoot():
+                continue
+            try:
+                if self._hidden(prim):
+                    it.PruneChildren()
+                    continue
+                t = str(prim.GetTypeName())
+                if prim.IsA(UsdGeom.PointInstancer):
+                    it.PruneChildren()
+                    self._point_instancer(prim, root, outer, depth)
+                    continue
+                if t in MESH_TYPES or t in INTRINSIC_TYPES:
+                    self._gprim(prim, t, root, outer)
+                    continue
+                if t in SUPPORTED_LIGHT_TYPES:
+                    if outer is None:
+                        self._light(prim)
+                    else:
+                        self.warn(f"{prim.GetPath()}: lights inside point-instancer prototypes "
+                                  f"are not supported and are not rendered")
+                    continue
+                reason = ignored_reason(prim)
+                if reason:
+                    self.warn(f"{prim.GetPath()}: {reason}")
+                    if prim.IsA(UsdGeom.Gprim):
+                        it.PruneChildren()
+            except SkipPrim as exc:
+                self.warn(str(exc))
+            except UsdLoadError:
+                raise
+            except Exception as exc:                      # USD/Tf errors on odd data
+                msg = " ".join(str(exc).split())
+                self.warn(f"{prim.GetPath()}: cannot be read (time {_tstr(self.tc)}): {msg}; "
+                          f"not rendered")
+
+    def _world(self, prim, root, outer) -> np.ndarray:
+        """Object -> world (scene units, column convention)."""
+        if outer is None:
+            return gf_to_np(self.xc.GetLocalToWorldTransform(prim))
+        if prim == root:
+            return outer
+        rel, _ = self.xc.ComputeRelativeTransform(prim, root)
+        return outer @ gf_to_np(rel)
+
+    # ---------------------------------------------------------- gprims
+    def _gprim(self, prim, type_name, root, outer):
+        path = prim.GetPath()
+        src = prim.GetPrimInPrototype() if prim.IsInstanceProxy() else prim
+        key = str(src.GetPath())
+        if type_name == "Mesh":
+            reader = self.state.mesh_cache.get(key)
+            if reader is None or not isinstance(reader, MeshReader):
+                uv_name = self.materials.uv_primvar_name(prim)
+                reader = MeshReader(src, uv_name)
+                self.state.mesh_cache[key] = reader
+            geom = reader.read(src, self.tc)
+        else:
+            skey, varying = shapes.shape_key(src, self.tc)
+            geom = self.state.shape_cache.get(skey)
+            if geom is None:
+                geom = shapes.tessellate(src, self.tc)
+                if not varying:
+                    self.state.shape_cache[skey] = geom
+        for w in geom.warnings:
+            self.warn(w if not prim.IsInstanceProxy() else w.replace(key, str(path), 1))
+
+        # materials: per prim, or per face through GeomSubsets
+        base = self.materials.for_prim(prim)
+        subsets = subset_bindings(prim, self.tc) if type_name == "Mesh" else []
+        if subsets and geom.tri_face is not None:
+            n_faces = len(UsdGeom.Mesh(src).GetFaceVertexCountsAttr().Get(self.tc) or [])
+            face_mat = np.full(n_faces, base, dtype=np.uint32)
+            sig = [base]
+            for idx, mat in subsets:
+                mi = self.materials.material(mat)
+                idx = np.asarray(idx, dtype=np.int64)
+                bad = (idx < 0) | (idx >= n_faces)
+                if bad.any():
+                    self.warn(f"{path}: GeomSubset of {mat.GetPath()} refers to face "
+                              f"{int(idx[bad][0])} but the mesh has {n_faces} faces "
+                              f"(time {_tstr(self.tc)}); ignored")
+                face_mat[idx[~bad]] = mi
+                sig.append((mi, idx.tobytes()))
+            mat_ids = face_mat[geom.tri_face]
+            mkey = (key, id(geom), hash(tuple(sig)))
+        else:
+            mat_ids = None
+            mkey = (key, id(geom), base)
+        mi = self._mesh_index.get(mkey)
+        if mi is None:
+            if mat_ids is None:
+                mat_ids = np.full(len(geom.indices), base, dtype=np.uint32)
+            mi = len(self.meshes)
+            self.meshes.append(Mesh(name=key, points=geom.points, indices=geom.indices,
+                                    normals=geom.normals, uvs=geom.uvs,
+                                    material_ids=np.ascontiguousarray(mat_ids, dtype=np.uint32),
+                                    deforming=geom.deforming))
+            self._mesh_index[mkey] = mi
+        world = self._world(prim, root, outer)
+        self._add_instance(str(path), mi, world)
+
+    def _add_instance(self, name, mesh_index, world):
+        m = self.S @ world
+        if not np.isfinite(m).all():
+            self.warn(f"{name}: transform is not finite (time {_tstr(self.tc)}); not rendered")
+            return
+        self.instances.append(Instance(name=name, mesh=mesh_index, transform=m))
+
+    # ---------------------------------------------------------- instancers
+    def _point_instancer(self, prim, root, outer, depth):
+        path = prim.GetPath()
+        pi = UsdGeom.PointInstancer(prim)
+        tc = self.tc
+        protos = pi.GetPrototypesRel().GetForwardedTargets()
+        proto_prims = []
+        for p in protos:
+            pp = self.stage.GetPrimAtPath(p)
+            if not pp:
+                self.warn(f"{path}: prototype {p} does not exist; its instances are not rendered")
+            proto_prims.append(pp if pp else None)
+        indices = pi.GetProtoIndicesAttr().Get(tc)
+        if indices is None or len(indices) == 0:
+            return
+        indices = np.asarray(indices, dtype=np.int64)
+        try:
+            xforms = pi.ComputeInstanceTransformsAtTime(
+                tc, tc, UsdGeom.PointInstancer.IncludeProtoXform, UsdGeom.PointInstancer.IgnoreMask)
+        except Exception as exc:
+            self.warn(f"{path}: instance transforms cannot be computed (time {_tstr(tc)}): "
+                      f"{' '.join(str(exc).split())}; not rendered")
+            return
+        if xforms is None or len(xforms) != len(indices):
+            self.warn(f"{path}: positions/orientations/scales do not match protoIndices "
+                      f"({len(indices)} instances, time {_tstr(tc)}); not rendered")
+            return
+        mask = pi.ComputeMaskAtTime(tc)
+        mask = np.ones(len(indices), bool) if mask is None or len(mask) == 0 \
+            else np.asarray(mask, dtype=bool)
+        bad = (indices < 0) | (indices >= len(proto_prims))
+        if bad.any():
+            self.warn(f"{path}: protoIndices refers to prototype {int(indices[bad][0])} but "
+                      f"prototypes has {len(proto_prims)} targets (time {_tstr(tc)}); "
+                      f"those instances are not rendered")
+        W = self._world(prim, root, outer)
+        mats = np.asarray([np.array(x, dtype=np.float64) for x in xforms]).reshape(-1, 4, 4)
+        mats = np.transpose(mats, (0, 2, 1))
+        for i in np.nonzero(mask & ~bad)[0]:
+            pp = proto_prims[indices[i]]
+            if pp is None:
+                continue
+            n_before = len(self.instances)
+            self.traverse(pp, W @ mats[i], depth + 1)
+            for inst in self.instances[n_before:]:
+                inst.name = f"{path}[{i}]:{inst.name}"
+
+    # ---------------------------------------------------------- lights
+    def _light(self, prim):
+        world = self.S @ gf_to_np(self.xc.GetLocalToWorldTransform(prim))
+        light = read_light(prim, self.tc, world, self.warnings)
+        if light is not None:
+            self.lights.append(light)
+
+
+def _collect_prototype_roots(stage) -> List[Sdf.Path]:
+    """Prototype roots of every PointInstancer (they never render in place)."""
+    roots = []
+    for prim in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()):
+        if prim.IsA(UsdGeom.PointInstancer):
+            roots.extend(UsdGeom.PointInstancer(prim).GetPrototypesRel().GetForwardedTargets())
+    return roots
+
+
+def _find_cameras(stage) -> List:
+    return [p for p in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies())
+            if p.IsA(UsdGeom.Camera)]
+
+
+def _render_settings(stage, render_settings) -> Optional[UsdRender.Settings]:
+    if render_settings is not None:
+        path = str(render_settings)
+        prim = stage.GetPrimAtPath(path) if Sdf.Path.IsValidPathString(path) else None
+        if not prim or not prim.IsA(UsdRender.Settings):
+            raise UsdLoadError(f"{_stage_file(stage)}: render settings {path} "
+                               f"{'is not a RenderSettings prim' if prim else 'does not exist'}")
+        return UsdRender.Settings(prim)
+    try:
+        s = UsdRender.Settings.GetStageRenderSettings(stage)
+    except Exception:                                   # pragma: no cover
+        s = None
+    if s and s.GetPrim().IsValid():
+        return s
+    for prim in stage.Traverse():
+        if prim.IsA(UsdRender.Settings):
+            return UsdRender.Settings(prim)
+    return None
+
+
+def _bounds(fr: _Frame) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    by_mesh: Dict[int, List[np.ndarray]] = {}
+    for inst in fr.instances:
+        by_mesh.setdefault(inst.mesh, []).append(inst.transform)
+    for mi, xs in by_mesh.items():
+        p = fr.meshes[mi].points
+        used = np.unique(fr.meshes[mi].indices)
+        p = p[used] if len(used) < len(p) else p
+        plo, phi = p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)
+        corners = np.array([[x, y, z, 1.0] for x in (plo[0], phi[0])
+                            for y in (plo[1], phi[1]) for z in (plo[2], phi[2])])
+        X = np.asarray(xs)                                  # (k, 4, 4)
+        w = np.einsum("kij,cj->kci", X, corners)[..., :3].reshape(-1, 3)
+        lo, hi = np.minimum(lo, w.min(axis=0)), np.maximum(hi, w.max(axis=0))
+    if not np.isfinite(lo).all():
+        return None
+    return lo, hi
+
+
+def load_frame(stage, time, camera=None, resolution=None, render_settings=None) -> FrameScene:
+    """Read the render scene of ``stage`` at the time code ``time``.
+
+    ``camera``: a camera prim path (UsdLoadError if it is not a Camera);
+    default: the RenderSettings camera, else the first camera (warning if
+    several), else a framing camera (warning). ``resolution``: (w, h),
+    overriding the RenderSettings resolution (default 640x480).
+    ``render_settings``: a RenderSettings prim path; default: the stage's
+    ``renderSettingsPrimPath`` metadata, else the first RenderSettings prim.
+    Non-fatal problems are listed in ``FrameScene.warnings``, each naming its
+    prim; fatal ones raise :class:`UsdLoadError`.
+    """
+    if stage is None:
+        raise UsdLoadError("load_frame: no stage")
+    check_time_metadata(stage)
+    tc = _time_code(stage, time)
+    warnings: List[str] = []
+    state = stage_state(stage)
+    for w in state.open_warnings + composition_warnings(stage):
+        if w not in warnings:
+            warnings.append(w)
+    fr = _Frame(stage, tc, warnings)
+    up = str(UsdGeom.GetStageUpAxis(stage))
+
+    # settings, camera path (validated before the expensive traversal)
+    settings = _render_settings(stage, render_settings)
+    res = None
+    cam_path = None
+    if settings is not None:
+        r = settings.GetResolutionAttr().Get(tc)
+        if r is not None:
+            res = (int(r[0]), int(r[1]))
+        targets = settings.GetCameraRel().GetForwardedTargets()
+        if targets and camera is None:
+            cam_path = targets[0]
+    if resolution is not None:
+        try:
+            res = (int(resolution[0]), int(resolution[1]))
+        except (TypeError, ValueError, IndexError):
+            raise UsdLoadError(f"resolution {resolution!r} is not (width, height)") from None
+    if res is None:
+        res = DEFAULT_RESOLUTION
+    if res[0] <= 0 or res[1] <= 0:
+        raise UsdLoadError(f"{_stage_file(stage)}: resolution {res[0]}x{res[1]} must be positive")
+
+    cam_prim = None
+    if camera is not None:
+        path = str(camera)
+        prim = stage.GetPrimAtPath(path) if Sdf.Path.IsValidPathString(path) and \
+            Sdf.Path(path).IsAbsolutePath() else None
+        if not prim:
+            raise UsdLoadError(f"{_stage_file(stage)}: camera {path} does not exist")
+        if not prim.IsA(UsdGeom.Camera):
+            raise UsdLoadError(f"{_stage_file(stage)}: camera {path} is a "
+                               f"{prim.GetTypeName() or 'typeless prim'}, not a Camera")
+        cam_prim = prim
+    elif cam_path is not None:
+        prim = stage.GetPrimAtPath(cam_path)
+        if prim and prim.IsA(UsdGeom.Camera):
+            cam_prim = prim
+        else:
+            warnings.append(f"{settings.GetPath()}: camera {cam_path} is not a Camera; "
+                            f"choosing another camera")
+
+    # geometry, lights, materials
+    proto_roots = _collect_prototype_roots(stage)
+    fr.traverse(stage.GetPseudoRoot(), None)
+    if proto_roots:
+        _drop_prototype_placements(fr, proto_roots)
+
+    if not fr.lights and not fr.materials.has_emission():
+        fr.lights.append(default_dome())
+        warnings.append(f"{_stage_file(stage)}: the stage has no lights and no emissive "
+                        f"materials; adding a white dome light (radiance 1)")
+
+    # camera
+    if cam_prim is None:
+        cams = _find_cameras(stage)
+        if cams:
+            cam_prim = cams[0]
+            if len(cams) > 1:
+                warnings.append(f"{_stage_file(stage)}: {len(cams)} cameras and none chosen; "
+                                f"using the first, {cam_prim.GetPath()}")
+    if cam_prim is not None:
+        world = fr.S @ gf_to_np(fr.xc.GetLocalToWorldTransform(cam_prim))
+        cam = read_camera(cam_prim, tc, fr.mpu, world, warnings)
+    else:
+        cam = framing_camera(_bounds(fr), up, res)
+        warnings.append(f"{_stage_file(stage)}: no camera; using a framing camera "
+                        f"({'+Y' if up == 'Z' else '-Z'} view of the stage bounds)")
+
+    ftime = float(stage.GetStartTimeCode()) if tc.IsDefault() else float(tc.GetValue())
+    return FrameScene(time=ftime,
+                      meshes=fr.meshes, instances=fr.instances,
+                      materials=fr.materials.materials or [],
+                      lights=fr.lights, camera=cam, resolution=res,
+                      meters_per_unit=fr.mpu, up_axis=up, warnings=warnings)
+
+
+def _drop_prototype_placements(fr: _Frame, roots: List[Sdf.Path]):
+    """Remove the in-place renders of PointInstancer prototypes found by the
+    top-level traversal (prototypes that live outside their instancer)."""
+    keep = []
+    for inst in fr.instances:
+        if "[" in inst.name:                         # placed by an instancer
+            keep.append(inst)
+            continue
+        p = Sdf.Path(inst.name)
+        if any(p.HasPrefix(r) for r in roots):
+            continue
+        keep.append(inst)
+    fr.instances = keep
+    used = {i.mesh for i in fr.instances}
+    if len(used) < len(fr.meshes):
+        remap, meshes = {}, []
+        for i, m in enumerate(fr.meshes):
+            if i in used:
+                remap[i] = len(meshes)
+                meshes.append(m)
+        for inst in fr.instances:
+            inst.mesh = remap[inst.mesh]
+        fr.meshes = meshes

@@ -1,0 +1,177 @@
+"""UsdLux lights -> :class:`cmlt.scene.Light`.
+
+Units: ``Light.transform`` is rigid (rotation + translation in metres: the
+scale of the light's world transform, metersPerUnit included, is taken out)
+and the sizes (width, height, radius, length) are world sizes in metres, the
+authored local sizes times the scale along the matching axes. Normalised
+lights divide by the world area in square metres.
+"""
+from __future__ import annotations
+
+import math
+from typing import List, Optional, Tuple
+
+import numpy as np
+from pxr import Sdf, Usd, UsdLux
+
+from ..scene import Light
+from .color import to_rendering_space
+from .stage import SUPPORTED_LIGHT_TYPES
+
+
+def light_input(prim, name: str, default, time):
+    """Read a UsdLux input under its ``inputs:`` name (USD >= 21) or its old
+    bare name, else the schema fallback, else ``default``."""
+    for attr_name in ("inputs:" + name, name):
+        attr = prim.GetAttribute(attr_name)
+        if attr and attr.HasAuthoredValue():
+            v = attr.Get(time)
+            if v is not None:
+                return v
+    attr = prim.GetAttribute("inputs:" + name)
+    if attr:
+        v = attr.Get(time)
+        if v is not None:
+            return v
+    return default
+
+
+# ------------------------------------------------------------ colour temperature
+
+def _cie_xyz_bar(lam_nm: np.ndarray):
+    """CIE 1931 2° colour matching functions, multi-lobe Gaussian fit
+    (Wyman, Sloan, Shirley 2013)."""
+    def g(x, mu, s1, s2):
+        s = np.where(x < mu, s1, s2)
+        return np.exp(-0.5 * ((x - mu) / s) ** 2)
+    x = (1.056 * g(lam_nm, 599.8, 37.9, 31.0) + 0.362 * g(lam_nm, 442.0, 16.0, 26.7)
+         - 0.065 * g(lam_nm, 501.1, 20.4, 26.2))
+    y = 0.821 * g(lam_nm, 568.8, 46.9, 40.5) + 0.286 * g(lam_nm, 530.9, 16.3, 31.1)
+    z = 1.217 * g(lam_nm, 437.0, 11.8, 36.0) + 0.681 * g(lam_nm, 459.0, 26.0, 13.8)
+    return x, y, z
+
+
+_XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
+                           [-0.9692660, 1.8760108, 0.0415560],
+                           [0.0556434, -0.2040259, 1.0572252]])
+
+
+def blackbody_rgb(kelvin: float) -> Tuple[float, float, float]:
+    """Linear Rec.709 colour of a blackbody, normalised to luminance 1
+    (negative components clipped). Valid roughly for 1000 K .. 40000 K."""
+    t = float(np.clip(kelvin if math.isfinite(kelvin) else 6500.0, 1000.0, 40000.0))
+    lam = np.linspace(380.0, 780.0, 401)
+    lam_m = lam * 1e-9
+    c1, c2 = 3.741771852e-16, 1.438776877e-2
+    spd = c1 / (lam_m ** 5 * (np.exp(c2 / (lam_m * t)) - 1.0))
+    xb, yb, zb = _cie_xyz_bar(lam)
+    xyz = np.array([np.sum(spd * xb), np.sum(spd * yb), np.sum(spd * zb)])
+    rgb = np.clip(_XYZ_TO_REC709 @ xyz, 0.0, None)
+    lum = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+    rgb = rgb / lum if lum > 0 else np.ones(3)
+    return (float(rgb[0]), float(rgb[1]), float(rgb[2]))
+
+
+# ------------------------------------------------------------ transforms
+
+def rigid_and_scale(m: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Split a column-vector 4x4 into a rigid transform (polar rotation +
+    translation) and the lengths of the three local axes."""
+    a = m[:3, :3]
+    scale = np.linalg.norm(a, axis=0)
+    out = np.eye(4)
+    out[:3, 3] = m[:3, 3]
+    try:
+        u, _, vt = np.linalg.svd(a)
+        r = u @ vt
+    except np.linalg.LinAlgError:                        # pragma: no cover
+        r = np.eye(3)
+    if not np.isfinite(r).all():
+        r = np.eye(3)
+    out[:3, :3] = r
+    return out, scale
+
+
+def _asset(v) -> Optional[str]:
+    if isinstance(v, Sdf.AssetPath):
+        return v.resolvedPath or v.path or None
+    return str(v) if v else None
+
+
+def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional[Light]:
+    """Read a supported UsdLux light. ``world_m`` is its light->world matrix
+    (column convention) already in metres."""
+    path = str(prim.GetPath())
+    kind = SUPPORTED_LIGHT_TYPES.get(str(prim.GetTypeName()))
+    if kind is None:
+        return None
+    xf, s = rigid_and_scale(world_m)
+
+    def num(name, default):
+        try:
+            v = float(light_input(prim, name, default, time))
+        except (TypeError, ValueError):
+            v = float(default)
+        if not math.isfinite(v):
+            warnings.append(f"{path}: inputs:{name} is not finite (time {_t(time)}); "
+                            f"using {default}")
+            v = float(default)
+        return v
+
+    intensity = num("intensity", 1.0)
+    exposure = num("exposure", 0.0)
+    color = light_input(prim, "color", (1.0, 1.0, 1.0), time)
+    cs = None
+    cattr = prim.GetAttribute("inputs:color") or prim.GetAttribute("color")
+    if cattr and cattr.HasColorSpace():
+        cs = str(cattr.GetColorSpace())
+    rgb = np.array(to_rendering_space(color, cs))
+    if bool(light_input(prim, "enableColorTemperature", False, time)):
+        rgb = rgb * np.array(blackbody_rgb(num("colorTemperature", 6500.0)))
+    normalize = bool(light_input(prim, "normalize", False, time))
+    radiance = intensity * (2.0 ** exposure) * rgb
+
+    light = Light(name=path, kind=kind, transform=xf, normalize=normalize)
+    area = None
+    if kind == "rect":
+        light.width = abs(num("width", 1.0)) * s[0]
+        light.height = abs(num("height", 1.0)) * s[1]
+        light.texture = _asset(light_input(prim, "texture:file", None, time))
+        area = light.width * light.height
+    elif kind == "disk":
+        light.radius = abs(num("radius", 0.5)) * 0.5 * (s[0] + s[1])
+        area = math.pi * light.radius ** 2
+    elif kind == "sphere":
+        light.radius = abs(num("radius", 0.5)) * float(np.mean(s))
+        light.treat_as_point = bool(light_input(prim, "treatAsPoint", False, time))
+        area = 4.0 * math.pi * light.radius ** 2
+    elif kind == "cylinder":
+        light.length = abs(num("length", 1.0)) * s[0]
+        light.radius = abs(num("radius", 0.5)) * 0.5 * (s[1] + s[2])
+        light.treat_as_point = bool(light_input(prim, "treatAsLine", False, time))
+        area = 2.0 * math.pi * light.radius * light.length
+    elif kind == "distant":
+        light.angle = abs(num("angle", 0.53))
+        half = math.radians(min(light.angle, 360.0)) / 2.0
+        area = 2.0 * math.pi * (1.0 - math.cos(half))        # solid angle of the cone
+    elif kind == "dome":
+        light.texture = _asset(light_input(prim, "texture:file", None, time))
+    if normalize and area is not None:
+        if area > 0:
+            radiance = radiance / area
+        else:
+            warnings.append(f"{path}: normalize is on but the light has zero size; "
+                            f"radiance not normalised")
+    radiance = np.where(np.isfinite(radiance), radiance, 0.0)
+    light.radiance = (float(radiance[0]), float(radiance[1]), float(radiance[2]))
+    return light
+
+
+def _t(time) -> str:
+    return "default" if time.IsDefault() else f"{time.GetValue():g}"
+
+
+def default_dome() -> Light:
+    """White dome light of radiance 1, for stages without any light."""
+    return Light(name="<default dome>", kind="dome", transform=np.eye(4),
+                 radiance=(1.0, 1.0, 1.0))

@@ -1,0 +1,341 @@
+"""UsdShade materials -> :class:`cmlt.scene.Material` (UsdPreviewSurface)."""
+from __future__ import annotations
+
+import math
+from typing import Dict, List, Optional, Tuple
+
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
+
+from ..scene import Material
+from .color import to_rendering_space
+
+DEFAULT_MATERIAL_NAME = "<default>"
+
+# UsdPreviewSurface inputs and their shader defaults.
+PREVIEW_DEFAULTS = {
+    "diffuseColor": (0.18, 0.18, 0.18),
+    "emissiveColor": (0.0, 0.0, 0.0),
+    "useSpecularWorkflow": 0,
+    "specularColor": (0.0, 0.0, 0.0),
+    "metallic": 0.0,
+    "roughness": 0.5,
+    "clearcoat": 0.0,
+    "clearcoatRoughness": 0.01,
+    "opacity": 1.0,
+    "opacityMode": "transparent",
+    "opacityThreshold": 0.0,
+    "ior": 1.5,
+    "normal": (0.0, 0.0, 1.0),
+    "displacement": 0.0,
+    "occlusion": 1.0,
+}
+COLOR_INPUTS = ("diffuseColor", "emissiveColor", "specularColor")
+_TEXTURE_CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3}
+
+
+def _shader_id(shader: UsdShade.Shader) -> str:
+    try:
+        sid = shader.GetShaderId()
+    except Exception:                                    # pragma: no cover
+        sid = None
+    return str(sid or "")
+
+
+def _plain(value):
+    """USD value -> plain Python (tuples of floats, str, float, int, bool)."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else 0.0
+    if isinstance(value, Sdf.AssetPath):
+        return value.resolvedPath or value.path
+    try:
+        seq = tuple(float(x) for x in value)
+        return tuple(x if math.isfinite(x) else 0.0 for x in seq)
+    except TypeError:
+        return str(value)
+
+
+def _value_source(inp: UsdShade.Input):
+    """(value, shader, output name) for an input: follows connections through
+    node graph / material interface inputs."""
+    try:
+        attrs = inp.GetValueProducingAttributes()
+    except Exception:                                    # pragma: no cover
+        attrs = []
+    for attr in attrs:
+        if UsdShade.Output.IsOutput(attr):
+            shader = UsdShade.Shader(attr.GetPrim())
+            if shader:
+                return None, shader, UsdShade.Output(attr).GetBaseName()
+        else:
+            return attr.Get(), None, None
+    return inp.Get(), None, None
+
+
+def _asset_path(shader: UsdShade.Shader, name: str) -> Optional[str]:
+    inp = shader.GetInput(name)
+    if not inp:
+        return None
+    value, _, _ = _value_source(inp)
+    if isinstance(value, Sdf.AssetPath):
+        return value.resolvedPath or value.path or None
+    return str(value) if value else None
+
+
+def _texture_record(tex: UsdShade.Shader, output: str) -> dict:
+    def val(name, default):
+        inp = tex.GetInput(name)
+        if not inp:
+            return default
+        v, _, _ = _value_source(inp)
+        return default if v is None else _plain(v)
+
+    st_primvar = None
+    st = tex.GetInput("st")
+    if st:
+        v, src, _ = _value_source(st)
+        if src is not None and _shader_id(src).startswith("UsdPrimvarReader"):
+            vn = src.GetInput("varname")
+            if vn:
+                name, _, _ = _value_source(vn)
+                st_primvar = str(name) if name else None
+    file_attr = tex.GetInput("file")
+    unresolved = None
+    if file_attr:
+        raw, _, _ = _value_source(file_attr)
+        if isinstance(raw, Sdf.AssetPath) and raw.path and not raw.resolvedPath:
+            unresolved = raw.path
+    return {
+        "texture": _asset_path(tex, "file"),
+        "shader": str(tex.GetPath()),
+        "output": output,
+        "wrapS": val("wrapS", "useMetadata"),
+        "wrapT": val("wrapT", "useMetadata"),
+        "scale": val("scale", (1.0, 1.0, 1.0, 1.0)),
+        "bias": val("bias", (0.0, 0.0, 0.0, 0.0)),
+        "sourceColorSpace": val("sourceColorSpace", "auto"),
+        "st_primvar": st_primvar,
+        "fallback": val("fallback", None),
+        "unresolved": unresolved,
+    }
+
+
+def _fallback_constant(name: str, record: dict):
+    """Flat value for an input driven by a texture: the texture's authored
+    fallback (picked by the connected output), else the shader default."""
+    default = PREVIEW_DEFAULTS.get(name)
+    fb = record.get("fallback")
+    if fb is None:
+        return default
+    fb = tuple(fb) + (0.0,) * (4 - len(fb))
+    out = record.get("output", "rgb")
+    if out in _TEXTURE_CHANNELS:
+        c = fb[_TEXTURE_CHANNELS[out]]
+        return (c, c, c) if isinstance(default, tuple) else c
+    if isinstance(default, tuple):
+        return fb[:3]
+    return fb[0]
+
+
+def find_preview_surface(material: UsdShade.Material) -> Optional[UsdShade.Shader]:
+    """The UsdPreviewSurface of a material: the universal surface output, else
+    any render context's surface output that is a UsdPreviewSurface."""
+    try:
+        src, _, _ = material.ComputeSurfaceSource()
+    except Exception:                                    # pragma: no cover
+        src = None
+    if src and _shader_id(src) == "UsdPreviewSurface":
+        return src
+    for out in material.GetSurfaceOutputs():
+        for sinfo in out.GetConnectedSources()[0]:
+            shader = UsdShade.Shader(sinfo.source.GetPrim())
+            if shader and _shader_id(shader) == "UsdPreviewSurface":
+                return shader
+    return None
+
+
+def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Material:
+    """Build a Material from a UsdShade.Material. A network without a
+    UsdPreviewSurface gives the default grey and a warning."""
+    path = str(material.GetPath())
+    shader = find_preview_surface(material)
+    if shader is None:
+        warnings.append(f"{path}: no UsdPreviewSurface surface shader (unsupported shader "
+                        f"network); rendered with the default grey material")
+        return Material(name=path, inputs={"unsupported": True})
+    values: Dict[str, object] = {}
+    inputs: Dict[str, object] = {}
+    for inp in shader.GetInputs():
+        name = inp.GetBaseName()
+        value, src, output = _value_source(inp)
+        if src is not None:
+            sid = _shader_id(src)
+            if sid == "UsdUVTexture":
+                rec = _texture_record(src, output or "rgb")
+                if rec.get("unresolved"):
+                    warnings.append(f"{path}: texture {rec['unresolved']} for {name} "
+                                    f"(shader {rec['shader']}) cannot be resolved")
+                inputs[name] = rec
+                values[name] = _fallback_constant(name, rec)
+            else:
+                inputs[name] = {"shader": str(src.GetPath()), "id": sid, "output": output}
+                values[name] = PREVIEW_DEFAULTS.get(name)
+                warnings.append(f"{path}: input {name} is connected to unsupported shader "
+                                f"{src.GetPath()} ({sid or 'no id'}); using the default value")
+            continue
+        if value is None:
+            continue
+        v = _plain(value)
+        inputs[name] = v
+        values[name] = v
+
+    def color(name):
+        v = values.get(name, PREVIEW_DEFAULTS[name])
+        if not isinstance(v, tuple) or len(v) < 3:
+            v = PREVIEW_DEFAULTS[name]
+        src_cs = None
+        attr = shader.GetInput(name)
+        if attr and attr.GetAttr().HasColorSpace():
+            src_cs = str(attr.GetAttr().GetColorSpace())
+        return to_rendering_space(v[:3], src_cs)
+
+    def scalar(name):
+        v = values.get(name, PREVIEW_DEFAULTS[name])
+        if isinstance(v, tuple):
+            v = v[0] if v else PREVIEW_DEFAULTS[name]
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            f = float(PREVIEW_DEFAULTS[name])
+        return f if math.isfinite(f) else float(PREVIEW_DEFAULTS[name])
+
+    return Material(
+        name=path,
+        diffuse=color("diffuseColor"),
+        emission=color("emissiveColor"),
+        specular=color("specularColor"),
+        use_specular_workflow=bool(int(scalar("useSpecularWorkflow"))),
+        metallic=scalar("metallic"),
+        roughness=scalar("roughness"),
+        clearcoat=scalar("clearcoat"),
+        clearcoat_roughness=scalar("clearcoatRoughness"),
+        opacity=scalar("opacity"),
+        opacity_threshold=scalar("opacityThreshold"),
+        ior=scalar("ior"),
+        inputs=inputs,
+    )
+
+
+def bound_material(prim) -> Optional[UsdShade.Material]:
+    """The material bound to ``prim`` for final renders (purpose 'full',
+    falling back to all-purpose bindings), or None."""
+    try:
+        mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial(UsdShade.Tokens.full)
+    except Exception:                                    # pragma: no cover
+        return None
+    return mat if mat and mat.GetPrim().IsValid() else None
+
+
+def display_color(prim, time) -> Optional[Tuple[float, float, float]]:
+    """``primvars:displayColor`` as a single colour (the mean if not constant)."""
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+    if not pv or not pv.HasAuthoredValue():
+        return None
+    v = pv.ComputeFlattened(time)
+    if v is None or len(v) == 0:
+        return None
+    import numpy as np
+    a = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+    a = a[np.isfinite(a).all(axis=1)]
+    if len(a) == 0:
+        return None
+    cs = pv.GetAttr().GetColorSpace() if pv.GetAttr().HasColorSpace() else None
+    return to_rendering_space(a.mean(axis=0), str(cs) if cs else None)
+
+
+def subset_bindings(prim, time) -> List[Tuple[object, UsdShade.Material]]:
+    """(face indices, material) for each materialBind GeomSubset of ``prim``."""
+    out = []
+    try:
+        subsets = UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets()
+    except Exception:                                    # pragma: no cover
+        return out
+    for sub in subsets:
+        if sub.GetElementTypeAttr().Get() not in (None, UsdGeom.Tokens.face):
+            continue
+        mat = bound_material(sub.GetPrim())
+        idx = sub.GetIndicesAttr().Get(time)
+        if mat is None or idx is None:
+            continue
+        out.append((idx, mat))
+    return out
+
+
+class MaterialTable:
+    """The frame's material list; each material prim appears once."""
+
+    def __init__(self, time, warnings: List[str]):
+        self.time = time
+        self.warnings = warnings
+        self.materials: List[Material] = []
+        self._index: Dict[str, int] = {}
+
+    def default(self) -> int:
+        return self._add_special(DEFAULT_MATERIAL_NAME, Material(name=DEFAULT_MATERIAL_NAME))
+
+    def _add_special(self, key: str, mat: Material) -> int:
+        i = self._index.get(key)
+        if i is None:
+            i = len(self.materials)
+            self.materials.append(mat)
+            self._index[key] = i
+        return i
+
+    def display(self, rgb) -> int:
+        key = "<displayColor %.6g %.6g %.6g>" % tuple(rgb)
+        return self._add_special(key, Material(name=key, diffuse=tuple(rgb)))
+
+    def material(self, mat: UsdShade.Material) -> int:
+        key = str(mat.GetPath())
+        i = self._index.get(key)
+        if i is None:
+            m = read_material(mat, self.time, self.warnings)
+            if m.inputs.get("unsupported"):
+                i = self.default()
+            else:
+                i = len(self.materials)
+                self.materials.append(m)
+            self._index[key] = i
+        return i
+
+    def for_prim(self, prim) -> int:
+        """Material index for a gprim without subsets."""
+        mat = bound_material(prim)
+        if mat is not None:
+            return self.material(mat)
+        dc = display_color(prim, self.time)
+        if dc is not None:
+            return self.display(dc)
+        return self.default()
+
+    def uv_primvar_name(self, prim) -> Optional[str]:
+        """The st primvar name the bound material's textures read, if any."""
+        mat = bound_material(prim)
+        if mat is None:
+            return None
+        i = self.material(mat)
+        for v in self.materials[i].inputs.values():
+            if isinstance(v, dict) and v.get("st_primvar"):
+                return v["st_primvar"]
+        return None
+
+    def has_emission(self) -> bool:
+        for m in self.materials:
+            if any(c > 0 for c in m.emission):
+                return True
+            if isinstance(m.inputs.get("emissiveColor"), dict):
+                return True
+        return False

@@ -1,0 +1,397 @@
+"""UsdGeom.Mesh -> triangles with per-vertex normals and uvs (numpy, vectorised).
+
+The topology (triangulation and, when a primvar is uniform or faceVarying,
+the split of points into per-corner vertices) is computed once per prim and
+reused while none of the topology attributes vary in time; only the points
+(and varying primvars) are re-read per frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import List, Optional, Tuple
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom
+
+from ..scene import padded_points
+
+
+class SkipPrim(Exception):
+    """The prim cannot be rendered at this time; the message is the warning."""
+
+
+@dataclass
+class MeshGeom:
+    """Triangulated geometry of one gprim in its object space (scene units)."""
+
+    points: np.ndarray                     # float32 (N, 3), padded
+    indices: np.ndarray                    # uint32 (M, 3)
+    normals: Optional[np.ndarray]          # float32 (N, 3) or None
+    uvs: Optional[np.ndarray]              # float32 (N, 2) or None
+    tri_face: Optional[np.ndarray]         # int64 (M,) authored face of each triangle
+    deforming: bool = False
+    warnings: List[str] = field(default_factory=list)
+
+
+def _tstr(time: Usd.TimeCode) -> str:
+    return "default" if time.IsDefault() else f"{time.GetValue():g}"
+
+
+# ---------------------------------------------------------------- primvars
+
+@dataclass
+class _Primvar:
+    name: str
+    interp: str
+    values: np.ndarray                     # (L, k) float64
+    indices: Optional[np.ndarray]          # (I,) int64 or None
+    varying: bool
+
+
+_UV_NAMES = ("st", "uv", "st0", "UVMap", "map1")
+
+
+def _read_primvar(pv: UsdGeom.Primvar, time, width: int) -> Optional[_Primvar]:
+    if not pv or not pv.HasAuthoredValue():
+        return None
+    vals = pv.Get(time)
+    if vals is None:
+        return None
+    arr = np.asarray(vals, dtype=np.float64)
+    if arr.size == 0:
+        return None
+    arr = arr.reshape(-1, width) if arr.size % width == 0 else None
+    if arr is None:
+        return None
+    idx = None
+    varying = pv.ValueMightBeTimeVarying()
+    if pv.IsIndexed():
+        raw = pv.GetIndices(time)
+        idx = np.asarray(raw, dtype=np.int64) if raw is not None else None
+        ia = pv.GetIndicesAttr()
+        varying = varying or (ia and ia.ValueMightBeTimeVarying())
+    return _Primvar(pv.GetPrimvarName(), str(pv.GetInterpolation()), arr, idx, bool(varying))
+
+
+def find_uv_primvar(api: UsdGeom.PrimvarsAPI, preferred: Optional[str] = None):
+    """The texture-coordinate primvar: ``preferred`` (the material's
+    UsdPrimvarReader varname), else ``st``, else a texCoord2f primvar."""
+    names = ([preferred] if preferred else []) + list(_UV_NAMES)
+    for n in names:
+        pv = api.GetPrimvar(n)
+        if pv and pv.HasAuthoredValue():
+            return pv
+    for pv in api.GetPrimvarsWithAuthoredValues():
+        tn = pv.GetTypeName()
+        if tn in (Sdf.ValueTypeNames.TexCoord2fArray, Sdf.ValueTypeNames.TexCoord2dArray,
+                  Sdf.ValueTypeNames.TexCoord2hArray):
+            return pv
+    return None
+
+
+def _normals_primvar(prim, mesh: UsdGeom.Mesh, api, time) -> Optional[_Primvar]:
+    pv = api.GetPrimvar("normals")
+    if pv and pv.HasAuthoredValue():
+        return _read_primvar(pv, time, 3)
+    attr = mesh.GetNormalsAttr()
+    if attr and attr.HasAuthoredValue():
+        vals = attr.Get(time)
+        if vals is None or len(vals) == 0:
+            return None
+        return _Primvar("normals", str(mesh.GetNormalsInterpolation()),
+                        np.asarray(vals, dtype=np.float64).reshape(-1, 3), None,
+                        attr.ValueMightBeTimeVarying())
+    return None
+
+
+# ---------------------------------------------------------------- topology
+
+@dataclass
+class _Topo:
+    tri: np.ndarray                        # uint32 (M, 3) into output vertices
+    tri_face: np.ndarray                   # int64 (M,)
+    out_pt: Optional[np.ndarray]           # (V,) point of each output vertex, None = identity
+    out_elem: dict                         # primvar name -> (V,) element index
+    warnings: List[str]
+
+
+def _elem_per_corner(pv: _Primvar, counts, fvi, n_faces, n_points, n_corners, path, tstr):
+    """Element index of ``pv`` for every corner, or raise ValueError(warning)."""
+    K = n_corners
+    interp = pv.interp
+    if interp == UsdGeom.Tokens.constant:
+        elem = np.zeros(K, dtype=np.int64)
+        expected = 1
+    elif interp == UsdGeom.Tokens.uniform:
+        elem = np.repeat(np.arange(n_faces, dtype=np.int64), counts)
+        expected = n_faces
+    elif interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+        elem = fvi.astype(np.int64, copy=False)
+        expected = n_points
+    elif interp == UsdGeom.Tokens.faceVarying:
+        elem = np.arange(K, dtype=np.int64)
+        expected = K
+    else:
+        raise ValueError(f"{path}: primvar {pv.name} has unknown interpolation '{interp}'; ignored")
+    if pv.indices is not None:
+        if len(pv.indices) < expected:
+            raise ValueError(f"{path}: primvar {pv.name} ({interp}) has {len(pv.indices)} indices "
+                             f"but needs {expected} (time {tstr}); ignored")
+        if expected and (pv.indices[:expected].min() < 0 or pv.indices[:expected].max() >= len(pv.values)):
+            bad = int(pv.indices[:expected].max())
+            raise ValueError(f"{path}: primvar {pv.name} index {bad} is out of range "
+                             f"({len(pv.values)} values, time {tstr}); ignored")
+        elem = pv.indices[elem] if K else elem
+    elif len(pv.values) < expected:
+        raise ValueError(f"{path}: primvar {pv.name} ({interp}) has {len(pv.values)} values "
+                         f"but needs {expected} (time {tstr}); ignored")
+    return elem
+
+
+def _needs_split(pv: _Primvar) -> bool:
+    return pv.interp in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.faceVarying)
+
+
+def build_topology(path: str, counts, fvi, n_points: int, holes, left_handed: bool,
+                   primvars: List[_Primvar], time) -> Tuple[_Topo, List[_Primvar]]:
+    """Triangulate (fan) and decide the output vertices. Raises SkipPrim.
+
+    Returns the topology and the primvars that survived validation.
+    """
+    tstr = _tstr(time)
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    fvi = np.asarray(fvi, dtype=np.int64).reshape(-1)
+    F, K = len(counts), len(fvi)
+    if F and counts.min() < 0:
+        raise SkipPrim(f"{path}: faceVertexCounts has a negative entry ({int(counts.min())}) "
+                       f"(time {tstr}); not rendered")
+    total = int(counts.sum())
+    if total != K:
+        raise SkipPrim(f"{path}: faceVertexCounts sums to {total} but faceVertexIndices has "
+                       f"{K} entries (time {tstr}); not rendered")
+    if K:
+        lo, hi = int(fvi.min()), int(fvi.max())
+        if lo < 0:
+            raise SkipPrim(f"{path}: faceVertexIndices refers to point {lo} (negative) "
+                           f"(time {tstr}); not rendered")
+        if hi >= n_points:
+            raise SkipPrim(f"{path}: faceVertexIndices refers to point {hi} but points has "
+                           f"{n_points} entries (time {tstr}); not rendered")
+    warnings: List[str] = []
+    keep = counts >= 3
+    n_degenerate = int(F - keep.sum())
+    if n_degenerate:
+        warnings.append(f"{path}: {n_degenerate} face(s) with fewer than 3 vertices dropped")
+    if holes is not None and len(holes):
+        h = np.asarray(holes, dtype=np.int64).reshape(-1)
+        h = h[(h >= 0) & (h < F)]
+        keep[h] = False
+    offsets = np.zeros(F, dtype=np.int64)
+    if F:
+        np.cumsum(counts[:-1], out=offsets[1:])
+    kept = np.nonzero(keep)[0]
+    ntri = counts[kept] - 2
+    M = int(ntri.sum())
+    tri_face = np.repeat(kept, ntri)
+    tri_start = np.zeros(len(kept), dtype=np.int64)
+    if len(kept):
+        np.cumsum(ntri[:-1], out=tri_start[1:])
+    j = np.arange(M, dtype=np.int64) - np.repeat(tri_start, ntri) + 1
+    c0 = offsets[tri_face]
+    c1 = c0 + j
+    c2 = c1 + 1
+    if left_handed:
+        c1, c2 = c2, c1
+    corners = np.stack([c0, c1, c2], axis=1)          # (M, 3) corner ids
+
+    good: List[_Primvar] = []
+    elems = {}
+    for pv in primvars:
+        try:
+            elems[pv.name] = _elem_per_corner(pv, counts, fvi, F, n_points, K, path, tstr)
+            good.append(pv)
+        except ValueError as exc:
+            warnings.append(str(exc))
+
+    split = [pv for pv in good if _needs_split(pv)]
+    if not split:
+        tri = fvi[corners] if M else np.zeros((0, 3), dtype=np.int64)
+        out_elem = {}
+        for pv in good:
+            if pv.interp == UsdGeom.Tokens.constant:
+                out_elem[pv.name] = np.zeros(n_points, dtype=np.int64)
+            elif pv.indices is not None:
+                out_elem[pv.name] = pv.indices[:n_points]
+            else:
+                out_elem[pv.name] = None                 # identity
+        return _Topo(tri.astype(np.uint32), tri_face, None, out_elem, warnings), good
+
+    # De-index: one output vertex per distinct (point, element of each split primvar).
+    used = np.zeros(K, dtype=bool)
+    used[corners.reshape(-1)] = True
+    used_c = np.nonzero(used)[0]
+    cols = [fvi[used_c]] + [elems[pv.name][used_c] for pv in split]
+    key = cols[0].copy()
+    fits = True
+    for col in cols[1:]:
+        m = int(col.max()) + 1 if len(col) else 1
+        if key.size and int(key.max()) >= (1 << 62) // max(m, 1):
+            fits = False
+            break
+        key = key * m + col
+    if fits:
+        _, rep, inv = np.unique(key, return_index=True, return_inverse=True)
+    else:                                                   # pragma: no cover (huge meshes)
+        _, rep, inv = np.unique(np.stack(cols, axis=1), axis=0, return_index=True,
+                                return_inverse=True)
+    inv = inv.reshape(-1)
+    corner_to_out = np.full(K, -1, dtype=np.int64)
+    corner_to_out[used_c] = inv
+    rep_c = used_c[rep]                                     # representative corner per vertex
+    tri = corner_to_out[corners]
+    out_elem = {pv.name: elems[pv.name][rep_c] for pv in good}
+    return _Topo(tri.astype(np.uint32), tri_face, fvi[rep_c], out_elem, warnings), good
+
+
+# ---------------------------------------------------------------- normals
+
+def smooth_normals(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (float64), zero where undefined."""
+    n = np.zeros_like(points, dtype=np.float64)
+    if len(tri) == 0:
+        return n
+    p = points.astype(np.float64)
+    t = tri.astype(np.int64)
+    fn = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+    for k in range(3):
+        for c in range(3):
+            n[:, c] += np.bincount(t[:, k], weights=fn[:, c], minlength=len(p))
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    np.divide(n, ln, out=n, where=ln > 0)
+    return n
+
+
+# ---------------------------------------------------------------- reading
+
+class MeshReader:
+    """Reads one UsdGeom.Mesh prim, caching what does not change in time."""
+
+    TOPO_ATTRS = ("faceVertexCounts", "faceVertexIndices", "holeIndices", "orientation")
+
+    def __init__(self, prim, uv_name: Optional[str] = None):
+        self.path = str(prim.GetPath())
+        self.uv_name = uv_name
+        self.topo: Optional[_Topo] = None
+        self.topo_key = None
+        self.static_geom: Optional[MeshGeom] = None
+
+    def _varying(self, prim) -> Tuple[bool, bool]:
+        topo = any(prim.GetAttribute(a).ValueMightBeTimeVarying()
+                   for a in self.TOPO_ATTRS if prim.GetAttribute(a))
+        pts = prim.GetAttribute("points")
+        return topo, bool(pts and pts.ValueMightBeTimeVarying())
+
+    def read(self, prim, time) -> MeshGeom:
+        if self.static_geom is not None:
+            return self.static_geom
+        path = self.path
+        tstr = _tstr(time)
+        mesh = UsdGeom.Mesh(prim)
+        api = UsdGeom.PrimvarsAPI(prim)
+        topo_varying, pts_varying = self._varying(prim)
+
+        pts_v = mesh.GetPointsAttr().Get(time)
+        points = np.asarray(pts_v, dtype=np.float64).reshape(-1, 3) if pts_v is not None \
+            else np.zeros((0, 3))
+        if len(points) == 0:
+            raise SkipPrim(f"{path}: has no points (time {tstr}); not rendered")
+
+        primvars: List[_Primvar] = []
+        npv = _normals_primvar(prim, mesh, api, time)
+        if npv is not None:
+            primvars.append(npv)
+        uvpv = find_uv_primvar(api, self.uv_name)
+        uv = _read_primvar(uvpv, time, 2) if uvpv is not None else None
+        if uv is not None:
+            uv.name = "st"                     # internal name
+            if npv is not None and npv.name == "st":   # pragma: no cover
+                npv.name = "normals"
+            primvars.append(uv)
+        pv_varying = any(pv.varying for pv in primvars)
+        pv_key = tuple((pv.name, pv.interp, pv.indices is not None,
+                        len(pv.values)) for pv in primvars)
+
+        if self.topo is None or topo_varying or self.topo_key != pv_key or \
+                any(pv.varying and pv.indices is not None for pv in primvars):
+            counts = mesh.GetFaceVertexCountsAttr().Get(time)
+            fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
+            holes = mesh.GetHoleIndicesAttr().Get(time)
+            left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+            counts = np.asarray(counts if counts is not None else [], dtype=np.int64)
+            fvi = np.asarray(fvi if fvi is not None else [], dtype=np.int64)
+            topo, _ = build_topology(path, counts, fvi, len(points),
+                                     np.asarray(holes) if holes is not None else None,
+                                     left, primvars, time)
+            self.topo, self.topo_key = topo, pv_key
+            self._tri_pts = None
+        topo = self.topo
+        warnings = list(topo.warnings)
+
+        # gather per-vertex arrays
+        out_pts = points if topo.out_pt is None else points[topo.out_pt]
+        normals = uvs = None
+        for pv in primvars:
+            if pv.name not in topo.out_elem:
+                continue                       # dropped by validation
+            e = topo.out_elem[pv.name]
+            vals = pv.values if e is None else pv.values[e]
+            if pv.name == "normals":
+                if not np.isfinite(vals).all():
+                    warnings.append(f"{path}: normals contain NaN/Inf (time {tstr}); ignored")
+                    continue
+                ln = np.linalg.norm(vals, axis=1, keepdims=True)
+                normals = np.divide(vals, ln, out=np.zeros_like(vals), where=ln > 0)
+            else:
+                if not np.isfinite(vals).all():
+                    warnings.append(f"{path}: primvar {uvpv.GetPrimvarName()} contains NaN/Inf "
+                                    f"(time {tstr}); replaced by 0")
+                    vals = np.where(np.isfinite(vals), vals, 0.0)
+                uvs = vals
+        if len(out_pts) != len(points) and topo.out_pt is None:   # pragma: no cover
+            raise SkipPrim(f"{path}: point count changed (time {tstr}); not rendered")
+
+        tri = topo.tri
+        tri_face = topo.tri_face
+        finite = np.isfinite(out_pts).all(axis=1)
+        if not finite.all():
+            n_bad = int((~np.isfinite(points).all(axis=1)).sum())
+            ok = finite[tri.astype(np.int64)].all(axis=1)
+            n_drop = int((~ok).sum())
+            tri, tri_face = tri[ok], tri_face[ok]
+            out_pts = np.where(finite[:, None], out_pts, 0.0)
+            warnings.append(f"{path}: {n_bad} of {len(points)} points are NaN/Inf (time {tstr}); "
+                            f"{n_drop} triangle(s) using them dropped")
+        if len(tri) == 0:
+            raise SkipPrim("; ".join(warnings + [f"{path}: no renderable faces (time {tstr}); "
+                                                 f"not rendered"]))
+        if normals is None:
+            scheme = mesh.GetSubdivisionSchemeAttr().Get()
+            if scheme and scheme != UsdGeom.Tokens.none:
+                # the control cage of a subdivision surface is shaded smooth
+                normals = smooth_normals(out_pts, tri)
+        with np.errstate(over="ignore", invalid="ignore"):
+            p32 = out_pts.astype(np.float32)
+        if not np.isfinite(p32).all():
+            raise SkipPrim(f"{path}: points overflow float32 (time {tstr}); not rendered")
+        geom = MeshGeom(
+            points=padded_points(p32),
+            indices=np.ascontiguousarray(tri, dtype=np.uint32),
+            normals=None if normals is None else np.ascontiguousarray(normals, dtype=np.float32),
+            uvs=None if uvs is None else np.ascontiguousarray(uvs, dtype=np.float32),
+            tri_face=tri_face,
+            deforming=pts_varying,
+            warnings=warnings,
+        )
+        if not (topo_varying or pts_varying or pv_varying):
+            self.static_geom = geom
+        return geom

@@ -1,0 +1,268 @@
+"""Opening a stage and describing it (``cmlt inspect``)."""
+from __future__ import annotations
+
+import math
+import os
+import weakref
+from dataclasses import dataclass, field
+from typing import Dict, List, Tuple
+
+from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux, UsdRender, UsdShade
+
+from .errors import UsdLoadError
+
+# Gprim types the reader turns into triangles.
+MESH_TYPES = ("Mesh",)
+INTRINSIC_TYPES = ("Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane",
+                   "Cylinder_1", "Capsule_1")
+SUPPORTED_LIGHT_TYPES = {
+    "RectLight": "rect", "DiskLight": "disk", "SphereLight": "sphere",
+    "DistantLight": "distant", "DomeLight": "dome", "DomeLight_1": "dome",
+    "CylinderLight": "cylinder",
+}
+
+
+def _one_line(text: str) -> str:
+    """Collapse a (Tf) error text to one line."""
+    parts = [p.strip() for p in str(text).replace("\t", " ").splitlines() if p.strip()]
+    return " ".join(parts)
+
+
+def _stage_file(stage) -> str:
+    layer = stage.GetRootLayer()
+    return layer.realPath or layer.identifier
+
+
+def composition_warnings(stage) -> List[str]:
+    """Non-fatal composition problems (unresolved references, payloads,
+    sublayers), one line each, naming the layer that introduced them."""
+    out: List[str] = []
+    try:
+        errors = stage.GetCompositionErrors()
+    except Exception:                                   # pragma: no cover (old USD)
+        errors = []
+    for err in errors:
+        msg = _one_line(str(err))
+        if msg and msg not in out:
+            out.append(msg)
+    return out
+
+
+class StageState:
+    """Per-stage state kept between calls: warnings from opening, and the
+    mesh caches of :mod:`cmlt.usd.frame`. Invalidated when the stage changes."""
+
+    def __init__(self, stage):
+        self.stage_ref = weakref.ref(stage)
+        self.open_warnings: List[str] = []
+        self.mesh_cache: Dict[object, object] = {}
+        self.shape_cache: Dict[object, object] = {}
+        self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._changed, stage)
+
+    def _changed(self, notice, sender):
+        self.mesh_cache.clear()
+
+
+_STATES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def stage_state(stage) -> StageState:
+    st = _STATES.get(stage)
+    if st is None:
+        st = StageState(stage)
+        _STATES[stage] = st
+    return st
+
+
+def check_time_metadata(stage) -> None:
+    """Raise :class:`UsdLoadError` for a time range cmlt cannot render."""
+    path = _stage_file(stage)
+    tcps = stage.GetTimeCodesPerSecond()
+    if not (math.isfinite(tcps) and tcps > 0):
+        raise UsdLoadError(f"{path}: timeCodesPerSecond is {tcps:g}; it must be > 0")
+    fps = stage.GetFramesPerSecond()
+    if not (math.isfinite(fps) and fps > 0):
+        raise UsdLoadError(f"{path}: framesPerSecond is {fps:g}; it must be > 0")
+    start, end = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+    if not (math.isfinite(start) and math.isfinite(end)):
+        raise UsdLoadError(f"{path}: startTimeCode/endTimeCode are not finite ({start:g}, {end:g})")
+    if start > end:
+        raise UsdLoadError(f"{path}: startTimeCode {start:g} is after endTimeCode {end:g}")
+
+
+def open_stage(path) -> "Usd.Stage":
+    """Open a stage (.usd, .usda, .usdc, .usdz) with all payloads loaded.
+
+    Raises :class:`UsdLoadError` (one line, naming the file) for a missing
+    file, an unreadable root layer, ``timeCodesPerSecond <= 0`` or
+    ``startTimeCode > endTimeCode``. Unresolved references, payloads and
+    sublayers are not fatal: they are kept as warnings naming the layer that
+    introduced them (see :func:`stage_info` and ``FrameScene.warnings``).
+    """
+    path = os.fspath(path)
+    if not path:
+        raise UsdLoadError("no stage file given")
+    if "://" not in path and not os.path.isfile(path):
+        if os.path.isdir(path):
+            raise UsdLoadError(f"{path}: is a directory, not a USD file")
+        raise UsdLoadError(f"{path}: no such file")
+    try:
+        if not Sdf.FileFormat.FindByExtension(Sdf.FileFormat.GetFileExtension(path)):
+            raise UsdLoadError(f"{path}: not a USD file (unknown extension)")
+    except UsdLoadError:
+        raise
+    except Exception:
+        pass
+    try:
+        stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
+    except Tf.ErrorException as exc:
+        raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
+    except Exception as exc:                            # pragma: no cover
+        raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
+    if stage is None:
+        raise UsdLoadError(f"{path}: cannot open the stage")
+    check_time_metadata(stage)
+    state = stage_state(stage)
+    state.open_warnings = composition_warnings(stage)
+    return stage
+
+
+@dataclass
+class StageInfo:
+    """What is in a stage, for ``cmlt inspect`` and for the frame loop."""
+
+    path: str
+    start: float
+    end: float
+    time_codes_per_second: float
+    fps: float
+    meters_per_unit: float
+    up_axis: str
+    has_authored_time_range: bool
+    prim_counts: Dict[str, int] = field(default_factory=dict)   # by type name
+    meshes: List[str] = field(default_factory=list)             # meshes and intrinsic gprims
+    lights: List[str] = field(default_factory=list)
+    materials: List[str] = field(default_factory=list)
+    cameras: List[str] = field(default_factory=list)
+    render_settings: List[str] = field(default_factory=list)
+    point_instancers: List[str] = field(default_factory=list)
+    ignored: List[Tuple[str, str, str]] = field(default_factory=list)  # (path, type, reason)
+    notes: List[str] = field(default_factory=list)
+    warnings: List[str] = field(default_factory=list)
+
+    @property
+    def frame_count(self) -> int:
+        return int(math.floor(self.end - self.start + 1e-9)) + 1
+
+    def format(self) -> str:
+        """A readable multi-line report."""
+        lines = [f"stage      {self.path}"]
+        rng = f"{self.start:g} .. {self.end:g}"
+        if not self.has_authored_time_range:
+            rng += " (not authored)"
+        lines.append(f"time       {rng}, {self.time_codes_per_second:g} time codes/s, {self.fps:g} fps")
+        lines.append(f"units      metersPerUnit {self.meters_per_unit:g}, upAxis {self.up_axis}")
+        if self.prim_counts:
+            counts = ", ".join(f"{k} {v}" for k, v in sorted(self.prim_counts.items()))
+            lines.append(f"prims      {counts}")
+        for title, items in (("meshes", self.meshes), ("lights", self.lights),
+                             ("materials", self.materials), ("cameras", self.cameras),
+                             ("render settings", self.render_settings),
+                             ("point instancers", self.point_instancers)):
+            lines.append(f"{title} ({len(items)})")
+            shown = items[:20]
+            lines.extend(f"  {p}" for p in shown)
+            if len(items) > len(shown):
+                lines.append(f"  ... and {len(items) - len(shown)} more")
+        if self.ignored:
+            lines.append(f"ignored ({len(self.ignored)})")
+            lines.extend(f"  {p} [{t}]: {r}" for p, t, r in self.ignored)
+        if self.notes:
+            lines.append(f"notes ({len(self.notes)})")
+            lines.extend(f"  {n}" for n in self.notes)
+        if self.warnings:
+            lines.append(f"warnings ({len(self.warnings)})")
+            lines.extend(f"  {w}" for w in self.warnings)
+        return "\n".join(lines)
+
+
+def ignored_reason(prim) -> str:
+    """Why an (unsupported) prim is not rendered, or '' if it is not ignored."""
+    type_name = str(prim.GetTypeName())
+    if prim.IsA(UsdGeom.Gprim):
+        if type_name in MESH_TYPES or type_name in INTRINSIC_TYPES:
+            return ""
+        return f"{type_name} are not supported and are not rendered"
+    if prim.HasAPI(UsdLux.LightAPI) or prim.IsA(UsdLux.BoundableLightBase) \
+            or prim.IsA(UsdLux.NonboundableLightBase):
+        if type_name in SUPPORTED_LIGHT_TYPES:
+            return ""
+        if prim.IsA(UsdGeom.Gprim):
+            return ""
+        return f"{type_name or 'LightAPI'} lights are not supported and are not rendered"
+    return ""
+
+
+def _is_light(prim) -> bool:
+    return str(prim.GetTypeName()) in SUPPORTED_LIGHT_TYPES
+
+
+def subdivision_note(prim) -> str:
+    scheme = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get()
+    if scheme and scheme != UsdGeom.Tokens.none:
+        return f"{prim.GetPath()}: subdivisionScheme is {scheme}; rendered as the control cage"
+    return ""
+
+
+def stage_info(stage) -> StageInfo:
+    """Describe ``stage``: time range, units, what will and will not render."""
+    if stage is None:
+        raise UsdLoadError("stage_info: no stage")
+    check_time_metadata(stage)
+    state = stage_state(stage)
+    layer = stage.GetRootLayer()
+    info = StageInfo(
+        path=_stage_file(stage),
+        start=stage.GetStartTimeCode(),
+        end=stage.GetEndTimeCode(),
+        time_codes_per_second=stage.GetTimeCodesPerSecond(),
+        fps=stage.GetFramesPerSecond(),
+        meters_per_unit=UsdGeom.GetStageMetersPerUnit(stage),
+        up_axis=str(UsdGeom.GetStageUpAxis(stage)),
+        has_authored_time_range=bool(layer.HasStartTimeCode() and layer.HasEndTimeCode()),
+    )
+    warnings = list(state.open_warnings)
+    for w in composition_warnings(stage):
+        if w not in warnings:
+            warnings.append(w)
+    counts: Dict[str, int] = {}
+    for prim in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()):
+        if prim.IsPseudoRoot():
+            continue
+        t = str(prim.GetTypeName()) or "(typeless)"
+        counts[t] = counts.get(t, 0) + 1
+        path = str(prim.GetPath())
+        if t in MESH_TYPES or t in INTRINSIC_TYPES:
+            info.meshes.append(path)
+            if t == "Mesh":
+                note = subdivision_note(prim)
+                if note:
+                    info.notes.append(note)
+        elif _is_light(prim):
+            info.lights.append(path)
+        elif prim.IsA(UsdShade.Material):
+            info.materials.append(path)
+        elif prim.IsA(UsdGeom.Camera):
+            info.cameras.append(path)
+        elif prim.IsA(UsdRender.Settings):
+            info.render_settings.append(path)
+        elif prim.IsA(UsdGeom.PointInstancer):
+            info.point_instancers.append(path)
+        reason = ignored_reason(prim)
+        if reason:
+            info.ignored.append((path, t, reason))
+    info.prim_counts = counts
+    if info.meters_per_unit <= 0 or not math.isfinite(info.meters_per_unit):
+        warnings.append(f"{info.path}: metersPerUnit is {info.meters_per_unit:g}; using 0.01")
+    info.warnings = warnings
+    return info
