@@ -38,6 +38,7 @@ TINY_SHOT = textwrap.dedent('''\
     {
         def Mesh "Floor" (prepend apiSchemas = ["MaterialBindingAPI"])
         {
+            uniform token subdivisionScheme = "none"
             int[] faceVertexCounts = [4]
             int[] faceVertexIndices = [0, 1, 2, 3]
             point3f[] points = [(-2, 0, 2), (2, 0, 2), (2, 0, -2), (-2, 0, -2)]
@@ -45,6 +46,7 @@ TINY_SHOT = textwrap.dedent('''\
         }
         def Mesh "Back" (prepend apiSchemas = ["MaterialBindingAPI"])
         {
+            uniform token subdivisionScheme = "none"
             int[] faceVertexCounts = [4]
             int[] faceVertexIndices = [0, 1, 2, 3]
             point3f[] points = [(-2, 0, -2), (2, 0, -2), (2, 4, -2), (-2, 4, -2)]
@@ -52,6 +54,7 @@ TINY_SHOT = textwrap.dedent('''\
         }
         def Mesh "Box" (prepend apiSchemas = ["MaterialBindingAPI"])
         {
+            uniform token subdivisionScheme = "none"
             int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]
             int[] faceVertexIndices = [0, 1, 3, 2,  4, 6, 7, 5,  0, 4, 5, 1,  2, 3, 7, 6,  0, 2, 6, 4,  1, 5, 7, 3]
             point3f[] points = [(-0.5, 0, -0.5), (-0.5, 0, 0.5), (-0.5, 1, -0.5), (-0.5, 1, 0.5),
