@@ -222,7 +222,7 @@ class _Frame:
             if mat_ids is None:
                 mat_ids = np.full(len(geom.indices), base, dtype=np.uint32)
             mi = len(self.meshes)
-            self.meshes.append(Mesh(name=key, points=geom.points, indices=geom.indices,
+            self.meshes.append(Mesh(name=str(path), points=geom.points, indices=geom.indices,
                                     normals=geom.normals, uvs=geom.uvs,
                                     material_ids=np.ascontiguousarray(mat_ids, dtype=np.uint32),
                                     deforming=geom.deforming))

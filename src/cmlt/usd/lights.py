@@ -92,8 +92,10 @@ def rigid_and_scale(m: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     return out, scale
 
 
-def _asset(v) -> Optional[str]:
+def _asset(v, path: str, warnings: List[str]) -> Optional[str]:
     if isinstance(v, Sdf.AssetPath):
+        if v.path and not v.resolvedPath:
+            warnings.append(f"{path}: texture:file {v.path} cannot be resolved")
         return v.resolvedPath or v.path or None
     return str(v) if v else None
 
@@ -134,20 +136,20 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
     light = Light(name=path, kind=kind, transform=xf, normalize=normalize)
     area = None
     if kind == "rect":
-        light.width = abs(num("width", 1.0)) * s[0]
-        light.height = abs(num("height", 1.0)) * s[1]
-        light.texture = _asset(light_input(prim, "texture:file", None, time))
+        light.width = float(abs(num("width", 1.0)) * s[0])
+        light.height = float(abs(num("height", 1.0)) * s[1])
+        light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
         area = light.width * light.height
     elif kind == "disk":
-        light.radius = abs(num("radius", 0.5)) * 0.5 * (s[0] + s[1])
+        light.radius = float(abs(num("radius", 0.5)) * 0.5 * (s[0] + s[1]))
         area = math.pi * light.radius ** 2
     elif kind == "sphere":
-        light.radius = abs(num("radius", 0.5)) * float(np.mean(s))
+        light.radius = float(abs(num("radius", 0.5)) * np.mean(s))
         light.treat_as_point = bool(light_input(prim, "treatAsPoint", False, time))
         area = 4.0 * math.pi * light.radius ** 2
     elif kind == "cylinder":
-        light.length = abs(num("length", 1.0)) * s[0]
-        light.radius = abs(num("radius", 0.5)) * 0.5 * (s[1] + s[2])
+        light.length = float(abs(num("length", 1.0)) * s[0])
+        light.radius = float(abs(num("radius", 0.5)) * 0.5 * (s[1] + s[2]))
         light.treat_as_point = bool(light_input(prim, "treatAsLine", False, time))
         area = 2.0 * math.pi * light.radius * light.length
     elif kind == "distant":
@@ -155,7 +157,7 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
         half = math.radians(min(light.angle, 360.0)) / 2.0
         area = 2.0 * math.pi * (1.0 - math.cos(half))        # solid angle of the cone
     elif kind == "dome":
-        light.texture = _asset(light_input(prim, "texture:file", None, time))
+        light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
     if normalize and area is not None:
         if area > 0:
             radiance = radiance / area

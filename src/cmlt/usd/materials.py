@@ -323,13 +323,14 @@ class MaterialTable:
 
     def uv_primvar_name(self, prim) -> Optional[str]:
         """The st primvar name the bound material's textures read, if any."""
-        mat = bound_material(prim)
-        if mat is None:
-            return None
-        i = self.material(mat)
-        for v in self.materials[i].inputs.values():
-            if isinstance(v, dict) and v.get("st_primvar"):
-                return v["st_primvar"]
+        mats = [bound_material(prim)] + [m for _, m in subset_bindings(prim, self.time)]
+        for mat in mats:
+            if mat is None:
+                continue
+            i = self.material(mat)
+            for v in self.materials[i].inputs.values():
+                if isinstance(v, dict) and v.get("st_primvar"):
+                    return v["st_primvar"]
         return None
 
     def has_emission(self) -> bool:

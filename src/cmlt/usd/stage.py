@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import weakref
 from dataclasses import dataclass, field
 from typing import Dict, List, Tuple
@@ -22,10 +23,14 @@ SUPPORTED_LIGHT_TYPES = {
 }
 
 
+_TF_PREFIX = re.compile(r"Error in '[^']*' at line \d+ in file \S+ : ")
+
+
 def _one_line(text: str) -> str:
-    """Collapse a (Tf) error text to one line."""
-    parts = [p.strip() for p in str(text).replace("\t", " ").splitlines() if p.strip()]
-    return " ".join(parts)
+    """Collapse a (Tf) error text to one line, without C++ source locations."""
+    text = _TF_PREFIX.sub("", str(text))
+    parts = [p.strip().strip("'").strip() for p in text.replace("\t", " ").splitlines()]
+    return "; ".join(p for p in parts if p)
 
 
 def _stage_file(stage) -> str:
