@@ -165,3 +165,15 @@ def test_atomic_text_failure_keeps_old(tmp_path, monkeypatch):
         atomic.atomic_write_text(path, "new")
     assert open(path).read() == "old"
     assert _temps(tmp_path) == []
+
+
+def test_raw_attributes_from_color_module(tmp_path, rng):
+    """cmlt.color.header_attributes() output goes straight into the header."""
+    from cmlt.color import header_attributes
+    attrs = header_attributes("ACEScg")
+    path = str(tmp_path / "c.exr")
+    write_exr(path, _image(rng), colorspace=None, attributes=attrs)
+    _, meta = read_exr(path)
+    assert meta.get("colorInteropID") == "lin_ap1_scene"
+    if "chromaticities" in attrs:
+        assert np.allclose(meta["chromaticities"], attrs["chromaticities"], atol=1e-6)

@@ -72,13 +72,30 @@ def _set_attribute(spec, name: str, value: Any) -> None:
         spec.attribute(name, json.dumps(value, sort_keys=True, default=str))
 
 
+def _set_raw_attribute(spec, name: str, value: Any) -> None:
+    """A standard header attribute; a list of numbers becomes a float array
+    (e.g. ``chromaticities``: 8 floats), since OIIO's Python binding drops
+    some tuple types silently."""
+    import OpenImageIO as oiio
+
+    if isinstance(value, (list, tuple, np.ndarray)):
+        arr = [float(v) for v in np.asarray(value, dtype=np.float64).ravel()]
+        spec.attribute(name, oiio.TypeDesc(f"float[{len(arr)}]"), arr)
+    else:
+        _set_attribute(spec, name, value)
+
+
 def write_exr(path: str, image: np.ndarray, *, half: bool = False,
-              compression: str = "zip", colorspace: str = "ACEScg",
-              metadata: Optional[Mapping[str, Any]] = None) -> None:
+              compression: str = "zip", colorspace: Optional[str] = "ACEScg",
+              metadata: Optional[Mapping[str, Any]] = None,
+              attributes: Optional[Mapping[str, Any]] = None) -> None:
     """Write ``image`` (H, W, 3) float, top row first, to ``path`` atomically.
 
     ``metadata`` keys are written as ``cmlt:<key>`` unless they already
-    contain a ``:`` (then as given, e.g. ``oiio:Software``).
+    contain a ``:`` (then as given, e.g. ``oiio:Software``). ``attributes``
+    are written under their own names, after ``colorspace`` (so
+    :func:`cmlt.color.header_attributes` output can be passed straight in:
+    ``oiio:ColorSpace`` and ``chromaticities``).
     """
     import OpenImageIO as oiio
 
@@ -95,6 +112,8 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
         spec.attribute("oiio:ColorSpace", colorspace)
     for key, value in (metadata or {}).items():
         _set_attribute(spec, key if ":" in key else META_PREFIX + key, value)
+    for key, value in (attributes or {}).items():
+        _set_raw_attribute(spec, key, value)
 
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(tmp)

@@ -138,18 +138,24 @@ def _render_interruptible(core, scene, st, reporter: Reporter):
         reporter.frame_progress(done, total)
         return not cancel.is_set()
 
+    finished = threading.Event()
+
     def work():
         try:
             box["result"] = core.render(scene, st, progress=progress)
         except BaseException as exc:          # re-raised on the main thread
             box["error"] = exc
+        finally:
+            finished.set()
 
     worker = threading.Thread(target=work, name="cmlt-render", daemon=True)
     worker.start()
     interrupted = False
-    while worker.is_alive():
+    # Wait on an Event, not Thread.join: an interrupted join can leave the
+    # thread looking finished while it still runs.
+    while not finished.is_set():
         try:
-            worker.join(0.05)
+            finished.wait(0.05)
         except KeyboardInterrupt:
             if interrupted:
                 reporter.warn("still cancelling; waiting for the render threads to stop")
