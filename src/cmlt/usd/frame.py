@@ -253,28 +253,36 @@ class _Frame:
         if indices is None or len(indices) == 0:
             return
         indices = np.asarray(indices, dtype=np.int64)
-        try:
-            xforms = pi.ComputeInstanceTransformsAtTime(
-                tc, tc, UsdGeom.PointInstancer.IncludeProtoXform, UsdGeom.PointInstancer.IgnoreMask)
-        except Exception as exc:
-            self.warn(f"{path}: instance transforms cannot be computed (time {_tstr(tc)}): "
-                      f"{' '.join(str(exc).split())}; not rendered")
-            return
-        if xforms is None or len(xforms) != len(indices):
-            self.warn(f"{path}: positions/orientations/scales do not match protoIndices "
-                      f"({len(indices)} instances, time {_tstr(tc)}); not rendered")
-            return
         mask = pi.ComputeMaskAtTime(tc)
-        mask = np.ones(len(indices), bool) if mask is None or len(mask) == 0 \
+        mask = np.ones(len(indices), bool) if mask is None or len(mask) != len(indices) \
             else np.asarray(mask, dtype=bool)
         bad = (indices < 0) | (indices >= len(proto_prims))
         if bad.any():
             self.warn(f"{path}: protoIndices refers to prototype {int(indices[bad][0])} but "
                       f"prototypes has {len(proto_prims)} targets (time {_tstr(tc)}); "
                       f"those instances are not rendered")
+        if bad.all():
+            return
+        if bad.any():
+            mats = self._manual_instance_xforms(pi, indices, bad, proto_prims)
+        else:
+            try:
+                xforms = pi.ComputeInstanceTransformsAtTime(
+                    tc, tc, UsdGeom.PointInstancer.IncludeProtoXform,
+                    UsdGeom.PointInstancer.IgnoreMask)
+            except Exception as exc:
+                self.warn(f"{path}: instance transforms cannot be computed (time {_tstr(tc)}): "
+                          f"{' '.join(str(exc).split())}; not rendered")
+                return
+            if xforms is None or len(xforms) != len(indices):
+                self.warn(f"{path}: positions/orientations/scales do not match protoIndices "
+                          f"({len(indices)} instances, time {_tstr(tc)}); not rendered")
+                return
+            mats = np.asarray(xforms, dtype=np.float64).reshape(-1, 4, 4)
+            mats = np.transpose(mats, (0, 2, 1))
+        if mats is None:
+            return
         W = self._world(prim, root, outer)
-        mats = np.asarray([np.array(x, dtype=np.float64) for x in xforms]).reshape(-1, 4, 4)
-        mats = np.transpose(mats, (0, 2, 1))
         for i in np.nonzero(mask & ~bad)[0]:
             pp = proto_prims[indices[i]]
             if pp is None:
@@ -283,6 +291,56 @@ class _Frame:
             self.traverse(pp, W @ mats[i], depth + 1)
             for inst in self.instances[n_before:]:
                 inst.name = f"{path}[{i}]:{inst.name}"
+
+    def _manual_instance_xforms(self, pi, indices, bad, proto_prims):
+        """Instance transforms (column convention, prototype root xform
+        included) from positions/orientations/scales, for when USD refuses
+        to compute them (bad protoIndices). Velocities are not applied."""
+        tc, n = self.tc, len(indices)
+        path = pi.GetPath()
+
+        def arr(attr, width, default):
+            v = attr.Get(tc) if attr else None
+            if v is None or len(v) == 0:
+                return np.tile(default, (n, 1))
+            a = np.asarray(v, dtype=np.float64).reshape(-1, width)
+            if len(a) != n:
+                raise ValueError(attr.GetName())
+            return a
+
+        try:
+            pos = arr(pi.GetPositionsAttr(), 3, [0.0, 0.0, 0.0])
+            scl = arr(pi.GetScalesAttr(), 3, [1.0, 1.0, 1.0])
+            ov = pi.GetOrientationsAttr().Get(tc)
+            if ov is not None and len(ov):
+                if len(ov) != n:
+                    raise ValueError("orientations")
+                q = np.array([[o.GetReal(), *o.GetImaginary()] for o in ov], dtype=np.float64)
+            else:
+                q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        except ValueError as exc:
+            self.warn(f"{path}: {exc} does not match protoIndices ({n} instances, "
+                      f"time {_tstr(tc)}); not rendered")
+            return None
+        q /= np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-30)
+        w, x, y, z = q.T
+        R = np.stack([
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+        ], 1)
+        mats = np.zeros((n, 4, 4))
+        mats[:, :3, :3] = R * scl[:, None, :]
+        mats[:, :3, 3] = pos
+        mats[:, 3, 3] = 1.0
+        for k in range(len(proto_prims)):
+            pp = proto_prims[k]
+            if pp is None:
+                continue
+            local = gf_to_np(self.xc.GetLocalTransformation(pp)[0])
+            sel = (indices == k) & ~bad
+            mats[sel] = mats[sel] @ local
+        return mats
 
     # ---------------------------------------------------------- lights
     def _light(self, prim):

@@ -65,12 +65,25 @@ def _read_primvar(pv: UsdGeom.Primvar, time, width: int) -> Optional[_Primvar]:
         return None
     idx = None
     varying = pv.ValueMightBeTimeVarying()
+    interp = str(pv.GetInterpolation())
     if pv.IsIndexed():
         raw = pv.GetIndices(time)
         idx = np.asarray(raw, dtype=np.int64) if raw is not None else None
         ia = pv.GetIndicesAttr()
         varying = varying or (ia and ia.ValueMightBeTimeVarying())
-    return _Primvar(pv.GetPrimvarName(), str(pv.GetInterpolation()), arr, idx, bool(varying))
+    elif interp == UsdGeom.Tokens.faceVarying and len(arr) > 1:
+        # Exporters often write one value per corner without indices; index
+        # equal values so that corners sharing a point and a value share a vertex.
+        arr, idx = _index_equal_rows(arr)
+    return _Primvar(pv.GetPrimvarName(), interp, arr, idx, bool(varying))
+
+
+def _index_equal_rows(arr: np.ndarray):
+    """(unique rows, index of each row) by exact bit pattern."""
+    a = np.ascontiguousarray(arr)
+    view = a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).reshape(-1)
+    _, first, inv = np.unique(view, return_index=True, return_inverse=True)
+    return a[first], inv.reshape(-1).astype(np.int64)
 
 
 def find_uv_primvar(api: UsdGeom.PrimvarsAPI, preferred: Optional[str] = None):
