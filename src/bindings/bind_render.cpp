@@ -1,0 +1,116 @@
+// Bindings of RenderSettings and render(): the GIL is released while rendering and
+// re-acquired only to call the progress callback (from the calling thread).
+#include "bind_common.h"
+
+#include "integrators/common/render.h"
+#include "util/error.h"
+
+#include <nanobind/stl/string.h>
+
+#include <exception>
+
+namespace cmlt::bindings {
+
+using namespace nb::literals;
+
+namespace {
+
+struct PyRenderResult {
+    nb::object image, variance;
+    bool cancelled = false;
+    nb::dict stats;
+};
+
+nb::object to_numpy(std::vector<float>&& v, int h, int w) {
+    auto* heap = new std::vector<float>(std::move(v));
+    nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+    size_t shape[3] = {size_t(h), size_t(w), 3};
+    return nb::ndarray<nb::numpy, float>(heap->data(), 3, shape, owner).cast();
+}
+
+PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::object progress) {
+    ProgressCallback cb;
+    std::exception_ptr cb_error;
+    if (!progress.is_none()) {
+        if (!PyCallable_Check(progress.ptr()))
+            throw nb::type_error("render: progress must be a callable(done, total) or None");
+        cb = [&](uint64_t done, uint64_t total) -> bool {
+            nb::gil_scoped_acquire gil;
+            try {
+                nb::object r = progress(done, total);
+                if (r.is_none()) return true;
+                int truth = PyObject_IsTrue(r.ptr());
+                if (truth < 0) throw nb::python_error();
+                return truth != 0;
+            } catch (...) {
+                cb_error = std::current_exception();
+                return false;
+            }
+        };
+    }
+    RenderResult res;
+    {
+        nb::gil_scoped_release release;
+        res = render(scene, settings, cb);
+    }
+    if (cb_error) std::rethrow_exception(cb_error);
+
+    PyRenderResult out;
+    out.image = to_numpy(std::move(res.image), res.height, res.width);
+    out.variance = to_numpy(std::move(res.variance), res.height, res.width);
+    out.cancelled = res.cancelled;
+    const RenderStats& st = res.stats;
+    nb::dict d;
+    d["time_s"] = st.time_s;
+    d["samples"] = st.samples;
+    d["camera_rays"] = st.camera_rays;
+    d["shadow_rays"] = st.shadow_rays;
+    d["rays"] = st.rays;
+    d["rays_per_s"] = st.rays_per_s;
+    d["nan_samples"] = st.nan_samples;
+    if (st.nan_samples > 0) {
+        d["first_nan_pixel"] = nb::make_tuple(st.first_nan_x, st.first_nan_y);
+        d["first_nan_sample"] = st.first_nan_sample;
+    }
+    d["threads"] = st.threads;
+    d["integrator"] = st.integrator;
+    d["spp"] = st.spp;
+    d["seed"] = st.seed;
+    d["cancelled"] = res.cancelled;
+    out.stats = d;
+    return out;
+}
+
+}  // namespace
+
+void bind_render(nb::module_& m) {
+    nb::class_<RenderSettings>(m, "RenderSettings", "Settings of one frame (validated by render).")
+        .def(nb::init<>())
+        .def_rw("width", &RenderSettings::width, "image width, >= 1 (default 640)")
+        .def_rw("height", &RenderSettings::height, "image height, >= 1 (default 480)")
+        .def_rw("spp", &RenderSettings::spp, "samples per pixel, >= 1 (default 16)")
+        .def_rw("max_depth", &RenderSettings::max_depth,
+                "max scattering events, >= 1; 1 = direct lighting (default 64)")
+        .def_rw("seed", &RenderSettings::seed, "RNG seed, 0..2^64-1 (default 0)")
+        .def_rw("threads", &RenderSettings::threads, "worker threads, 0 = all cores (default 0)")
+        .def_rw("integrator", &RenderSettings::integrator, "'pt' (default)")
+        .def("__repr__", [](const RenderSettings& s) {
+            return "RenderSettings(width=" + std::to_string(s.width) +
+                   ", height=" + std::to_string(s.height) + ", spp=" + std::to_string(s.spp) +
+                   ", max_depth=" + std::to_string(s.max_depth) + ", seed=" + std::to_string(s.seed) +
+                   ", threads=" + std::to_string(s.threads) + ", integrator='" + s.integrator + "')";
+        });
+
+    nb::class_<PyRenderResult>(m, "RenderResult")
+        .def_ro("image", &PyRenderResult::image, "float32 (H, W, 3), row 0 at the top")
+        .def_ro("variance", &PyRenderResult::variance,
+                "float32 (H, W, 3), sample variance of each pixel's mean")
+        .def_ro("cancelled", &PyRenderResult::cancelled)
+        .def_ro("stats", &PyRenderResult::stats);
+
+    m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
+          "Render one frame. progress(done, total) is called between chunks of samples per "
+          "pixel on the calling thread; returning False cancels.");
+}
+
+}  // namespace cmlt::bindings

@@ -1,0 +1,312 @@
+#include "accel/accel.h"
+
+#include "accel/embree_device.h"
+#include "util/error.h"
+
+#include <vector>
+
+namespace cmlt {
+
+// Scene flags, documented choices:
+// * mesh scenes: RTC_SCENE_FLAG_ROBUST (no watertightness shortcuts; grazing rays at
+//   shared edges do not leak) and RTC_BUILD_QUALITY_MEDIUM. A deforming mesh rebuilds
+//   only its own BVH; its geometry uses RTC_BUILD_QUALITY_REFIT after the first update,
+//   so a per-frame point update refits instead of rebuilding.
+// * top-level scene: RTC_SCENE_FLAG_DYNAMIC + RTC_BUILD_QUALITY_LOW, as hdEmbree does,
+//   because instance transforms change every frame and the top level holds few objects.
+
+struct Accel::Impl {
+    struct Mesh {
+        RTCScene scene = nullptr;
+        RTCGeometry geom = nullptr;
+        size_t n_points = 0;
+        bool dirty = true;
+    };
+    struct Instance {
+        RTCGeometry geom = nullptr;
+        uint32_t mesh = 0;
+    };
+    std::shared_ptr<EmbreeDevice> device = EmbreeDevice::get();
+    RTCScene top = nullptr;
+    std::vector<Mesh> meshes;
+    std::vector<Instance> instances;
+    bool top_dirty = true;
+
+    Impl() {
+        top = rtcNewScene(device->handle());
+        device->check("Accel: rtcNewScene");
+        rtcSetSceneFlags(top, RTC_SCENE_FLAG_DYNAMIC);
+        rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_LOW);
+        device->check("Accel: top-level scene flags");
+    }
+    ~Impl() {
+        for (auto& i : instances) rtcReleaseGeometry(i.geom);
+        for (auto& m : meshes) {
+            rtcReleaseGeometry(m.geom);
+            rtcReleaseScene(m.scene);
+        }
+        if (top) rtcReleaseScene(top);
+    }
+};
+
+Accel::Accel() : m_impl(new Impl()) {}
+Accel::~Accel() = default;
+
+size_t Accel::mesh_count() const { return m_impl->meshes.size(); }
+size_t Accel::instance_count() const { return m_impl->instances.size(); }
+
+uint32_t Accel::add_mesh(const float* points, size_t n_points, const uint32_t* indices,
+                         size_t n_tris) {
+    Impl& I = *m_impl;
+    RTCDevice dev = I.device->handle();
+    Impl::Mesh mesh;
+    mesh.n_points = n_points;
+    mesh.scene = rtcNewScene(dev);
+    rtcSetSceneFlags(mesh.scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(mesh.scene, RTC_BUILD_QUALITY_MEDIUM);
+    mesh.geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetSharedGeometryBuffer(mesh.geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, points, 0,
+                               3 * sizeof(float), n_points);
+    rtcSetSharedGeometryBuffer(mesh.geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, indices, 0,
+                               3 * sizeof(uint32_t), n_tris);
+    rtcCommitGeometry(mesh.geom);
+    rtcAttachGeometryByID(mesh.scene, mesh.geom, 0);
+    I.device->check("Accel::add_mesh");
+    I.meshes.push_back(mesh);
+    return uint32_t(I.meshes.size() - 1);
+}
+
+void Accel::update_mesh_points(uint32_t mesh_id, const float* points) {
+    Impl& I = *m_impl;
+    CMLT_CHECK(mesh_id < I.meshes.size());
+    Impl::Mesh& mesh = I.meshes[mesh_id];
+    rtcSetGeometryBuildQuality(mesh.geom, RTC_BUILD_QUALITY_REFIT);
+    rtcSetSharedGeometryBuffer(mesh.geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, points, 0,
+                               3 * sizeof(float), mesh.n_points);
+    rtcUpdateGeometryBuffer(mesh.geom, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(mesh.geom);
+    I.device->check("Accel::update_mesh_points");
+    mesh.dirty = true;
+    I.top_dirty = true;
+}
+
+static void to_float3x4(const Mat4& m, float out[12]) {
+    // RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR: 4 columns of 3 rows.
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 3; ++r) out[c * 3 + r] = float(m.m[r][c]);
+}
+
+uint32_t Accel::add_instance(uint32_t mesh_id, const Mat4& object_to_world) {
+    Impl& I = *m_impl;
+    CMLT_CHECK(mesh_id < I.meshes.size());
+    Impl::Instance inst;
+    inst.mesh = mesh_id;
+    inst.geom = rtcNewGeometry(I.device->handle(), RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(inst.geom, I.meshes[mesh_id].scene);
+    rtcSetGeometryTimeStepCount(inst.geom, 1);
+    float xf[12];
+    to_float3x4(object_to_world, xf);
+    rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+    rtcCommitGeometry(inst.geom);
+    uint32_t id = uint32_t(I.instances.size());
+    rtcAttachGeometryByID(I.top, inst.geom, id);
+    I.device->check("Accel::add_instance");
+    I.instances.push_back(inst);
+    I.top_dirty = true;
+    return id;
+}
+
+void Accel::set_instance_transform(uint32_t instance_id, const Mat4& object_to_world) {
+    Impl& I = *m_impl;
+    CMLT_CHECK(instance_id < I.instances.size());
+    float xf[12];
+    to_float3x4(object_to_world, xf);
+    RTCGeometry g = I.instances[instance_id].geom;
+    rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+    rtcCommitGeometry(g);
+    I.device->check("Accel::set_instance_transform");
+    I.top_dirty = true;
+}
+
+void Accel::commit() {
+    Impl& I = *m_impl;
+    for (auto& m : I.meshes) {
+        if (!m.dirty) continue;
+        rtcCommitScene(m.scene);
+        I.device->check("Accel::commit (mesh BVH)");
+        m.dirty = false;
+        I.top_dirty = true;
+    }
+    if (I.top_dirty) {
+        rtcCommitScene(I.top);
+        I.device->check("Accel::commit (top-level BVH)");
+        I.top_dirty = false;
+    }
+}
+
+static void fill_ray(RTCRay& r, const Ray& ray) {
+    r.org_x = ray.o.x; r.org_y = ray.o.y; r.org_z = ray.o.z;
+    r.dir_x = ray.d.x; r.dir_y = ray.d.y; r.dir_z = ray.d.z;
+    r.tnear = ray.tnear;
+    r.tfar = ray.tfar;
+    r.time = 0.f;
+    r.mask = 0xFFFFFFFFu;
+    r.id = 0;
+    r.flags = 0;
+}
+
+Hit Accel::intersect(const Ray& ray) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    fill_ray(rh.ray, ray);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(m_impl->top, &ctx, &rh);
+    Hit h;
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        h.t = rh.ray.tfar;
+        h.u = rh.hit.u;
+        h.v = rh.hit.v;
+        h.prim_id = rh.hit.primID;
+        h.instance_id = rh.hit.instID[0];
+    }
+    return h;
+}
+
+bool Accel::occluded(const Ray& ray) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay r;
+    fill_ray(r, ray);
+    rtcOccluded1(m_impl->top, &ctx, &r);
+    return r.tfar < 0.f;  // Embree sets tfar = -inf on a hit
+}
+
+namespace {
+
+template <int N, typename RayHitN>
+void fill_packet(RayHitN& p, const int* valid, const Ray* rays, int* mask) {
+    for (int i = 0; i < N; ++i) {
+        mask[i] = valid[i] ? -1 : 0;
+        const Ray& r = rays[i];
+        p.ray.org_x[i] = r.o.x; p.ray.org_y[i] = r.o.y; p.ray.org_z[i] = r.o.z;
+        p.ray.dir_x[i] = r.d.x; p.ray.dir_y[i] = r.d.y; p.ray.dir_z[i] = r.d.z;
+        p.ray.tnear[i] = r.tnear;
+        p.ray.tfar[i] = r.tfar;
+        p.ray.time[i] = 0.f;
+        p.ray.mask[i] = 0xFFFFFFFFu;
+        p.ray.id[i] = unsigned(i);
+        p.ray.flags[i] = 0;
+        p.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        p.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+}
+
+template <int N, typename RayHitN>
+void read_packet(const RayHitN& p, const int* mask, Hit* hits) {
+    for (int i = 0; i < N; ++i) {
+        Hit h;
+        if (mask[i] && p.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID) {
+            h.t = p.ray.tfar[i];
+            h.u = p.hit.u[i];
+            h.v = p.hit.v[i];
+            h.prim_id = p.hit.primID[i];
+            h.instance_id = p.hit.instID[0][i];
+        }
+        hits[i] = h;
+    }
+}
+
+template <int N, typename RayN>
+void fill_ray_packet(RayN& p, const int* valid, const Ray* rays, int* mask) {
+    for (int i = 0; i < N; ++i) {
+        mask[i] = valid[i] ? -1 : 0;
+        const Ray& r = rays[i];
+        p.org_x[i] = r.o.x; p.org_y[i] = r.o.y; p.org_z[i] = r.o.z;
+        p.dir_x[i] = r.d.x; p.dir_y[i] = r.d.y; p.dir_z[i] = r.d.z;
+        p.tnear[i] = r.tnear;
+        p.tfar[i] = r.tfar;
+        p.time[i] = 0.f;
+        p.mask[i] = 0xFFFFFFFFu;
+        p.id[i] = unsigned(i);
+        p.flags[i] = 0;
+    }
+}
+
+}  // namespace
+
+void Accel::intersect_packet(int width, const int* valid, const Ray* rays, Hit* hits,
+                             bool coherent) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) int mask[16];
+    switch (width) {
+        case 4: {
+            RTCRayHit4 p;
+            fill_packet<4>(p, valid, rays, mask);
+            rtcIntersect4(mask, m_impl->top, &ctx, &p);
+            read_packet<4>(p, mask, hits);
+            break;
+        }
+        case 8: {
+            RTCRayHit8 p;
+            fill_packet<8>(p, valid, rays, mask);
+            rtcIntersect8(mask, m_impl->top, &ctx, &p);
+            read_packet<8>(p, mask, hits);
+            break;
+        }
+        case 16: {
+            RTCRayHit16 p;
+            fill_packet<16>(p, valid, rays, mask);
+            rtcIntersect16(mask, m_impl->top, &ctx, &p);
+            read_packet<16>(p, mask, hits);
+            break;
+        }
+        default: CMLT_THROW(std::invalid_argument, "packet width must be 4, 8 or 16, got " << width);
+    }
+}
+
+void Accel::occluded_packet(int width, const int* valid, const Ray* rays, bool* occluded,
+                            bool coherent) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) int mask[16];
+    switch (width) {
+        case 4: {
+            RTCRay4 p;
+            fill_ray_packet<4>(p, valid, rays, mask);
+            rtcOccluded4(mask, m_impl->top, &ctx, &p);
+            for (int i = 0; i < 4; ++i) occluded[i] = mask[i] && p.tfar[i] < 0.f;
+            break;
+        }
+        case 8: {
+            RTCRay8 p;
+            fill_ray_packet<8>(p, valid, rays, mask);
+            rtcOccluded8(mask, m_impl->top, &ctx, &p);
+            for (int i = 0; i < 8; ++i) occluded[i] = mask[i] && p.tfar[i] < 0.f;
+            break;
+        }
+        case 16: {
+            RTCRay16 p;
+            fill_ray_packet<16>(p, valid, rays, mask);
+            rtcOccluded16(mask, m_impl->top, &ctx, &p);
+            for (int i = 0; i < 16; ++i) occluded[i] = mask[i] && p.tfar[i] < 0.f;
+            break;
+        }
+        default: CMLT_THROW(std::invalid_argument, "packet width must be 4, 8 or 16, got " << width);
+    }
+}
+
+int Accel::max_packet_width() {
+    auto dev = EmbreeDevice::get();
+    RTCDevice d = dev->handle();
+    if (rtcGetDeviceProperty(d, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED)) return 16;
+    if (rtcGetDeviceProperty(d, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED)) return 8;
+    if (rtcGetDeviceProperty(d, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED)) return 4;
+    return 1;
+}
+
+}  // namespace cmlt

@@ -1,0 +1,75 @@
+#pragma once
+/// \file Ray-query acceleration over triangle meshes (Embree 3).
+///
+/// The only module that includes <embree3/rtcore.h> is accel/*.cpp; this header is
+/// Embree-free. Layout follows OpenUSD's hdEmbree: each mesh owns an RTCScene with one
+/// triangle geometry; every placement of a mesh is an RTC_GEOMETRY_TYPE_INSTANCE in the
+/// top-level scene, so a rigid motion only rewrites an instance transform and a
+/// deformation refits one mesh BVH.
+///
+/// Vertex and index buffers are shared with the caller (rtcSetSharedGeometryBuffer,
+/// zero copy). The vertex buffer must be readable for 4 bytes past the last vertex
+/// (the Python side pads one spare row, see cmlt/scene.py `padded_points`).
+#include "math/mat4.h"
+#include "math/ray.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+
+namespace cmlt {
+
+constexpr uint32_t k_invalid_id = 0xFFFFFFFFu;
+
+/// Result of a closest-hit query. Barycentrics (u, v) weight vertices 1 and 2.
+struct Hit {
+    float t = k_infinity;
+    float u = 0.f, v = 0.f;
+    uint32_t prim_id = k_invalid_id;
+    uint32_t instance_id = k_invalid_id;
+    bool valid() const { return instance_id != k_invalid_id; }
+};
+
+class Accel {
+public:
+    Accel();
+    ~Accel();
+    Accel(const Accel&) = delete;
+    Accel& operator=(const Accel&) = delete;
+
+    /// Register a triangle mesh. `points` is float32 (n_points, 3) (+4 readable bytes),
+    /// `indices` uint32 (n_tris, 3). Returns the mesh id (0, 1, ...).
+    uint32_t add_mesh(const float* points, size_t n_points, const uint32_t* indices, size_t n_tris);
+    /// Point the mesh at new vertex data (same count) and rebuild/refit its BVH at commit.
+    void update_mesh_points(uint32_t mesh_id, const float* points);
+    /// Place a mesh. Returns the instance id (0, 1, ...), the Embree instance geometry id.
+    uint32_t add_instance(uint32_t mesh_id, const Mat4& object_to_world);
+    void set_instance_transform(uint32_t instance_id, const Mat4& object_to_world);
+    /// Commit dirty meshes, then the top-level scene. Throws SceneError on Embree errors.
+    void commit();
+
+    size_t mesh_count() const;
+    size_t instance_count() const;
+
+    /// Closest hit in (tnear, tfar).
+    Hit intersect(const Ray& ray) const;
+    /// Any hit in (tnear, tfar).
+    bool occluded(const Ray& ray) const;
+
+    /// Packet queries (rtcIntersect4/8/16, rtcOccluded4/8/16). `width` is 4, 8 or 16;
+    /// `valid[i]` != 0 marks active lanes; inactive lanes get an invalid Hit / false.
+    /// `coherent` sets RTC_INTERSECT_CONTEXT_FLAG_COHERENT (ray bundles).
+    void intersect_packet(int width, const int* valid, const Ray* rays, Hit* hits,
+                          bool coherent = true) const;
+    void occluded_packet(int width, const int* valid, const Ray* rays, bool* occluded,
+                         bool coherent = true) const;
+
+    /// Largest packet width with native support in this Embree build on this CPU (4, 8 or 16).
+    static int max_packet_width();
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+}  // namespace cmlt

@@ -1,0 +1,73 @@
+#include "cameras/camera.h"
+
+#include "util/error.h"
+
+#include <cmath>
+
+namespace cmlt {
+
+void CameraDesc::validate() const {
+    auto pos = [](float v, const char* name) {
+        if (!(v > 0.f) || !std::isfinite(v))
+            CMLT_THROW(SceneError, "camera: " << name << " must be finite and > 0, got " << v);
+    };
+    auto fin = [](float v, const char* name) {
+        if (!std::isfinite(v)) CMLT_THROW(SceneError, "camera: " << name << " must be finite, got " << v);
+    };
+    if (projection == Projection::perspective) pos(focal_length, "focal_length");
+    pos(horizontal_aperture, "horizontal_aperture");
+    pos(vertical_aperture, "vertical_aperture");
+    fin(horizontal_aperture_offset, "horizontal_aperture_offset");
+    fin(vertical_aperture_offset, "vertical_aperture_offset");
+    if (!(near >= 0.f) || !std::isfinite(near))
+        CMLT_THROW(SceneError, "camera: near must be finite and >= 0, got " << near);
+    if (!(far > near))
+        CMLT_THROW(SceneError, "camera: far (" << far << ") must be greater than near (" << near << ")");
+    if (!(f_stop >= 0.f)) CMLT_THROW(SceneError, "camera: f_stop must be >= 0, got " << f_stop);
+    if (!(focus_distance >= 0.f))
+        CMLT_THROW(SceneError, "camera: focus_distance must be >= 0, got " << focus_distance);
+    Transform(transform, "camera");
+}
+
+Camera::Camera(const CameraDesc& desc, int width, int height)
+    : m_desc(desc), m_xf(desc.transform, "camera"), m_width(width), m_height(height) {
+    desc.validate();
+    m_win_w = desc.horizontal_aperture;
+    m_win_h = desc.horizontal_aperture * float(height) / float(width);
+}
+
+Vec2 Camera::raster_to_window(const Vec2& p) const {
+    return {m_desc.horizontal_aperture_offset + (p.x / float(m_width) - 0.5f) * m_win_w,
+            m_desc.vertical_aperture_offset + (0.5f - p.y / float(m_height)) * m_win_h};
+}
+
+Ray Camera::generate_ray(const Vec2& p_raster) const {
+    Vec2 w = raster_to_window(p_raster);
+    if (m_desc.projection == CameraDesc::Projection::orthographic) {
+        Vec3 o = m_xf.m.transform_point(Vec3(0.1f * w.x, 0.1f * w.y, 0.f));
+        Vec3 d = normalize(m_xf.m.transform_vector(Vec3(0.f, 0.f, -1.f)));
+        return Ray(o, d, m_desc.near, m_desc.far);
+    }
+    Vec3 dc(w.x / m_desc.focal_length, w.y / m_desc.focal_length, -1.f);
+    float len = length(dc);  // depth 1 along -Z is distance len along the ray
+    Vec3 o = m_xf.m.transform_point(Vec3(0.f));
+    Vec3 d = normalize(m_xf.m.transform_vector(dc));
+    return Ray(o, d, m_desc.near * len, m_desc.far * len);
+}
+
+bool Camera::world_to_raster(const Vec3& p_world, Vec2* p_raster) const {
+    Vec3 pc = m_xf.inv.transform_point(p_world);
+    Vec2 w;
+    if (m_desc.projection == CameraDesc::Projection::orthographic) {
+        w = {pc.x * 10.f, pc.y * 10.f};
+        if (!(pc.z < 0.f)) return false;
+    } else {
+        if (!(pc.z < 0.f)) return false;
+        w = {m_desc.focal_length * pc.x / -pc.z, m_desc.focal_length * pc.y / -pc.z};
+    }
+    p_raster->x = ((w.x - m_desc.horizontal_aperture_offset) / m_win_w + 0.5f) * float(m_width);
+    p_raster->y = (0.5f - (w.y - m_desc.vertical_aperture_offset) / m_win_h) * float(m_height);
+    return true;
+}
+
+}  // namespace cmlt

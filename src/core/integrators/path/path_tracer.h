@@ -1,0 +1,49 @@
+#pragma once
+/// \file Unidirectional path tracing with next-event estimation and MIS.
+///
+/// Estimates the measurement of one camera ray (Veach 1997 ch. 9, power heuristic with
+/// beta = 2, one light sample and one BSDF sample per vertex), following pbrt-v4's
+/// PathIntegrator::Li:
+///  * emission found by BSDF-sampled rays (emissive triangles, analytic area lights,
+///    dome / distant-cone on escape) is weighted against light sampling;
+///  * light samples are weighted against BSDF sampling; Dirac lights and Dirac BSDF
+///    lobes get weight 1 from their only strategy;
+///  * `max_depth` counts scattering events: 1 = direct lighting only;
+///  * Russian roulette from the 4th scattering event on, continuation probability
+///    min(0.95, max(beta)), its random number at a fixed dimension.
+///
+/// Random dimensions: 0 = film position; bounce b uses [1 + 5b, 1 + 5b + 5):
+/// light choice, light position (2D), BSDF direction (2D), BSDF lobe, roulette.
+#include "math/ray.h"
+#include "math/vec.h"
+#include "sampling/rng.h"
+
+#include <cstdint>
+
+namespace cmlt {
+
+class Scene;
+
+struct PathCounters {
+    uint64_t camera_rays = 0;
+    uint64_t shadow_rays = 0;
+    uint64_t rays = 0;
+    uint64_t samples = 0;
+};
+
+class PathTracer {
+public:
+    static constexpr uint32_t k_dims_per_bounce = 5;
+    static constexpr int k_rr_start_depth = 3;
+
+    PathTracer(const Scene& scene, int max_depth) : m_scene(scene), m_max_depth(max_depth) {}
+
+    /// Radiance along a camera ray (may be non-finite only through a bug; the film checks).
+    Spectrum li(const Ray& camera_ray, PixelSampler& sampler, PathCounters& counters) const;
+
+private:
+    const Scene& m_scene;
+    int m_max_depth;
+};
+
+}  // namespace cmlt

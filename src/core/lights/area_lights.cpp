@@ -1,0 +1,88 @@
+#include "lights/area_lights.h"
+
+#include "math/safe_math.h"
+#include "sampling/warp.h"
+
+#include <cmath>
+
+namespace cmlt {
+
+PlanarLight::PlanarLight(const LightDesc& desc, const char* what)
+    : m_xf(desc.transform, what), m_radiance(desc.radiance) {
+    m_n_emit = normalize(m_xf.normal.transform_normal(Vec3(0.f, 0.f, -1.f)));
+}
+
+LightSample PlanarLight::sample_li(const Vec3& p, const Vec2& u) const {
+    LightSample s;
+    if (!(m_area > 0.f)) return s;
+    Vec2 l = sample_local(u);
+    Vec3 q = m_xf.m.transform_point(Vec3(l.x, l.y, 0.f));
+    Vec3 d = q - p;
+    float dist2 = length_squared(d);
+    if (!(dist2 > 0.f)) return s;
+    float dist = std::sqrt(dist2);
+    Vec3 wi = d / dist;
+    float cos_l = -dot(m_n_emit, wi);  // emitting side faces p when > 0
+    if (!(cos_l > 0.f)) return s;
+    s.pdf = dist2 / (cos_l * m_area);
+    if (!std::isfinite(s.pdf)) return LightSample();
+    s.wi = wi;
+    s.li = m_radiance;
+    s.dist = dist;
+    s.p_light = q;
+    return s;
+}
+
+bool PlanarLight::intersect(const Ray& ray, float* t, Spectrum* le) const {
+    if (!(m_area > 0.f)) return false;
+    Vec3 o = m_xf.inv.transform_point(ray.o);
+    Vec3 d = m_xf.inv.transform_vector(ray.d);
+    // The emitting side is local -Z: a ray sees it while travelling toward +Z.
+    if (!(d.z > 0.f)) return false;
+    float th = -o.z / d.z;
+    if (!(th > ray.tnear && th < ray.tfar)) return false;
+    if (!inside(o.x + th * d.x, o.y + th * d.y)) return false;
+    *t = th;
+    *le = m_radiance;
+    return true;
+}
+
+float PlanarLight::pdf_li(const Vec3& p, const Vec3& wi) const {
+    float t;
+    Spectrum le;
+    if (!intersect(Ray(p, wi), &t, &le)) return 0.f;
+    float cos_l = -dot(m_n_emit, wi);
+    if (!(cos_l > 0.f)) return 0.f;
+    float pdf = t * t * length_squared(wi) / (cos_l * m_area);
+    return std::isfinite(pdf) ? pdf : 0.f;
+}
+
+float PlanarLight::power() const { return k_pi * m_area * luminance(m_radiance); }
+
+static float parallelogram_area(const Mat4& m, float a, float b) {
+    Vec3 ex = m.transform_vector(Vec3(a, 0.f, 0.f));
+    Vec3 ey = m.transform_vector(Vec3(0.f, b, 0.f));
+    return length(cross(ex, ey));
+}
+
+RectLight::RectLight(const LightDesc& desc)
+    : PlanarLight(desc, "rect light"), m_w(desc.width), m_h(desc.height) {
+    m_area = (m_w > 0.f && m_h > 0.f) ? parallelogram_area(m_xf.m, m_w, m_h) : 0.f;
+}
+bool RectLight::inside(float x, float y) const {
+    return std::fabs(x) <= 0.5f * m_w && std::fabs(y) <= 0.5f * m_h;
+}
+Vec2 RectLight::sample_local(const Vec2& u) const {
+    return {(u.x - 0.5f) * m_w, (u.y - 0.5f) * m_h};
+}
+
+DiskLight::DiskLight(const LightDesc& desc) : PlanarLight(desc, "disk light"), m_r(desc.radius) {
+    m_area = m_r > 0.f ? k_pi * parallelogram_area(m_xf.m, m_r, m_r) : 0.f;
+}
+bool DiskLight::inside(float x, float y) const { return x * x + y * y <= m_r * m_r; }
+Vec2 DiskLight::sample_local(const Vec2& u) const {
+    Vec2 d = square_to_uniform_disk_concentric(u);
+    return {d.x * m_r, d.y * m_r};
+}
+
+}  // namespace cmlt

@@ -1,0 +1,53 @@
+#pragma once
+/// \file UsdLux RectLight and DiskLight: planar, one-sided, emitting toward local -Z.
+#include "lights/light.h"
+
+namespace cmlt {
+
+/// Planar light in local z = 0 with a shape test; shared by rect and disk.
+class PlanarLight : public Light {
+public:
+    LightSample sample_li(const Vec3& p, const Vec2& u) const override;
+    float pdf_li(const Vec3& p, const Vec3& wi) const override;
+    bool intersect(const Ray& ray, float* t, Spectrum* le) const override;
+    float power() const override;
+    float area() const { return m_area; }
+
+protected:
+    PlanarLight(const LightDesc& desc, const char* what);
+    /// Local (x, y) inside the shape?
+    virtual bool inside(float x, float y) const = 0;
+    /// Map u to a local point in the shape.
+    virtual Vec2 sample_local(const Vec2& u) const = 0;
+
+    Transform m_xf;
+    Spectrum m_radiance;
+    Vec3 m_n_emit;   ///< unit world normal of the emitting side (local -Z)
+    float m_area = 0.f;
+};
+
+class RectLight final : public PlanarLight {
+public:
+    explicit RectLight(const LightDesc& desc);
+
+protected:
+    bool inside(float x, float y) const override;
+    Vec2 sample_local(const Vec2& u) const override;
+
+private:
+    float m_w, m_h;
+};
+
+class DiskLight final : public PlanarLight {
+public:
+    explicit DiskLight(const LightDesc& desc);
+
+protected:
+    bool inside(float x, float y) const override;
+    Vec2 sample_local(const Vec2& u) const override;
+
+private:
+    float m_r;
+};
+
+}  // namespace cmlt

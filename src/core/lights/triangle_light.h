@@ -1,0 +1,32 @@
+#pragma once
+/// \file An emissive mesh triangle (world space), two-sided, sampled uniformly by area.
+///
+/// Emission of UsdPreviewSurface is not culled by winding (and meshes are often
+/// doubleSided), so both faces emit.
+#include "lights/light.h"
+
+#include <cstdint>
+
+namespace cmlt {
+
+class TriangleLight final : public Light {
+public:
+    TriangleLight(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Spectrum& le,
+                  uint32_t instance_id, uint32_t prim_id);
+    LightSample sample_li(const Vec3& p, const Vec2& u) const override;
+    /// Intersects the triangle along wi (Moller-Trumbore); used when only a direction is known.
+    float pdf_li(const Vec3& p, const Vec3& wi) const override;
+    /// Pdf of sampling point q (known to be on the triangle) from p, per solid angle.
+    float pdf_li_point(const Vec3& p, const Vec3& q) const;
+    float power() const override;
+    float area() const { return m_area; }
+
+private:
+    Vec3 m_p0, m_e1, m_e2, m_n;
+    float m_area = 0.f;
+    float m_error_scale = 0.f;
+    Spectrum m_le;
+    uint32_t m_instance_id, m_prim_id;
+};
+
+}  // namespace cmlt

@@ -1,0 +1,54 @@
+#pragma once
+/// \file Surface interaction and robust ray spawning.
+///
+/// Spawned rays start at the hit point pushed along the geometric normal, to the side
+/// of the new direction, by `k_offset_rel * error_scale`, where `error_scale` is the
+/// largest absolute world coordinate of the hit triangle's vertices. Position error of
+/// the interpolated/transformed hit point is a few ulps of that magnitude, so the offset
+/// works at any scene scale (1e-6 m or 1e6 m); rays then use tnear = 0.
+#include "math/ray.h"
+#include "math/vec.h"
+
+#include <cstdint>
+
+namespace cmlt {
+
+/// Relative offset: ~1000 ulps of float (2^-13). Generous on purpose: instance
+/// transforms add rounding on top of Embree's own hit error.
+constexpr float k_offset_rel = 0x1p-13f;
+/// Shadow rays stop this fraction short of their (already offset) target.
+constexpr float k_shadow_epsilon = 1e-4f;
+
+inline Vec3 offset_ray_origin(const Vec3& p, const Vec3& ng, float error_scale, const Vec3& w) {
+    Vec3 off = ng * (k_offset_rel * error_scale);
+    return dot(w, ng) < 0.f ? p - off : p + off;
+}
+
+/// Error scale of a point given by itself (analytic shapes).
+inline float point_error_scale(const Vec3& p) { return max_component(vabs(p)); }
+
+struct SurfaceInteraction {
+    Vec3 p;            ///< world position (from barycentrics, not from the ray)
+    Vec3 ng;           ///< unit geometric normal (CCW winding in world space)
+    Vec3 ns;           ///< unit shading normal, flipped to the side of ng
+    Vec2 uv;
+    Vec3 wo;           ///< unit direction toward the ray origin
+    float t = 0.f;
+    float error_scale = 0.f;
+    uint32_t instance_id = 0;
+    uint32_t mesh_id = 0;
+    uint32_t prim_id = 0;
+    uint32_t material_id = 0;
+
+    Ray spawn_ray(const Vec3& d) const {
+        return Ray(offset_ray_origin(p, ng, error_scale, d), d, 0.f, k_infinity);
+    }
+    /// Shadow ray toward `target` (already offset if it lies on a surface). The ray
+    /// direction is unnormalised: t runs over [0, 1 - eps].
+    Ray spawn_ray_to(const Vec3& target) const {
+        Vec3 o = offset_ray_origin(p, ng, error_scale, target - p);
+        return Ray(o, target - o, 0.f, 1.f - k_shadow_epsilon);
+    }
+};
+
+}  // namespace cmlt

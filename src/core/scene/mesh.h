@@ -1,0 +1,50 @@
+#pragma once
+/// \file A triangle mesh in object space, sharing memory with its owner (numpy arrays).
+#include "math/vec.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace cmlt {
+
+/// Raw views of the mesh arrays. Pointers stay valid as long as `owner` lives.
+struct MeshData {
+    const float* points = nullptr;         ///< (n_points, 3), + 4 readable bytes after
+    size_t n_points = 0;
+    const uint32_t* indices = nullptr;     ///< (n_tris, 3), CCW from the front
+    size_t n_tris = 0;
+    const float* normals = nullptr;        ///< (n_points, 3) or null
+    const float* uvs = nullptr;            ///< (n_points, 2) or null
+    const uint32_t* material_ids = nullptr;  ///< (n_tris,) or null (material 0)
+    std::shared_ptr<void> owner;           ///< keeps the arrays alive (set by the bindings)
+};
+
+struct Mesh {
+    std::string name;
+    MeshData data;
+    Vec3 bbox_min, bbox_max;  ///< object-space bounds of the points
+
+    Vec3 point(uint32_t i) const {
+        const float* p = data.points + 3 * size_t(i);
+        return {p[0], p[1], p[2]};
+    }
+    Vec3 normal(uint32_t i) const {
+        const float* n = data.normals + 3 * size_t(i);
+        return {n[0], n[1], n[2]};
+    }
+    Vec2 uv(uint32_t i) const {
+        const float* t = data.uvs + 2 * size_t(i);
+        return {t[0], t[1]};
+    }
+    void triangle(uint32_t prim, uint32_t v[3]) const {
+        const uint32_t* t = data.indices + 3 * size_t(prim);
+        v[0] = t[0]; v[1] = t[1]; v[2] = t[2];
+    }
+    uint32_t material_id(uint32_t prim) const {
+        return data.material_ids ? data.material_ids[prim] : 0u;
+    }
+};
+
+}  // namespace cmlt

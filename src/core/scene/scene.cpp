@@ -1,0 +1,343 @@
+#include "scene/scene.h"
+
+#include "lights/area_lights.h"
+#include "lights/infinite_lights.h"
+#include "lights/sphere_light.h"
+#include "util/error.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cmlt {
+
+Scene::Scene() : m_accel(new Accel()) { m_materials.push_back(Material()); }
+Scene::~Scene() = default;
+
+namespace {
+
+void validate_finite(const std::string& name, const char* array, const float* data, size_t rows,
+                     size_t cols) {
+    for (size_t i = 0; i < rows * cols; ++i) {
+        if (!std::isfinite(data[i]))
+            CMLT_THROW(SceneError, "mesh '" << name << "': " << array << "[" << i / cols << "] has a "
+                                             << "NaN or Inf component (" << data[i] << ")");
+    }
+}
+
+void point_bounds(const float* p, size_t n, Vec3* lo, Vec3* hi) {
+    *lo = Vec3(k_infinity);
+    *hi = Vec3(-k_infinity);
+    for (size_t i = 0; i < n; ++i) {
+        Vec3 v(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+        *lo = vmin(*lo, v);
+        *hi = vmax(*hi, v);
+    }
+}
+
+}  // namespace
+
+uint32_t Scene::add_mesh(const std::string& name, MeshData data) {
+    // Validate at the boundary, naming the mesh.
+    if (!data.points && data.n_points > 0) CMLT_THROW(SceneError, "mesh '" << name << "': points is null");
+    if (!data.indices && data.n_tris > 0) CMLT_THROW(SceneError, "mesh '" << name << "': indices is null");
+    if (data.n_points > 0xFFFFFFFFull || data.n_tris > 0xFFFFFFFFull)
+        CMLT_THROW(SceneError, "mesh '" << name << "': more than 2^32 points or triangles");
+    validate_finite(name, "points", data.points, data.n_points, 3);
+    for (size_t i = 0; i < data.n_tris * 3; ++i) {
+        if (data.indices[i] >= data.n_points)
+            CMLT_THROW(SceneError, "mesh '" << name << "': indices[" << i / 3 << "] refers to point "
+                                            << data.indices[i] << " but points has " << data.n_points
+                                            << " entries");
+    }
+    if (data.normals) validate_finite(name, "normals", data.normals, data.n_points, 3);
+    if (data.uvs) validate_finite(name, "uvs", data.uvs, data.n_points, 2);
+
+    Mesh mesh;
+    mesh.name = name;
+    point_bounds(data.points, data.n_points, &mesh.bbox_min, &mesh.bbox_max);
+    mesh.data = std::move(data);
+    uint32_t id = m_accel->add_mesh(mesh.data.points, mesh.data.n_points, mesh.data.indices,
+                                    mesh.data.n_tris);
+    CMLT_CHECK(id == m_meshes.size());
+    m_meshes.push_back(std::move(mesh));
+    m_point_owners.emplace_back();
+    m_dirty = true;
+    return id;
+}
+
+void Scene::update_mesh_points(uint32_t mesh_id, const float* points, size_t n_points,
+                               const float* normals, std::shared_ptr<void> owner) {
+    if (mesh_id >= m_meshes.size())
+        CMLT_THROW(SceneError, "update_mesh_points: mesh id " << mesh_id << " out of range (have "
+                                                              << m_meshes.size() << " meshes)");
+    Mesh& mesh = m_meshes[mesh_id];
+    if (n_points != mesh.data.n_points)
+        CMLT_THROW(SceneError, "mesh '" << mesh.name << "': update_mesh_points got " << n_points
+                                        << " points but the mesh has " << mesh.data.n_points
+                                        << " (topology changes need a new mesh)");
+    validate_finite(mesh.name, "points", points, n_points, 3);
+    if (normals) validate_finite(mesh.name, "normals", normals, n_points, 3);
+    mesh.data.points = points;
+    if (normals) mesh.data.normals = normals;
+    point_bounds(points, n_points, &mesh.bbox_min, &mesh.bbox_max);
+    m_point_owners[mesh_id] = std::move(owner);
+    m_accel->update_mesh_points(mesh_id, points);
+    m_dirty = true;
+}
+
+uint32_t Scene::add_instance(uint32_t mesh_id, const Mat4& object_to_world) {
+    if (mesh_id >= m_meshes.size())
+        CMLT_THROW(SceneError, "add_instance: mesh id " << mesh_id << " out of range (have "
+                                                        << m_meshes.size() << " meshes)");
+    std::string what = "instance of mesh '" + m_meshes[mesh_id].name + "'";
+    Instance inst;
+    inst.mesh_id = mesh_id;
+    inst.xf = Transform(object_to_world, what.c_str());
+    uint32_t id = m_accel->add_instance(mesh_id, object_to_world);
+    CMLT_CHECK(id == m_instances.size());
+    m_instances.push_back(inst);
+    m_dirty = true;
+    return id;
+}
+
+void Scene::set_instance_transform(uint32_t instance_id, const Mat4& object_to_world) {
+    if (instance_id >= m_instances.size())
+        CMLT_THROW(SceneError, "set_instance_transform: instance id " << instance_id
+                                   << " out of range (have " << m_instances.size() << " instances)");
+    Instance& inst = m_instances[instance_id];
+    std::string what = "instance " + std::to_string(instance_id) + " of mesh '" +
+                       m_meshes[inst.mesh_id].name + "'";
+    inst.xf = Transform(object_to_world, what.c_str());
+    m_accel->set_instance_transform(instance_id, object_to_world);
+    m_dirty = true;
+}
+
+void Scene::set_materials(std::vector<Material> materials) {
+    if (materials.empty()) CMLT_THROW(SceneError, "set_materials: need at least one material (K >= 1)");
+    for (size_t i = 0; i < materials.size(); ++i) {
+        const Material& m = materials[i];
+        if (!is_finite(m.diffuse) || min_component(m.diffuse) < 0.f)
+            CMLT_THROW(SceneError, "set_materials: diffuse[" << i << "] must be finite and >= 0");
+        if (!is_finite(m.emission) || min_component(m.emission) < 0.f)
+            CMLT_THROW(SceneError, "set_materials: emission[" << i << "] must be finite and >= 0");
+    }
+    m_materials = std::move(materials);
+    m_dirty = true;
+}
+
+void Scene::clear_lights() {
+    m_analytic.clear();
+    m_dirty = true;
+}
+
+uint32_t Scene::add_light(const LightDesc& desc) {
+    if (!is_finite(desc.radiance) || min_component(desc.radiance) < 0.f)
+        CMLT_THROW(SceneError, "add_light: radiance must be finite and >= 0");
+    auto nonneg = [](float v, const char* name) {
+        if (!(v >= 0.f) || !std::isfinite(v))
+            CMLT_THROW(SceneError, "add_light: " << name << " must be finite and >= 0, got " << v);
+    };
+    nonneg(desc.width, "width");
+    nonneg(desc.height, "height");
+    nonneg(desc.radius, "radius");
+    nonneg(desc.length, "length");
+    std::unique_ptr<Light> light;
+    switch (desc.kind) {
+        case LightDesc::Kind::rect: light.reset(new RectLight(desc)); break;
+        case LightDesc::Kind::disk: light.reset(new DiskLight(desc)); break;
+        case LightDesc::Kind::sphere: light.reset(new SphereLight(desc)); break;
+        case LightDesc::Kind::distant: light.reset(new DistantLight(desc)); break;
+        case LightDesc::Kind::dome: light.reset(new DomeLight(desc)); break;
+        case LightDesc::Kind::cylinder:
+            throw SettingsError("add_light: kind 'cylinder' is not supported yet");
+    }
+    m_analytic.push_back(std::move(light));
+    m_dirty = true;
+    return uint32_t(m_analytic.size() - 1);
+}
+
+void Scene::set_camera(const CameraDesc& desc) {
+    desc.validate();
+    m_camera = desc;
+    m_has_camera = true;
+}
+
+void Scene::compute_bounds() {
+    Vec3 lo(k_infinity), hi(-k_infinity);
+    for (const Instance& inst : m_instances) {
+        const Mesh& m = m_meshes[inst.mesh_id];
+        if (m.data.n_points == 0) continue;
+        for (int c = 0; c < 8; ++c) {
+            Vec3 p((c & 1) ? m.bbox_max.x : m.bbox_min.x, (c & 2) ? m.bbox_max.y : m.bbox_min.y,
+                   (c & 4) ? m.bbox_max.z : m.bbox_min.z);
+            Vec3 w = inst.xf.m.transform_point(p);
+            lo = vmin(lo, w);
+            hi = vmax(hi, w);
+        }
+    }
+    if (m_has_camera) {
+        Vec3 c = m_camera.transform.transform_point(Vec3(0.f));
+        lo = vmin(lo, c);
+        hi = vmax(hi, c);
+    }
+    if (!(lo.x <= hi.x)) {
+        m_center = Vec3(0.f);
+        m_radius = 1.f;
+        return;
+    }
+    m_center = (lo + hi) * 0.5f;
+    m_radius = std::max(1e-6f, 0.5f * length(hi - lo));
+}
+
+void Scene::build_lights() {
+    m_lights.clear();
+    m_infinite.clear();
+    m_analytic_area.clear();
+    m_triangle_lights.clear();
+    m_tri_light_index.assign(m_instances.size(), {});
+    for (auto& l : m_analytic) {
+        l->preprocess(m_center, m_radius);
+        uint32_t idx = uint32_t(m_lights.size());
+        if (l->is_infinite()) m_infinite.push_back(idx);
+        if (l->is_analytic_area()) m_analytic_area.push_back(idx);
+        m_lights.push_back(l.get());
+    }
+    m_first_triangle_light = m_lights.size();
+    // Every emissive triangle of every instance becomes an area light.
+    for (uint32_t ii = 0; ii < m_instances.size(); ++ii) {
+        const Instance& inst = m_instances[ii];
+        const Mesh& mesh = m_meshes[inst.mesh_id];
+        std::vector<int32_t>* map = nullptr;
+        for (uint32_t prim = 0; prim < mesh.data.n_tris; ++prim) {
+            const Material& mat = m_materials[mesh.material_id(prim)];
+            if (!mat.is_emissive()) continue;
+            uint32_t v[3];
+            mesh.triangle(prim, v);
+            Vec3 p0 = inst.xf.m.transform_point(mesh.point(v[0]));
+            Vec3 p1 = inst.xf.m.transform_point(mesh.point(v[1]));
+            Vec3 p2 = inst.xf.m.transform_point(mesh.point(v[2]));
+            auto tl = std::make_unique<TriangleLight>(p0, p1, p2, mat.emission, ii, prim);
+            if (!(tl->area() > 0.f)) continue;  // degenerate: never sampled, never hit
+            if (!map) {
+                map = &m_tri_light_index[ii];
+                map->assign(mesh.data.n_tris, -1);
+            }
+            (*map)[prim] = int32_t(m_lights.size());
+            m_lights.push_back(tl.get());
+            m_triangle_lights.push_back(std::move(tl));
+        }
+    }
+    // Selection by power with a floor: no light gets probability 0.
+    std::vector<double> w(m_lights.size());
+    double total = 0;
+    for (size_t i = 0; i < m_lights.size(); ++i) {
+        double p = m_lights[i]->power();
+        w[i] = std::isfinite(p) && p > 0 ? p : 0.0;
+        total += w[i];
+    }
+    if (!m_lights.empty()) {
+        double floor = total > 0 ? k_light_power_floor * total / double(m_lights.size()) : 1.0;
+        for (double& x : w) x = std::max(x, floor);
+    }
+    m_light_dist = DiscreteDistribution(w);
+}
+
+void Scene::commit() {
+    for (size_t mi = 0; mi < m_meshes.size(); ++mi) {
+        const Mesh& mesh = m_meshes[mi];
+        if (!mesh.data.material_ids) continue;
+        for (size_t t = 0; t < mesh.data.n_tris; ++t) {
+            if (mesh.data.material_ids[t] >= m_materials.size())
+                CMLT_THROW(SceneError, "mesh '" << mesh.name << "': material_ids[" << t << "] = "
+                                                << mesh.data.material_ids[t] << " but there are "
+                                                << m_materials.size() << " materials");
+        }
+    }
+    m_accel->commit();
+    compute_bounds();
+    build_lights();
+    m_dirty = false;
+}
+
+void Scene::require_committed(const char* what) const {
+    if (m_dirty) CMLT_THROW(SceneError, what << ": the scene changed since the last commit(); call commit()");
+}
+
+int32_t Scene::triangle_light_index(uint32_t instance_id, uint32_t prim_id) const {
+    if (instance_id >= m_tri_light_index.size()) return -1;
+    const auto& map = m_tri_light_index[instance_id];
+    return prim_id < map.size() ? map[prim_id] : -1;
+}
+
+const TriangleLight& Scene::triangle_light(size_t light_index) const {
+    CMLT_DCHECK(light_index >= m_first_triangle_light);
+    return *m_triangle_lights[light_index - m_first_triangle_light];
+}
+
+void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const {
+    const Instance& inst = m_instances[hit.instance_id];
+    const Mesh& mesh = m_meshes[inst.mesh_id];
+    uint32_t v[3];
+    mesh.triangle(hit.prim_id, v);
+    Vec3 p0 = inst.xf.m.transform_point(mesh.point(v[0]));
+    Vec3 p1 = inst.xf.m.transform_point(mesh.point(v[1]));
+    Vec3 p2 = inst.xf.m.transform_point(mesh.point(v[2]));
+    float b1 = hit.u, b2 = hit.v, b0 = 1.f - b1 - b2;
+    si->p = p0 * b0 + p1 * b1 + p2 * b2;
+    si->t = hit.t;
+    si->wo = -normalize(ray.d);
+    Vec3 ng = normalize(cross(p1 - p0, p2 - p0));
+    if (is_black(ng) || !is_finite(ng)) ng = si->wo;  // degenerate triangle: face the ray
+    si->ng = ng;
+    si->ns = ng;
+    if (mesh.data.normals) {
+        Vec3 n = mesh.normal(v[0]) * b0 + mesh.normal(v[1]) * b1 + mesh.normal(v[2]) * b2;
+        n = normalize(inst.xf.normal.transform_normal(n));
+        if (!is_black(n) && is_finite(n)) si->ns = face_forward(n, ng);
+    }
+    if (mesh.data.uvs) {
+        Vec2 t0 = mesh.uv(v[0]), t1 = mesh.uv(v[1]), t2 = mesh.uv(v[2]);
+        si->uv = Vec2(t0.x * b0 + t1.x * b1 + t2.x * b2, t0.y * b0 + t1.y * b1 + t2.y * b2);
+    } else {
+        si->uv = Vec2(b1, b2);
+    }
+    si->error_scale = max_component(vmax(vabs(p0), vmax(vabs(p1), vabs(p2))));
+    si->instance_id = hit.instance_id;
+    si->mesh_id = inst.mesh_id;
+    si->prim_id = hit.prim_id;
+    si->material_id = mesh.material_id(hit.prim_id);
+}
+
+bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
+    Hit h = m_accel->intersect(ray);
+    if (!h.valid()) return false;
+    fill_interaction(ray, h, si);
+    return true;
+}
+
+SceneHit Scene::intersect(const Ray& ray) const {
+    SceneHit out;
+    Hit h = m_accel->intersect(ray);
+    float tmax = h.valid() ? h.t : ray.tfar;
+    // Analytic emitters are not in the BVH: test them and keep the nearest.
+    for (uint32_t li : m_analytic_area) {
+        float t;
+        Spectrum le;
+        if (m_lights[li]->intersect(Ray(ray.o, ray.d, ray.tnear, tmax), &t, &le) && t < tmax) {
+            tmax = t;
+            out.kind = SceneHit::Kind::light;
+            out.light_index = li;
+            out.le = le;
+            out.t = t;
+        }
+    }
+    if (out.kind == SceneHit::Kind::light) return out;
+    if (h.valid()) {
+        out.kind = SceneHit::Kind::surface;
+        out.t = h.t;
+        fill_interaction(ray, h, &out.si);
+    }
+    return out;
+}
+
+}  // namespace cmlt

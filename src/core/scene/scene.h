@@ -1,0 +1,123 @@
+#pragma once
+/// \file The flattened render scene of one frame.
+///
+/// Owns meshes (zero-copy views of caller arrays kept alive by `MeshData::owner`),
+/// instances (a mesh placed by a transform), the material table, analytic lights and the
+/// camera. Edits mark the scene dirty; `commit()` refits/rebuilds what changed, rebuilds
+/// the light list (analytic lights + one TriangleLight per emissive triangle of every
+/// instance) and the light-selection distribution (proportional to power, with a floor).
+///
+/// Queries are const and thread-safe after `commit()`.
+#include "accel/accel.h"
+#include "cameras/camera.h"
+#include "lights/light.h"
+#include "lights/triangle_light.h"
+#include "materials/material.h"
+#include "sampling/discrete_distribution.h"
+#include "scene/interaction.h"
+#include "scene/mesh.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace cmlt {
+
+struct Instance {
+    uint32_t mesh_id = 0;
+    Transform xf;  ///< object -> world, inverse, normal matrix
+};
+
+/// What a ray hit first: a mesh surface, an analytic light's emitting side, or nothing.
+struct SceneHit {
+    enum class Kind { miss, surface, light };
+    Kind kind = Kind::miss;
+    SurfaceInteraction si;       ///< kind == surface
+    uint32_t light_index = 0;    ///< kind == light: index into lights()
+    Spectrum le{0.f};            ///< kind == light: emitted radiance
+    float t = k_infinity;
+};
+
+/// Fraction of the mean light power given to every light at least (so none has pmf 0).
+constexpr double k_light_power_floor = 1e-3;
+
+class Scene {
+public:
+    Scene();
+    ~Scene();
+    Scene(const Scene&) = delete;
+    Scene& operator=(const Scene&) = delete;
+
+    // ---- edits -----------------------------------------------------------------
+    /// Validates and registers a mesh; throws SceneError naming `name`.
+    uint32_t add_mesh(const std::string& name, MeshData data);
+    /// New points (same count) and optionally new normals; `owner` keeps them alive.
+    void update_mesh_points(uint32_t mesh_id, const float* points, size_t n_points,
+                            const float* normals, std::shared_ptr<void> owner);
+    uint32_t add_instance(uint32_t mesh_id, const Mat4& object_to_world);
+    void set_instance_transform(uint32_t instance_id, const Mat4& object_to_world);
+    /// K >= 1 rows; material_ids index these.
+    void set_materials(std::vector<Material> materials);
+    void clear_lights();
+    /// Validates and adds an analytic light; returns its id (index among analytic lights).
+    uint32_t add_light(const LightDesc& desc);
+    void set_camera(const CameraDesc& desc);
+    void commit();
+
+    // ---- state -----------------------------------------------------------------
+    bool dirty() const { return m_dirty; }
+    bool has_camera() const { return m_has_camera; }
+    const CameraDesc& camera_desc() const { return m_camera; }
+    size_t mesh_count() const { return m_meshes.size(); }
+    size_t instance_count() const { return m_instances.size(); }
+    const Mesh& mesh(uint32_t id) const { return m_meshes[id]; }
+    const Instance& instance(uint32_t id) const { return m_instances[id]; }
+    const Material& material(uint32_t id) const { return m_materials[id]; }
+    size_t material_count() const { return m_materials.size(); }
+    const Accel& accel() const { return *m_accel; }
+    Vec3 bounds_center() const { return m_center; }
+    float bounds_radius() const { return m_radius; }
+
+    // ---- lights (after commit) -----------------------------------------------------
+    size_t light_count() const { return m_lights.size(); }
+    const Light& light(size_t i) const { return *m_lights[i]; }
+    float light_pmf(size_t i) const { return m_light_dist.pmf(i); }
+    /// Pick a light by power; returns its index, pmf in *pmf. Requires light_count() > 0.
+    size_t sample_light(float u, float* pmf) const { return m_light_dist.sample(u, pmf); }
+    const std::vector<uint32_t>& infinite_lights() const { return m_infinite; }
+    /// Light index of an emissive triangle, or -1.
+    int32_t triangle_light_index(uint32_t instance_id, uint32_t prim_id) const;
+    const TriangleLight& triangle_light(size_t light_index) const;
+
+    // ---- queries (after commit) ----------------------------------------------------
+    SceneHit intersect(const Ray& ray) const;
+    bool intersect_surface(const Ray& ray, SurfaceInteraction* si) const;
+    bool occluded(const Ray& ray) const { return m_accel->occluded(ray); }
+    void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
+
+private:
+    void require_committed(const char* what) const;
+    void build_lights();
+    void compute_bounds();
+
+    std::unique_ptr<Accel> m_accel;
+    std::vector<Mesh> m_meshes;
+    std::vector<std::shared_ptr<void>> m_point_owners;  ///< per mesh, latest update_mesh_points
+    std::vector<Instance> m_instances;
+    std::vector<Material> m_materials;
+    std::vector<std::unique_ptr<Light>> m_analytic;  ///< as added
+    std::vector<std::unique_ptr<TriangleLight>> m_triangle_lights;
+    std::vector<const Light*> m_lights;               ///< analytic, then triangles
+    std::vector<uint32_t> m_infinite;
+    std::vector<uint32_t> m_analytic_area;
+    std::vector<std::vector<int32_t>> m_tri_light_index;  ///< per instance: prim -> light
+    size_t m_first_triangle_light = 0;
+    DiscreteDistribution m_light_dist;
+    CameraDesc m_camera;
+    bool m_has_camera = false;
+    bool m_dirty = true;
+    Vec3 m_center;
+    float m_radius = 1.f;
+};
+
+}  // namespace cmlt
