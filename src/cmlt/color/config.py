@@ -294,6 +294,17 @@ class ColorConfig:
             attrs["chromaticities"] = [float(c) for c in chroma]
         return attrs
 
+    def set_header_attributes(self, spec, colorspace: Optional[str] = None):
+        """Put :meth:`header_attributes` on an OpenImageIO ``ImageSpec`` (the
+        Python binding rejects a plain list, so ``chromaticities`` goes in
+        as ``float[8]``). Returns ``spec``."""
+        for key, value in self.header_attributes(colorspace).items():
+            if isinstance(value, (list, tuple)):
+                spec.attribute(key, f"float[{len(value)}]", [float(v) for v in value])
+            else:
+                spec.attribute(key, value)
+        return spec
+
     def colorspace_of_header(self, attrs) -> Optional[str]:
         """The resolved colour space an image header declares (an
         ``ImageSpec`` or a dict), defaulting to the rendering space."""

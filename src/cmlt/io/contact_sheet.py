@@ -221,7 +221,7 @@ def contact_sheet(paths_or_pattern, out_path: str, columns: Optional[int] = None
     W = cols * thumb_width + (cols + 1) * gap
     H = rows * cell_h + (rows + 1) * gap
     sheet = np.full((H, W, 3), background, dtype=np.float32)
-    size = int(np.clip(thumb_width // 10, 8, 32))
+    size = int(np.clip(thumb_width // 10, 12, 32))   # label height in pixels
     for i, (p, thumb) in enumerate(zip(paths, thumbs)):
         r, c = divmod(i, cols)
         x = gap + c * (thumb_width + gap)
