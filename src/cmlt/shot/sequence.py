@@ -112,6 +112,24 @@ def _core_settings(core, opts: RenderOptions):
     return st
 
 
+_FLAGS = {"integrator": "--integrator", "spp": "--spp", "max_depth": "--max-depth",
+          "seed": "--seed", "threads": "--threads", "width": "--res", "height": "--res"}
+
+
+def _settings_message(msg: str, opts: RenderOptions) -> str:
+    """Name the flag in a core SettingsError ("RenderSettings.<field>: ...")."""
+    for field_name, flag in _FLAGS.items():
+        prefix = f"RenderSettings.{field_name}:"
+        if msg.startswith(prefix):
+            value = getattr(opts, field_name, None)
+            if field_name in ("width", "height"):
+                value = "x".join(str(v) for v in opts.resolution) if opts.resolution else None
+            shown = f" {value!r}" if isinstance(value, str) else (f" {value}" if value is not None
+                                                                  else "")
+            return f"{flag}{shown}: {msg[len(prefix):].strip()}"
+    return msg
+
+
 def _check_camera(stage, path: str, shot: str) -> None:
     from pxr import Sdf, UsdGeom
 
@@ -246,7 +264,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 try:
                     r, interrupted, units = _render_interruptible(core, scene, st, rep)
                 except core.SettingsError as exc:
-                    raise UsageError(f"{exc}") from None
+                    raise UsageError(_settings_message(str(exc), opts)) from None
                 except core.SceneError as exc:
                     raise RenderError(f"{shot}: frame {frame:g}: {exc}") from None
                 if interrupted or r.cancelled:
