@@ -535,3 +535,40 @@ def test29_large_mesh_is_fast(tmp_path):
     assert len(grid.points) == (n + 1) ** 2       # equal st values per point: no split
     np.testing.assert_allclose(grid.uvs * n, grid.points[:, :2], atol=1e-3)
     assert elapsed < 5.0
+
+
+def test30_nested_instancing_inside_instanceable_assets():
+    scene = load_frame(open_stage(data("nested_instancing.usda")), 0)
+    assert_clean(scene)
+    # 2 placements x 2 trees x (3 leaves + 1 trunk), two shared meshes
+    assert len(scene.instances) == 16 and len(scene.meshes) == 2
+    leaves = [i for i in scene.instances if i.name.endswith("/leaf")]
+    assert len(leaves) == 12 and len({i.mesh for i in leaves}) == 1
+    pos = sorted(tuple(np.round(i.transform[:3, 3], 6)) for i in leaves)
+    expected = sorted((x, y, z) for x in (0.0, 10.0) for y in (1.0, 2.0, 3.0)
+                      for z in (-100.0, 100.0))
+    assert pos == expected
+    # the first leaf is turned 90 degrees about Z by its quaternion
+    first = [i for i in leaves if abs(i.transform[1, 3] - 1.0) < 1e-9]
+    for i in first:
+        np.testing.assert_allclose(i.transform[:3, :3], rot_z(90.0), atol=1e-3)  # quath
+
+
+def test31_render_settings_selection(tmp_path):
+    stage = Usd.Stage.CreateNew(str(tmp_path / "rs.usda"))
+    from pxr import UsdRender
+    UsdGeom.Camera.Define(stage, "/camA")
+    UsdGeom.Camera.Define(stage, "/camB")
+    a = UsdRender.Settings.Define(stage, "/Render/a")
+    a.CreateResolutionAttr(Gf.Vec2i(100, 50))
+    a.CreateCameraRel().SetTargets(["/camA"])
+    b = UsdRender.Settings.Define(stage, "/Render/b")
+    b.CreateResolutionAttr(Gf.Vec2i(200, 80))
+    b.CreateCameraRel().SetTargets(["/camB"])
+    scene = load_frame(stage, 0)                          # first settings prim
+    assert (scene.resolution, scene.camera.name) == ((100, 50), "/camA")
+    stage.SetMetadata("renderSettingsPrimPath", "/Render/b")   # stage metadata wins
+    scene = load_frame(stage, 0)
+    assert (scene.resolution, scene.camera.name) == ((200, 80), "/camB")
+    scene = load_frame(stage, 0, render_settings="/Render/a", camera="/camB")
+    assert (scene.resolution, scene.camera.name) == ((100, 50), "/camB")

@@ -391,8 +391,9 @@ def _bounds(fr: _Frame) -> Optional[Tuple[np.ndarray, np.ndarray]]:
         by_mesh.setdefault(inst.mesh, []).append(inst.transform)
     for mi, xs in by_mesh.items():
         p = fr.meshes[mi].points
-        used = np.unique(fr.meshes[mi].indices)
-        p = p[used] if len(used) < len(p) else p
+        used = np.zeros(len(p), dtype=bool)
+        used[fr.meshes[mi].indices.reshape(-1)] = True
+        p = p[used] if not used.all() else p
         plo, phi = p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)
         corners = np.array([[x, y, z, 1.0] for x in (plo[0], phi[0])
                             for y in (plo[1], phi[1]) for z in (plo[2], phi[2])])
