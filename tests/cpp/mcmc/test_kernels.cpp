@@ -66,8 +66,12 @@ void check_short_chains(const Binned<Target>& bn, const KernelParams& p, std::si
   EXPECT_LT(res.max_weight_error, 1e-12);
 
   // (a) final states ~ π; bins where f = 0 must stay empty
-  for (std::size_t b = 0; b < probs.size(); ++b)
-    if (probs[b] == 0) EXPECT_EQ(res.final_counts[b], 0.0) << "chain entered f = 0 in bin " << b;
+  for (std::size_t b = 0; b < probs.size(); ++b) {
+    if (probs[b] == 0) {
+      EXPECT_EQ(res.final_counts[b], 0.0) << "chain entered f = 0 in bin " << b;
+      EXPECT_EQ(res.splat_means.mean(b), 0.0) << "weight splatted where f = 0, bin " << b;
+    }
+  }
   double stat;
   int dof;
   const double pv = chi_square_p_value(res.final_counts, probs, &stat, &dof);

@@ -89,7 +89,9 @@ TEST(Resample, FrequenciesFollowWeightsAndZerosAreNeverChosen) {
   for (auto i : idx) counts[i] += 1;
   for (std::size_t i = 0; i < w.size(); ++i) {
     probs[i] = w[i] / 7.0;
-    if (w[i] == 0) EXPECT_EQ(counts[i], 0.0);
+    if (w[i] == 0) {
+      EXPECT_EQ(counts[i], 0.0);
+    }
   }
   EXPECT_GT(chi_square_p_value(counts, probs), 1e-3);
 
