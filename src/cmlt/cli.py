@@ -64,8 +64,8 @@ def _int_at_least(lo: int):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .shot.sequence import DEFAULT_MAX_DEPTH, DEFAULT_SPP
     from .io.exr import COMPRESSIONS
+    from .settings import RenderSettings as _Defaults
 
     p = _Parser(prog="cmlt", description="Render animated USD shots with coherent "
                 "Metropolis light transport.")
@@ -84,20 +84,23 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output image; the frame number replaces #### (zero-padded to the "
                    "number of #), ####.### (decimals), $F4/$F or %%04d; fractional frames "
                    "get three decimals (0001.500); default renders/<shot>.####.exr")
-    r.add_argument("--spp", type=_int_at_least(1), default=DEFAULT_SPP,
-                   help=f"samples per pixel (default {DEFAULT_SPP})")
-    r.add_argument("--integrator", default="pt", metavar="NAME",
-                   help="light transport algorithm (default pt)")
-    r.add_argument("--seed", type=_int_at_least(0), default=0,
-                   help="shot seed; the same for every frame (default 0)")
+    stage_note = "the stage's cmlt:{} if authored, else {}"
+    r.add_argument("--spp", type=_int_at_least(1),
+                   help="samples per pixel; default: " + stage_note.format("spp", _Defaults.spp))
+    r.add_argument("--integrator", metavar="NAME",
+                   help="light transport algorithm; default: "
+                   + stage_note.format("integrator", _Defaults.integrator))
+    r.add_argument("--seed", type=_int_at_least(0),
+                   help="shot seed, the same for every frame; default: "
+                   + stage_note.format("seed", _Defaults.seed))
     r.add_argument("--threads", type=_int_at_least(0), default=0,
                    help="worker threads, 0 = all cores (default 0)")
     r.add_argument("--res", type=parse_resolution, metavar="WxH",
-                   help="resolution, overriding the stage's render settings")
-    r.add_argument("--max-depth", type=_int_at_least(1), default=DEFAULT_MAX_DEPTH,
-                   dest="max_depth",
-                   help=f"scattering events per path, 1 = direct light only "
-                   f"(default {DEFAULT_MAX_DEPTH}; paths end by Russian roulette)")
+                   help="resolution; default: the stage's render settings, else 640x480")
+    r.add_argument("--max-depth", type=_int_at_least(1), dest="max_depth",
+                   help="scattering events per path, 1 = direct light only; default: "
+                   + stage_note.format("maxDepth", _Defaults.max_depth)
+                   + " (paths end by Russian roulette long before)")
     r.add_argument("--camera", metavar="PATH", help="camera prim path (default: the "
                    "render settings' camera, else the stage's camera)")
     r.add_argument("--half", action="store_true", help="write 16-bit half floats")

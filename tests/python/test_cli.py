@@ -141,7 +141,12 @@ def _bad(make_shot, tiny_shot, tmp_path):
         "not a camera": (["render", tiny_shot, "--camera", "/World/Floor", "--out", out], 2,
                          "--camera /World/Floor: prim is a Mesh"),
         "unknown integrator": (["render", tiny_shot, "--integrator", "magic", "--out", out], 2,
-                               "--integrator 'magic'"),
+                               "--integrator = 'magic' is not an allowed value"),
+        "stage settings typo": (["render", make_shot("typo.usda", {
+            "int2 resolution = (32, 24)":
+            "int2 resolution = (32, 24)\n            uniform int cmlt:maxDept = 3"}),
+            "--out", out], 1, "/Render/Settings: cmlt:maxDept is not a CmltRenderSettingsAPI "
+            "attribute; did you mean cmlt:maxDepth?"),
         "no frame token": (["render", tiny_shot, "--frames", "1:2",
                             "--out", str(tmp_path / "x.exr")], 2, "--out"),
         "bad spp": (["render", tiny_shot, "--spp", "0", "--out", out], 2, "--spp"),
@@ -154,7 +159,7 @@ def _bad(make_shot, tiny_shot, tmp_path):
 
 
 BAD_CASES = ["missing file", "bad frames", "garbage frames", "bad res", "zero res",
-             "missing camera", "not a camera", "unknown integrator", "no frame token",
+             "missing camera", "not a camera", "unknown integrator", "stage settings typo", "no frame token",
              "bad spp", "tcps=0", "inspect missing", "no command"]
 
 
@@ -216,3 +221,36 @@ def test_11_ctrl_c_keeps_finished_frames(make_shot, tmp_path):
     proc = subprocess.run(resume, capture_output=True, text=True, timeout=240)
     assert proc.returncode == 0, proc.stderr
     assert len(_exrs(out)) == len(done) + 2
+
+
+def test_12_stage_settings_then_flags(make_shot, tmp_path):
+    """flag > stage (CmltRenderSettingsAPI) > default, recorded in the sidecar."""
+    shot = make_shot("st.usda", {"int2 resolution = (32, 24)":
+                                 "int2 resolution = (16, 12)\n"
+                                 "            uniform int cmlt:spp = 2\n"
+                                 "            uniform int cmlt:seed = 9"})
+    assert main(["render", shot, "--frames", "1", "--out", str(tmp_path / "a.exr"), "-q"]) == 0
+    doc = json.load(open(tmp_path / "a.exr.json"))
+    assert doc["settings"]["spp"] == 2 and doc["settings"]["seed"] == 9
+    assert doc["settings_sources"]["spp"] == "stage:/Render/Settings"
+    assert doc["settings"]["max_depth"] == 64 and doc["settings_sources"]["max_depth"] == "default"
+    assert doc["resolution"] == [16, 12] and doc["stats"]["spp"] == 2
+    assert main(["render", shot, "--frames", "1", "--out", str(tmp_path / "b.exr"), "-q",
+                 "--spp", "3", "--res", "8x6"]) == 0
+    doc = json.load(open(tmp_path / "b.exr.json"))
+    assert doc["settings"]["spp"] == 3 and doc["settings_sources"]["spp"] == "flag --spp"
+    assert doc["settings"]["seed"] == 9
+    assert doc["resolution"] == [8, 6] and read_exr(str(tmp_path / "b.exr"))[0].shape == (6, 8, 3)
+
+
+def test_13_core_settings_errors_name_their_source():
+    from cmlt.settings import RenderSettings
+    from cmlt.shot.sequence import _settings_message
+    rs = RenderSettings(integrator="bdpt")
+    msg, usage = _settings_message("RenderSettings.integrator: unknown integrator 'bdpt'", rs,
+                                   {"integrator": "flag --integrator"})
+    assert (msg, usage) == ("--integrator 'bdpt': unknown integrator 'bdpt'", True)
+    msg, usage = _settings_message("RenderSettings.integrator: unknown integrator 'bdpt'", rs,
+                                   {"integrator": "stage:/Render/Settings"})
+    assert (msg, usage) == ("/Render/Settings: cmlt:integrator = 'bdpt': unknown integrator "
+                            "'bdpt'", False)

@@ -3,12 +3,11 @@ bridge, the frame loop and its progress display."""
 from .errors import RenderCancelled, RenderError, UsageError
 from .frames import (FrameSpecError, OutputPatternError, default_frames, expand_outputs,
                      expand_pattern, format_frame, parse_frames)
-from .sequence import (DEFAULT_MAX_DEPTH, DEFAULT_SPP, RenderOptions, SequenceResult,
-                       default_output, render_sequence)
+from .sequence import RenderOptions, SequenceResult, default_output, render_sequence
 
 __all__ = [
     "RenderCancelled", "RenderError", "UsageError", "FrameSpecError", "OutputPatternError",
     "default_frames", "expand_outputs", "expand_pattern", "format_frame", "parse_frames",
-    "DEFAULT_MAX_DEPTH", "DEFAULT_SPP", "RenderOptions", "SequenceResult", "default_output",
+    "RenderOptions", "SequenceResult", "default_output",
     "render_sequence",
 ]

@@ -32,14 +32,7 @@ from .errors import RenderCancelled, RenderError, UsageError
 from .frames import default_frames, expand_outputs, parse_frames
 from .progress import Reporter
 
-__all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
-           "DEFAULT_SPP", "DEFAULT_MAX_DEPTH"]
-
-#: samples per pixel when neither the flag nor the stage says
-DEFAULT_SPP = 16
-#: path length cap; paths normally end by Russian roulette long before it
-DEFAULT_MAX_DEPTH = 64
-
+__all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output"]
 
 def default_output(shot: str) -> str:
     """``renders/<shot stem>.####.exr`` relative to the working directory."""
@@ -49,26 +42,30 @@ def default_output(shot: str) -> str:
 
 @dataclass
 class RenderOptions:
-    spp: int = DEFAULT_SPP
-    integrator: str = "pt"
-    seed: int = 0
-    threads: int = 0                              # 0 = all cores
-    resolution: Optional[Tuple[int, int]] = None  # (w, h); None = stage's
-    max_depth: int = DEFAULT_MAX_DEPTH
-    camera: Optional[str] = None                  # prim path; None = stage's
+    """What the command line asked for. ``None`` means "flag not given": the
+    stage's ``CmltRenderSettingsAPI`` value applies, else the default
+    (:mod:`cmlt.settings`; precedence flag > stage > default)."""
+
+    spp: Optional[int] = None
+    integrator: Optional[str] = None
+    seed: Optional[int] = None
+    max_depth: Optional[int] = None
+    resolution: Optional[Tuple[int, int]] = None  # (w, h)
+    camera: Optional[str] = None                  # prim path
+    threads: int = 0                              # 0 = all cores; machine, not shot
     half: bool = False
     compression: str = "zip"
     colorspace: str = "ACEScg"                    # rendering space, in the EXR header
 
     def check(self) -> None:
         """Flag-level checks that need neither the stage nor the core."""
-        if int(self.spp) < 1:
+        if self.spp is not None and int(self.spp) < 1:
             raise UsageError(f"--spp {self.spp}: must be at least 1")
-        if int(self.max_depth) < 1:
+        if self.max_depth is not None and int(self.max_depth) < 1:
             raise UsageError(f"--max-depth {self.max_depth}: must be at least 1")
         if int(self.threads) < 0:
             raise UsageError(f"--threads {self.threads}: must be 0 (all cores) or more")
-        if int(self.seed) < 0:
+        if self.seed is not None and int(self.seed) < 0:
             raise UsageError(f"--seed {self.seed}: must be 0 or more")
         if self.resolution is not None:
             w, h = self.resolution
@@ -78,14 +75,11 @@ class RenderOptions:
             raise UsageError(f"--compression {self.compression!r}: choose one of "
                              f"{', '.join(COMPRESSIONS)}")
 
-    def as_dict(self) -> dict:
-        return {
-            "integrator": self.integrator, "spp": int(self.spp), "max_depth": int(self.max_depth),
-            "seed": int(self.seed), "threads": int(self.threads),
-            "resolution": None if self.resolution is None else list(self.resolution),
-            "camera": self.camera, "half": bool(self.half), "compression": self.compression,
-            "colorspace": self.colorspace,
-        }
+    def overrides(self) -> dict:
+        """Flag values by setting name, for :func:`cmlt.settings.resolve_settings`."""
+        return {"integrator": self.integrator, "spp": self.spp, "seed": self.seed,
+                "max_depth": self.max_depth, "resolution": self.resolution,
+                "camera": self.camera}
 
 
 @dataclass
@@ -95,20 +89,37 @@ class SequenceResult:
     skipped: List[str] = field(default_factory=list)      # existing, skipped by resume
     stats: Dict[float, dict] = field(default_factory=dict)
     warnings: List[str] = field(default_factory=list)     # distinct, in order of appearance
+    settings: Dict[str, object] = field(default_factory=dict)   # resolved, by name
+    sources: Dict[str, str] = field(default_factory=dict)       # where each came from
 
 
-def _core_settings(core, opts: RenderOptions):
-    """core.RenderSettings from the options; a rejected value names its flag."""
+def _resolve(stage, opts: RenderOptions):
+    """Settings in force (flag > stage > default) and their sources. A bad
+    flag value is a UsageError, a bad stage value a RenderError."""
+    from ..settings import SettingsError, resolve_settings
+
+    try:
+        return resolve_settings(stage, cli_overrides=opts.overrides())
+    except SettingsError as exc:
+        msg = str(exc)
+        if msg.startswith("flag "):
+            raise UsageError(msg[len("flag "):]) from None
+        raise RenderError(msg) from None
+
+
+def _core_settings(core, resolved, opts: RenderOptions, sources: Dict[str, str]):
+    """core.RenderSettings from the resolved settings: every field the core
+    knows is set (the MLT fields reach the core as soon as it has them)."""
     st = core.RenderSettings()
-    for attr, flag, value in (("integrator", "--integrator", opts.integrator),
-                              ("spp", "--spp", int(opts.spp)),
-                              ("max_depth", "--max-depth", int(opts.max_depth)),
-                              ("seed", "--seed", int(opts.seed)),
-                              ("threads", "--threads", int(opts.threads))):
+    values = dict(resolved.as_dict())
+    values["threads"] = int(opts.threads)
+    for name, value in values.items():
+        if name in ("resolution", "camera") or not hasattr(st, name):
+            continue
         try:
-            setattr(st, attr, value)
+            setattr(st, name, value)
         except (core.SettingsError, ValueError, TypeError) as exc:
-            raise UsageError(f"{flag} {value!r}: {exc}") from None
+            raise UsageError(f"{_where(name, value, sources)}: {exc}") from None
     return st
 
 
@@ -116,18 +127,30 @@ _FLAGS = {"integrator": "--integrator", "spp": "--spp", "max_depth": "--max-dept
           "seed": "--seed", "threads": "--threads", "width": "--res", "height": "--res"}
 
 
-def _settings_message(msg: str, opts: RenderOptions) -> str:
-    """Name the flag in a core SettingsError ("RenderSettings.<field>: ...")."""
-    for field_name, flag in _FLAGS.items():
-        prefix = f"RenderSettings.{field_name}:"
+def _where(name: str, value, sources: Dict[str, str]) -> str:
+    """``--spp 0`` for a flag, ``/Render/Settings: cmlt:spp = 0`` for the stage."""
+    src = sources.get(name, "default")
+    shown = repr(value) if isinstance(value, str) else str(value)
+    if src.startswith("stage:"):
+        from ..settings import FIELDS
+        attr = next((f.attr for f in FIELDS if f.name == name), name)
+        return f"{src[len('stage:'):].split(' ')[0]}: {attr} = {shown}"
+    return f"{_FLAGS.get(name, '--' + name.replace('_', '-'))} {shown}"
+
+
+def _settings_message(msg: str, resolved, sources: Dict[str, str]):
+    """Name the flag or stage attribute in a core SettingsError
+    (``RenderSettings.<field>: ...``); returns (message, is_usage_error)."""
+    for name in _FLAGS:
+        prefix = f"RenderSettings.{name}:"
         if msg.startswith(prefix):
-            value = getattr(opts, field_name, None)
-            if field_name in ("width", "height"):
-                value = "x".join(str(v) for v in opts.resolution) if opts.resolution else None
-            shown = f" {value!r}" if isinstance(value, str) else (f" {value}" if value is not None
-                                                                  else "")
-            return f"{flag}{shown}: {msg[len(prefix):].strip()}"
-    return msg
+            key = "resolution" if name in ("width", "height") else name
+            value = getattr(resolved, key, None)
+            if key == "resolution" and value is not None:
+                value = f"{value[0]}x{value[1]}"
+            usage = not sources.get(key, "").startswith("stage:")
+            return f"{_where(key, value, sources)}: {msg[len(prefix):].strip()}", usage
+    return msg, True
 
 
 def _check_camera(stage, path: str, shot: str) -> None:
@@ -207,13 +230,15 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             import cmlt._core as core
         except ImportError as exc:
             raise RenderError(f"the C++ core cmlt._core is not built: {exc}") from None
-    st = _core_settings(core, opts)
-
     try:
         stage = open_stage(shot)
         info = stage_info(stage)
     except UsdLoadError as exc:
         raise RenderError(str(exc)) from None
+    resolved, sources = _resolve(stage, opts)
+    st = _core_settings(core, resolved, opts, sources)
+    settings_record = dict(resolved.as_dict(), threads=int(opts.threads), half=bool(opts.half),
+                           compression=opts.compression, colorspace=opts.colorspace)
 
     if frames is None:
         frame_list = default_frames(info.start)
@@ -225,7 +250,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     if opts.camera:
         _check_camera(stage, opts.camera, shot)
 
-    result = SequenceResult(frames=list(frame_list))
+    result = SequenceResult(frames=list(frame_list), settings=settings_record,
+                            sources=dict(sources))
     todo = []
     for f, path in zip(frame_list, outputs):
         if resume and os.path.isfile(path):
@@ -264,7 +290,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 try:
                     r, interrupted, units = _render_interruptible(core, scene, st, rep)
                 except core.SettingsError as exc:
-                    raise UsageError(_settings_message(str(exc), opts)) from None
+                    msg, usage = _settings_message(str(exc), resolved, sources)
+                    raise (UsageError if usage else RenderError)(msg) from None
                 except core.SceneError as exc:
                     raise RenderError(f"{shot}: frame {frame:g}: {exc}") from None
                 if interrupted or r.cancelled:
@@ -280,14 +307,16 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     "time_code": float(fs.time),
                     "camera": fs.camera.name if fs.camera is not None else None,
                     "resolution": [int(width), int(height)],
-                    "settings": opts.as_dict(), "stats": stats,
+                    "settings": settings_record, "settings_sources": dict(sources),
+                    "stats": stats,
                     "scene_update": bridge.last_update.as_dict(),
                     "warnings": list(fs.warnings), "cmlt_version": __version__,
                 }
                 metadata = {
                     "frame": float(frame), "timeCode": float(fs.time), "shot": shot_abs,
-                    "camera": record["camera"] or "", "integrator": opts.integrator,
-                    "spp": int(opts.spp), "maxDepth": int(opts.max_depth), "seed": int(opts.seed),
+                    "camera": record["camera"] or "", "integrator": resolved.integrator,
+                    "spp": int(resolved.spp), "maxDepth": int(resolved.max_depth),
+                    "seed": int(resolved.seed),
                     "renderTime": float(stats.get("time_s", stats["wall_time_s"])),
                     "samples": int(stats.get("samples", 0)), "version": __version__,
                 }
