@@ -79,7 +79,8 @@ class Instance:
 
     name: str                                   # prim path (or instancer path + index)
     mesh: int                                   # index into FrameScene.meshes
-    transform: np.ndarray                       # float64 (4, 4), object -> world
+    transform: np.ndarray                       # float64 (4, 4), object -> world (metres;
+                                                # includes metersPerUnit and authored scale)
 
 
 @dataclass

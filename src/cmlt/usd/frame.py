@@ -22,7 +22,7 @@ import math
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdRender
+from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdLux, UsdRender
 
 from ..scene import FrameScene, Instance, Mesh
 from . import shapes
@@ -141,6 +141,9 @@ class _Frame:
                     self._point_instancer(prim, root, outer, depth)
                     continue
                 if t in MESH_TYPES or t in INTRINSIC_TYPES:
+                    if prim.HasAPI(UsdLux.LightAPI) or prim.HasAPI(UsdLux.MeshLightAPI):
+                        self.warn(f"{prim.GetPath()}: mesh lights (LightAPI on a gprim) are not "
+                                  f"supported; rendered as plain geometry, not emitting")
                     self._gprim(prim, t, root, outer)
                     continue
                 if t in SUPPORTED_LIGHT_TYPES:
@@ -406,6 +409,16 @@ def _bounds(fr: _Frame) -> Optional[Tuple[np.ndarray, np.ndarray]]:
 
 
 def load_frame(stage, time, camera=None, resolution=None, render_settings=None) -> FrameScene:
+    try:
+        return _load_frame(stage, time, camera, resolution, render_settings)
+    except Tf.ErrorException as exc:          # USD refused the data outside any one prim
+        msg = " ".join(str(exc).split())
+        raise UsdLoadError(f"{_stage_file(stage)}: time {time}: {msg}") from None
+
+
+
+
+def _load_frame(stage, time, camera=None, resolution=None, render_settings=None) -> FrameScene:
     """Read the render scene of ``stage`` at the time code ``time``.
 
     ``camera``: a camera prim path (UsdLoadError if it is not a Camera);
@@ -527,3 +540,6 @@ def _drop_prototype_placements(fr: _Frame, roots: List[Sdf.Path]):
         for inst in fr.instances:
             inst.mesh = remap[inst.mesh]
         fr.meshes = meshes
+
+
+load_frame.__doc__ = _load_frame.__doc__
