@@ -7,7 +7,7 @@ it with ``inputs:sourceColorSpace`` (``raw`` | ``sRGB`` | ``auto``).
 """
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any
 
 from .config import DEFAULT_USD_COLORSPACE
 

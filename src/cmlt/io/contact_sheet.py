@@ -13,7 +13,7 @@ import glob
 import math
 import os
 import re
-from typing import Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 import OpenImageIO as oiio
