@@ -297,6 +297,7 @@ class MeshReader:
         self.topo: Optional[_Topo] = None
         self.topo_key = None
         self.static_geom: Optional[MeshGeom] = None
+        self._pv_cache: dict = {}               # primvars that do not vary in time
 
     def _varying(self, prim) -> Tuple[bool, bool]:
         topo = any(prim.GetAttribute(a).ValueMightBeTimeVarying()
@@ -320,11 +321,19 @@ class MeshReader:
             raise SkipPrim(f"{path}: has no points (time {tstr}); not rendered")
 
         primvars: List[_Primvar] = []
-        npv = _normals_primvar(prim, mesh, api, time)
+        npv = self._pv_cache.get("normals")
+        if npv is None:
+            npv = _normals_primvar(prim, mesh, api, time)
+            if npv is not None and not npv.varying:
+                self._pv_cache["normals"] = npv
         if npv is not None:
             primvars.append(npv)
         uvpv = find_uv_primvar(api, self.uv_name)
-        uv = _read_primvar(uvpv, time, 2) if uvpv is not None else None
+        uv = self._pv_cache.get("st")
+        if uv is None:
+            uv = _read_primvar(uvpv, time, 2) if uvpv is not None else None
+            if uv is not None and not uv.varying:
+                self._pv_cache["st"] = uv
         if uv is not None:
             uv.name = "st"                     # internal name
             if npv is not None and npv.name == "st":   # pragma: no cover
