@@ -572,3 +572,26 @@ def test31_render_settings_selection(tmp_path):
     assert (scene.resolution, scene.camera.name) == ((200, 80), "/camB")
     scene = load_frame(stage, 0, render_settings="/Render/a", camera="/camB")
     assert (scene.resolution, scene.camera.name) == ((100, 50), "/camB")
+
+
+def test32_concave_polygon_ear_clipped():
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    m = UsdGeom.Mesh.Define(stage, "/L")
+    m.CreateSubdivisionSchemeAttr("none")
+    # an L-shaped hexagon, counter-clockwise, starting at a vertex that cannot see
+    # the whole polygon (a fan from it would leave the L)
+    m.CreatePointsAttr([(2, 1, 0), (1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0)])
+    m.CreateFaceVertexCountsAttr([6])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 4, 5])
+    scene = load_frame(stage, 0)
+    mesh = scene.meshes[0]
+    assert len(mesh.indices) == 4
+    np.testing.assert_allclose(tri_normals(mesh.points, mesh.indices), [[0, 0, 1]] * 4, atol=1e-6)
+    p = mesh.points.astype(np.float64)
+    t = mesh.indices.astype(np.int64)
+    area = 0.5 * np.linalg.norm(np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]), axis=1)
+    assert area.sum() == pytest.approx(3.0)
+    c = p[t].mean(axis=1)
+    assert not ((c[:, 0] > 1) & (c[:, 1] > 1)).any()       # nothing in the L's notch
+    assert any("/L: 1 concave polygon(s) triangulated by ear clipping" in w for w in scene.warnings)

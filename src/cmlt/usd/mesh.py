@@ -166,7 +166,8 @@ def _needs_split(pv: _Primvar) -> bool:
 
 
 def build_topology(path: str, counts, fvi, n_points: int, holes, left_handed: bool,
-                   primvars: List[_Primvar], time) -> Tuple[_Topo, List[_Primvar]]:
+                   primvars: List[_Primvar], time,
+                   points: Optional[np.ndarray] = None) -> Tuple[_Topo, List[_Primvar]]:
     """Triangulate (fan) and decide the output vertices. Raises SkipPrim.
 
     Returns the topology and the primvars that survived validation.
@@ -213,6 +214,10 @@ def build_topology(path: str, counts, fvi, n_points: int, holes, left_handed: bo
     c0 = offsets[tri_face]
     c1 = c0 + j
     c2 = c1 + 1
+    if points is not None and M:
+        n_concave = _fix_concave(points, fvi, counts, offsets, kept, tri_start, c0, c1, c2)
+        if n_concave:
+            warnings.append(f"{path}: {n_concave} concave polygon(s) triangulated by ear clipping")
     if left_handed:
         c1, c2 = c2, c1
     corners = np.stack([c0, c1, c2], axis=1)          # (M, 3) corner ids
@@ -264,6 +269,84 @@ def build_topology(path: str, counts, fvi, n_points: int, holes, left_handed: bo
     tri = corner_to_out[corners]
     out_elem = {pv.name: elems[pv.name][rep_c] for pv in good}
     return _Topo(tri.astype(np.uint32), tri_face, fvi[rep_c], out_elem, warnings), good
+
+
+def _fix_concave(points, fvi, counts, offsets, kept, tri_start, c0, c1, c2) -> int:
+    """Re-triangulate concave polygons (>= 4 vertices) by ear clipping, in
+    place in the corner arrays c0/c1/c2 (fan order otherwise). Returns the
+    number of polygons changed. Uses the points at topology-build time."""
+    big = kept[counts[kept] >= 4]
+    if len(big) == 0 or not np.isfinite(points).all():
+        return 0
+    n = counts[big]
+    corner = np.repeat(offsets[big], n) + (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+    local = corner - np.repeat(offsets[big], n)
+    nxt = np.repeat(offsets[big], n) + (local + 1) % np.repeat(n, n)
+    prv = np.repeat(offsets[big], n) + (local - 1) % np.repeat(n, n)
+    p, pn, pp = points[fvi[corner]], points[fvi[nxt]], points[fvi[prv]]
+    starts = np.cumsum(n) - n
+    normal = np.add.reduceat(np.cross(p, pn), starts, axis=0)          # Newell
+    turn = np.einsum("ij,ij->i", np.cross(p - pp, pn - p), np.repeat(normal, n, axis=0))
+    reflex = np.add.reduceat((turn < 0).astype(np.int64), starts) > 0
+    if not reflex.any():
+        return 0
+    pos_in_kept = {int(f): k for k, f in enumerate(kept)}
+    changed = 0
+    for f, nrm in zip(big[reflex], normal[reflex]):
+        cnt, off = int(counts[f]), int(offsets[f])
+        tris = _ear_clip(points[fvi[off:off + cnt]], nrm)
+        if tris is None:
+            continue
+        t0 = int(tri_start[pos_in_kept[int(f)]])
+        rows = slice(t0, t0 + cnt - 2)
+        c0[rows], c1[rows], c2[rows] = off + tris[:, 0], off + tris[:, 1], off + tris[:, 2]
+        changed += 1
+    return changed
+
+
+def _ear_clip(poly: np.ndarray, normal: np.ndarray):
+    """Ear clipping of one simple polygon (its points in order) whose
+    winding is counter-clockwise about ``normal``. Local indices (n-2, 3)."""
+    ln = np.linalg.norm(normal)
+    if ln == 0:
+        return None
+    w = normal / ln
+    a = np.array([1.0, 0.0, 0.0]) if abs(w[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(a, w)
+    u /= np.linalg.norm(u)
+    v = np.cross(w, u)
+    q = np.stack([poly @ u, poly @ v], axis=1)
+    idx = list(range(len(q)))
+    out = []
+
+    def cross(o, a, b):
+        return (q[a, 0] - q[o, 0]) * (q[b, 1] - q[o, 1]) - (q[a, 1] - q[o, 1]) * (q[b, 0] - q[o, 0])
+
+    guard = 0
+    while len(idx) > 3 and guard < 4 * len(q) ** 2:
+        guard += 1
+        m = len(idx)
+        for k in range(m):
+            i0, i1, i2 = idx[k - 1], idx[k], idx[(k + 1) % m]
+            if cross(i0, i1, i2) <= 0:
+                continue                                   # reflex or flat
+            inside = False
+            for j in idx:
+                if j in (i0, i1, i2):
+                    continue
+                if cross(i0, i1, j) >= 0 and cross(i1, i2, j) >= 0 and cross(i2, i0, j) >= 0:
+                    inside = True
+                    break
+            if not inside:
+                out.append((i0, i1, i2))
+                idx.pop(k)
+                break
+        else:
+            return None                                    # not simple: keep the fan
+    if len(idx) != 3:
+        return None
+    out.append(tuple(idx))
+    return np.asarray(out, dtype=np.int64)
 
 
 # ---------------------------------------------------------------- normals
@@ -353,7 +436,7 @@ class MeshReader:
             fvi = np.asarray(fvi if fvi is not None else [], dtype=np.int64)
             topo, _ = build_topology(path, counts, fvi, len(points),
                                      np.asarray(holes) if holes is not None else None,
-                                     left, primvars, time)
+                                     left, primvars, time, points=points)
             self.topo, self.topo_key = topo, pv_key
             self._tri_pts = None
         topo = self.topo
