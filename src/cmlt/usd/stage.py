@@ -263,6 +263,9 @@ def stage_info(stage) -> StageInfo:
             info.render_settings.append(path)
         elif prim.IsA(UsdGeom.PointInstancer):
             info.point_instancers.append(path)
+        elif t == "SkelRoot":
+            info.notes.append(f"{path}: UsdSkel skinning is not applied; its meshes render "
+                              f"in their authored points")
         reason = ignored_reason(prim)
         if reason:
             info.ignored.append((path, t, reason))
