@@ -191,13 +191,21 @@ class StageInfo:
         return "\n".join(lines)
 
 
+def _plural(type_name: str) -> str:
+    if type_name.endswith("s"):
+        return type_name                          # BasisCurves, Points
+    if type_name.endswith(("ch", "sh", "x")):
+        return type_name + "es"                   # NurbsPatch
+    return type_name + "s"                        # Volumes, HermiteCurves stays as is
+
+
 def ignored_reason(prim) -> str:
     """Why an (unsupported) prim is not rendered, or '' if it is not ignored."""
     type_name = str(prim.GetTypeName())
     if prim.IsA(UsdGeom.Gprim):
         if type_name in MESH_TYPES or type_name in INTRINSIC_TYPES:
             return ""
-        return f"{type_name} are not supported and are not rendered"
+        return f"{_plural(type_name)} are not supported and are not rendered"
     if prim.HasAPI(UsdLux.LightAPI) or prim.IsA(UsdLux.BoundableLightBase) \
             or prim.IsA(UsdLux.NonboundableLightBase):
         if type_name in SUPPORTED_LIGHT_TYPES:
