@@ -195,8 +195,8 @@ def _plural(type_name: str) -> str:
     if type_name.endswith("s"):
         return type_name                          # BasisCurves, Points
     if type_name.endswith(("ch", "sh", "x")):
-        return type_name + "es"                   # NurbsPatch
-    return type_name + "s"                        # Volumes, HermiteCurves stays as is
+        return type_name + "es"                   # NurbsPatches, TetMeshes
+    return type_name + "s"                        # Volumes
 
 
 def ignored_reason(prim) -> str:
