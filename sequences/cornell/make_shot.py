@@ -188,7 +188,7 @@ def Scope "Render"
         uniform int2 resolution = (256, 256)
         uniform float pixelAspectRatio = 1
         uniform token cmlt:integrator = "pt"
-        uniform int cmlt:spp = 16
+        uniform int cmlt:spp = 32
         uniform int cmlt:seed = 1
     }}
 }}

@@ -154,15 +154,23 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
 
 
 def _cmd_inspect(args) -> int:
+    from .settings import SettingsError, format_settings, resolve_settings
     from .usd import UsdLoadError, open_stage, stage_info
 
     if not os.path.exists(args.shot):
         return _error(f"{args.shot}: no such file", EXIT_USAGE)
     try:
-        report = stage_info(open_stage(args.shot)).format()
+        stage = open_stage(args.shot)
+        report = stage_info(stage).format()
     except UsdLoadError as exc:
         return _error(str(exc), EXIT_RENDER)
     sys.stdout.write(report.rstrip("\n") + "\n")
+    try:
+        settings, sources = resolve_settings(stage)
+    except SettingsError as exc:
+        sys.stdout.flush()
+        return _error(str(exc), EXIT_RENDER)
+    sys.stdout.write(format_settings(settings, sources).rstrip("\n") + "\n")
     return EXIT_OK
 
 

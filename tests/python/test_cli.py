@@ -187,6 +187,7 @@ def test_10_inspect_and_version(tiny_shot, capsys):
     assert main(["inspect", tiny_shot]) == 0
     out = capsys.readouterr().out
     assert "/World/Cam" in out and "1 .. 3" in out
+    assert "settings in force:" in out and "spp" in out
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"cmlt {__version__}"
 
@@ -254,3 +255,16 @@ def test_13_core_settings_errors_name_their_source():
                                    {"integrator": "stage:/Render/Settings"})
     assert (msg, usage) == ("/Render/Settings: cmlt:integrator = 'bdpt': unknown integrator "
                             "'bdpt'", False)
+
+
+def test_14_fractional_frames(tiny_shot, tmp_path):
+    """Sub-frames render at their own time code and get three decimals."""
+    assert main(["render", tiny_shot, "--frames", "1:2x0.5", "--out", str(tmp_path / "s.####.exr"),
+                 *FAST, "-q"]) == 0
+    names = [os.path.basename(p) for p in _exrs(tmp_path)]
+    assert names == ["s.0001.500.exr", "s.0001.exr", "s.0002.exr"]
+    doc = json.load(open(tmp_path / "s.0001.500.exr.json"))
+    assert doc["time_code"] == 1.5
+    images = [read_exr(str(tmp_path / n))[0] for n in ("s.0001.exr", "s.0001.500.exr",
+                                                       "s.0002.exr")]
+    assert not np.array_equal(images[0], images[1]) and not np.array_equal(images[1], images[2])
