@@ -153,12 +153,19 @@ def _bad(make_shot, tiny_shot, tmp_path):
         "tcps=0": (["render", make_shot("tcps.usda", {"timeCodesPerSecond = 24":
                                                        "timeCodesPerSecond = 0"}),
                     "--out", out], 1, "timeCodesPerSecond is 0"),
+        "unwritable out": (["render", tiny_shot, *FAST, "--out", _file_as_dir(tmp_path)], 1,
+                           "cannot write"),
         "inspect missing": (["inspect", str(tmp_path / "gone.usda")], 2, "gone.usda: no such file"),
         "no command": ([], 2, "COMMAND"),
     }
 
 
-BAD_CASES = ["missing file", "bad frames", "garbage frames", "bad res", "zero res",
+def _file_as_dir(tmp_path):
+    (tmp_path / "afile").write_text("")
+    return str(tmp_path / "afile" / "x.####.exr")
+
+
+BAD_CASES = ["unwritable out", "missing file", "bad frames", "garbage frames", "bad res", "zero res",
              "missing camera", "not a camera", "unknown integrator", "stage settings typo", "no frame token",
              "bad spp", "tcps=0", "inspect missing", "no command"]
 
