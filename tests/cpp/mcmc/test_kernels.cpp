@@ -374,6 +374,36 @@ TEST(Stats, RecordMergeAndJson) {
   EXPECT_STREQ(inner_rule_name(k_default_inner_rule), "bundle");
 }
 
+// Cost per step on a target without zeros: MTM traces 2k − 1 new paths, the bundle k,
+// the single-proposal steps 1; and the per-step records add up.
+TEST(Stats, EvaluationsPerStep) {
+  const TwoBumps f;
+  for (std::size_t k : {1u, 2u, 8u}) {
+    for (const Kernel kernel : {Kernel::small_step, Kernel::large_step, Kernel::mtm, Kernel::seed, Kernel::bundle}) {
+      const KernelParams p{kernel, k, 0.1};
+      TestRng rng(9);
+      auto chain = make_chain(Vec{0.3}, f);
+      Workspace<Vec> ws(k, chain.x);
+      auto splat = [](const Vec&, double) {};
+      ChainStats st;
+      for (int t = 0; t < 100; ++t) {
+        const StepResult r = do_step(p, chain, f, splat, rng, ws);
+        st.record(r);
+        const std::size_t expected = kernel == Kernel::mtm || kernel == Kernel::seed ? 2 * k - 1
+                                     : kernel == Kernel::bundle                       ? k
+                                                                                      : 1;
+        ASSERT_EQ(r.evaluations, expected) << kernel_name(kernel) << " k=" << k;
+        ASSERT_EQ(r.zero_values, 0u);
+        ASSERT_EQ(r.moved, r.chosen != 0);
+        ASSERT_GE(r.acceptance, 0.0);
+        ASSERT_LE(r.acceptance, 1.0);
+      }
+      EXPECT_EQ(st.steps, 100u);
+      EXPECT_GT(st.moved, 0u);
+    }
+  }
+}
+
 TEST(Workspace, RejectsZeroTries) {
   EXPECT_THROW(Workspace<Vec>(0, Vec(1)), std::invalid_argument);
 }
