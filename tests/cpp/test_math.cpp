@@ -1,1 +1,64 @@
+// Matrices (column-vector convention), frames, safe maths.
+#include "math/frame.h"
+#include "math/mat4.h"
+#include "math/safe_math.h"
+#include "util/error.h"
+
 #include <gtest/gtest.h>
+
+using namespace cmlt;
+
+TEST(Mat4, InverseAndTransforms) {
+    Mat4 m = Mat4::translate(1, 2, 3) * Mat4::rotate(30, 0, 1, 1) * Mat4::scale(2, 3, 0.5);
+    bool ok = false;
+    Mat4 inv = m.inverse(&ok);
+    ASSERT_TRUE(ok);
+    Mat4 id = m * inv;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) EXPECT_NEAR(id.m[i][j], i == j ? 1.0 : 0.0, 1e-12);
+    // Column-vector convention: translation in column 3.
+    Vec3 p = Mat4::translate(1, 2, 3).transform_point(Vec3(1, 1, 1));
+    EXPECT_EQ(p, Vec3(2, 3, 4));
+    EXPECT_EQ(Mat4::translate(1, 2, 3).transform_vector(Vec3(1, 1, 1)), Vec3(1, 1, 1));
+    EXPECT_NEAR(Mat4::scale(2, 3, 4).determinant(), 24.0, 1e-12);
+}
+
+TEST(Mat4, NormalMatrixKeepsNormalsPerpendicular) {
+    Transform xf(Mat4::rotate(40, 1, 0, 0) * Mat4::scale(1, 5, 0.2), "test");
+    Vec3 a(1, 0, 0), b(0, 1, 1);
+    Vec3 n = cross(a, b);
+    Vec3 nw = xf.normal.transform_normal(n);
+    EXPECT_NEAR(dot(nw, xf.m.transform_vector(a)), 0.f, 1e-5f);
+    EXPECT_NEAR(dot(nw, xf.m.transform_vector(b)), 0.f, 1e-5f);
+}
+
+TEST(Mat4, SingularAndNonFiniteTransformsThrow) {
+    EXPECT_THROW(Transform(Mat4::scale(1, 0, 1), "x"), SceneError);
+    Mat4 nan;
+    nan.m[0][3] = std::nan("");
+    EXPECT_THROW(Transform(nan, "x"), SceneError);
+    Mat4 proj;
+    proj.m[3][2] = -1;
+    EXPECT_THROW(Transform(proj, "x"), SceneError);
+}
+
+TEST(Frame, Orthonormal) {
+    for (Vec3 n : {Vec3(0, 0, 1), Vec3(0, 0, -1), Vec3(1, 0, 0), normalize(Vec3(1, -2, 3)),
+                   normalize(Vec3(1e-8f, 0, -1))}) {
+        Frame f(n);
+        EXPECT_NEAR(length(f.s), 1.f, 1e-5f);
+        EXPECT_NEAR(length(f.t), 1.f, 1e-5f);
+        EXPECT_NEAR(dot(f.s, f.t), 0.f, 1e-5f);
+        EXPECT_NEAR(dot(f.s, f.n), 0.f, 1e-5f);
+        EXPECT_NEAR(dot(cross(f.s, f.t), f.n), 1.f, 1e-5f);
+        Vec3 v(0.3f, -0.2f, 0.9f);
+        Vec3 r = f.to_world(f.to_local(v));
+        EXPECT_NEAR(length(r - v), 0.f, 1e-5f);
+    }
+}
+
+TEST(SafeMath, NoNaNJustOutsideTheDomain) {
+    EXPECT_EQ(safe_sqrt(-1e-7f), 0.f);
+    EXPECT_EQ(safe_acos(1.0000001f), 0.f);
+    EXPECT_EQ(normalize(Vec3(0.f)), Vec3(0.f));
+}

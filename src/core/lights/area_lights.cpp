@@ -10,6 +10,7 @@ namespace cmlt {
 PlanarLight::PlanarLight(const LightDesc& desc, const char* what)
     : m_xf(desc.transform, what), m_radiance(desc.radiance) {
     m_n_emit = normalize(m_xf.normal.transform_normal(Vec3(0.f, 0.f, -1.f)));
+    m_is_analytic_area = true;
 }
 
 LightSample PlanarLight::sample_li(const Vec3& p, const Vec2& u) const {

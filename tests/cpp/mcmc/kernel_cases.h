@@ -76,7 +76,7 @@ ShortChainResult run_short_chains(const Binned<Target>& bn, std::size_t chains, 
     h[bn.bin(u)] += w;
   };
   for (std::size_t c = 0; c < chains; ++c) {
-    TestRng rng(seed, c);
+    TestRng rng(seed + seed_offset(), c);
     auto chain = make_chain(bn.exact_draw(rng), bn.target);
     std::fill(h.begin(), h.end(), 0.0);
     for (std::size_t t = 0; t < steps; ++t) {

@@ -78,7 +78,7 @@ TEST(WrappedGaussianProposal, DisplacementHasWrappedNormalLawAnywhere) {
     }
   const WrappedGaussianProposal T{sigma};
   for (double x0 : {0.0, 0.5, 0.999, 0.05}) {
-    TestRng rng(9, std::uint64_t(x0 * 1000));
+    TestRng rng(9 + testing::seed_offset(), std::uint64_t(x0 * 1000));
     Vec x{x0}, y{0.0};
     std::vector<double> counts(bins, 0.0);
     for (int i = 0; i < 200000; ++i) {

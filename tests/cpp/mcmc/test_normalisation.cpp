@@ -24,7 +24,7 @@ double two_bumps_variance() {
 }
 
 TEST(Bootstrap, RecoversNormalisationWithinItsStandardError) {
-  TestRng rng(11);
+  TestRng rng(11 + seed_offset());
   const auto pool = bootstrap(TwoBumps{}, 200000, Vec(1, 0.0), rng);
   const double b = TwoBumps::integral(0, 1);
   ASSERT_EQ(pool.states.size(), 200000u);
@@ -45,7 +45,7 @@ TEST(Bootstrap, ConfidenceIntervalCoverage) {
   const double b = TwoBumps::integral(0, 1);
   int covered = 0;
   for (int r = 0; r < 1000; ++r) {
-    TestRng rng(12, r);
+    TestRng rng(12 + seed_offset(), r);
     const auto pool = bootstrap(TwoBumps{}, 1000, Vec(1, 0.0), rng);
     covered += pool.b.lower() <= b && b <= pool.b.upper();
   }
@@ -83,7 +83,7 @@ TEST(NormalisationAccumulator, MergeEqualsSequentialAndSanitises) {
 // zero weight; bad weights are rejected with a message.
 TEST(Resample, FrequenciesFollowWeightsAndZerosAreNeverChosen) {
   const std::vector<double> w = {0.0, 1.0, 3.0, 0.0, 0.5, 2.5, 0.0};
-  TestRng rng(14);
+  TestRng rng(14 + seed_offset());
   const auto idx = resample_start_indices(w, 100000, rng);
   std::vector<double> counts(w.size(), 0.0), probs(w.size());
   for (auto i : idx) counts[i] += 1;
@@ -128,7 +128,7 @@ BinMeans run_started_chains(const StartCase& sc, std::size_t replicates, std::ui
   std::vector<double> h(bn.bins());
   auto splat = [&](const Vec& u, double w) { h[bn.bin(u)] += w; };
   for (std::size_t r = 0; r < replicates; ++r) {
-    TestRng rng(seed, r);
+    TestRng rng(seed + seed_offset(), r);
     std::fill(h.begin(), h.end(), 0.0);
     double b_hat;
     Chain<Vec> chain;

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,16 @@
 namespace cmlt::mlt::testing {
 
 using Vec = std::vector<double>;
+
+/// Offset added to every statistical test's seed: CMLT_TEST_SEED_OFFSET=<n> re-runs the
+/// suite on fresh random numbers (to check the stated false-alarm rates). Default 0.
+inline std::uint64_t seed_offset() {
+  static const std::uint64_t offset = [] {
+    const char* env = std::getenv("CMLT_TEST_SEED_OFFSET");
+    return env ? std::strtoull(env, nullptr, 10) * 1000003ull : 0ull;
+  }();
+  return offset;
+}
 
 /// ∫_a^b exp(−(x−m)²/(2s²)) dx.
 inline double gauss_integral(double a, double b, double m, double s) {
