@@ -202,10 +202,10 @@ def test_10_inspect_and_version(tiny_shot, capsys):
 def test_11_ctrl_c_keeps_finished_frames(make_shot, tmp_path):
     """SIGINT mid-sequence: exit 130, finished frames intact, the partial
     frame not written, no temporaries, a resume hint; --resume finishes."""
-    shot = make_shot("long.usda", {"endTimeCode = 3": "endTimeCode = 40"})
+    shot = make_shot("long.usda", {"endTimeCode = 3": "endTimeCode = 200"})
     out = tmp_path / "int"
-    cmd = [sys.executable, "-m", "cmlt", "render", shot, "--frames", "1:40",
-           "--out", str(out / "i.####.exr"), "--spp", "64", "--res", "64x48", "--threads", "2"]
+    cmd = [sys.executable, "-m", "cmlt", "render", shot, "--frames", "1:200",
+           "--out", str(out / "i.####.exr"), "--spp", "128", "--res", "64x48", "--threads", "2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 240
     while time.time() < deadline and not (out.is_dir() and _exrs(out)):
@@ -215,7 +215,7 @@ def test_11_ctrl_c_keeps_finished_frames(make_shot, tmp_path):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     done = _exrs(out)
-    assert 1 <= len(done) < 40, err
+    assert 1 <= len(done) < 200, err
     assert _temps(out) == []
     for p in done:                          # every image complete, with its sidecar
         img, _ = read_exr(p)

@@ -325,7 +325,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     write_exr(path, image, half=opts.half, compression=opts.compression,
                               colorspace=opts.colorspace, metadata=metadata)
                 except OSError as exc:
-                    raise RenderError(f"{path}: cannot write: {exc.strerror or exc}") from None
+                    where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
+                    raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") \
+                        from None
                 result.written.append(path)
                 result.stats[frame] = stats
                 rep.end_frame(frame, path, stats, units)
