@@ -278,7 +278,7 @@ float PreviewSurfaceBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
     return pdf;
 }
 
-std::optional<BsdfSample> PreviewSurfaceBsdf::sample_mirror(const Vec3& wo,
+std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample_mirror(const Vec3& wo,
                                                             const LobeProbabilities& p) const {
     // All Dirac reflections share the mirror direction: return them as one delta whose
     // weight and probability are the sums over the Dirac lobes.
@@ -301,7 +301,7 @@ std::optional<BsdfSample> PreviewSurfaceBsdf::sample_mirror(const Vec3& wo,
         prob += p.dielectric * fr;
     }
     if (!(prob > 0.f)) return std::nullopt;
-    BsdfSample s;
+    PreviewSurfaceSample s;
     s.wi = Vec3(-wo.x, -wo.y, wo.z);
     s.f = weight / co;
     s.pdf = prob;
@@ -311,7 +311,7 @@ std::optional<BsdfSample> PreviewSurfaceBsdf::sample_mirror(const Vec3& wo,
     return s;
 }
 
-std::optional<BsdfSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lobe, const Vec2& u,
+std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lobe, const Vec2& u,
                                                      TransportMode mode) const {
     const float co = std::fabs(wo.z);
     if (co < k_preview_min_cos) return std::nullopt;
@@ -353,7 +353,7 @@ std::optional<BsdfSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lob
         default: {  // dielectric
             const float opacity = m_params.opacity;
             if (m_dielectric == DielectricKind::PassThrough) {
-                BsdfSample s;
+                PreviewSurfaceSample s;
                 s.wi = -wo;
                 s.f = Spectrum((1.f - opacity) * sqr(clearcoat_attenuation(co)) / co);
                 s.pdf = p.dielectric;
@@ -373,7 +373,7 @@ std::optional<BsdfSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lob
                 float ft = (1.f - opacity) * clearcoat_attenuation(co) *
                            clearcoat_attenuation(ci) * (1.f - fr) / ci;
                 if (mode == TransportMode::Radiance) ft /= sqr(etap);
-                BsdfSample s;
+                PreviewSurfaceSample s;
                 s.wi = wt;
                 s.f = Spectrum(ft);
                 s.pdf = p.dielectric * (1.f - fr);
@@ -400,7 +400,7 @@ std::optional<BsdfSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lob
 
     // Non-delta: full mixture value and pdf (one-sample MIS over the lobes).
     if (std::fabs(wi.z) < k_preview_min_cos) return std::nullopt;
-    BsdfSample s;
+    PreviewSurfaceSample s;
     s.wi = wi;
     s.pdf = pdf(wo, wi);
     if (!(s.pdf > 0.f) || !std::isfinite(s.pdf)) return std::nullopt;

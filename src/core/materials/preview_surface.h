@@ -58,8 +58,10 @@ struct PreviewSurfaceParams {
     float ior = 1.5f;
 };
 
-/// One sampled direction.
-struct BsdfSample {
+/// One sampled direction. (Named PreviewSurfaceSample rather than BsdfSample because
+/// materials/bsdf_sample.h already defines cmlt::BsdfSample {wi, f, pdf, is_delta}; once that
+/// struct gains `is_transmission` and `eta` this one can be replaced by it.)
+struct PreviewSurfaceSample {
     Vec3 wi;                       ///< sampled direction, local frame, unit
     Spectrum f;                    ///< BSDF value (not divided by pdf, not times |cos wi|)
     float pdf = 0.f;               ///< solid-angle pdf, or the discrete probability if is_delta
@@ -86,7 +88,7 @@ public:
     /// the dielectric), then a direction with `u`. Non-delta samples carry the full mixture
     /// f = eval(wo, wi) and pdf = pdf(wo, wi) (one-sample MIS over the lobes). Returns
     /// std::nullopt when the sample is invalid (below the horizon, wo on the horizon, no lobe).
-    std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, const Vec2& u,
+    std::optional<PreviewSurfaceSample> sample(const Vec3& wo, float u_lobe, const Vec2& u,
                                      TransportMode mode) const;
 
     /// True if some lobe is a Dirac delta.
@@ -111,7 +113,7 @@ private:
     Spectrum specular_fresnel(float cos_theta) const;
     float clearcoat_fresnel(float cos_theta) const;
     float clearcoat_attenuation(float abs_cos) const;
-    std::optional<BsdfSample> sample_mirror(const Vec3& wo, const LobeProbabilities& p) const;
+    std::optional<PreviewSurfaceSample> sample_mirror(const Vec3& wo, const LobeProbabilities& p) const;
 
     PreviewSurfaceParams m_params;
     Spectrum m_diffuse;      ///< effective Lambert colour ((1 - metallic) * diffuse in metallic)

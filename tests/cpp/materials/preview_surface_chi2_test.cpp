@@ -83,7 +83,7 @@ TEST_P(PreviewSurfaceChi2, sample_matches_pdf) {
     long delta_samples = 0;
     SphericalChi2Test test(
         [&](float u1, const Vec2& u2) -> std::optional<Vec3> {
-            std::optional<BsdfSample> s = bsdf.sample(wo, u1, u2, TransportMode::Radiance);
+            std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, u1, u2, TransportMode::Radiance);
             if (!s) return std::nullopt;
             if (s->is_delta) {
                 ++delta_samples;

@@ -48,7 +48,7 @@ std::string str(const Vec3& v) {
     return os.str();
 }
 
-Spectrum weight_of(const BsdfSample& s) { return s.f * (std::fabs(s.wi.z) / s.pdf); }
+Spectrum weight_of(const PreviewSurfaceSample& s) { return s.f * (std::fabs(s.wi.z) / s.pdf); }
 
 // ---------------------------------------------------------------------------------------------
 // Construction
@@ -143,7 +143,7 @@ TEST_P(PreviewSurfaceConfig, test04_sample_matches_eval_and_pdf) {
             for (int i = 0; i < 2000; ++i) {
                 float ul = rng.get1d();
                 Vec2 u = rng.get2d();
-                std::optional<BsdfSample> s = bsdf.sample(wo, ul, u, mode);
+                std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, ul, u, mode);
                 if (!s) continue;
                 ASSERT_TRUE(is_finite(s->f) && std::isfinite(s->pdf) && s->pdf > 0.f)
                     << "wo " << str(wo);
@@ -245,7 +245,7 @@ MeanEstimate furnace(const PreviewSurfaceBsdf& bsdf, const Vec3& wo, int n, Tran
     for (int i = 0; i < n; ++i) {
         float ul = rng.get1d();
         Vec2 u = rng.get2d();
-        std::optional<BsdfSample> s = bsdf.sample(wo, ul, u, mode);
+        std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, ul, u, mode);
         double w = 0;
         if (s) {
             w = weight_of(*s)[channel];
@@ -319,7 +319,7 @@ TEST(WhiteFurnace, test09_smooth_dielectric_is_lossless) {
                 for (int i = 0; i < 2000; ++i) {
                     float ul = (i + 0.5f) / 2000.f;
                     for (TransportMode mode : {TransportMode::Radiance, TransportMode::Importance}) {
-                        std::optional<BsdfSample> s = bsdf.sample(wo, ul, Vec2(0.3f, 0.6f), mode);
+                        std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, ul, Vec2(0.3f, 0.6f), mode);
                         ASSERT_TRUE(s.has_value()) << ior << " " << theta << " " << side;
                         ASSERT_TRUE(s->is_delta);
                         float expected = 1.f;
@@ -409,7 +409,7 @@ TEST(Delta, test11_mirror_metal_returns_fresnel_weighted_mirror_direction) {
             float c = std::fabs(wo.z);
             Spectrum fresnel = f0 + (Spectrum(1.f) - f0) * std::pow(1.f - c, 5.f);  // Schlick
             for (float ul : {0.f, 0.5f, 0.999f}) {
-                std::optional<BsdfSample> s = bsdf.sample(wo, ul, Vec2(0.2f, 0.9f), TransportMode::Radiance);
+                std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, ul, Vec2(0.2f, 0.9f), TransportMode::Radiance);
                 ASSERT_TRUE(s.has_value());
                 EXPECT_TRUE(s->is_delta);
                 EXPECT_FALSE(s->is_transmission);
@@ -433,7 +433,7 @@ TEST(Delta, test12_smooth_glass_refraction_obeys_snell) {
                    Case{41.f, -1.f, 1.f / 1.5f}}) {
         Vec3 wo = direction_deg(c.theta, 0.7f, c.side);
         // u_lobe close to 1 selects refraction whenever R < 1.
-        std::optional<BsdfSample> s = bsdf.sample(wo, 0.9999f, Vec2(0.5f, 0.5f), TransportMode::Radiance);
+        std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, 0.9999f, Vec2(0.5f, 0.5f), TransportMode::Radiance);
         ASSERT_TRUE(s.has_value());
         EXPECT_TRUE(s->is_delta);
         EXPECT_TRUE(s->is_transmission);
@@ -447,7 +447,7 @@ TEST(Delta, test12_smooth_glass_refraction_obeys_snell) {
         float fr = fresnel_dielectric(wo.z, 1.5f);
         EXPECT_NEAR(s->pdf, 1.f - fr, 1e-6f);
         EXPECT_NEAR(weight_of(*s).x, 1.f / (c.eta * c.eta), 1e-5f);
-        std::optional<BsdfSample> si = bsdf.sample(wo, 0.9999f, Vec2(0.5f, 0.5f), TransportMode::Importance);
+        std::optional<PreviewSurfaceSample> si = bsdf.sample(wo, 0.9999f, Vec2(0.5f, 0.5f), TransportMode::Importance);
         ASSERT_TRUE(si.has_value());
         EXPECT_NEAR(weight_of(*si).x, 1.f, 1e-5f);
     }
@@ -459,7 +459,7 @@ TEST(Delta, test13_total_internal_reflection_above_critical_angle) {
     for (float theta : {critical + 0.1f, 50.f, 70.f, 89.f}) {
         Vec3 wo = direction_deg(theta, 0.7f, -1.f);
         for (int i = 0; i < 100; ++i) {
-            std::optional<BsdfSample> s =
+            std::optional<PreviewSurfaceSample> s =
                 bsdf.sample(wo, (i + 0.5f) / 100.f, Vec2(0.5f, 0.5f), TransportMode::Radiance);
             ASSERT_TRUE(s.has_value());
             EXPECT_TRUE(s->is_delta);
@@ -470,7 +470,7 @@ TEST(Delta, test13_total_internal_reflection_above_critical_angle) {
     }
     // Just below the critical angle refraction is still possible.
     Vec3 wo = direction_deg(critical - 0.5f, 0.7f, -1.f);
-    std::optional<BsdfSample> s = bsdf.sample(wo, 0.99999f, Vec2(0.5f, 0.5f), TransportMode::Radiance);
+    std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, 0.99999f, Vec2(0.5f, 0.5f), TransportMode::Radiance);
     ASSERT_TRUE(s.has_value());
     EXPECT_TRUE(s->is_transmission);
 }
@@ -484,7 +484,7 @@ TEST(Delta, test14_reflection_frequency_is_fresnel) {
             Vec3 wo = direction_deg(theta, 0.7f, side);
             int reflections = 0;
             for (int i = 0; i < n; ++i) {
-                std::optional<BsdfSample> s =
+                std::optional<PreviewSurfaceSample> s =
                     bsdf.sample(wo, (i + 0.5f) / n, Vec2(0.5f, 0.5f), TransportMode::Importance);
                 ASSERT_TRUE(s.has_value());
                 reflections += s->is_transmission ? 0 : 1;
@@ -503,7 +503,7 @@ TEST(Delta, test15_ior_one_is_pure_pass_through) {
             for (float theta : {0.f, 45.f, 89.99f}) {
                 Vec3 wo = direction_deg(theta, 0.7f, side);
                 for (TransportMode mode : {TransportMode::Radiance, TransportMode::Importance}) {
-                    std::optional<BsdfSample> s = bsdf.sample(wo, 0.37f, Vec2(0.1f, 0.8f), mode);
+                    std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, 0.37f, Vec2(0.1f, 0.8f), mode);
                     ASSERT_TRUE(s.has_value());
                     EXPECT_TRUE(s->is_delta);
                     EXPECT_TRUE(s->is_transmission);
@@ -526,7 +526,7 @@ TEST(Delta, test16_mixed_delta_and_smooth_lobes) {
     int deltas = 0, smooth = 0;
     TestRng rng(21);
     for (int i = 0; i < 20000; ++i) {
-        std::optional<BsdfSample> s = bsdf.sample(wo, rng.get1d(), rng.get2d(), TransportMode::Radiance);
+        std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, rng.get1d(), rng.get2d(), TransportMode::Radiance);
         ASSERT_TRUE(s.has_value());
         if (s->is_delta) {
             ++deltas;
@@ -595,7 +595,7 @@ TEST(Robustness, test17_no_nan_or_inf_anywhere) {
                 }
                 for (float ul : u_lobes) {
                     for (const Vec2& u : us) {
-                        std::optional<BsdfSample> s = bsdf.sample(wo, ul, u, mode);
+                        std::optional<PreviewSurfaceSample> s = bsdf.sample(wo, ul, u, mode);
                         ++calls;
                         if (!s) continue;
                         ++samples_ok;
