@@ -5,6 +5,7 @@
     cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N] [--integrator pt]
                      [--seed S] [--threads N] [--res WxH] [--max-depth N]
                      [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
+                     [--output-colorspace NAME] [--ocio-config PATH]
                      [--resume] [--quiet]
     cmlt inspect SHOT
     cmlt --version
@@ -106,6 +107,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--half", action="store_true", help="write 16-bit half floats")
     r.add_argument("--compression", choices=COMPRESSIONS, default="zip",
                    help="EXR compression (default zip)")
+    r.add_argument("--output-colorspace", metavar="NAME", dest="output_colorspace",
+                   help="colour space of the written EXRs (an OCIO name, alias or interop "
+                   "ID, e.g. lin_rec709); default: the rendering space, ACEScg")
+    r.add_argument("--ocio-config", metavar="PATH", dest="ocio_config",
+                   help="OpenColorIO config (file or ocio:// URI); default: $OCIO, else the "
+                   "stage's colorConfiguration, else the built-in studio config")
     r.add_argument("--resume", action="store_true",
                    help="skip frames whose image already exists")
     r.add_argument("--quiet", "-q", action="store_true",
@@ -134,7 +141,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
 
     opts = RenderOptions(spp=args.spp, integrator=args.integrator, seed=args.seed,
                          threads=args.threads, resolution=args.res, max_depth=args.max_depth,
-                         camera=args.camera, half=args.half, compression=args.compression)
+                         camera=args.camera, half=args.half, compression=args.compression,
+                         output_colorspace=args.output_colorspace, ocio_config=args.ocio_config)
     try:
         res = render_sequence(args.shot, args.frames, args.out, opts, resume=args.resume,
                               progress=not args.quiet, quiet=args.quiet)

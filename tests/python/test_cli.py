@@ -153,6 +153,10 @@ def _bad(make_shot, tiny_shot, tmp_path):
         "tcps=0": (["render", make_shot("tcps.usda", {"timeCodesPerSecond = 24":
                                                        "timeCodesPerSecond = 0"}),
                     "--out", out], 1, "timeCodesPerSecond is 0"),
+        "bad colorspace": (["render", tiny_shot, "--output-colorspace", "nope", "--out", out], 2,
+                           "--output-colorspace 'nope': unknown colour space"),
+        "bad ocio config": (["render", tiny_shot, "--ocio-config", str(tmp_path / "no.ocio"),
+                             "--out", out], 2, "--ocio-config"),
         "unwritable out": (["render", tiny_shot, *FAST, "--out", _file_as_dir(tmp_path)], 1,
                            "cannot write"),
         "inspect missing": (["inspect", str(tmp_path / "gone.usda")], 2, "gone.usda: no such file"),
@@ -165,7 +169,7 @@ def _file_as_dir(tmp_path):
     return str(tmp_path / "afile" / "x.####.exr")
 
 
-BAD_CASES = ["unwritable out", "missing file", "bad frames", "garbage frames", "bad res", "zero res",
+BAD_CASES = ["bad ocio config", "unwritable out", "bad colorspace", "missing file", "bad frames", "garbage frames", "bad res", "zero res",
              "missing camera", "not a camera", "unknown integrator", "stage settings typo", "no frame token",
              "bad spp", "tcps=0", "inspect missing", "no command"]
 
@@ -275,3 +279,22 @@ def test_14_fractional_frames(tiny_shot, tmp_path):
     images = [read_exr(str(tmp_path / n))[0] for n in ("s.0001.exr", "s.0001.500.exr",
                                                        "s.0002.exr")]
     assert not np.array_equal(images[0], images[1]) and not np.array_equal(images[1], images[2])
+
+
+def test_15_output_colorspace(tiny_shot, tmp_path):
+    """--output-colorspace converts the pixels from ACEScg with OCIO and
+    declares the space in the header; the default writes ACEScg unchanged."""
+    from cmlt.color import from_rendering_space
+    a, b = str(tmp_path / "acescg.exr"), str(tmp_path / "rec709.exr")
+    assert main(["render", tiny_shot, "--frames", "2", "--out", a, *FAST, "-q"]) == 0
+    assert main(["render", tiny_shot, "--frames", "2", "--out", b, *FAST, "-q",
+                 "--output-colorspace", "lin_rec709"]) == 0
+    img_a, meta_a = read_exr(a)
+    img_b, meta_b = read_exr(b)
+    assert meta_a["colorInteropID"] == "lin_ap1_scene"
+    assert meta_b["colorInteropID"] == "lin_rec709_scene"
+    assert np.allclose(meta_b["chromaticities"], [0.64, 0.33, 0.3, 0.6, 0.15, 0.06, 0.3127, 0.329])
+    assert not np.allclose(img_a, img_b)
+    np.testing.assert_allclose(img_b, from_rendering_space(img_a.copy(), "lin_rec709"),
+                               rtol=1e-5, atol=1e-7)
+    assert json.load(open(b + ".json"))["settings"]["output_colorspace"] == "Linear Rec.709 (sRGB)"

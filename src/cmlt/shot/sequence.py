@@ -55,7 +55,11 @@ class RenderOptions:
     threads: int = 0                              # 0 = all cores; machine, not shot
     half: bool = False
     compression: str = "zip"
-    colorspace: str = "ACEScg"                    # rendering space, in the EXR header
+    #: colour space the EXRs are written in (None = the rendering space,
+    #: ACEScg, pixels unchanged); any name/alias/interop ID of the config
+    output_colorspace: Optional[str] = None
+    #: OpenColorIO config (None: $OCIO, the stage's, else the built-in one)
+    ocio_config: Optional[str] = None
 
     def check(self) -> None:
         """Flag-level checks that need neither the stage nor the core."""
@@ -153,6 +157,24 @@ def _settings_message(msg: str, resolved, sources: Dict[str, str]):
     return msg, True
 
 
+def _color_setup(opts: RenderOptions, stage):
+    """Install ``--ocio-config`` and check ``--output-colorspace`` before any
+    frame renders; returns (EXR header attributes, resolved colour space)."""
+    from ..color import ColorError, get_config, header_attributes, load_config, set_config
+
+    if opts.ocio_config:
+        try:
+            set_config(load_config(opts.ocio_config, stage=stage))
+        except ColorError as exc:
+            raise UsageError(f"--ocio-config {opts.ocio_config}: {exc}") from None
+    try:
+        attrs = header_attributes(opts.output_colorspace)
+        name = get_config().output_colorspace_name(opts.output_colorspace)
+    except ColorError as exc:
+        raise UsageError(f"--output-colorspace {opts.output_colorspace!r}: {exc}") from None
+    return attrs, name
+
+
 def _check_camera(stage, path: str, shot: str) -> None:
     from pxr import Sdf, UsdGeom
 
@@ -164,6 +186,13 @@ def _check_camera(stage, path: str, shot: str) -> None:
     if not prim.IsA(UsdGeom.Camera):
         raise UsageError(f"--camera {path}: prim is a {prim.GetTypeName() or 'typeless prim'}, "
                          f"not a Camera, in {shot}")
+
+
+def _to_output(image, output_colorspace):
+    if output_colorspace is None:
+        return image
+    from ..color import from_rendering_space
+    return from_rendering_space(np.array(image, dtype=np.float32, copy=True), output_colorspace)
 
 
 def _render_interruptible(core, scene, st, reporter: Reporter):
@@ -237,8 +266,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
         raise RenderError(str(exc)) from None
     resolved, sources = _resolve(stage, opts)
     st = _core_settings(core, resolved, opts, sources)
+    color_attrs, colorspace_name = _color_setup(opts, stage)
     settings_record = dict(resolved.as_dict(), threads=int(opts.threads), half=bool(opts.half),
-                           compression=opts.compression, colorspace=opts.colorspace)
+                           compression=opts.compression, output_colorspace=colorspace_name)
 
     if frames is None:
         frame_list = default_frames(info.start)
@@ -322,8 +352,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 }
                 try:
                     write_sidecar(path, record)
-                    write_exr(path, image, half=opts.half, compression=opts.compression,
-                              colorspace=opts.colorspace, metadata=metadata)
+                    write_exr(path, _to_output(image, opts.output_colorspace), half=opts.half,
+                              compression=opts.compression, colorspace=None,
+                              metadata=metadata, attributes=color_attrs)
                 except OSError as exc:
                     where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
                     raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") \
