@@ -64,10 +64,11 @@ class Reporter:
     # -- messages --------------------------------------------------------
     def info(self, text: str) -> None:
         if not self.quiet:
-            self.console.print(text, markup=False, highlight=False)
+            self.console.print(text, markup=False, highlight=False, soft_wrap=True)
 
     def warn(self, text: str) -> None:
-        self.console.print(f"cmlt: warning: {text}", markup=False, highlight=False, style="yellow")
+        self.console.print(f"cmlt: warning: {text}", markup=False, highlight=False,
+                           style="yellow", soft_wrap=True)
 
     def warnings(self, texts: Iterable[str]) -> int:
         """Print warnings not printed before; returns how many were new."""
