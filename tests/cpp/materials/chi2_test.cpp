@@ -39,6 +39,7 @@ Chi2Options small_options(const char* name) {
     Chi2Options o;
     o.theta_res = 20;
     o.phi_res = 40;
+    o.coarse_factor = 5;
     o.sample_count = 200000;
     o.significance = 0.01;
     o.integration_eps = 1e-8;
@@ -90,16 +91,48 @@ TEST(Chi2Harness, test06_rejects_samples_outside_support) {
 }
 
 TEST(Chi2Harness, test07_missing_mass_is_detected) {
-    // A sampler that silently drops 5 % of its samples while its pdf integrates to 1.
+    // A sampler that silently drops 1 % of its samples while its pdf integrates to 1.
     SphericalChi2Test t(
         [](float u1, const Vec2& u) {
-            if (u1 < 0.05f) return std::optional<Vec3>();
+            if (u1 < 0.01f) return std::optional<Vec3>();
             return std::optional<Vec3>(square_to_cosine_hemisphere(u));
         },
         [](const Vec3& w) { return double(square_to_cosine_hemisphere_pdf(w)); },
         small_options("self_missing_mass"));
     Chi2Outcome r = t.run();
     EXPECT_FALSE(r.passed) << r.message;
+    EXPECT_GT(std::fabs(r.total_z), 10.0) << r.message;
+}
+
+TEST(Chi2Harness, test08_scaled_pdf_is_detected) {
+    // The pdf of a sampler that fails half of the time, but 3 % too large everywhere.
+    SphericalChi2Test t(
+        [](float u1, const Vec2& u) {
+            if (u1 < 0.5f) return std::optional<Vec3>();
+            return std::optional<Vec3>(square_to_cosine_hemisphere(u));
+        },
+        [](const Vec3& w) { return 0.5 * 1.03 * square_to_cosine_hemisphere_pdf(w); },
+        small_options("self_scaled_pdf"));
+    Chi2Outcome r = t.run();
+    EXPECT_FALSE(r.passed) << r.message;
+}
+
+TEST(Chi2Harness, test09_smooth_shape_error_is_detected) {
+    // A +-3 % tilt of the cosine pdf with unchanged total (cos^2 is uniform under the cosine
+    // density, so the factor 0.97 + 0.06 cos^2 averages to 1): invisible in the total,
+    // diluted in the fine table, caught by the coarse one. Full default resolution.
+    Chi2Options o;
+    o.name = "self_tilt";
+    o.significance = 0.01;
+    SphericalChi2Test t(
+        [](float, const Vec2& u) { return std::optional<Vec3>(square_to_cosine_hemisphere(u)); },
+        [](const Vec3& w) {
+            return square_to_cosine_hemisphere_pdf(w) * (0.97 + 0.06 * double(w.z) * w.z);
+        },
+        o);
+    Chi2Outcome r = t.run();
+    EXPECT_FALSE(r.passed) << r.message;
+    EXPECT_LT(r.coarse_p_value, 1e-6) << r.message;
 }
 
 }  // namespace
