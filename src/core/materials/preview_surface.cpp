@@ -156,7 +156,8 @@ PreviewSurfaceBsdf::PreviewSurfaceBsdf(const PreviewSurfaceParams& in) {
     m_alpha_cc = ggx_alpha_from_roughness(p.clearcoat_roughness);
     m_eta = p.ior;
 
-    m_has_diffuse = p.opacity > 0.f && max_component(m_diffuse) > 0.f;
+    // F0 = 1 makes F = 1 at every angle, so the diffuse under it is dead: do not sample it.
+    m_has_diffuse = p.opacity > 0.f && max_component(m_diffuse * (Spectrum(1.f) - m_f0)) > 0.f;
     m_has_specular = p.opacity > 0.f && max_component(m_f0) > 0.f;
     m_has_clearcoat = p.clearcoat > 0.f;
     m_specular_delta = m_alpha < k_ggx_delta_alpha;

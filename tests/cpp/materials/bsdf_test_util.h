@@ -160,4 +160,23 @@ inline std::vector<NamedParams> delta_configurations() {
     };
 }
 
+/// White (albedo-1) stress cases for energy conservation: where the layering approximations
+/// (diffuse under specular, base under clearcoat) could push the albedo above 1.
+inline std::vector<NamedParams> energy_stress_configurations() {
+    const Spectrum white(1.f);
+    return {
+        {"white_plastic_r0", plastic(white, 0.f)},
+        {"white_plastic_r0.3", plastic(white, 0.3f)},
+        {"white_plastic_r1", plastic(white, 1.f)},
+        {"white_plastic_ior2.5_r0.5", [] { PreviewSurfaceParams p = plastic(Spectrum(1.f), 0.5f); p.ior = 2.5f; return p; }()},
+        {"white_spec_workflow_s0.5", specular_workflow(white, Spectrum(0.5f), 0.3f)},
+        {"white_spec_workflow_s1_r0", specular_workflow(white, white, 0.f)},
+        {"white_clearcoat_plastic", with_clearcoat(plastic(white, 0.5f), 1.f, 0.5f)},
+        {"white_clearcoat_metal", with_clearcoat(metal(white, 0.2f), 1.f, 0.8f)},
+        {"white_clearcoat_mirror", with_clearcoat(metal(white, 0.f), 1.f, 0.3f)},
+        {"white_clearcoat_glass", with_clearcoat(glass(0.3f, 1.5f), 1.f, 0.3f)},
+        {"white_translucent", with_opacity(plastic(white, 0.5f), 0.5f)},
+    };
+}
+
 }  // namespace cmlt::test

@@ -21,6 +21,7 @@ bool verbose() { return std::getenv("CMLT_TEST_VERBOSE") != nullptr; }
 std::vector<NamedParams> all_configurations() {
     std::vector<NamedParams> all = smooth_configurations();
     for (NamedParams& p : delta_configurations()) all.push_back(p);
+    for (NamedParams& p : energy_stress_configurations()) all.push_back(p);
     return all;
 }
 
