@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
@@ -276,6 +277,41 @@ TEST_P(PreviewSurfaceConfig, test07_white_furnace_at_most_one) {
                     << GetParam().name << " wo " << str(wo) << " channel " << channel
                     << ": albedo " << e.mean << " +- " << e.std_error;
             }
+        }
+    }
+}
+
+TEST_P(PreviewSurfaceConfig, test08_delta_pdf_is_its_discrete_probability) {
+    // A Dirac sample reports pdf = the probability of sampling exactly that direction. Check
+    // it against the observed frequency of each distinct Dirac direction (binomial, 5 sigma).
+    const PreviewSurfaceBsdf bsdf(GetParam().params);
+    if (!bsdf.has_delta()) GTEST_SKIP() << "no Dirac lobe";
+    TestRng rng(15, 4);
+    const int n = 40000;
+    for (const Vec3& wo : test_outgoing_directions()) {
+        struct Seen {
+            Vec3 wi;
+            float pdf;
+            int count;
+        };
+        std::vector<Seen> seen;
+        for (int i = 0; i < n; ++i) {
+            std::optional<PreviewSurfaceSample> s =
+                bsdf.sample(wo, rng.get1d(), rng.get2d(), TransportMode::Radiance);
+            if (!s || !s->is_delta) continue;
+            auto it = std::find_if(seen.begin(), seen.end(), [&](const Seen& x) { return x.wi == s->wi; });
+            if (it == seen.end()) {
+                seen.push_back({s->wi, s->pdf, 1});
+            } else {
+                ASSERT_EQ(it->pdf, s->pdf) << "one Dirac direction, two different pdfs";
+                ++it->count;
+            }
+        }
+        ASSERT_LE(seen.size(), 2u) << "at most a mirror and a refraction direction";
+        for (const Seen& x : seen) {
+            double freq = double(x.count) / n;
+            double sd = std::sqrt(x.pdf * (1.0 - x.pdf) / n) + 1e-6;
+            EXPECT_NEAR(freq, x.pdf, 5 * sd) << GetParam().name << " wo " << str(wo) << " wi " << str(x.wi);
         }
     }
 }
