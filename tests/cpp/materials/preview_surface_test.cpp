@@ -593,8 +593,10 @@ TEST(Robustness, test17_no_nan_or_inf_anywhere) {
     dirs.emplace_back(1e-20f, 0.f, 1.f);
     dirs.emplace_back(0.f, 1.f, 1e-30f);  // denormal-range cosine
     const float k_max_u = k_one_minus_eps;
-    const std::vector<float> u_lobes = {0.f, 0.3f, 0.7f, k_max_u};
-    const std::vector<Vec2> us = {{0.f, 0.f}, {0.5f, 0.5f}, {k_max_u, k_max_u}, {0.999f, 0.001f}, {0.f, k_max_u}};
+    // 1.0 is outside the documented [0, 1) but must not produce NaN either.
+    const std::vector<float> u_lobes = {0.f, 0.3f, 0.7f, k_max_u, 1.f};
+    const std::vector<Vec2> us = {{0.f, 0.f},         {0.5f, 0.5f},     {k_max_u, k_max_u},
+                                  {0.999f, 0.001f},   {0.f, k_max_u},   {1.f, 1.f}};
 
     long calls = 0, samples_ok = 0;
     for (float roughness : {0.f, 1e-4f, 0.02f, 0.2f, 1.f})
