@@ -279,8 +279,8 @@ float PreviewSurfaceBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
     return pdf;
 }
 
-std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample_mirror(const Vec3& wo,
-                                                            const LobeProbabilities& p) const {
+std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample_mirror(
+    const Vec3& wo, const LobeProbabilities& p) const {
     // All Dirac reflections share the mirror direction: return them as one delta whose
     // weight and probability are the sums over the Dirac lobes.
     const float co = std::fabs(wo.z);
@@ -312,8 +312,9 @@ std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample_mirror(const Vec3
     return s;
 }
 
-std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lobe, const Vec2& u,
-                                                     TransportMode mode) const {
+std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample(const Vec3& wo, float u_lobe,
+                                                               const Vec2& u,
+                                                               TransportMode mode) const {
     const float co = std::fabs(wo.z);
     if (co < k_preview_min_cos) return std::nullopt;
     const LobeProbabilities p = lobe_probabilities(co);

@@ -89,7 +89,7 @@ public:
     /// f = eval(wo, wi) and pdf = pdf(wo, wi) (one-sample MIS over the lobes). Returns
     /// std::nullopt when the sample is invalid (below the horizon, wo on the horizon, no lobe).
     std::optional<PreviewSurfaceSample> sample(const Vec3& wo, float u_lobe, const Vec2& u,
-                                     TransportMode mode) const;
+                                               TransportMode mode) const;
 
     /// True if some lobe is a Dirac delta.
     bool has_delta() const;
@@ -113,7 +113,8 @@ private:
     Spectrum specular_fresnel(float cos_theta) const;
     float clearcoat_fresnel(float cos_theta) const;
     float clearcoat_attenuation(float abs_cos) const;
-    std::optional<PreviewSurfaceSample> sample_mirror(const Vec3& wo, const LobeProbabilities& p) const;
+    std::optional<PreviewSurfaceSample> sample_mirror(const Vec3& wo,
+                                                      const LobeProbabilities& p) const;
 
     PreviewSurfaceParams m_params;
     Spectrum m_diffuse;      ///< effective Lambert colour ((1 - metallic) * diffuse in metallic)
