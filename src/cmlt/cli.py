@@ -8,6 +8,8 @@
                      [--output-colorspace NAME] [--ocio-config PATH]
                      [--resume] [--quiet]
     cmlt inspect SHOT
+    cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
+    cmlt compare A B [--json [OUT]]
     cmlt --version
 
 Exit codes: 0 done; 1 the shot or the render failed; 2 a bad flag or path;
@@ -121,6 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("inspect", help="describe a shot: time range, cameras, lights, "
                        "what the render will need")
     i.add_argument("shot", metavar="SHOT", help="USD stage")
+    from .metrics.cli import add_parsers as _add_metrics_parsers
+    _add_metrics_parsers(sub)           # flicker, compare (cmlt.metrics.cli)
     return p
 
 
@@ -195,6 +199,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return _cmd_render(args, argv)
         if args.command == "inspect":
             return _cmd_inspect(args)
+        if args.command in ("flicker", "compare"):
+            from .metrics.cli import run as _run_metrics
+            return _run_metrics(args)
     except KeyboardInterrupt:
         return _error("interrupted", EXIT_INTERRUPTED)
     except Exception as exc:            # a bug: still one line unless asked for more

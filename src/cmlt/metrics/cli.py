@@ -1,0 +1,252 @@
+"""``cmlt flicker`` and ``cmlt compare`` (registered by :mod:`cmlt.cli`).
+
+::
+
+    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png]
+    cmlt compare A B [--json [OUT.json]]
+
+SEQUENCE is a frame pattern (``renders/shot.####.exr``, ``$F4``, ``%04d``)
+or a glob (quote it). REF is one image (a static shot's reference, used for
+every frame) or a pattern/glob with the same frames as SEQUENCE. ``--json -``
+writes the JSON to stdout instead of the table. Exit codes: 0 done, 2 a bad
+flag or a missing/mismatched input (one line, ``cmlt: error: ...``).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from typing import Optional
+
+from .flicker import FlickerReport, _finite_or_none, compare, flicker
+from .sequence import MetricsError, _GLOB_CHARS, load_image, load_sequence
+from ..shot.frames import has_frame_token
+
+__all__ = ["COMMANDS", "add_parsers", "run", "plot_report"]
+
+COMMANDS = ("flicker", "compare")
+EXIT_OK, EXIT_USAGE = 0, 2
+
+
+def add_parsers(sub) -> None:
+    """Add the ``flicker`` and ``compare`` subcommands to cmlt's subparsers."""
+    f = sub.add_parser("flicker", help="temporal/global flicker and relMSE of a rendered "
+                       "sequence (DESIGN.md §4)",
+                       description="Flicker metrics of an image sequence: temporal flicker "
+                       "TF, global flicker GF (population std) and per-frame relMSE against "
+                       "a reference; without a reference, the frame-difference measure "
+                       "(meaningful for a static shot).")
+    f.add_argument("sequence", metavar="SEQUENCE",
+                   help="frame pattern (shot.####.exr, $F4, %%04d) or a quoted glob")
+    f.add_argument("--reference", "-r", metavar="REF",
+                   help="one reference image for every frame (static shot) or a pattern/glob "
+                   "with one reference per frame")
+    f.add_argument("--json", metavar="PATH", dest="json_out",
+                   help="write the report as JSON (- for stdout, instead of the table)")
+    f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (matplotlib)")
+
+    c = sub.add_parser("compare", help="compare two images: relMSE, RMSE, mean ratio, "
+                       "max abs diff, PSNR",
+                       description="Compare image A with reference B.")
+    c.add_argument("a", metavar="A", help="image (EXR)")
+    c.add_argument("b", metavar="B", help="reference image (EXR)")
+    c.add_argument("--json", metavar="PATH", dest="json_out", nargs="?", const="-",
+                   help="print JSON instead of the table (or write it to PATH)")
+
+
+def _error(message: str) -> int:
+    sys.stderr.write(f"cmlt: error: {message}\n")
+    return EXIT_USAGE
+
+
+def _fmt(v, spec=".5g") -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "–"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    return format(v, spec)
+
+
+def _frame(f: float) -> str:
+    return f"{int(round(f))}" if abs(f - round(f)) < 1e-6 else f"{f:g}"
+
+
+def _is_sequence(text: str) -> bool:
+    return has_frame_token(text) or bool(_GLOB_CHARS.search(text))
+
+
+def _write_json(path: str, data) -> None:
+    text = json.dumps(_finite_or_none(data), indent=2) + "\n"
+    if path == "-":
+        sys.stdout.write(text)
+        return
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def _console():
+    from rich.console import Console
+    return Console(highlight=False)
+
+
+def print_report(report: FlickerReport, sequence: str, reference: Optional[str]) -> None:
+    from rich.table import Table
+
+    ref = (f"reference {reference}" + (" (one image for every frame)"
+                                        if report.static_reference else "")
+           if reference else "no reference: frame differences")
+    t = Table(title=f"{sequence}  ·  {report.size[0]}x{report.size[1]}  ·  {ref}",
+              title_justify="left")
+    t.add_column("frame", justify="right")
+    t.add_column("mean I", justify="right")
+    if report.mode == "reference":
+        t.add_column("mean R", justify="right")
+        t.add_column("I/R", justify="right")
+        t.add_column("|ΔE|/R", justify="right")
+        t.add_column("relMSE", justify="right")
+    else:
+        t.add_column("I/mean I", justify="right")
+        t.add_column("|ΔI|/I", justify="right")
+    for k, f in enumerate(report.frames):
+        row = [_frame(f), _fmt(report.mean[k])]
+        if report.mode == "reference":
+            row += [_fmt(report.reference_mean[k]), _fmt(report.ratio[k], ".4f"),
+                    _fmt(report.delta[k]), _fmt(report.rel_mse[k])]
+        else:
+            row += [_fmt(report.ratio[k], ".4f"), _fmt(report.delta[k])]
+        t.add_row(*row)
+    con = _console()
+    con.print(t)
+    summary = f"TF {_fmt(report.tf)}   GF {_fmt(report.gf)} (population std)"
+    if report.mode == "reference":
+        summary += f"   mean relMSE {_fmt(report.mean_rel_mse)}"
+    con.print(f"{len(report.frames)} frames   " + summary)
+    for w in report.warnings:
+        sys.stderr.write(f"cmlt: warning: {w}\n")
+
+
+def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
+    """Per-frame plot: brightness, I/R (GF) and the frame-to-frame change
+    (TF), and relMSE when there is a reference."""
+    import matplotlib
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    rows = 3 if report.mode == "reference" else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True)
+    x = report.frames
+    ax = axes[0]
+    ax.plot(x, report.mean, "o-", ms=3, label="mean I")
+    if report.reference_mean is not None:
+        ax.plot(x, report.reference_mean, "k--", lw=1, label="mean R")
+    ax.set_ylabel("mean brightness")
+    ax2 = ax.twinx()
+    ratio = [float("nan") if v is None else v for v in report.ratio]
+    ax2.plot(x, ratio, "s:", ms=3, color="tab:orange",
+             label="I/R" if report.mode == "reference" else "I / mean I")
+    ax2.set_ylabel(f"ratio (GF {_fmt(report.gf, '.3g')})")
+    ax.legend(loc="upper left", fontsize=8)
+    ax2.legend(loc="upper right", fontsize=8)
+    ax = axes[1]
+    xs = x[1:]
+    ax.plot(xs, report.delta[1:], "o-", ms=3, color="tab:red")
+    if report.tf is not None:
+        ax.axhline(report.tf, color="k", lw=0.8, ls="--", label=f"TF {report.tf:.3g}")
+        ax.legend(fontsize=8)
+    ax.set_ylabel("|ΔE|/R" if report.mode == "reference" else "|ΔI|/I")
+    if rows == 3:
+        ax = axes[2]
+        ax.plot(x, report.rel_mse, "o-", ms=3, color="tab:green")
+        ax.axhline(report.mean_rel_mse, color="k", lw=0.8, ls="--",
+                   label=f"mean {report.mean_rel_mse:.3g}")
+        ax.set_ylabel("relMSE")
+        ax.legend(fontsize=8)
+    axes[-1].set_xlabel("frame")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _cmd_flicker(args) -> int:
+    frames, images = load_sequence(args.sequence)
+    reference = None
+    if args.reference:
+        if _is_sequence(args.reference):
+            rframes, refs = load_sequence(args.reference)
+            if rframes != frames:
+                have, want = set(rframes), set(frames)
+                missing = sorted(want - have)
+                extra = sorted(have - want)
+                parts = []
+                if missing:
+                    parts.append(f"no reference for frame(s) "
+                                 f"{', '.join(_frame(f) for f in missing[:8])}")
+                if extra:
+                    parts.append(f"reference frame(s) {', '.join(_frame(f) for f in extra[:8])} "
+                                 f"not in the sequence")
+                raise MetricsError(f"{args.sequence} and {args.reference} have different "
+                                   f"frames: {'; '.join(parts)}")
+            reference = refs
+        else:
+            reference = load_image(args.reference)
+        ref_shape = (reference if not isinstance(reference, list) else reference[0]).shape
+        if ref_shape != images[0].shape:
+            raise MetricsError(f"{args.sequence} frames are {images[0].shape[1]}x"
+                               f"{images[0].shape[0]} but {args.reference} is "
+                               f"{ref_shape[1]}x{ref_shape[0]}")
+    report = flicker(images, reference, frames=frames)
+    data = report.to_dict()
+    data["sequence"] = args.sequence
+    data["reference"] = args.reference
+    if args.json_out != "-":
+        print_report(report, args.sequence, args.reference)
+    if args.json_out:
+        _write_json(args.json_out, data)
+    if args.plot:
+        plot_report(report, args.plot, title=args.sequence
+                    + (f" vs {args.reference}" if args.reference else ""))
+    return EXIT_OK
+
+
+def _cmd_compare(args) -> int:
+    res = compare(args.a, args.b)
+    data = dict(res, a=args.a, b=args.b)
+    if args.json_out:
+        _write_json(args.json_out, data)
+    if args.json_out != "-":
+        from rich.table import Table
+        t = Table(title=f"{args.a}  vs  {args.b}  ({res['width']}x{res['height']})",
+                  title_justify="left", show_header=False)
+        t.add_column("metric")
+        t.add_column("value", justify="right")
+        for key, label in (("rel_mse", "relMSE"), ("rmse", "RMSE"),
+                           ("mean_ratio", "mean A / mean B"), ("max_abs_diff", "max |A−B|"),
+                           ("psnr", "PSNR (dB, peak = max B)"), ("mean_a", "mean A"),
+                           ("mean_b", "mean B")):
+            t.add_row(label, _fmt(res[key]))
+        _console().print(t)
+    return EXIT_OK
+
+
+def run(args) -> int:
+    """Run ``flicker`` or ``compare``; MetricsError becomes a one-line error, exit 2."""
+    try:
+        if args.command == "flicker":
+            return _cmd_flicker(args)
+        if args.command == "compare":
+            return _cmd_compare(args)
+    except MetricsError as exc:
+        return _error(str(exc))
+    except OSError as exc:
+        return _error(str(exc))
+    return _error(f"unknown command {args.command!r}")
