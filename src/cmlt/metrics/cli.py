@@ -100,8 +100,8 @@ def print_report(report: FlickerReport, sequence: str, reference: Optional[str])
     ref = (f"reference {reference}" + (" (one image for every frame)"
                                         if report.static_reference else "")
            if reference else "no reference: frame differences")
-    t = Table(title=f"{sequence}  ·  {report.size[0]}x{report.size[1]}  ·  {ref}",
-              title_justify="left")
+    header = f"{sequence}  ·  {report.size[0]}x{report.size[1]}  ·  {ref}"
+    t = Table()
     t.add_column("frame", justify="right")
     t.add_column("mean I", justify="right")
     if report.mode == "reference":
@@ -121,11 +121,12 @@ def print_report(report: FlickerReport, sequence: str, reference: Optional[str])
             row += [_fmt(report.ratio[k], ".4f"), _fmt(report.delta[k])]
         t.add_row(*row)
     con = _console()
+    con.print(header, soft_wrap=True, markup=False)
     con.print(t)
     summary = f"TF {_fmt(report.tf)}   GF {_fmt(report.gf)} (population std)"
     if report.mode == "reference":
         summary += f"   mean relMSE {_fmt(report.mean_rel_mse)}"
-    con.print(f"{len(report.frames)} frames   " + summary)
+    con.print(f"{len(report.frames)} frames   " + summary, soft_wrap=True, markup=False)
     for w in report.warnings:
         sys.stderr.write(f"cmlt: warning: {w}\n")
 
@@ -166,6 +167,10 @@ def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
                    label=f"mean {report.mean_rel_mse:.3g}")
         ax.set_ylabel("relMSE")
         ax.legend(fontsize=8)
+    from matplotlib.ticker import MaxNLocator
+    for a in axes:
+        a.ticklabel_format(axis="y", useOffset=False)
+        a.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes[-1].set_xlabel("frame")
     if title:
         fig.suptitle(title, fontsize=9)
@@ -225,8 +230,7 @@ def _cmd_compare(args) -> int:
         _write_json(args.json_out, data)
     if args.json_out != "-":
         from rich.table import Table
-        t = Table(title=f"{args.a}  vs  {args.b}  ({res['width']}x{res['height']})",
-                  title_justify="left", show_header=False)
+        t = Table(show_header=False)
         t.add_column("metric")
         t.add_column("value", justify="right")
         for key, label in (("rel_mse", "relMSE"), ("rmse", "RMSE"),
@@ -234,7 +238,10 @@ def _cmd_compare(args) -> int:
                            ("psnr", "PSNR (dB, peak = max B)"), ("mean_a", "mean A"),
                            ("mean_b", "mean B")):
             t.add_row(label, _fmt(res[key]))
-        _console().print(t)
+        con = _console()
+        con.print(f"{args.a}  vs  {args.b}  ({res['width']}x{res['height']})", soft_wrap=True,
+                  markup=False)
+        con.print(t)
     return EXIT_OK
 
 
