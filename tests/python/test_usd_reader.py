@@ -10,6 +10,13 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
 from cmlt.scene import FrameScene
 from cmlt.usd import UsdLoadError, load_frame, open_stage, stage_info
+from cmlt.color import from_rendering_space
+from cmlt.color import to_rendering_space as _to_acescg
+
+
+def acescg(rgb, source="lin_rec709"):
+    """What the reader makes of an (untagged, linear Rec.709) authored colour."""
+    return _to_acescg(tuple(float(c) for c in rgb), source)
 
 DATA = os.path.join(os.path.dirname(__file__), os.pardir, "data", "usd")
 
@@ -261,16 +268,16 @@ def test12_materials_subsets_textures_display_color():
     mats = scene.materials
     byname = {m.name: i for i, m in enumerate(mats)}
     red = mats[byname["/Looks/red"]]
-    assert red.diffuse == pytest.approx((0.8, 0.1, 0.1))
+    assert red.diffuse == pytest.approx(acescg((0.8, 0.1, 0.1)))
     assert (red.roughness, red.metallic, red.ior, red.opacity) == pytest.approx((0.3, 0.25, 1.33, 0.75))
-    assert red.use_specular_workflow and red.specular == pytest.approx((0.5, 0.5, 0.5))
+    assert red.use_specular_workflow and red.specular == pytest.approx(acescg((0.5, 0.5, 0.5)))
     tex = mats[byname["/Looks/textured"]]
     d = tex.inputs["diffuseColor"]
     assert d["texture"].endswith(os.path.join("tex", "white.ppm")) and os.path.isabs(d["texture"])
     assert (d["wrapS"], d["wrapT"], d["sourceColorSpace"], d["st_primvar"]) == \
         ("repeat", "mirror", "sRGB", "uvA")
     assert d["scale"] == pytest.approx((2, 2, 2, 1))
-    assert tex.diffuse == pytest.approx((0.2, 0.4, 0.6))       # the texture's fallback
+    assert tex.diffuse == pytest.approx(acescg((0.2, 0.4, 0.6)))       # the texture's fallback
     assert tex.roughness == pytest.approx(0.4)                 # fallback .g for outputs:g
     meshes = {m.name: m for m in scene.meshes}
     # GeomSubset: face 1 (the triangle) is textured, faces 0 and 2 are red
@@ -281,7 +288,7 @@ def test12_materials_subsets_textures_display_color():
     np.testing.assert_allclose(meshes["/World/textured_quad"].uvs,
                                meshes["/World/textured_quad"].points[:, :2])
     painted = mats[meshes["/World/painted"].material_ids[0]]
-    assert painted.diffuse == pytest.approx((0.1, 0.6, 0.2))
+    assert painted.diffuse == pytest.approx(acescg((0.1, 0.6, 0.2)))
     plain = mats[meshes["/World/plain"].material_ids[0]]
     assert plain.name == "<default>" and plain.diffuse == pytest.approx((0.18, 0.18, 0.18))
     odd = mats[meshes["/World/odd"].material_ids[0]]
@@ -300,7 +307,7 @@ def test13_light_radiance_sizes_and_units():
     rect = L["rect"]
     # 2 m x 0.5 m authored (cm), x-scale 2: 4 m x 0.5 m; 10 * 2^2 * colour / 2 m^2
     assert (rect.width, rect.height) == pytest.approx((4.0, 0.5))
-    assert rect.radiance == pytest.approx((20.0, 10.0, 5.0))
+    assert rect.radiance == pytest.approx(acescg((20.0, 10.0, 5.0)))
     np.testing.assert_allclose(rect.transform[:3, :3], np.eye(3), atol=1e-12)   # rigid
     np.testing.assert_allclose(rect.transform[:3, 3], [0, 0, 3.0])
     assert rect.texture == "tex/rect.exr" and any("tex/rect.exr cannot be resolved" in w
@@ -311,8 +318,10 @@ def test13_light_radiance_sizes_and_units():
     assert L["disk"].radius == pytest.approx(1.0) and L["disk"].radiance == pytest.approx((1, 1, 1))
     sun = L["sun"]
     omega = 2 * math.pi * (1 - math.cos(math.radians(0.5)))
-    lum = 0.2126 * sun.radiance[0] + 0.7152 * sun.radiance[1] + 0.0722 * sun.radiance[2]
-    assert lum == pytest.approx(2.0 / omega, rel=1e-6)   # temperature colour has luminance 1
+    # the temperature colour has Rec.709 luminance 1 before conversion to ACEScg
+    rec709 = from_rendering_space(np.array([sun.radiance], dtype=np.float32), "lin_rec709")[0]
+    lum = 0.2126 * rec709[0] + 0.7152 * rec709[1] + 0.0722 * rec709[2]
+    assert lum == pytest.approx(2.0 / omega, rel=1e-5)
     assert sun.radiance[0] > sun.radiance[1] > sun.radiance[2]  # 3000 K is orange
     assert (L["tube"].length, L["tube"].radius) == pytest.approx((1.0, 0.1))
     assert L["sky"].kind == "dome"

@@ -25,6 +25,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .. import __version__
+from ..color import ColorError
 from ..io.exr import COMPRESSIONS, write_exr
 from ..io.sidecar import write_sidecar
 from .bridge import BridgeError, SceneBridge
@@ -162,11 +163,18 @@ def _color_setup(opts: RenderOptions, stage):
     frame renders; returns (EXR header attributes, resolved colour space)."""
     from ..color import ColorError, get_config, header_attributes, load_config, set_config
 
-    if opts.ocio_config:
-        try:
-            set_config(load_config(opts.ocio_config, stage=stage))
-        except ColorError as exc:
+    # One config for the whole shot, installed before any frame is loaded (the
+    # reader converts authored colours to ACEScg with it): --ocio-config, else
+    # $OCIO, else the stage's colorConfiguration, else the built-in config.
+    try:
+        cfg = load_config(opts.ocio_config, stage=stage)
+    except ColorError as exc:
+        if opts.ocio_config:
             raise UsageError(f"--ocio-config {opts.ocio_config}: {exc}") from None
+        raise RenderError(str(exc)) from None
+    current = get_config()
+    if (current.location, current.source) != (cfg.location, cfg.source):
+        set_config(cfg)         # keep the current one (and its processor cache) if the same
     try:
         attrs = header_attributes(opts.output_colorspace)
         name = get_config().output_colorspace_name(opts.output_colorspace)
@@ -305,8 +313,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 t0 = time.perf_counter()
                 try:
                     fs = load_frame(stage, frame, camera=opts.camera, resolution=opts.resolution)
-                except UsdLoadError as exc:
-                    raise RenderError(str(exc)) from None
+                except (UsdLoadError, ColorError) as exc:
+                    raise RenderError(f"{shot}: frame {frame:g}: {exc}"
+                                      if isinstance(exc, ColorError) else str(exc)) from None
                 for w in fs.warnings:
                     if w not in result.warnings:
                         result.warnings.append(w)

@@ -123,13 +123,12 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
     intensity = num("intensity", 1.0)
     exposure = num("exposure", 0.0)
     color = light_input(prim, "color", (1.0, 1.0, 1.0), time)
-    cs = None
     cattr = prim.GetAttribute("inputs:color") or prim.GetAttribute("color")
-    if cattr and cattr.HasColorSpace():
-        cs = str(cattr.GetColorSpace())
-    rgb = np.array(to_rendering_space(color, cs))
+    rgb = np.array(to_rendering_space(color, cattr if cattr else prim, prim=prim))
     if bool(light_input(prim, "enableColorTemperature", False, time)):
-        rgb = rgb * np.array(blackbody_rgb(num("colorTemperature", 6500.0)))
+        # blackbody_rgb is linear Rec.709; the light colour is already ACEScg
+        rgb = rgb * np.array(to_rendering_space(blackbody_rgb(num("colorTemperature", 6500.0)),
+                                                "lin_rec709"))
     normalize = bool(light_input(prim, "normalize", False, time))
     radiance = intensity * (2.0 ** exposure) * rgb
 

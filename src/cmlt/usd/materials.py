@@ -196,11 +196,10 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
         v = values.get(name, PREVIEW_DEFAULTS[name])
         if not isinstance(v, tuple) or len(v) < 3:
             v = PREVIEW_DEFAULTS[name]
-        src_cs = None
         attr = shader.GetInput(name)
-        if attr and attr.GetAttr().HasColorSpace():
-            src_cs = str(attr.GetAttr().GetColorSpace())
-        return to_rendering_space(v[:3], src_cs)
+        # the input's colorSpace metadata, else ColorSpaceAPI up namespace, else lin_rec709
+        return to_rendering_space(v[:3], attr.GetAttr() if attr else None,
+                                  prim=shader.GetPrim())
 
     def scalar(name):
         v = values.get(name, PREVIEW_DEFAULTS[name])
@@ -252,8 +251,7 @@ def display_color(prim, time) -> Optional[Tuple[float, float, float]]:
     a = a[np.isfinite(a).all(axis=1)]
     if len(a) == 0:
         return None
-    cs = pv.GetAttr().GetColorSpace() if pv.GetAttr().HasColorSpace() else None
-    return to_rendering_space(a.mean(axis=0), str(cs) if cs else None)
+    return to_rendering_space(a.mean(axis=0), pv.GetAttr(), prim=prim)
 
 
 def subset_bindings(prim, time) -> List[Tuple[object, UsdShade.Material]]:
