@@ -14,6 +14,14 @@
 ///
 /// Random dimensions: 0 = film position; bounce b uses [1 + 5b, 1 + 5b + 5):
 /// light choice, light position (2D), BSDF direction (2D), BSDF lobe, roulette.
+///
+/// `li` is generic over its random source (Tungsten's PathSampleGenerator idea), so the
+/// same sampling routine runs on independent numbers (PixelSampler) or on a Markov
+/// chain's primary samples (mlt::MltSampler). A Sampler has
+///   void set_dimension(uint32_t d);  // jump to dimension d (each bounce owns a fixed range)
+///   float get1d();                   // next dimension, one value in [0, 1)
+///   Vec2 get2d();                    // next dimension, two values in [0, 1)
+/// The definition is in path_tracer_impl.h; path_tracer.cpp instantiates PixelSampler.
 #include "math/ray.h"
 #include "math/vec.h"
 #include "sampling/rng.h"
@@ -39,11 +47,15 @@ public:
     PathTracer(const Scene& scene, int max_depth) : m_scene(scene), m_max_depth(max_depth) {}
 
     /// Radiance along a camera ray (may be non-finite only through a bug; the film checks).
-    Spectrum li(const Ray& camera_ray, PixelSampler& sampler, PathCounters& counters) const;
+    template <class Sampler>
+    Spectrum li(const Ray& camera_ray, Sampler& sampler, PathCounters& counters) const;
 
 private:
     const Scene& m_scene;
     int m_max_depth;
 };
+
+extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,
+                                                     PathCounters&) const;
 
 }  // namespace cmlt
