@@ -2,6 +2,7 @@
 // re-acquired only to call the progress callback (from the calling thread).
 #include "bind_common.h"
 
+#include "integrators/aov/aov_pass.h"
 #include "integrators/common/render.h"
 #include "util/error.h"
 
@@ -26,6 +27,26 @@ nb::object to_numpy(std::vector<float>&& v, int h, int w) {
     nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
     size_t shape[3] = {size_t(h), size_t(w), 3};
     return nb::ndarray<nb::numpy, float>(heap->data(), 3, shape, owner).cast();
+}
+
+nb::object to_numpy_2d(std::vector<float>&& v, int h, int w) {
+    auto* heap = new std::vector<float>(std::move(v));
+    nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+    size_t shape[2] = {size_t(h), size_t(w)};
+    return nb::ndarray<nb::numpy, float>(heap->data(), 2, shape, owner).cast();
+}
+
+nb::dict render_aovs_py(Scene& scene, const RenderSettings& settings, int samples) {
+    AovResult res;
+    {
+        nb::gil_scoped_release release;
+        res = render_aovs(scene, settings, samples);
+    }
+    nb::dict d;
+    d["albedo"] = to_numpy(std::move(res.albedo), res.height, res.width);
+    d["N"] = to_numpy(std::move(res.normal), res.height, res.width);
+    d["Z"] = to_numpy_2d(std::move(res.depth), res.height, res.width);
+    return d;
 }
 
 PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::object progress) {
@@ -111,6 +132,13 @@ void bind_render(nb::module_& m) {
     m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
           "Render one frame. progress(done, total) is called between chunks of samples per "
           "pixel on the calling thread; returning False cancels.");
+    m.def("render_aovs", &render_aovs_py, "scene"_a, "settings"_a, "samples"_a = 4,
+          "Integrator-independent AOV pass (first hits of `samples` jittered camera rays per "
+          "pixel; uses settings.width/height/seed/threads). Returns {'albedo': (H, W, 3) mean "
+          "diffuse colour (escape 0, analytic lights their radiance clamped to [0, 1]), 'N': "
+          "(H, W, 3) world-space unit shading normal facing the camera (0 where nothing was "
+          "hit), 'Z': (H, W) closest hit's distance along the camera axis (0 where nothing was "
+          "hit)}, float32, row 0 at the top.");
 }
 
 }  // namespace cmlt::bindings

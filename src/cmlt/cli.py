@@ -6,8 +6,12 @@
                      [--seed S] [--threads N] [--res WxH] [--max-depth N]
                      [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
-                     [--resume] [--quiet]
-    cmlt inspect SHOT
+                     [--aov albedo,normal,depth,variance] [--aov-samples N]
+                     [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
+                     [--display NAME] [--view NAME]
+                     [--resume] [--quiet | --log-json]
+    cmlt inspect SHOT | --image FILE.exr
+    cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
     cmlt compare A B [--json [OUT]]
     cmlt --version
@@ -66,6 +70,38 @@ def _int_at_least(lo: int):
     return parse
 
 
+def parse_aovs(text: str):
+    """``albedo,normal`` -> ("albedo", "normal"); an unknown name is a usage
+    error naming ``--aov`` (argparse prefixes "argument --aov:")."""
+    from .io.exr import AOV_CHANNELS
+
+    names = [t.strip().lower() for t in text.split(",") if t.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one or more of "
+                                         f"{', '.join(AOV_CHANNELS)}")
+    for n in names:
+        if n not in AOV_CHANNELS:
+            raise argparse.ArgumentTypeError(f"unknown AOV {n!r}; choose from "
+                                             f"{', '.join(AOV_CHANNELS)} (comma-separated)")
+    return tuple(dict.fromkeys(names))
+
+
+def parse_crop(text: str):
+    """``x0,y0,x1,y1`` (pixels, x1/y1 exclusive) -> a tuple of 4 ints."""
+    parts = text.replace(" ", "").split(",")
+    try:
+        if len(parts) != 4:
+            raise ValueError
+        x0, y0, x1, y1 = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not X0,Y0,X1,Y1, e.g. 0,0,320,240") \
+            from None
+    if x0 < 0 or y0 < 0 or x1 <= x0 or y1 <= y0:
+        raise argparse.ArgumentTypeError(f"{text!r}: need 0 <= X0 < X1 and 0 <= Y0 < Y1 "
+                                         "(X1, Y1 exclusive)")
+    return (x0, y0, x1, y1)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .io.exr import COMPRESSIONS
     from .settings import RenderSettings as _Defaults
@@ -115,14 +151,57 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--ocio-config", metavar="PATH", dest="ocio_config",
                    help="OpenColorIO config (file or ocio:// URI); default: $OCIO, else the "
                    "stage's colorConfiguration, else the built-in studio config")
+    r.add_argument("--aov", type=parse_aovs, metavar="LIST", dest="aov", default=(),
+                   help="extra channels in the same EXR: albedo (albedo.R/G/B), normal "
+                   "(N.X/Y/Z, world space), depth (Z, along the camera axis; 0 = no hit), "
+                   "variance (variance.R/G/B); comma-separated")
+    r.add_argument("--aov-samples", type=_int_at_least(1), default=4, dest="aov_samples",
+                   metavar="N", help="camera rays per pixel of the albedo/normal/depth pass "
+                   "(default 4)")
+    r.add_argument("--crop", type=parse_crop, metavar="X0,Y0,X1,Y1",
+                   help="store only this pixel window (X1, Y1 exclusive) as the EXR data "
+                   "window; the display window stays the full frame (the full frame is "
+                   "rendered)")
+    r.add_argument("--preview", action="store_true",
+                   help="also write a display-referred preview per frame beside the EXR "
+                   "(same name, .png or .jpg)")
+    r.add_argument("--preview-format", choices=("png", "jpg"), default="png",
+                   dest="preview_format", help="preview file format (default png)")
+    r.add_argument("--display", metavar="NAME",
+                   help="OCIO display of previews (default 'sRGB - Display')")
+    r.add_argument("--view", metavar="NAME",
+                   help="OCIO view of previews (default: the display's default view)")
     r.add_argument("--resume", action="store_true",
                    help="skip frames whose image already exists")
-    r.add_argument("--quiet", "-q", action="store_true",
-                   help="no progress display, warnings and errors only")
+    loud = r.add_mutually_exclusive_group()
+    loud.add_argument("--quiet", "-q", action="store_true",
+                      help="print nothing but errors")
+    loud.add_argument("--log-json", action="store_true", dest="log_json",
+                      help="for farms: one JSON object per line per event (frame start, "
+                      "frame done, warning, sequence done) on stdout, nothing else")
 
-    i = sub.add_parser("inspect", help="describe a shot: time range, cameras, lights, "
-                       "what the render will need")
-    i.add_argument("shot", metavar="SHOT", help="USD stage")
+    i = sub.add_parser("inspect", help="describe a shot (time range, cameras, lights, "
+                       "settings) or an image's header (--image)")
+    i.add_argument("shot", metavar="SHOT", nargs="?", help="USD stage")
+    i.add_argument("--image", metavar="FILE", help="print the header of an EXR (or any "
+                   "image OpenImageIO reads): channels, windows, colour space, cmlt metadata")
+
+    c = sub.add_parser("contact-sheet", help="tile a sequence of frames into one "
+                       "display-referred image with frame numbers",
+                       description="Tile EXR frames (a frame pattern like "
+                       "renders/shot.####.exr, a glob, or files) into one PNG/JPEG through "
+                       "an OCIO display/view, each labelled with its frame number.")
+    c.add_argument("pattern", metavar="PATTERN", nargs="+",
+                   help="frame pattern (####, %%04d, $F4), glob, or image files")
+    c.add_argument("--out", metavar="SHEET", required=True, help="output .png or .jpg")
+    c.add_argument("--columns", type=_int_at_least(1), metavar="N",
+                   help="thumbnails per row (default: about the square root of the count)")
+    c.add_argument("--thumb-width", type=_int_at_least(8), default=256, dest="thumb_width",
+                   metavar="PX", help="thumbnail width in pixels (default 256)")
+    c.add_argument("--display", metavar="NAME", help="OCIO display (default 'sRGB - Display')")
+    c.add_argument("--view", metavar="NAME", help="OCIO view (default: the display's default)")
+    c.add_argument("--ocio-config", metavar="PATH", dest="ocio_config",
+                   help="OpenColorIO config (default: $OCIO, else the built-in one)")
     from .metrics.cli import add_parsers as _add_metrics_parsers
     _add_metrics_parsers(sub)           # flicker, compare (cmlt.metrics.cli)
     return p
@@ -146,22 +225,88 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
     opts = RenderOptions(spp=args.spp, integrator=args.integrator, seed=args.seed,
                          threads=args.threads, resolution=args.res, max_depth=args.max_depth,
                          camera=args.camera, half=args.half, compression=args.compression,
-                         output_colorspace=args.output_colorspace, ocio_config=args.ocio_config)
+                         output_colorspace=args.output_colorspace, ocio_config=args.ocio_config,
+                         aovs=tuple(args.aov), aov_samples=args.aov_samples, crop=args.crop,
+                         preview=args.preview, preview_format=args.preview_format,
+                         display=args.display, view=args.view)
+    log = None
+    if args.log_json:
+        from .shot.progress import JsonReporter
+        log = JsonReporter(sys.stdout)
+
+    def fail(message: str, code: int) -> int:
+        if log is not None:
+            log.emit("error", message=message, exit_code=code)
+        return _error(message, code)
+
     try:
         res = render_sequence(args.shot, args.frames, args.out, opts, resume=args.resume,
-                              progress=not args.quiet, quiet=args.quiet)
+                              progress=not (args.quiet or args.log_json), quiet=args.quiet,
+                              reporter=log)
     except UsageError as exc:
-        return _error(str(exc), EXIT_USAGE)
+        return fail(str(exc), EXIT_USAGE)
     except RenderError as exc:
-        return _error(str(exc), EXIT_RENDER)
+        return fail(str(exc), EXIT_RENDER)
     except RenderCancelled as exc:
-        sys.stderr.write(f"cmlt: {exc}\ncmlt: to continue: {_resume_command(argv)}\n")
+        resume = _resume_command(argv)
+        if log is not None:
+            log.emit("interrupted", message=str(exc), written=list(exc.written),
+                     resume=resume, exit_code=EXIT_INTERRUPTED)
+        sys.stderr.write(f"cmlt: {exc}\ncmlt: to continue: {resume}\n")
         return EXIT_INTERRUPTED
-    if not args.quiet:
+    if not (args.quiet or args.log_json):
+        from rich.console import Console
+        from .shot.progress import summary_table
+
         n = len(res.written)
         sys.stderr.write(f"cmlt: {n} frame(s) written"
                          + (f", {len(res.skipped)} skipped (already rendered)" if res.skipped else "")
                          + "\n")
+        if n:
+            Console(stderr=True, highlight=False).print(summary_table(res))
+    return EXIT_OK
+
+
+def _cmd_inspect_image(path: str) -> int:
+    from .io.exr import format_header, read_header
+
+    if not os.path.isfile(path):
+        return _error(f"--image {path}: no such file", EXIT_USAGE)
+    try:
+        header = read_header(path)
+    except OSError as exc:
+        return _error(f"--image {path}: {exc}", EXIT_RENDER)
+    sys.stdout.write(format_header(header))
+    return EXIT_OK
+
+
+def _cmd_contact_sheet(args) -> int:
+    from .color import ColorError, load_config
+    from .io.contact_sheet import contact_sheet
+
+    patterns = args.pattern
+    source = patterns[0] if len(patterns) == 1 else patterns
+    try:
+        cfg = load_config(args.ocio_config)
+    except ColorError as exc:
+        return _error(f"--ocio-config {args.ocio_config}: {exc}" if args.ocio_config
+                      else str(exc), EXIT_USAGE)
+    try:
+        cfg.check_display_view(args.display, args.view)
+    except ColorError as exc:
+        flag = "--display" if str(exc).startswith("unknown display") else "--view"
+        return _error(f"{flag}: {exc}", EXIT_USAGE)
+    try:
+        out = contact_sheet(source, args.out, columns=args.columns, display=args.display,
+                            view=args.view, thumb_width=args.thumb_width, config=cfg)
+    except FileNotFoundError as exc:
+        return _error(str(exc), EXIT_USAGE)
+    except ValueError as exc:
+        return _error(f"--out {args.out}: {exc}" if "extension" in str(exc) else str(exc),
+                      EXIT_USAGE)
+    except OSError as exc:
+        return _error(str(exc), EXIT_RENDER)
+    sys.stderr.write(f"cmlt: contact sheet -> {out}\n")
     return EXIT_OK
 
 
@@ -169,6 +314,12 @@ def _cmd_inspect(args) -> int:
     from .settings import SettingsError, format_settings, resolve_settings
     from .usd import UsdLoadError, open_stage, stage_info
 
+    if args.image:
+        if args.shot:
+            return _error("inspect: give a SHOT or --image FILE, not both", EXIT_USAGE)
+        return _cmd_inspect_image(args.image)
+    if not args.shot:
+        return _error("inspect: give a SHOT (USD stage) or --image FILE", EXIT_USAGE)
     if not os.path.exists(args.shot):
         return _error(f"{args.shot}: no such file", EXIT_USAGE)
     try:
@@ -199,6 +350,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return _cmd_render(args, argv)
         if args.command == "inspect":
             return _cmd_inspect(args)
+        if args.command == "contact-sheet":
+            return _cmd_contact_sheet(args)
         if args.command in ("flicker", "compare"):
             from .metrics.cli import run as _run_metrics
             return _run_metrics(args)

@@ -5,7 +5,14 @@
   (lossy, small) or ``none``;
 * the colour space goes into ``oiio:ColorSpace`` (OIIO stores ``ACEScg`` as
   ``lin_ap1_scene`` plus the EXR ``colorInteropID``);
-* frame metadata goes into custom header attributes named ``cmlt:<key>``.
+* frame metadata goes into custom header attributes named ``cmlt:<key>``;
+* AOVs are extra channels of the same part with the standard names Nuke and
+  OpenImageIO tools know (``albedo.R/G/B``, ``N.X/Y/Z``, ``Z``,
+  ``variance.R/G/B``); with ``half`` every channel is half except ``Z``,
+  which stays float (depth needs the precision);
+* ``crop`` (x0, y0, x1, y1), half-open (x0 <= x < x1): only that window's
+  pixels are stored; the data window is the crop, the display window the
+  full frame, as compositors expect of a region render.
 
 The image is checked for NaN/Inf before anything is written: the core
 guarantees finite pixels, and a non-finite one is a bug to report, not to
@@ -14,13 +21,14 @@ renamed into place (:mod:`cmlt.io.atomic`).
 """
 from __future__ import annotations
 
-from typing import Any, Dict, Mapping, Optional, Tuple
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .atomic import atomic_path
 
-__all__ = ["COMPRESSIONS", "ExrWriteError", "NonFiniteImageError", "write_exr", "read_exr"]
+__all__ = ["COMPRESSIONS", "AOV_CHANNELS", "ExrWriteError", "NonFiniteImageError", "write_exr",
+           "read_exr", "check_crop", "read_header", "format_header"]
 
 COMPRESSIONS = ("zip", "piz", "dwaa", "none")
 #: prefix of cmlt's own header attributes
@@ -85,17 +93,48 @@ def _set_raw_attribute(spec, name: str, value: Any) -> None:
         _set_attribute(spec, name, value)
 
 
+#: AOV name -> (layer prefix, channel suffixes); ``None``: a single channel named prefix
+AOV_CHANNELS = {
+    "albedo": ("albedo", ("R", "G", "B")),
+    "normal": ("N", ("X", "Y", "Z")),
+    "depth": ("Z", None),
+    "variance": ("variance", ("R", "G", "B")),
+}
+#: channels written as float even with ``half``
+FLOAT_ONLY_CHANNELS = ("Z",)
+
+
+def check_crop(crop, width: int, height: int, flag: str = "--crop") -> Tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)`` -> ints, checked against the frame (half-open
+    window, 0 <= x0 < x1 <= width, 0 <= y0 < y1 <= height); ValueError names
+    ``flag``."""
+    try:
+        x0, y0, x1, y1 = (int(v) for v in crop)
+    except (TypeError, ValueError):
+        raise ValueError(f"{flag} {crop!r}: expected x0,y0,x1,y1") from None
+    if not (0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height):
+        raise ValueError(f"{flag} {x0},{y0},{x1},{y1}: the window must satisfy 0 <= x0 < x1 <= "
+                         f"{width} and 0 <= y0 < y1 <= {height} (the {width}x{height} frame; "
+                         f"x1 and y1 are exclusive)")
+    return x0, y0, x1, y1
+
+
 def write_exr(path: str, image: np.ndarray, *, half: bool = False,
               compression: str = "zip", colorspace: Optional[str] = "ACEScg",
               metadata: Optional[Mapping[str, Any]] = None,
-              attributes: Optional[Mapping[str, Any]] = None) -> None:
+              attributes: Optional[Mapping[str, Any]] = None,
+              aovs: Optional[Mapping[str, np.ndarray]] = None,
+              crop: Optional[Sequence[int]] = None) -> None:
     """Write ``image`` (H, W, 3) float, top row first, to ``path`` atomically.
 
     ``metadata`` keys are written as ``cmlt:<key>`` unless they already
     contain a ``:`` (then as given, e.g. ``oiio:Software``). ``attributes``
     are written under their own names, after ``colorspace`` (so
     :func:`cmlt.color.header_attributes` output can be passed straight in:
-    ``oiio:ColorSpace`` and ``chromaticities``).
+    ``oiio:ColorSpace`` and ``chromaticities``). ``aovs`` maps names of
+    :data:`AOV_CHANNELS` to (H, W, 3) or (H, W) arrays the size of
+    ``image``, written as extra channels. ``crop`` keeps only that window of
+    every channel (data window) inside the full frame (display window).
     """
     import OpenImageIO as oiio
 
@@ -103,10 +142,37 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
         raise ValueError(f"--compression {compression!r}: choose one of {', '.join(COMPRESSIONS)}")
     img = _check_image(image, path)
     h, w, nch = img.shape
-    spec = oiio.ImageSpec(w, h, nch, oiio.HALF if half else oiio.FLOAT)
-    spec.channelnames = {1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}[nch]
+    names = list({1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}[nch])
+    planes = [img]
+    for name, data in (aovs or {}).items():
+        if name not in AOV_CHANNELS:
+            raise ValueError(f"{path}: unknown AOV {name!r}; known: {', '.join(AOV_CHANNELS)}")
+        prefix, suffixes = AOV_CHANNELS[name]
+        arr = _check_image(data, f"{path} (AOV {name})")
+        want = 1 if suffixes is None else len(suffixes)
+        if arr.shape != (h, w, want):
+            raise ValueError(f"{path}: AOV {name} has shape {np.shape(data)}, expected "
+                             f"({h}, {w}{'' if want == 1 else f', {want}'})")
+        planes.append(arr)
+        names += [prefix] if suffixes is None else [f"{prefix}.{c}" for c in suffixes]
+    pixels = np.ascontiguousarray(np.concatenate(planes, axis=2)) if len(planes) > 1 else img
+    x0, y0 = 0, 0
+    if crop is not None:
+        x0, y0, x1, y1 = check_crop(crop, w, h)
+        pixels = np.ascontiguousarray(pixels[y0:y1, x0:x1])
+    ph, pw, ptot = pixels.shape
+
+    spec = oiio.ImageSpec(pw, ph, ptot, oiio.HALF if half else oiio.FLOAT)
+    spec.x, spec.y = x0, y0
+    spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, w, h
+    spec.channelnames = tuple(names)
+    if half and any(n in FLOAT_ONLY_CHANNELS for n in names):
+        spec.channelformats = tuple(oiio.TypeDesc(oiio.FLOAT if n in FLOAT_ONLY_CHANNELS
+                                                  else oiio.HALF) for n in names)
     if nch == 4:
         spec.alpha_channel = 3
+    if "Z" in names:
+        spec.z_channel = names.index("Z")
     spec.attribute("compression", compression)
     if colorspace:
         spec.attribute("oiio:ColorSpace", colorspace)
@@ -122,7 +188,7 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
         try:
             if not out.open(tmp, spec):
                 raise ExrWriteError(f"{path}: cannot open for writing: {out.geterror()}")
-            if not out.write_image(img):
+            if not out.write_image(pixels):
                 raise ExrWriteError(f"{path}: write failed: {out.geterror()}")
         finally:
             ok = out.close()
@@ -149,3 +215,80 @@ def read_exr(path: str) -> Tuple[np.ndarray, Dict[str, Any]]:
         inp.close()
     img = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
     return img, meta
+
+
+def read_header(path: str) -> Dict[str, Any]:
+    """The header of an image (no pixels): ``channels`` [(name, type)],
+    ``data_window`` / ``display_window`` as (x0, y0, x1, y1) half-open,
+    ``compression``, ``colorspace`` (``oiio:ColorSpace``), ``chromaticities``,
+    ``cmlt`` (the ``cmlt:*`` attributes without prefix) and ``attributes``
+    (every other one). Raises OSError naming the path."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise OSError(f"{path}: cannot read: {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        nparts = 1
+        while inp.seek_subimage(nparts, 0):
+            nparts += 1
+    finally:
+        inp.close()
+    formats = list(spec.channelformats) or [spec.format] * spec.nchannels
+    attrs = {a.name: a.value for a in spec.extra_attribs}
+    cmlt_meta = {k[len(META_PREFIX):]: v for k, v in attrs.items() if k.startswith(META_PREFIX)}
+    other = {k: v for k, v in attrs.items() if not k.startswith(META_PREFIX)}
+    return {
+        "path": path,
+        "parts": nparts,
+        "channels": [(n, str(f)) for n, f in zip(spec.channelnames, formats)],
+        "data_window": (spec.x, spec.y, spec.x + spec.width, spec.y + spec.height),
+        "display_window": (spec.full_x, spec.full_y, spec.full_x + spec.full_width,
+                           spec.full_y + spec.full_height),
+        "compression": str(other.get("compression", "")),
+        "colorspace": str(other.get("oiio:ColorSpace", "")),
+        "chromaticities": (tuple(float(c) for c in other["chromaticities"])
+                           if "chromaticities" in other else None),
+        "cmlt": cmlt_meta,
+        "attributes": other,
+    }
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (tuple, list)):
+        return "(" + ", ".join(_show(v) for v in value) + ")"
+    return str(value)
+
+
+def format_header(header: Mapping[str, Any]) -> str:
+    """Text for ``cmlt inspect --image``: channels, windows, colour space,
+    compression, cmlt metadata, then the remaining attributes."""
+    def window(w):
+        x0, y0, x1, y1 = w
+        return f"({x0}, {y0}) - ({x1 - 1}, {y1 - 1})  [{x1 - x0} x {y1 - y0}]"
+
+    chans = header["channels"]
+    lines = [f"image: {header['path']}",
+             f"channels ({len(chans)}): " + ", ".join(f"{n} ({t})" for n, t in chans),
+             f"data window:    {window(header['data_window'])}",
+             f"display window: {window(header['display_window'])}",
+             f"colour space: {header['colorspace'] or '(not tagged)'}",
+             "chromaticities: " + (_show(header["chromaticities"])
+                                   if header["chromaticities"] else "(none)"),
+             f"compression: {header['compression'] or '-'}"]
+    if header["cmlt"]:
+        lines.append("cmlt metadata:")
+        width = max(len(k) for k in header["cmlt"])
+        for k in sorted(header["cmlt"]):
+            lines.append(f"  {k:<{width}}  {_show(header['cmlt'][k])}")
+    skip = {"compression", "oiio:ColorSpace", "chromaticities"}
+    rest = {k: v for k, v in header["attributes"].items() if k not in skip}
+    if rest:
+        lines.append("other attributes:")
+        width = max(len(k) for k in rest)
+        for k in sorted(rest):
+            lines.append(f"  {k:<{width}}  {_show(rest[k])}")
+    return "\n".join(lines) + "\n"

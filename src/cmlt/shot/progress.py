@@ -3,20 +3,30 @@
 :class:`Reporter` draws two rich progress bars on stderr — the sequence
 (frames) and the current frame (core progress units, rays/s, ETA) — and
 prints one line per finished frame above them. Without a terminal (CI, logs)
-the bars are off and only the per-frame lines are printed. ``quiet`` keeps
-warnings only. Loader warnings are printed once per distinct text, however
+the bars are off and only the per-frame lines are printed. ``quiet`` prints
+nothing (errors are the caller's, on stderr). Loader warnings are printed once per distinct text, however
 many frames repeat them.
 
 The core's progress callback runs on a render thread; it only stores numbers
 (:meth:`Reporter.frame_progress`), and rich redraws from its own thread.
+
+:class:`JsonReporter` (``--log-json``) has the same interface and prints one
+JSON object per line per event on stdout, nothing else: ``sequence_start``,
+``frame_start``, ``frame_done`` (time, rays, rays/s, path), ``warning``,
+``info``, ``frame_aborted``, ``sequence_done`` (frames, time, mean time per
+frame, rays/s). Every object has ``event`` and ``t`` (Unix time).
+
+:func:`summary_table` is the table printed when a sequence completes.
 """
 from __future__ import annotations
 
+import json
+import math
 import sys
 import time
-from typing import Iterable, Optional, Set
+from typing import Any, Dict, Iterable, Optional, Set
 
-__all__ = ["Reporter", "format_rate"]
+__all__ = ["Reporter", "JsonReporter", "format_rate", "summary_table", "sequence_summary"]
 
 
 def format_rate(rays_per_s: Optional[float]) -> str:
@@ -67,6 +77,8 @@ class Reporter:
             self.console.print(text, markup=False, highlight=False, soft_wrap=True)
 
     def warn(self, text: str) -> None:
+        if self.quiet:                # --quiet: errors only
+            return
         self.console.print(f"cmlt: warning: {text}", markup=False, highlight=False,
                            style="yellow", soft_wrap=True)
 
@@ -121,3 +133,118 @@ class Reporter:
         if self._progress is not None and self._frame_task is not None:
             self._progress.remove_task(self._frame_task)
             self._frame_task = None
+
+    def end_sequence(self, result) -> None:
+        """The sequence finished (not called when it was interrupted)."""
+
+
+def sequence_summary(result) -> Dict[str, Any]:
+    """Numbers of a finished sequence (a :class:`~cmlt.shot.SequenceResult`):
+    frames written and skipped, total time, mean render time per frame,
+    rays/s over the sequence."""
+    stats = list(result.stats.values())
+    times = [float(st.get("wall_time_s", st.get("time_s", 0.0))) for st in stats]
+    render_s = sum(float(st.get("time_s", 0.0)) for st in stats)
+    rays = sum(int(st.get("rays", 0)) for st in stats)
+    return {
+        "frames": len(result.written), "skipped": len(result.skipped),
+        "total_time_s": float(getattr(result, "elapsed_s", 0.0) or sum(times)),
+        "mean_frame_time_s": (sum(times) / len(times)) if times else 0.0,
+        "rays": rays, "rays_per_s": (rays / render_s) if render_s > 0 else 0.0,
+        "flicker": None,            # not measured during rendering (see `cmlt flicker`)
+    }
+
+
+def summary_table(result):
+    """A rich Table: frames, total time, mean time per frame, rays/s."""
+    from rich.table import Table
+
+    s = sequence_summary(result)
+    table = Table(title="cmlt render summary", title_justify="left", show_header=True)
+    table.add_column("frames", justify="right")
+    table.add_column("skipped", justify="right")
+    table.add_column("total time", justify="right")
+    table.add_column("mean / frame", justify="right")
+    table.add_column("rays/s", justify="right")
+    table.add_row(str(s["frames"]), str(s["skipped"]), f"{s['total_time_s']:.2f} s",
+                  f"{s['mean_frame_time_s']:.2f} s", format_rate(s["rays_per_s"]))
+    return table
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if hasattr(value, "item") and callable(value.item):        # numpy scalars
+        return _json_safe(value.item())
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return str(value)
+
+
+class JsonReporter:
+    """``--log-json``: one JSON object per line per event on ``stream``
+    (stdout), flushed at once so a farm's log collector sees it live."""
+
+    def __init__(self, stream=None):
+        self.stream = stream if stream is not None else sys.stdout
+        self._seen_warnings: Set[str] = set()
+        self._frame_t0 = 0.0
+        self._index = 0
+        self._total = 0
+
+    def emit(self, event: str, **fields: Any) -> None:
+        doc = {"event": event, "t": round(time.time(), 3)}
+        doc.update(_json_safe(fields))
+        self.stream.write(json.dumps(doc, allow_nan=False, sort_keys=False) + "\n")
+        self.stream.flush()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def info(self, text: str) -> None:
+        self.emit("info", message=text)
+
+    def warn(self, text: str) -> None:
+        self.emit("warning", message=text)
+
+    def warnings(self, texts: Iterable[str]) -> int:
+        new = 0
+        for t in texts:
+            if t not in self._seen_warnings:
+                self._seen_warnings.add(t)
+                self.warn(t)
+                new += 1
+        return new
+
+    def start_sequence(self, total: int, skipped: int = 0) -> None:
+        self._total = int(total)
+        self.emit("sequence_start", frames=int(total))
+
+    def start_frame(self, frame: float) -> None:
+        self._frame_t0 = time.perf_counter()
+        self._index += 1
+        self.emit("frame_start", frame=float(frame), index=self._index, total=self._total)
+
+    def frame_progress(self, done: float, total: float) -> None:
+        pass                          # no per-chunk events: one line per frame event
+
+    def end_frame(self, frame: float, path: str, stats: dict, units_total: Optional[float]) -> None:
+        self.emit("frame_done", frame=float(frame), path=path,
+                  time_s=stats.get("time_s"), wall_time_s=stats.get("wall_time_s"),
+                  rays=stats.get("rays"), rays_per_s=stats.get("rays_per_s"),
+                  samples=stats.get("samples"), nan_samples=stats.get("nan_samples", 0))
+
+    def abort_frame(self) -> None:
+        self.emit("frame_aborted", index=self._index,
+                  elapsed_s=time.perf_counter() - self._frame_t0)
+
+    def end_sequence(self, result) -> None:
+        self.emit("sequence_done", **sequence_summary(result),
+                  written=list(result.written), previews=list(getattr(result, "previews", [])))

@@ -1,5 +1,5 @@
 """The frame loop: open the stage once, then per frame load -> bridge ->
-render -> write EXR + sidecar.
+render (+ AOV pass) -> write preview, sidecar, EXR.
 
 Guarantees:
 
@@ -26,14 +26,26 @@ import numpy as np
 
 from .. import __version__
 from ..color import ColorError
-from ..io.exr import COMPRESSIONS, write_exr
+from ..io.exr import AOV_CHANNELS, COMPRESSIONS, check_crop, write_exr
+from ..io.preview import write_preview
 from ..io.sidecar import write_sidecar
 from .bridge import BridgeError, SceneBridge
 from .errors import RenderCancelled, RenderError, UsageError
 from .frames import default_frames, expand_outputs, parse_frames
 from .progress import Reporter
 
-__all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output"]
+__all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
+           "preview_path", "AOV_NAMES", "PREVIEW_FORMATS"]
+
+#: ``--aov`` names, in channel order
+AOV_NAMES = tuple(AOV_CHANNELS)
+#: ``--preview-format`` choices
+PREVIEW_FORMATS = ("png", "jpg")
+
+
+def preview_path(image_path: str, fmt: str = "png") -> str:
+    """The preview beside an image: ``shot.0001.exr`` -> ``shot.0001.png``."""
+    return os.path.splitext(image_path)[0] + "." + fmt
 
 def default_output(shot: str) -> str:
     """``renders/<shot stem>.####.exr`` relative to the working directory."""
@@ -61,6 +73,18 @@ class RenderOptions:
     output_colorspace: Optional[str] = None
     #: OpenColorIO config (None: $OCIO, the stage's, else the built-in one)
     ocio_config: Optional[str] = None
+    #: extra EXR channels: any of AOV_NAMES (albedo, normal, depth, variance)
+    aovs: Tuple[str, ...] = ()
+    #: camera rays per pixel of the AOV pass (albedo, normal, depth)
+    aov_samples: int = 4
+    #: data window (x0, y0, x1, y1), half-open, inside the full frame
+    crop: Optional[Tuple[int, int, int, int]] = None
+    #: write a display-referred preview beside each EXR (png or jpg)
+    preview: bool = False
+    preview_format: str = "png"
+    #: OCIO display / view of previews (None: sRGB display, its default view)
+    display: Optional[str] = None
+    view: Optional[str] = None
 
     def check(self) -> None:
         """Flag-level checks that need neither the stage nor the core."""
@@ -79,6 +103,20 @@ class RenderOptions:
         if self.compression not in COMPRESSIONS:
             raise UsageError(f"--compression {self.compression!r}: choose one of "
                              f"{', '.join(COMPRESSIONS)}")
+        for name in self.aovs:
+            if name not in AOV_NAMES:
+                raise UsageError(f"--aov {name!r}: unknown AOV; choose from "
+                                 f"{', '.join(AOV_NAMES)}")
+        if int(self.aov_samples) < 1:
+            raise UsageError(f"--aov-samples {self.aov_samples}: must be at least 1")
+        if self.preview_format not in PREVIEW_FORMATS:
+            raise UsageError(f"--preview-format {self.preview_format!r}: choose one of "
+                             f"{', '.join(PREVIEW_FORMATS)}")
+        if self.crop is not None:
+            c = tuple(self.crop)
+            if len(c) != 4 or c[0] < 0 or c[1] < 0 or c[2] <= c[0] or c[3] <= c[1]:
+                raise UsageError(f"--crop {','.join(str(v) for v in c)}: expected x0,y0,x1,y1 "
+                                 "with 0 <= x0 < x1 and 0 <= y0 < y1 (x1, y1 exclusive)")
 
     def overrides(self) -> dict:
         """Flag values by setting name, for :func:`cmlt.settings.resolve_settings`."""
@@ -96,6 +134,8 @@ class SequenceResult:
     warnings: List[str] = field(default_factory=list)     # distinct, in order of appearance
     settings: Dict[str, object] = field(default_factory=dict)   # resolved, by name
     sources: Dict[str, str] = field(default_factory=dict)       # where each came from
+    previews: List[str] = field(default_factory=list)     # preview paths written now
+    elapsed_s: float = 0.0                                # wall time of the whole call
 
 
 def _resolve(stage, opts: RenderOptions):
@@ -180,7 +220,15 @@ def _color_setup(opts: RenderOptions, stage):
         name = get_config().output_colorspace_name(opts.output_colorspace)
     except ColorError as exc:
         raise UsageError(f"--output-colorspace {opts.output_colorspace!r}: {exc}") from None
-    return attrs, name
+    display = view = None
+    if opts.preview:
+        try:
+            display, view = get_config().check_display_view(opts.display, opts.view)
+        except ColorError as exc:
+            flag = (f"--display {opts.display!r}" if str(exc).startswith("unknown display")
+                    else f"--view {opts.view!r}")
+            raise UsageError(f"{flag}: {exc}") from None
+    return attrs, name, display, view
 
 
 def _check_camera(stage, path: str, shot: str) -> None:
@@ -201,6 +249,62 @@ def _to_output(image, output_colorspace):
         return image
     from ..color import from_rendering_space
     return from_rendering_space(np.array(image, dtype=np.float32, copy=True), output_colorspace)
+
+
+def _aov_images(core, scene, st, r, aovs, opts: RenderOptions, stats: dict) -> Dict[str, np.ndarray]:
+    """The requested AOVs of one frame, by name (see cmlt.io.exr.AOV_CHANNELS).
+
+    albedo, normal, depth come from the core's integrator-independent AOV
+    pass (``core.render_aovs``; first hits of ``aov_samples`` camera rays per
+    pixel, the beauty's jitter); albedo is a colour and is written in the
+    output colour space like the beauty. variance is the render's per-pixel
+    variance of the mean, in the rendering space (ACEScg) whatever
+    ``--output-colorspace`` says.
+    """
+    out: Dict[str, np.ndarray] = {}
+    if any(a in aovs for a in ("albedo", "normal", "depth")):
+        t = time.perf_counter()
+        a = core.render_aovs(scene, st, samples=int(opts.aov_samples))
+        stats["aov_time_s"] = time.perf_counter() - t
+        if "albedo" in aovs:
+            out["albedo"] = _to_output(np.asarray(a["albedo"]), opts.output_colorspace)
+        if "normal" in aovs:
+            out["normal"] = np.asarray(a["N"])
+        if "depth" in aovs:
+            out["depth"] = np.asarray(a["Z"])
+    if "variance" in aovs:
+        out["variance"] = np.asarray(r.variance)
+    return {name: out[name] for name in aovs}
+
+
+#: RenderResult.stats keys that hold MLT normalisation (b) estimates
+_B_KEYS = ("b", "b_estimate", "b_estimates", "b_mean", "b_std", "normalization", "normalisation")
+
+
+def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict) -> Dict[str, object]:
+    """``cmlt:*`` EXR header attributes of one frame (issue 6): frame, time code,
+    shot, camera, integrator and its parameters, seed, samples / mutations,
+    render time, b estimates (when the integrator reports them), version."""
+    params = {k: v for k, v in resolved.as_dict().items() if k not in ("camera", "resolution")}
+    md: Dict[str, object] = {
+        "frame": float(frame), "timeCode": float(fs.time), "shot": shot_abs,
+        "camera": camera or "", "integrator": resolved.integrator,
+        "integratorParameters": params,               # JSON text
+        "spp": int(resolved.spp), "maxDepth": int(resolved.max_depth),
+        "seed": int(resolved.seed),
+        "renderTime": float(stats.get("time_s", stats.get("wall_time_s", 0.0))),
+        "samples": int(stats.get("samples", 0)),
+        "rays": int(stats.get("rays", 0)),
+        "raysPerSecond": float(stats.get("rays_per_s", 0.0)),
+        "version": __version__,
+    }
+    for key in ("mutations", "accepted", "acceptance_rate"):
+        if key in stats:
+            md[key] = stats[key]
+    b = {k: stats[k] for k in _B_KEYS if k in stats}
+    if b:
+        md["b"] = b if len(b) > 1 else next(iter(b.values()))
+    return md
 
 
 def _render_interruptible(core, scene, st, reporter: Reporter):
@@ -274,9 +378,17 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
         raise RenderError(str(exc)) from None
     resolved, sources = _resolve(stage, opts)
     st = _core_settings(core, resolved, opts, sources)
-    color_attrs, colorspace_name = _color_setup(opts, stage)
+    color_attrs, colorspace_name, display, view = _color_setup(opts, stage)
     settings_record = dict(resolved.as_dict(), threads=int(opts.threads), half=bool(opts.half),
                            compression=opts.compression, output_colorspace=colorspace_name)
+    aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
+    if aovs:
+        settings_record.update(aovs=list(aovs), aov_samples=int(opts.aov_samples))
+    if opts.crop is not None:
+        settings_record["crop"] = [int(v) for v in opts.crop]
+    if opts.preview:
+        settings_record.update(preview=opts.preview_format, display=display, view=view)
+    t_start = time.perf_counter()
 
     if frames is None:
         frame_list = default_frames(info.start)
@@ -322,6 +434,12 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 rep.warnings(fs.warnings)
                 width, height = opts.resolution or fs.resolution
                 st.width, st.height = int(width), int(height)
+                crop = None
+                if opts.crop is not None:
+                    try:
+                        crop = check_crop(opts.crop, int(width), int(height))
+                    except ValueError as exc:
+                        raise UsageError(str(exc)) from None
                 try:
                     scene = bridge.update(fs)
                 except (core.SceneError, BridgeError) as exc:
@@ -336,11 +454,12 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 if interrupted or r.cancelled:
                     raise KeyboardInterrupt
                 stats = dict(r.stats)
-                stats["wall_time_s"] = time.perf_counter() - t0
                 image = np.asarray(r.image)
                 if not np.isfinite(image).all():
                     raise RenderError(f"{shot}: frame {frame:g}: the core returned "
                                       f"{int((~np.isfinite(image)).sum())} non-finite pixel values")
+                aov_images = _aov_images(core, scene, st, r, aovs, opts, stats)
+                stats["wall_time_s"] = time.perf_counter() - t0
                 record = {
                     "image": os.path.basename(path), "shot": shot_abs, "frame": frame,
                     "time_code": float(fs.time),
@@ -351,19 +470,21 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     "scene_update": bridge.last_update.as_dict(),
                     "warnings": list(fs.warnings), "cmlt_version": __version__,
                 }
-                metadata = {
-                    "frame": float(frame), "timeCode": float(fs.time), "shot": shot_abs,
-                    "camera": record["camera"] or "", "integrator": resolved.integrator,
-                    "spp": int(resolved.spp), "maxDepth": int(resolved.max_depth),
-                    "seed": int(resolved.seed),
-                    "renderTime": float(stats.get("time_s", stats["wall_time_s"])),
-                    "samples": int(stats.get("samples", 0)), "version": __version__,
-                }
+                metadata = _header_metadata(frame, fs, shot_abs, record["camera"], resolved, stats)
                 try:
+                    if opts.preview:
+                        # before the EXR: a finished image always has its preview
+                        pv = preview_path(path, opts.preview_format)
+                        shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
+                        write_preview(shown, pv, display, view)
+                        record["preview"] = os.path.basename(pv)
                     write_sidecar(path, record)
                     write_exr(path, _to_output(image, opts.output_colorspace), half=opts.half,
                               compression=opts.compression, colorspace=None,
-                              metadata=metadata, attributes=color_attrs)
+                              metadata=metadata, attributes=color_attrs, aovs=aov_images,
+                              crop=crop)
+                    if opts.preview:
+                        result.previews.append(pv)
                 except OSError as exc:
                     where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
                     raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") \
@@ -374,4 +495,6 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             except KeyboardInterrupt:
                 rep.abort_frame()
                 raise RenderCancelled(frame, result.written, len(todo) - k) from None
+        result.elapsed_s = time.perf_counter() - t_start
+        rep.end_sequence(result)
     return result

@@ -1,0 +1,41 @@
+#pragma once
+/// \file Integrator-independent AOV pass: albedo, shading normal, depth of the first hit.
+///
+/// For each pixel, `samples` jittered camera rays are traced to their first hit only (no
+/// light transport, so the pass is cheap and the same for every integrator). Sample s of
+/// pixel p uses the camera jitter of `PixelSampler(seed, p, s)`, i.e. exactly the camera
+/// ray of the beauty render's sample s: deterministic, independent of thread count.
+///
+/// Conventions (per pixel, over its samples):
+///  * albedo: mean over all samples of the first hit's diffuse colour (rendering-space RGB,
+///    ACEScg). A ray that escapes contributes 0. A ray that hits an analytic light's
+///    emitting side contributes the light's radiance clamped to [0, 1] (the denoiser
+///    convention for emitters); an emissive mesh contributes its material's diffuse.
+///  * normal: world-space unit shading normal, turned to face the camera (toward the ray
+///    origin); the normalised mean of the hitting samples' normals. Analytic lights give
+///    the direction back to the camera. No hit: (0, 0, 0).
+///  * depth (Z): distance of the hit point along the camera's viewing axis (local -Z),
+///    in world units; the *closest* hitting sample (Z is not filtered across edges). No
+///    hit: 0, which never occurs for a hit because near clipping is > 0 or the hit is in
+///    front of the camera. Always finite.
+#include "integrators/common/render_settings.h"
+#include "scene/scene.h"
+
+#include <vector>
+
+namespace cmlt {
+
+struct AovResult {
+    int width = 0, height = 0;
+    std::vector<float> albedo;  ///< (H, W, 3), row 0 at the top
+    std::vector<float> normal;  ///< (H, W, 3)
+    std::vector<float> depth;   ///< (H, W)
+    uint64_t rays = 0;
+    double time_s = 0;
+};
+
+/// Run the AOV pass with `settings.width/height/seed/threads` (other fields unused).
+/// Commits the scene if it has uncommitted edits. Throws SettingsError / SceneError.
+AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples = 4);
+
+}  // namespace cmlt
