@@ -98,6 +98,31 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     d["spp"] = st.spp;
     d["seed"] = st.seed;
     d["cancelled"] = res.cancelled;
+    if (st.mlt.enabled) {
+        const MltStats& m = st.mlt;
+        d["b"] = m.b;
+        d["b_stderr"] = m.b_stderr;
+        d["b_bootstrap"] = m.b_bootstrap;
+        d["b_bootstrap_stderr"] = m.b_bootstrap_stderr;
+        d["bootstrap_samples"] = m.bootstrap_samples;
+        d["bootstrap_nonzero"] = m.bootstrap_nonzero;
+        d["chains"] = m.chains;
+        d["mutations"] = m.mutations;
+        d["mutations_per_pixel"] = m.mutations_per_pixel;
+        d["large_step_probability"] = m.large_step_probability;
+        d["sigma"] = m.sigma;
+        nb::dict acc;
+        acc["small_step"] = m.acceptance_small;
+        acc["large_step"] = m.acceptance_large;
+        d["acceptance"] = acc;
+        nb::dict steps;
+        steps["small_step"] = m.small_steps;
+        steps["large_step"] = m.large_steps;
+        d["steps"] = steps;
+        d["max_rejection_streak"] = m.max_rejection_streak;
+        d["clamped_splats"] = m.clamped_splats;
+        d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
+    }
     out.stats = d;
     return out;
 }
@@ -114,12 +139,27 @@ void bind_render(nb::module_& m) {
                 "max scattering events, >= 1; 1 = direct lighting (default 64)")
         .def_rw("seed", &RenderSettings::seed, "RNG seed, 0..2^64-1 (default 0)")
         .def_rw("threads", &RenderSettings::threads, "worker threads, 0 = all cores (default 0)")
-        .def_rw("integrator", &RenderSettings::integrator, "'pt' (default)")
+        .def_rw("integrator", &RenderSettings::integrator,
+                "'pt' (default) or 'pssmlt' (spp = mutations per pixel, bootstrap included)")
+        .def_rw("sigma", &RenderSettings::sigma,
+                "pssmlt small-step Gaussian sigma per primary sample, (0, 1] (default 0.01)")
+        .def_rw("large_step_probability", &RenderSettings::large_step_probability,
+                "pssmlt probability of an independent (large) step, [0, 1] (default 0.3)")
+        .def_rw("chains", &RenderSettings::chains,
+                "pssmlt Markov chains per frame, >= 1; independent of the thread count "
+                "(default 1000)")
+        .def_rw("bootstrap_samples", &RenderSettings::bootstrap_samples,
+                "pssmlt large-step samples estimating b and seeding the chains, >= 1; at most "
+                "half of spp*W*H is used (default 100000)")
         .def("__repr__", [](const RenderSettings& s) {
             return "RenderSettings(width=" + std::to_string(s.width) +
                    ", height=" + std::to_string(s.height) + ", spp=" + std::to_string(s.spp) +
                    ", max_depth=" + std::to_string(s.max_depth) + ", seed=" + std::to_string(s.seed) +
-                   ", threads=" + std::to_string(s.threads) + ", integrator='" + s.integrator + "')";
+                   ", threads=" + std::to_string(s.threads) + ", integrator='" + s.integrator +
+                   "', sigma=" + std::to_string(s.sigma) +
+                   ", large_step_probability=" + std::to_string(s.large_step_probability) +
+                   ", chains=" + std::to_string(s.chains) +
+                   ", bootstrap_samples=" + std::to_string(s.bootstrap_samples) + ")";
         });
 
     nb::class_<PyRenderResult>(m, "RenderResult")

@@ -14,9 +14,18 @@ void RenderSettings::validate() const {
     if (max_depth < 1)
         CMLT_THROW(SettingsError, "RenderSettings.max_depth must be >= 1, got " << max_depth);
     if (threads < 0) CMLT_THROW(SettingsError, "RenderSettings.threads must be >= 0, got " << threads);
-    if (integrator != "pt")
+    if (integrator != "pt" && integrator != "pssmlt")
         CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '"
-                                      << integrator << "' (available: 'pt')");
+                                      << integrator << "' (available: 'pt', 'pssmlt')");
+    if (!(sigma > 0.0 && sigma <= 1.0))
+        CMLT_THROW(SettingsError, "RenderSettings.sigma must be in (0, 1], got " << sigma);
+    if (!(large_step_probability >= 0.0 && large_step_probability <= 1.0))
+        CMLT_THROW(SettingsError, "RenderSettings.large_step_probability must be in [0, 1], got "
+                                      << large_step_probability);
+    if (chains < 1) CMLT_THROW(SettingsError, "RenderSettings.chains must be >= 1, got " << chains);
+    if (bootstrap_samples < 1)
+        CMLT_THROW(SettingsError,
+                   "RenderSettings.bootstrap_samples must be >= 1, got " << bootstrap_samples);
 }
 
 }  // namespace cmlt

@@ -15,10 +15,38 @@ struct RenderSettings {
     int max_depth = 64;            ///< max scattering events (pbrt): 1 = direct lighting, >= 1
     uint64_t seed = 0;             ///< RNG seed; same seed -> same image at any thread count
     int threads = 0;               ///< worker threads, 0 = all cores, >= 0
-    std::string integrator = "pt"; ///< "pt" (path tracing with NEE + MIS)
+    std::string integrator = "pt"; ///< "pt" (path tracing with NEE + MIS), "pssmlt" (primary-
+                                   ///< sample-space MLT over PT's sampling; `spp` = mutations
+                                   ///< per pixel, bootstrap included in that budget)
+
+    // Metropolis (pssmlt). Defaults: pbrt-v4's published MLT defaults (shared/NOTES.md).
+    double sigma = 0.01;                  ///< small-step Gaussian σ per primary sample, (0, 1]
+    double large_step_probability = 0.3;  ///< probability of an independent (large) step, [0, 1]
+    int chains = 1000;                    ///< Markov chains per frame, >= 1 (fixed: the image
+                                          ///< does not depend on the thread count)
+    int bootstrap_samples = 100000;       ///< large-step samples for b and the chain starts,
+                                          ///< >= 1; at most half of spp·W·H is used
 
     /// Throws SettingsError naming the bad field.
     void validate() const;
+};
+
+/// Statistics of a Metropolis render (pssmlt).
+struct MltStats {
+    bool enabled = false;
+    double b = 0, b_stderr = 0;                      ///< normalisation E[f*], bootstrap + large steps
+    double b_bootstrap = 0, b_bootstrap_stderr = 0;  ///< from the bootstrap alone
+    uint64_t bootstrap_samples = 0;                  ///< used (≤ the setting, ≤ half the budget)
+    uint64_t bootstrap_nonzero = 0;                  ///< bootstrap samples with f* > 0
+    uint64_t chains = 0;
+    uint64_t mutations = 0;                          ///< Markov-chain steps taken
+    double mutations_per_pixel = 0;                  ///< mutations / (W·H)
+    double large_step_probability = 0, sigma = 0;
+    uint64_t small_steps = 0, large_steps = 0;
+    double acceptance_small = 0, acceptance_large = 0;  ///< fraction of steps that moved
+    uint64_t max_rejection_streak = 0;               ///< longest run of rejections in a chain
+    uint64_t clamped_splats = 0;                     ///< splats beyond the film's range
+    std::string kernel_stats_json;                   ///< mlt::KernelStats::write_json
 };
 
 struct RenderStats {
@@ -35,6 +63,7 @@ struct RenderStats {
     std::string integrator;
     int spp = 0;
     uint64_t seed = 0;
+    MltStats mlt;                  ///< filled by "pssmlt" only (mlt.enabled)
 };
 
 struct RenderResult {

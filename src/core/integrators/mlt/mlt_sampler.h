@@ -1,0 +1,285 @@
+#pragma once
+/// \file Primary-sample-space Metropolis sampler (Kelemen et al. 2002, "A simple and
+/// robust mutation strategy for the Metropolis light transport algorithm", §3–4).
+///
+/// The Markov chain state is an (unbounded) vector of primary samples u ∈ [0,1)^∞, read
+/// by a path-sampling routine through the small sampler interface of path_tracer.h
+/// (`set_dimension`, `get1d`, `get2d`). Mutations are *lazy* (pbrt-v4 `MLTSampler`):
+/// each primary sample remembers the iteration at which it was last brought up to date,
+/// and is only mutated when it is read:
+///   * a large step accepted since then → the sample is a fresh uniform number;
+///   * otherwise n small steps were accepted since then → the accumulated wrapped
+///     Gaussian, one draw with σ√n (the sum of n independent N(0, σ²) is N(0, nσ²),
+///     and wrapping onto the torus commutes with adding);
+///   * a sample never read before is a fresh uniform number (it is part of the current
+///     state, whose unread coordinates are uniform and independent), then mutated.
+/// `reject()` restores every sample touched by the rejected proposal bit-exactly (value
+/// and modification iteration) and reuses the iteration number, so iterations count
+/// accepted steps only.
+///
+/// Streams (pbrt-v4; Hachisuka et al. 2014): `k_stream_count` = 3 interleaved index
+/// spaces — camera, light, connection — so a camera subpath that reads more or fewer
+/// dimensions never shifts the light subpath's samples. Global index of slot s of
+/// stream k: `k + 3·s`. One sampler *dimension* owns two slots (`get2d` reads both,
+/// `get1d` the first), matching PixelSampler where a dimension yields up to two numbers.
+///
+/// Random numbers are a pure function of (seed, domain, id, proposal number, sample
+/// index) through Philox-4x32 (sampling/rng.h): a chain's numbers depend neither on the
+/// thread that runs it nor on the order in which dimensions are read. The proposal
+/// number counts every proposal, rejected ones included (never reused). Control
+/// numbers (large-step choice, acceptance) come from a second, sequential counter.
+#include "math/vec.h"
+#include "sampling/rng.h"
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace cmlt::mlt {
+
+/// Luminance weights of the rendering space (ACEScg, AP1 primaries, D60 white): the
+/// Y row of the AP1→XYZ matrix. f* = luminance of the path contribution.
+inline constexpr double k_luminance_weights[3] = {0.2722287, 0.6740818, 0.0536895};
+
+/// f*(L): ACEScg luminance of a path contribution; 0 for a non-finite colour or a
+/// non-positive luminance (such a path can never be accepted).
+inline double target_luminance(const Spectrum& L) {
+    const double y = k_luminance_weights[0] * double(L.x) + k_luminance_weights[1] * double(L.y) +
+                     k_luminance_weights[2] * double(L.z);
+    return (std::isfinite(y) && y > 0.0) ? y : 0.0;
+}
+
+/// Key domains of the counter-based numbers (the `id` is the index inside a domain).
+enum class RngDomain : uint32_t {
+    bootstrap = 1,  ///< id = bootstrap sample index
+    chain = 2,      ///< id = chain index
+    resample = 3,   ///< id = 0: resampling the chains' start states
+    test = 0xFF,
+};
+
+namespace detail {
+
+/// 64 random bits → double in [0, 1) (53 bits; never 1).
+inline double bits_to_unit(uint32_t hi, uint32_t lo) {
+    return double(((uint64_t(hi) << 32) | lo) >> 11) * 0x1p-53;
+}
+
+/// Philox counter of a number: (id, counter low, index, tag | domain | counter high).
+/// The tag byte starts at 0x10, so these counters never meet PixelSampler's (whose
+/// last word is a small stream id).
+inline Philox4x32Counter mlt_counter(uint32_t tag, RngDomain domain, uint32_t id, uint64_t counter,
+                                     uint32_t index) {
+    return {id, uint32_t(counter), index,
+            ((0x10u + tag) << 24) | ((uint32_t(domain) & 0xFFu) << 16) |
+                uint32_t((counter >> 32) & 0xFFFFu)};
+}
+
+inline Philox4x32Key mlt_key(uint64_t seed) { return {uint32_t(seed), uint32_t(seed >> 32)}; }
+
+/// Standard normal from two uniforms (Box–Muller, cosine branch); u1 ∈ [0,1).
+inline double box_muller(double u1, double u2) {
+    return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(6.283185307179586476925 * u2);
+}
+
+/// Wrap onto [0, 1) (as mlt_kernels' wrap01: never returns 1, NaN → 0).
+inline double wrap01(double v) {
+    const double r = v - std::floor(v);
+    return r < 1.0 ? r : 0.0;
+}
+
+}  // namespace detail
+
+/// Sequential counter-based generator with the kernels' RNG interface (uniform(),
+/// normal()): draw k is a pure function of (seed, domain, id, k).
+class CounterRng {
+public:
+    CounterRng(uint64_t seed, RngDomain domain, uint32_t id)
+        : m_key(detail::mlt_key(seed)), m_domain(domain), m_id(id) {}
+
+    double uniform() {
+        if (m_has_spare) {
+            m_has_spare = false;
+            return m_spare;
+        }
+        const Philox4x32Counter r = philox4x32(detail::mlt_counter(1, m_domain, m_id, m_draw++, 0), m_key);
+        m_spare = detail::bits_to_unit(r[2], r[3]);
+        m_has_spare = true;
+        return detail::bits_to_unit(r[0], r[1]);
+    }
+    double normal() {
+        const double u1 = uniform();
+        return detail::box_muller(u1, uniform());
+    }
+
+private:
+    Philox4x32Key m_key;
+    RngDomain m_domain;
+    uint32_t m_id;
+    uint64_t m_draw = 0;
+    double m_spare = 0.0;
+    bool m_has_spare = false;
+};
+
+/// The Metropolis sampler of one chain (see the file comment).
+class MltSampler {
+public:
+    static constexpr uint32_t k_stream_count = 3;
+    enum Stream : uint32_t { camera = 0, light = 1, connection = 2 };
+    static constexpr uint32_t k_slots_per_dimension = 2;
+
+    /// One primary sample with its backup for reject().
+    struct PrimarySample {
+        static constexpr int64_t k_unread = std::numeric_limits<int64_t>::min();
+        double value = 0.0;
+        int64_t last_modified = k_unread;  ///< iteration it is up to date at
+        double value_backup = 0.0;
+        int64_t modified_backup = k_unread;
+    };
+
+    /// `sigma`: small-step standard deviation per primary sample, > 0;
+    /// `large_step_probability` ∈ [0, 1]. Numbers keyed by (seed, domain, id).
+    MltSampler(uint64_t seed, double sigma, double large_step_probability,
+               RngDomain domain = RngDomain::chain, uint32_t id = 0)
+        : m_seed(seed), m_key(detail::mlt_key(seed)), m_domain(domain), m_id(id), m_sigma(sigma),
+          m_large_step_probability(large_step_probability), m_control(seed, domain, id) {}
+
+    /// Switch the numbers to (domain, id) — e.g. a chain started from bootstrap sample j
+    /// replays it under (bootstrap, j), then continues under (chain, c). The state is kept.
+    void set_key(RngDomain domain, uint32_t id) {
+        m_domain = domain;
+        m_id = id;
+        m_control = CounterRng(m_seed, domain, id);
+    }
+
+    // ---- Markov chain control ----------------------------------------------------
+    /// Begin a proposal; a large step with probability large_step_probability (drawn
+    /// from the control stream). Returns true for a large step.
+    bool start_iteration() {
+        const bool large = m_large_step_probability >= 1.0 ||
+                           (m_large_step_probability > 0.0 && m_control.uniform() < m_large_step_probability);
+        start_iteration(large);
+        return large;
+    }
+    /// Begin a proposal of the given kind.
+    void start_iteration(bool large_step) {
+        ++m_iteration;
+        ++m_proposal;
+        m_large_step = large_step;
+        start_stream(camera);
+    }
+    /// Keep the proposal as the new state.
+    void accept() {
+        if (m_large_step) m_last_large_step = m_iteration;
+    }
+    /// Discard the proposal: restore every sample it touched, bit for bit.
+    void reject() {
+        for (PrimarySample& x : m_x)
+            if (x.last_modified == m_iteration) {
+                x.value = x.value_backup;
+                x.last_modified = x.modified_backup;
+            }
+        --m_iteration;
+    }
+
+    bool large_step() const { return m_large_step; }
+    int64_t iteration() const { return m_iteration; }
+    uint64_t proposals() const { return m_proposal; }
+
+    // ---- sampler interface (path_tracer.h) ---------------------------------------
+    /// Select a stream and rewind it to dimension 0.
+    void start_stream(uint32_t stream) {
+        m_stream = stream;
+        m_dimension = 0;
+    }
+    void set_dimension(uint32_t d) { m_dimension = d; }
+    uint32_t dimension() const { return m_dimension; }
+
+    float get1d() {
+        const size_t i = index(m_stream, m_dimension++ * k_slots_per_dimension);
+        return to_float(sample(i));
+    }
+    Vec2 get2d() {
+        const uint32_t s = m_dimension++ * k_slots_per_dimension;
+        const float a = to_float(sample(index(m_stream, s)));
+        const float b = to_float(sample(index(m_stream, s + 1)));
+        return {a, b};
+    }
+
+    // ---- kernel RNG interface (control stream) -----------------------------------
+    double uniform() { return m_control.uniform(); }
+    double normal() { return m_control.normal(); }
+
+    // ---- introspection (tests, state dumps) --------------------------------------
+    /// Global index of slot `slot` of `stream`.
+    static size_t index(uint32_t stream, uint32_t slot) {
+        return size_t(stream) + size_t(k_stream_count) * size_t(slot);
+    }
+    /// The stored samples (not caught up: a sample that lags behind is mutated on read).
+    const std::vector<PrimarySample>& samples() const { return m_x; }
+    /// Read global sample i as the path routine would (mutating it lazily), in double.
+    double sample(size_t i) {
+        ensure_ready(i);
+        return m_x[i].value;
+    }
+
+private:
+    static float to_float(double u) {
+        const float f = float(u);               // may round up to 1
+        return f < 1.f ? f : 0x1.fffffep-1f;    // largest float below 1
+    }
+
+    /// Two numbers of sample i at the current proposal: [0] refresh, [1] proposal value.
+    Philox4x32Counter draw(size_t i) const {
+        return philox4x32(detail::mlt_counter(0, m_domain, m_id, m_proposal, uint32_t(i)), m_key);
+    }
+
+    void ensure_ready(size_t i) {
+        if (i >= m_x.size()) m_x.resize(i + 1);
+        PrimarySample& x = m_x[i];
+        if (x.last_modified == m_iteration && x.last_modified != PrimarySample::k_unread)
+            return;  // already mutated by this proposal
+        const Philox4x32Counter r = draw(i);
+
+        // bring the current state's value up to date
+        if (x.last_modified == PrimarySample::k_unread) {
+            x.value = detail::bits_to_unit(r[0], r[1]);   // unread: uniform, part of x
+            x.last_modified = m_iteration - 1;
+        } else if (x.last_modified < m_last_large_step) {
+            x.value = detail::bits_to_unit(r[0], r[1]);   // a large step was accepted since
+            x.last_modified = m_last_large_step;
+        }
+        x.value_backup = x.value;
+        x.modified_backup = x.last_modified;
+
+        // mutate: fresh uniform, or the accumulated small steps σ√n (wrapped)
+        if (m_large_step) {
+            x.value = detail::bits_to_unit(r[2], r[3]);
+        } else {
+            const int64_t n = m_iteration - x.last_modified;
+            const Philox4x32Counter g =
+                philox4x32(detail::mlt_counter(2, m_domain, m_id, m_proposal, uint32_t(i)), m_key);
+            const double z = detail::box_muller(detail::bits_to_unit(g[0], g[1]), detail::bits_to_unit(g[2], g[3]));
+            x.value = detail::wrap01(x.value + m_sigma * std::sqrt(double(n)) * z);
+        }
+        x.last_modified = m_iteration;
+    }
+
+    uint64_t m_seed;
+    Philox4x32Key m_key;
+    RngDomain m_domain;
+    uint32_t m_id;
+    double m_sigma;
+    double m_large_step_probability;
+    CounterRng m_control;
+
+    std::vector<PrimarySample> m_x;
+    int64_t m_iteration = 0;        ///< accepted iterations + the current proposal
+    int64_t m_last_large_step = 0;  ///< iteration of the last accepted large step
+    uint64_t m_proposal = 0;        ///< every proposal, never reused (keys the numbers)
+    bool m_large_step = true;
+    uint32_t m_stream = camera;
+    uint32_t m_dimension = 0;
+};
+
+}  // namespace cmlt::mlt

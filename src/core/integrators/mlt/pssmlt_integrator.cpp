@@ -1,0 +1,260 @@
+// PSSMLT frame loop; see pssmlt_integrator.h for the estimator and its steps.
+#include "integrators/mlt/pssmlt_integrator.h"
+
+#include "cameras/camera.h"
+#include "integrators/mlt/mlt_sampler.h"
+#include "integrators/mlt/pssmlt_tracer.h"
+#include "integrators/mlt/splat_film.h"
+#include "integrators/mlt_kernels/mlt_kernels.h"
+#include "integrators/path/path_tracer_impl.h"
+#include "scene/scene.h"
+#include "util/error.h"
+#include "util/fp_mode.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <sstream>
+
+namespace cmlt {
+
+namespace {
+
+using mlt::MltSampler;
+using mlt::PathSample;
+using mlt::RngDomain;
+
+/// Progress/cancel granularity: every chain advances by 1/k_rounds of its mutations.
+constexpr int k_rounds = 16;
+
+/// Ray counters summed over tasks (integer sums: order-independent).
+struct AtomicCounters {
+    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0}, invalid{0};
+    void add(const PathCounters& c, uint64_t bad) {
+        camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
+        shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
+        rays.fetch_add(c.rays, std::memory_order_relaxed);
+        samples.fetch_add(c.samples, std::memory_order_relaxed);
+        invalid.fetch_add(bad, std::memory_order_relaxed);
+    }
+};
+
+/// The proposal of metropolis_step: the sampler has begun an iteration (large or small);
+/// "sampling" the proposal is tracing the path its primary samples describe. Both
+/// mutations are symmetric in primary sample space (T(x→y) = T(y→x)).
+struct SamplerProposal {
+    static constexpr bool k_symmetric = true;
+    const mlt::PssmltTracer* tracer;
+    MltSampler* sampler;
+    PathCounters* counters;
+    PathSample* last;  ///< the proposal just traced (for the large-step b and NaN counts)
+
+    template <class State, class Rng>
+    void sample(const State& /*from*/, State& to, Rng& /*rng*/) const {
+        to = tracer->evaluate(*sampler, *counters);
+        *last = to;
+    }
+};
+
+/// One Markov chain and everything it accumulates.
+struct ChainState {
+    ChainState(MltSampler s, PathSample x) : sampler(std::move(s)), ws(1, PathSample{}) {
+        chain.x = x;
+        chain.fx = x.f;
+    }
+    MltSampler sampler;
+    mlt::Chain<PathSample> chain;
+    mlt::Workspace<PathSample> ws;
+    uint64_t budget = 0, done = 0;
+    mlt::KernelStats stats;
+    mlt::NormalisationAccumulator large;  ///< f* of the large-step proposals
+    uint64_t streak = 0, max_streak = 0;
+    uint64_t invalid = 0;
+};
+
+}  // namespace
+
+RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
+                           const ProgressCallback& progress) {
+    const int W = settings.width, H = settings.height;
+    const uint64_t pixels = uint64_t(W) * uint64_t(H);
+    Camera camera(scene.camera_desc(), W, H);
+    PathTracer pt(scene, settings.max_depth);
+    const mlt::PssmltTracer tracer(pt, camera, W, H);
+    const uint64_t seed = settings.seed;
+    const double sigma = settings.sigma, p_large = settings.large_step_probability;
+
+    // Budget: spp·W·H path evaluations, the bootstrap included (at most half of it).
+    const uint64_t budget = uint64_t(settings.spp) * pixels;
+    const uint64_t n_boot = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.bootstrap_samples), budget / 2));
+    const uint64_t n_mut = budget - n_boot;
+    const uint64_t n_chains = std::min<uint64_t>(uint64_t(settings.chains), n_mut);
+
+    const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
+    tbb::task_arena arena(threads);
+    AtomicCounters counters;
+    mlt::SplatFilm film(W, H);
+    const auto t0 = std::chrono::steady_clock::now();
+
+    // 1. bootstrap: N independent large-step samples, keyed (seed, bootstrap, i)
+    std::vector<double> boot_f(n_boot, 0.0);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_boot, 256), [&](const tbb::blocked_range<uint64_t>& r) {
+            ScopedFtzDaz ftz;
+            PathCounters c;
+            uint64_t bad = 0;
+            for (uint64_t i = r.begin(); i != r.end(); ++i) {
+                MltSampler smp(seed, sigma, p_large, RngDomain::bootstrap, uint32_t(i));
+                smp.start_iteration(true);
+                const PathSample s = tracer.evaluate(smp, c);
+                boot_f[i] = s.f;
+                bad += s.invalid ? 1 : 0;
+            }
+            counters.add(c, bad);
+        });
+    });
+    mlt::NormalisationAccumulator boot_acc;
+    for (double f : boot_f) boot_acc.add(f);  // index order: deterministic
+    const mlt::NormalisationEstimate b_boot = boot_acc.estimate();
+
+    // 2. chain starts: resample the pool ∝ f*, replay the chosen sample, rekey to the chain
+    std::vector<std::unique_ptr<ChainState>> chains;
+    if (b_boot.nonzero > 0 && n_chains > 0) {
+        mlt::CounterRng rng(seed, RngDomain::resample, 0);
+        const std::vector<size_t> start = mlt::resample_start_indices(boot_f, size_t(n_chains), rng);
+        chains.resize(n_chains);
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
+                ScopedFtzDaz ftz;
+                PathCounters c;
+                for (uint64_t k = r.begin(); k != r.end(); ++k) {
+                    MltSampler smp(seed, sigma, p_large, RngDomain::bootstrap, uint32_t(start[k]));
+                    smp.start_iteration(true);
+                    const PathSample x = tracer.evaluate(smp, c);
+                    CMLT_CHECK_MSG(x.f == boot_f[start[k]], "pssmlt: replaying bootstrap sample "
+                                                                << start[k] << " gave a different path");
+                    smp.accept();
+                    smp.set_key(RngDomain::chain, uint32_t(k));
+                    chains[k] = std::make_unique<ChainState>(std::move(smp), x);
+                    chains[k]->budget = n_mut / n_chains + (k < n_mut % n_chains ? 1 : 0);
+                }
+                counters.add(c, 0);
+            });
+        });
+    }
+
+    // 3. run the chains, k_rounds slices each, expected-value splatting into the film
+    const auto target = [](const PathSample& s) { return s.f; };
+    bool cancelled = false;
+    for (int round = 0; round < k_rounds && !chains.empty(); ++round) {
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+                ScopedFtzDaz ftz;
+                PathCounters c;
+                for (size_t k = r.begin(); k != r.end(); ++k) {
+                    ChainState& st = *chains[k];
+                    const uint64_t end = st.budget * uint64_t(round + 1) / k_rounds;
+                    PathSample last;
+                    const SamplerProposal proposal{&tracer, &st.sampler, &c, &last};
+                    auto splat = [&](const PathSample& s, double w) {
+                        if (s.f > 0.0) film.add(s.pixel, s.L, w / s.f);
+                    };
+                    for (; st.done < end; ++st.done) {
+                        const bool large = st.sampler.start_iteration();
+                        const mlt::StepResult res = mlt::metropolis_step(
+                            st.chain, target, proposal, splat, st.sampler, st.ws,
+                            large ? mlt::MutationKind::large_step : mlt::MutationKind::small_step);
+                        if (res.moved) {
+                            st.sampler.accept();
+                            st.streak = 0;
+                        } else {
+                            st.sampler.reject();
+                            st.max_streak = std::max(st.max_streak, ++st.streak);
+                        }
+                        if (large) st.large.add(last.f);
+                        st.invalid += last.invalid ? 1 : 0;
+                        st.stats.record(res);
+                    }
+                }
+                counters.add(c, 0);
+            });
+        });
+        const uint64_t spp_done = uint64_t(settings.spp) * uint64_t(round + 1) / k_rounds;
+        if (progress && !progress(spp_done, uint64_t(settings.spp)) && round + 1 < k_rounds) {
+            cancelled = true;
+            break;
+        }
+    }
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    // 4. normalisation: bootstrap + every large step, merged in chain order
+    mlt::NormalisationAccumulator b_acc = boot_acc;
+    mlt::KernelStats kstats;
+    uint64_t mutations = 0, max_streak = 0, invalid = 0;
+    for (const auto& st : chains) {
+        b_acc.merge(st->large);
+        kstats.merge(st->stats);
+        mutations += st->done;
+        max_streak = std::max(max_streak, st->max_streak);
+        invalid += st->invalid;
+    }
+    const mlt::NormalisationEstimate b = b_acc.estimate();
+
+    RenderResult res;
+    res.width = W;
+    res.height = H;
+    res.image.assign(size_t(pixels) * 3, 0.f);
+    res.variance.assign(size_t(pixels) * 3, 0.f);  // no per-pixel variance for correlated chains
+    if (mutations > 0) {
+        const double scale = b.mean * double(pixels) / double(mutations);
+        for (size_t i = 0; i < pixels; ++i)
+            for (int k = 0; k < 3; ++k) res.image[3 * i + k] = float(scale * film.sum(i, k));
+    }
+    res.cancelled = cancelled;
+
+    RenderStats& st = res.stats;
+    st.time_s = secs;
+    st.samples = counters.samples.load();
+    st.camera_rays = counters.camera_rays.load();
+    st.shadow_rays = counters.shadow_rays.load();
+    st.rays = counters.rays.load();
+    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    st.nan_samples = counters.invalid.load() + invalid;
+    st.threads = threads;
+    st.integrator = settings.integrator;
+    st.spp = settings.spp;
+    st.seed = settings.seed;
+    MltStats& m = st.mlt;
+    m.enabled = true;
+    m.b = b.mean;
+    m.b_stderr = b.std_error;
+    m.b_bootstrap = b_boot.mean;
+    m.b_bootstrap_stderr = b_boot.std_error;
+    m.bootstrap_samples = n_boot;
+    m.bootstrap_nonzero = b_boot.nonzero;
+    m.chains = chains.size();
+    m.mutations = mutations;
+    m.mutations_per_pixel = double(mutations) / double(pixels);
+    m.large_step_probability = p_large;
+    m.sigma = sigma;
+    const mlt::ChainStats& small = kstats[mlt::MutationKind::small_step];
+    const mlt::ChainStats& large = kstats[mlt::MutationKind::large_step];
+    m.small_steps = small.steps;
+    m.large_steps = large.steps;
+    m.acceptance_small = small.acceptance_rate();
+    m.acceptance_large = large.acceptance_rate();
+    m.max_rejection_streak = max_streak;
+    m.clamped_splats = film.clamped();
+    std::ostringstream os;
+    kstats.write_json(os);
+    m.kernel_stats_json = os.str();
+    return res;
+}
+
+}  // namespace cmlt
