@@ -259,9 +259,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
         from .shot.progress import summary_table
 
         n = len(res.written)
-        sys.stderr.write(f"cmlt: {n} frame(s) written"
-                         + (f", {len(res.skipped)} skipped (already rendered)" if res.skipped else "")
-                         + "\n")
+        skipped = f", {len(res.skipped)} skipped (already rendered)" if res.skipped else ""
+        sys.stderr.write(f"cmlt: {n} frame(s) written{skipped}\n")
         if n:
             Console(stderr=True, highlight=False).print(summary_table(res))
     return EXIT_OK

@@ -4,8 +4,8 @@
 (frames) and the current frame (core progress units, rays/s, ETA) — and
 prints one line per finished frame above them. Without a terminal (CI, logs)
 the bars are off and only the per-frame lines are printed. ``quiet`` prints
-nothing (errors are the caller's, on stderr). Loader warnings are printed once per distinct text, however
-many frames repeat them.
+nothing (errors are the caller's, on stderr). Loader warnings are printed
+once per distinct text, however many frames repeat them.
 
 The core's progress callback runs on a render thread; it only stores numbers
 (:meth:`Reporter.frame_progress`), and rich redraws from its own thread.

@@ -251,7 +251,8 @@ def _to_output(image, output_colorspace):
     return from_rendering_space(np.array(image, dtype=np.float32, copy=True), output_colorspace)
 
 
-def _aov_images(core, scene, st, r, aovs, opts: RenderOptions, stats: dict) -> Dict[str, np.ndarray]:
+def _aov_images(core, scene, st, r, aovs, opts: RenderOptions,
+                stats: dict) -> Dict[str, np.ndarray]:
     """The requested AOVs of one frame, by name (see cmlt.io.exr.AOV_CHANNELS).
 
     albedo, normal, depth come from the core's integrator-independent AOV
@@ -277,8 +278,14 @@ def _aov_images(core, scene, st, r, aovs, opts: RenderOptions, stats: dict) -> D
     return {name: out[name] for name in aovs}
 
 
-#: RenderResult.stats keys that hold MLT normalisation (b) estimates
-_B_KEYS = ("b", "b_estimate", "b_estimates", "b_mean", "b_std", "normalization", "normalisation")
+#: RenderResult.stats keys (MLT integrators) -> cmlt:* header attribute names:
+#: normalisation (b) estimates and mutation counts, written when present
+_MLT_STATS = {
+    "b": "b", "b_stderr": "bStderr", "b_bootstrap": "bBootstrap",
+    "b_bootstrap_stderr": "bBootstrapStderr", "bootstrap_samples": "bootstrapSamples",
+    "chains": "chains", "mutations": "mutations", "mutations_per_pixel": "mutationsPerPixel",
+    "acceptance": "acceptance",
+}
 
 
 def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict) -> Dict[str, object]:
@@ -298,12 +305,9 @@ def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict) ->
         "raysPerSecond": float(stats.get("rays_per_s", 0.0)),
         "version": __version__,
     }
-    for key in ("mutations", "accepted", "acceptance_rate"):
-        if key in stats:
-            md[key] = stats[key]
-    b = {k: stats[k] for k in _B_KEYS if k in stats}
-    if b:
-        md["b"] = b if len(b) > 1 else next(iter(b.values()))
+    for key, name in _MLT_STATS.items():
+        if key in stats and stats[key] is not None:
+            md[name] = stats[key]
     return md
 
 

@@ -34,7 +34,8 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
         CMLT_THROW(SettingsError, "RenderSettings.threads must be >= 0, got " << settings.threads);
     if (samples < 1 || samples > 4096)
         CMLT_THROW(SettingsError, "render_aovs: samples must be 1..4096, got " << samples);
-    if (!scene.has_camera()) throw SceneError("render_aovs: the scene has no camera (call set_camera)");
+    if (!scene.has_camera())
+        throw SceneError("render_aovs: the scene has no camera (call set_camera)");
     if (scene.dirty()) scene.commit();
 
     const int W = settings.width, H = settings.height;
@@ -84,7 +85,8 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                                 Ray ray = camera.generate_ray(Vec2(float(x) + u.x, float(y) + u.y));
                                 SceneHit hit = scene.intersect(ray);
                                 ++n_rays;
-                                if (hit.kind == SceneHit::Kind::miss || !std::isfinite(hit.t)) continue;
+                                if (hit.kind == SceneHit::Kind::miss || !std::isfinite(hit.t))
+                                    continue;
                                 Vec3 n;
                                 Vec3 p;
                                 if (hit.kind == SceneHit::Kind::surface) {
