@@ -53,7 +53,9 @@ test: ctest pytest
 
 demo: install
 	$(VENV)/bin/cmlt render sequences/cornell/shot.usda --frames $(DEMO_FRAMES) \
-	  --out renders/cornell/cornell.####.exr --threads $(THREADS)
+	  --out renders/cornell/cornell.####.exr --threads $(THREADS) --preview
+	$(VENV)/bin/cmlt contact-sheet 'renders/cornell/cornell.####.exr' \
+	  --out renders/cornell/contact_sheet.png
 
 bench: install
 	$(PY) tests/bench/run_all.py
