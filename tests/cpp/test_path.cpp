@@ -276,7 +276,7 @@ TEST(Render, SettingsErrorsNameTheField) {
     st.max_depth = 0;
     EXPECT_NE(msg(st).find("max_depth"), std::string::npos);
     st = small(1);
-    st.integrator = "bdpt";
+    st.integrator = "bogus";
     EXPECT_NE(msg(st).find("integrator"), std::string::npos);
     Scene nocam;
     EXPECT_THROW(render(nocam, small(1)), SceneError);

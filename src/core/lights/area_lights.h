@@ -12,6 +12,9 @@ public:
     bool intersect(const Ray& ray, float* t, Spectrum* le) const override;
     float power() const override;
     float area() const { return m_area; }
+    LightLeSample sample_le(const Vec2& u_pos, const Vec2& u_dir) const override;
+    void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
+    Vec3 emitter_normal(const Vec3& p) const override;
 
 protected:
     PlanarLight(const LightDesc& desc, const char* what);

@@ -28,6 +28,19 @@ struct LightSample {
     bool valid() const { return pdf > 0.f && !is_black(li); }
 };
 
+/// A ray leaving a finite light (light tracing, BDPT): origin on the light, direction,
+/// and the densities that generated them.
+struct LightLeSample {
+    Vec3 p;                  ///< origin on the light
+    Vec3 n;                  ///< unit normal of the emitting side at p (zero for a point light)
+    Vec3 d;                  ///< unit emission direction
+    Spectrum le{0.f};        ///< radiance leaving p along d (intensity for a point light)
+    float pdf_pos = 0.f;     ///< area density of p (1 for a point light: Dirac position)
+    float pdf_dir = 0.f;     ///< solid-angle density of d given p
+    float error_scale = 0.f; ///< for offsetting rays leaving p
+    bool valid() const { return pdf_pos > 0.f && pdf_dir > 0.f && !is_black(le); }
+};
+
 /// Parameters of an analytic light as given by Python (see cmlt/scene.py `Light`).
 struct LightDesc {
     enum class Kind { rect, disk, sphere, distant, dome, cylinder };
@@ -54,6 +67,20 @@ public:
     virtual void preprocess(const Vec3& /*center*/, float /*radius*/) {}
     /// Emitted power (luminance), used to build the light-selection distribution.
     virtual float power() const = 0;
+
+    // Emission sampling for light tracing (BDPT, MLT). Finite lights only: infinite lights
+    // are sampled from sample_li / pdf_li (direction) and a disk covering the scene
+    // (integrators/bdpt/light_emission.h). Implementations: lights/light_emission.cpp.
+    /// Sample an emitted ray: `u_pos` picks the point, `u_dir` the direction.
+    virtual LightLeSample sample_le(const Vec2& /*u_pos*/, const Vec2& /*u_dir*/) const {
+        return LightLeSample();
+    }
+    /// Densities of emitting from point `p` (on the light) along unit direction `d`.
+    virtual void pdf_le(const Vec3& /*p*/, const Vec3& /*d*/, float* pdf_pos, float* pdf_dir) const {
+        *pdf_pos = *pdf_dir = 0.f;
+    }
+    /// Unit normal of the emitting side at a point on the light (zero for a point light).
+    virtual Vec3 emitter_normal(const Vec3& /*p*/) const { return Vec3(0.f); }
 
     bool is_delta() const { return m_is_delta; }
     bool is_infinite() const { return m_is_infinite; }

@@ -14,6 +14,9 @@ public:
     float pdf_li(const Vec3& p, const Vec3& wi) const override;
     bool intersect(const Ray& ray, float* t, Spectrum* le) const override;
     float power() const override;
+    LightLeSample sample_le(const Vec2& u_pos, const Vec2& u_dir) const override;
+    void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
+    Vec3 emitter_normal(const Vec3& p) const override;
 
 private:
     bool hit_sphere(const Vec3& o, const Vec3& d, float* t) const;

@@ -19,6 +19,9 @@ public:
     /// Pdf of sampling point q (known to be on the triangle) from p, per solid angle.
     float pdf_li_point(const Vec3& p, const Vec3& q) const;
     float power() const override;
+    LightLeSample sample_le(const Vec2& u_pos, const Vec2& u_dir) const override;
+    void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
+    Vec3 emitter_normal(const Vec3& p) const override;
     float area() const { return m_area; }
 
 private:

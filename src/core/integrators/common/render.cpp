@@ -2,6 +2,7 @@
 
 #include "cameras/camera.h"
 #include "film/film.h"
+#include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/mlt/pssmlt_integrator.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng.h"
@@ -33,6 +34,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     settings.validate();
     if (!scene.has_camera()) throw SceneError("render: the scene has no camera (call set_camera)");
     if (scene.dirty()) scene.commit();
+    if (settings.integrator == "bdpt") return render_bdpt(scene, settings, progress);
     if (settings.integrator == "pssmlt") return render_pssmlt(scene, settings, progress);
 
     const int W = settings.width, H = settings.height;

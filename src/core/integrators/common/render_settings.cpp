@@ -14,9 +14,9 @@ void RenderSettings::validate() const {
     if (max_depth < 1)
         CMLT_THROW(SettingsError, "RenderSettings.max_depth must be >= 1, got " << max_depth);
     if (threads < 0) CMLT_THROW(SettingsError, "RenderSettings.threads must be >= 0, got " << threads);
-    if (integrator != "pt" && integrator != "pssmlt")
+    if (integrator != "pt" && integrator != "bdpt" && integrator != "pssmlt")
         CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '"
-                                      << integrator << "' (available: 'pt', 'pssmlt')");
+                                      << integrator << "' (available: 'pt', 'bdpt', 'pssmlt')");
     if (!(sigma > 0.0 && sigma <= 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.sigma must be in (0, 1], got " << sigma);
     if (!(large_step_probability >= 0.0 && large_step_probability <= 1.0))

@@ -15,9 +15,9 @@ struct RenderSettings {
     int max_depth = 64;            ///< max scattering events (pbrt): 1 = direct lighting, >= 1
     uint64_t seed = 0;             ///< RNG seed; same seed -> same image at any thread count
     int threads = 0;               ///< worker threads, 0 = all cores, >= 0
-    std::string integrator = "pt"; ///< "pt" (path tracing with NEE + MIS), "pssmlt" (primary-
-                                   ///< sample-space MLT over PT's sampling; `spp` = mutations
-                                   ///< per pixel, bootstrap included in that budget)
+    std::string integrator = "pt"; ///< "pt" (path tracing with NEE + MIS), "bdpt" (bidirectional),
+                                   ///< "pssmlt" (primary-sample-space MLT over PT's sampling;
+                                   ///< `spp` = mutations per pixel, bootstrap included)
 
     // Metropolis (pssmlt). Defaults: pbrt-v4's published MLT defaults (shared/NOTES.md).
     double sigma = 0.01;                  ///< small-step Gaussian σ per primary sample, (0, 1]
@@ -55,6 +55,7 @@ struct RenderStats {
     uint64_t camera_rays = 0;
     uint64_t shadow_rays = 0;
     uint64_t rays = 0;          ///< every BVH query (camera + bounce + shadow)
+    uint64_t splats = 0;        ///< bdpt: light-tracing (t = 1) contributions splatted
     double rays_per_s = 0;
     uint64_t nan_samples = 0;   ///< non-finite samples dropped by the film
     int first_nan_x = -1, first_nan_y = -1;

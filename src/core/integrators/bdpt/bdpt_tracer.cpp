@@ -1,0 +1,685 @@
+#include "integrators/bdpt/bdpt_tracer.h"
+
+#include "materials/bsdf.h"
+#include "materials/preview_surface.h"
+#include "math/frame.h"
+#include "math/safe_math.h"
+#include "sampling/warp.h"
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cmlt {
+
+namespace {
+
+// The BSDF's transport mode argument, where the Bsdf in this build takes one (it
+// matters for refraction only); otherwise the symmetric two-argument call.
+template <class B>
+auto bsdf_eval(const B& b, const Vec3& wo, const Vec3& wi, TransportMode m, int)
+    -> decltype(b.eval(wo, wi, m)) {
+    return b.eval(wo, wi, m);
+}
+template <class B>
+Spectrum bsdf_eval(const B& b, const Vec3& wo, const Vec3& wi, TransportMode, long) {
+    return b.eval(wo, wi);
+}
+template <class B>
+auto bsdf_sample(const B& b, const Vec3& wo, const Vec2& u2, float u1, TransportMode m, int)
+    -> decltype(b.sample(wo, u2, u1, m)) {
+    return b.sample(wo, u2, u1, m);
+}
+template <class B>
+BsdfSample bsdf_sample(const B& b, const Vec3& wo, const Vec2& u2, float u1, TransportMode, long) {
+    return b.sample(wo, u2, u1);
+}
+
+inline TransportMode mode_of(bool importance) {
+    return importance ? TransportMode::Importance : TransportMode::Radiance;
+}
+
+inline float remap0(float f) { return f != 0.f ? f : 1.f; }
+
+/// Origin of a ray leaving vertex v in direction w (offset off surfaces).
+Vec3 leave_point(const PathVertex& v, const Vec3& w) {
+    if (v.type == VertexType::surface) return offset_ray_origin(v.p, v.si.ng, v.si.error_scale, w);
+    if (v.on_surface()) return offset_ray_origin(v.p, v.ng, v.error_scale, w);
+    return v.p;
+}
+
+}  // namespace
+
+// ---- camera importance --------------------------------------------------------------------
+
+CameraImportance::CameraImportance(const Camera& camera, int width, int height)
+    : m_camera(camera), m_width(width), m_height(height) {
+    const CameraDesc& d = camera.desc();
+    m_perspective = d.projection == CameraDesc::Projection::perspective;
+    m_pos = camera.position();
+    m_fwd = normalize(d.transform.transform_vector(Vec3(0.f, 0.f, -1.f)));
+    // Image window at distance 1 (see cameras/camera.h for the framing).
+    float fl = d.focal_length;
+    float ww = d.horizontal_aperture / fl;
+    float wh = d.horizontal_aperture * float(height) / float(width) / fl;
+    m_area = ww * wh;
+}
+
+float CameraImportance::pdf_dir(const Vec3& w) const {
+    if (!m_perspective) return 1.f;  // Dirac direction: cancels in every weight (no t = 1)
+    float c = dot(w, m_fwd);
+    if (!(c > 0.f)) return 0.f;
+    Vec2 pr;
+    if (!m_camera.world_to_raster(m_pos + w, &pr)) return 0.f;
+    if (!(pr.x >= 0.f && pr.x < float(m_width) && pr.y >= 0.f && pr.y < float(m_height))) return 0.f;
+    return 1.f / (m_area * c * c * c);
+}
+
+float CameraImportance::we(const Vec3& w, Vec2* p_raster) const {
+    if (!m_perspective) return 0.f;
+    float c = dot(w, m_fwd);
+    if (!(c > 0.f)) return 0.f;
+    if (!m_camera.world_to_raster(m_pos + w, p_raster)) return 0.f;
+    if (!(p_raster->x >= 0.f && p_raster->x < float(m_width) && p_raster->y >= 0.f &&
+          p_raster->y < float(m_height)))
+        return 0.f;
+    float c2 = c * c;
+    return 1.f / (m_area * c2 * c2);
+}
+
+// ---- tracer ---------------------------------------------------------------------------------
+
+BdptTracer::BdptTracer(const Scene& scene, const Camera& camera, int width, int height,
+                       int max_depth)
+    : m_scene(scene), m_importance(camera, width, height), m_width(width), m_height(height),
+      m_max_depth(max_depth) {}
+
+float BdptTracer::choose_strategy(int depth, float u, int* s, int* t) {
+    if (depth == 0) {
+        *s = 0;
+        *t = 2;
+        return 1.f;
+    }
+    int n = depth + 2;
+    int k = std::min(int(u * float(n)), n - 1);
+    // Skip (1, 1) (only exists at depth 0).
+    *s = k;
+    *t = n - k;
+    return 1.f / float(n);
+}
+
+bool BdptTracer::is_delta_light(const PathVertex& v) const {
+    return v.light_index >= 0 && m_scene.light(size_t(v.light_index)).is_delta();
+}
+
+bool BdptTracer::connectible(const PathVertex& v) const {
+    switch (v.type) {
+        case VertexType::surface: return v.bsdf && v.bsdf->has_non_delta();
+        case VertexType::camera: return m_importance.connectable();
+        case VertexType::light: return true;
+    }
+    return false;
+}
+
+float BdptTracer::convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const {
+    if (to.infinite) return pdf_sa;
+    Vec3 w = to.p - from.p;
+    float d2 = length_squared(w);
+    if (!(d2 > 0.f)) return 0.f;
+    float pdf = pdf_sa / d2;
+    if (to.on_surface()) pdf *= std::fabs(dot(to.ng, w)) / std::sqrt(d2);
+    return pdf;
+}
+
+float BdptTracer::pdf_light(const PathVertex& v, const PathVertex& next) const {
+    if (v.infinite) {
+        float r = m_scene.bounds_radius();
+        float pdf = 1.f / (k_pi * r * r);
+        if (next.on_surface()) pdf *= std::fabs(dot(next.ng, v.w_inf));
+        return pdf;
+    }
+    if (v.light_index < 0) return 0.f;
+    Vec3 w = next.p - v.p;
+    float d2 = length_squared(w);
+    if (!(d2 > 0.f)) return 0.f;
+    w = w / std::sqrt(d2);
+    float pdf_pos, pdf_dir;
+    m_scene.light(size_t(v.light_index)).pdf_le(v.p, w, &pdf_pos, &pdf_dir);
+    float pdf = pdf_dir / d2;
+    if (next.on_surface()) pdf *= std::fabs(dot(next.ng, w));
+    return pdf;
+}
+
+float BdptTracer::pdf_light_origin(const PathVertex& v, const PathVertex& next) const {
+    if (v.light_index < 0) return 0.f;
+    const Light& light = m_scene.light(size_t(v.light_index));
+    float pmf = m_scene.light_pmf(size_t(v.light_index));
+    if (v.infinite) {
+        if (light.is_delta()) return pmf;  // Dirac direction; only s >= 1 can sample it
+        return pmf * light.pdf_li(next.p, -v.w_inf);
+    }
+    Vec3 w = normalize(next.p - v.p);
+    float pdf_pos, pdf_dir;
+    light.pdf_le(v.p, w, &pdf_pos, &pdf_dir);
+    return pmf * pdf_pos;
+}
+
+float BdptTracer::pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const {
+    if (v.type == VertexType::light) return pdf_light(v, next);
+    Vec3 wn = next.infinite ? -next.w_inf : next.p - v.p;
+    float ln = length(wn);
+    if (!(ln > 0.f)) return 0.f;
+    wn = wn / ln;
+    float pdf_sa = 0.f;
+    if (v.type == VertexType::camera) {
+        pdf_sa = m_importance.pdf_dir(wn);
+    } else {
+        if (!prev || !v.bsdf) return 0.f;
+        Vec3 wp = prev->infinite ? -prev->w_inf : prev->p - v.p;
+        float lp = length(wp);
+        if (!(lp > 0.f)) return 0.f;
+        pdf_sa = v.bsdf->pdf(wp / lp, wn);
+    }
+    return convert_density(pdf_sa, v, next);
+}
+
+Spectrum BdptTracer::scatter(const PathVertex& v, const Vec3& w, bool importance) const {
+    if (v.type != VertexType::surface || !v.bsdf) return Spectrum(0.f);
+    const Bsdf& b = *v.bsdf;
+    Spectrum f = bsdf_eval(b, v.wo, w, mode_of(importance), 0);
+    if (is_black(f)) return f;
+    if (!importance) return f * std::fabs(dot(v.ns, w));
+    // Adjoint BSDF with the shading-normal correction, times the geometric cosine.
+    float den = std::fabs(dot(v.wo, v.si.ng));
+    if (!(den > 0.f)) return Spectrum(0.f);
+    return f * (std::fabs(dot(v.wo, v.ns)) * std::fabs(dot(w, v.si.ng)) / den);
+}
+
+bool BdptTracer::visible(const PathVertex& a, const PathVertex& b, BdptCounters& c) const {
+    c.shadow_rays += 1;
+    c.rays += 1;
+    if (b.infinite) {
+        Vec3 w = -b.w_inf;
+        return !m_scene.occluded(Ray(leave_point(a, w), w, 0.f, k_infinity));
+    }
+    Vec3 pa = leave_point(a, b.p - a.p);
+    Vec3 pb = leave_point(b, a.p - b.p);
+    Vec3 d = pb - pa;
+    return !m_scene.occluded(Ray(pa, d, 0.f, 1.f - k_shadow_epsilon));
+}
+
+// ---- subpaths -------------------------------------------------------------------------------
+
+int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
+                            int max_vertices, bool importance, bool roulette, PathVertex* path,
+                            int start, BdptCounters& c) const {
+    const Scene& scene = m_scene;
+    int n = start;  // vertices so far (path[n - 1] is the previous one)
+    float pdf_fwd_sa = pdf_dir;
+    Spectrum rr_beta(1.f);  // scattering throughput alone (roulette without light units)
+    // MIS densities are recomputed from the vertex positions (not the offset ray
+    // directions), so that they are the same functions of the path whichever strategy
+    // sampled it: `edge` is called once the next vertex along direction w is known.
+    auto edge = [&](const Vec3& w) {
+        PathVertex& prev = path[n - 1];
+        if (n - 1 < start || prev.type != VertexType::surface || prev.delta || !prev.bsdf) return;
+        pdf_fwd_sa = prev.bsdf->pdf(prev.wo, w);
+        path[n - 2].pdf_rev = convert_density(prev.bsdf->pdf(w, prev.wo), prev, path[n - 2]);
+    };
+    while (n < max_vertices) {
+        SceneHit hit = scene.intersect(ray);
+        c.rays += 1;
+        PathVertex& prev = path[n - 1];
+        if (hit.kind == SceneHit::Kind::miss) {
+            // Escaped: a direction vertex on the infinite lights (camera subpaths only).
+            if (!importance && !scene.infinite_lights().empty()) {
+                edge(normalize(ray.d));
+                PathVertex& v = path[n];
+                v = PathVertex();
+                v.type = VertexType::light;
+                v.infinite = true;
+                v.w_inf = -normalize(ray.d);
+                v.beta = beta;
+                v.pdf_fwd = pdf_fwd_sa;
+                ++n;
+            }
+            break;
+        }
+        if (hit.kind == SceneHit::Kind::light) {
+            // Analytic emitters do not scatter; light subpaths end here.
+            if (!importance) {
+                Vec3 p_hit = ray.at(hit.t);
+                Vec3 w = p_hit - prev.p;
+                edge(length_squared(w) > 0.f ? normalize(w) : normalize(ray.d));
+                PathVertex& v = path[n];
+                v = PathVertex();
+                v.type = VertexType::light;
+                v.light_index = int32_t(hit.light_index);
+                v.p = p_hit;
+                v.ng = v.ns = scene.light(hit.light_index).emitter_normal(v.p);
+                v.wo = -normalize(ray.d);
+                v.error_scale = point_error_scale(v.p);
+                v.le = hit.le;
+                v.beta = beta;
+                v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v);
+                ++n;
+            }
+            break;
+        }
+        Vec3 w_in = hit.si.p - prev.p;
+        if (prev.infinite || !(length_squared(w_in) > 0.f)) w_in = ray.d;
+        w_in = normalize(w_in);
+        edge(w_in);
+        PathVertex& v = path[n];
+        v = PathVertex();
+        v.type = VertexType::surface;
+        v.si = hit.si;
+        v.p = hit.si.p;
+        v.ng = hit.si.ng;
+        v.wo = -w_in;
+        v.si.wo = v.wo;
+        v.error_scale = hit.si.error_scale;
+        const Material& mat = scene.material(hit.si.material_id);
+        v.bsdf.emplace(Bsdf::from_material(mat, hit.si.ns, hit.si.ng));
+        v.ns = v.bsdf->shading_normal();
+        v.beta = beta;
+        v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v);
+        if (!importance && mat.is_emissive()) {
+            v.le = mat.emission;
+            v.light_index = scene.triangle_light_index(hit.si.instance_id, hit.si.prim_id);
+        }
+        ++n;
+        if (n >= max_vertices) break;
+
+        // Sample the next direction.
+        Vec2 u2 = sampler.next2d();
+        float u1 = sampler.next1d();
+        float u_rr = sampler.next1d();
+        BsdfSample bs = bsdf_sample(*v.bsdf, v.wo, u2, u1, mode_of(importance), 0);
+        if (!bs.valid()) break;
+        pdf_fwd_sa = bs.pdf;  // replaced by edge() from positions unless Dirac
+        if (bs.is_delta) {
+            v.delta = true;
+            pdf_fwd_sa = 0.f;
+            prev.pdf_rev = 0.f;
+        }
+        Spectrum factor;
+        if (!importance) {
+            factor = bs.f * (std::fabs(dot(bs.wi, v.ns)) / bs.pdf);
+        } else {
+            float den = std::fabs(dot(v.wo, v.si.ng)) * bs.pdf;
+            if (!(den > 0.f)) break;
+            factor = bs.f * (std::fabs(dot(v.wo, v.ns)) * std::fabs(dot(bs.wi, v.si.ng)) / den);
+        }
+        beta *= factor;
+        rr_beta *= factor;
+        if (is_black(beta) || !is_finite(beta)) break;
+
+        // Russian roulette on the scattering throughput.
+        if (roulette && n - start >= k_rr_start_depth) {
+            float q = std::min(0.95f, max_component(rr_beta));
+            if (!(u_rr < q)) break;
+            beta /= q;
+            rr_beta /= q;
+        }
+        ray = v.si.spawn_ray(bs.wi);
+    }
+    return n;
+}
+
+int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler,
+                                        int max_vertices, bool roulette, PathVertex* path,
+                                        BdptCounters& c) const {
+    if (max_vertices < 1) return 0;
+    const Camera& cam = m_importance.camera();
+    Ray ray = cam.generate_ray(p_raster);
+    PathVertex& v = path[0];
+    v = PathVertex();
+    v.type = VertexType::camera;
+    v.p = ray.o;
+    v.beta = Spectrum(1.f);
+    v.pdf_fwd = 1.f;
+    v.delta = !m_importance.connectable();
+    if (max_vertices == 1) return 1;
+    c.camera_rays += 1;
+    float pdf_dir = m_importance.pdf_dir(ray.d);
+    if (!(pdf_dir > 0.f)) pdf_dir = 1.f;  // edge of the image (float rounding)
+    return random_walk(ray, Spectrum(1.f), pdf_dir, sampler, max_vertices, false, roulette, path,
+                       1, c);
+}
+
+int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
+                                       PathVertex* path, BdptCounters& c) const {
+    const Scene& scene = m_scene;
+    if (max_vertices < 1 || scene.light_count() == 0) return 0;
+    float u_light = sampler.next1d();
+    Vec2 u_pos = sampler.next2d();
+    Vec2 u_dir = sampler.next2d();
+    float pmf = 0.f;
+    size_t li = scene.sample_light(u_light, &pmf);
+    if (!(pmf > 0.f)) return 0;
+    const Light& light = scene.light(li);
+    PathVertex& v = path[0];
+    v = PathVertex();
+    v.type = VertexType::light;
+    v.light_index = int32_t(li);
+    Ray ray;
+    Spectrum beta;
+    float pdf_dir = 0.f, disk_pdf = 0.f;
+    if (light.is_infinite()) {
+        // Direction from the light's own sampling, origin on a disk covering the scene.
+        Vec3 center = scene.bounds_center();
+        float r = scene.bounds_radius();
+        LightSample ls = light.sample_li(center, u_dir);
+        if (!ls.valid()) return 0;
+        Vec3 d = -ls.wi;
+        Frame f(d);
+        Vec2 dk = square_to_uniform_disk_concentric(u_pos);
+        Vec3 o = center + (f.s * dk.x + f.t * dk.y - d) * r;
+        disk_pdf = 1.f / (k_pi * r * r);
+        v.infinite = true;
+        v.w_inf = d;
+        v.pdf_fwd = pmf * ls.pdf;
+        v.beta = ls.li;
+        pdf_dir = ls.pdf;
+        beta = ls.li / (pmf * disk_pdf * ls.pdf);
+        ray = Ray(o, d);
+    } else {
+        LightLeSample les = light.sample_le(u_pos, u_dir);
+        if (!les.valid()) return 0;
+        v.p = les.p;
+        v.ng = v.ns = les.n;
+        v.error_scale = les.error_scale;
+        v.pdf_fwd = pmf * les.pdf_pos;
+        v.beta = les.le;
+        float cos = is_black(les.n) ? 1.f : std::fabs(dot(les.n, les.d));
+        beta = les.le * (cos / (pmf * les.pdf_pos * les.pdf_dir));
+        pdf_dir = les.pdf_dir;
+        ray = Ray(leave_point(v, les.d), les.d);
+    }
+    if (max_vertices == 1) return 1;
+    if (is_black(beta) || !is_finite(beta)) return 1;
+    int n = random_walk(ray, beta, pdf_dir, sampler, max_vertices, true, roulette, path, 1, c);
+    if (!v.infinite && n > 1) path[1].pdf_fwd = pdf_light(v, path[1]);  // from positions
+    if (v.infinite && n > 1) {
+        // The first surface vertex's density is the disk's (parallel rays).
+        path[1].pdf_fwd = disk_pdf;
+        if (path[1].on_surface()) path[1].pdf_fwd *= std::fabs(dot(path[1].ng, v.w_inf));
+    }
+    return n;
+}
+
+// ---- connections and MIS -------------------------------------------------------------------
+
+float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,
+                             const PathVertex& sampled, const PathVertex* pt_override) const {
+    const int n = s + t;
+    if (n == 2) return 1.f;
+    // Path vertices x_0 (light end) .. x_{n-1} (camera), with their light-side (pl) and
+    // camera-side (pe) area densities; the four vertices next to the connection get the
+    // densities this connection implies.
+    constexpr int k_max = 1024 + 4;
+    const PathVertex* x[k_max];
+    float pl[k_max], pe[k_max];
+    bool delta[k_max];
+    if (n > k_max) return 0.f;
+    for (int i = 0; i < n; ++i) {
+        if (i < s) {
+            x[i] = (s == 1 && i == 0) ? &sampled : &light[i];
+            pl[i] = x[i]->pdf_fwd;
+            pe[i] = x[i]->pdf_rev;
+        } else {
+            int j = n - 1 - i;
+            x[i] = (t == 1 && j == 0) ? &sampled : &camera[j];
+            if (pt_override && j == t - 1) x[i] = pt_override;
+            pe[i] = x[i]->pdf_fwd;
+            pl[i] = x[i]->pdf_rev;
+        }
+        delta[i] = x[i]->delta;
+    }
+    const PathVertex* qs = s > 0 ? x[s - 1] : nullptr;
+    const PathVertex* qs_minus = s > 1 ? x[s - 2] : nullptr;
+    const PathVertex* pt = x[s];
+    const PathVertex* pt_minus = t > 1 ? x[s + 1] : nullptr;
+    // pt: light-side density
+    pl[s] = s > 0 ? pdf(qs_minus, *qs, *pt) : pdf_light_origin(*pt, *pt_minus);
+    if (pt_minus) pl[s + 1] = s > 0 ? pdf(qs, *pt, *pt_minus) : pdf_light(*pt, *pt_minus);
+    if (qs) pe[s - 1] = pdf(pt_minus, *pt, *qs);
+    if (qs_minus) pe[s - 2] = pdf(pt, *qs, *qs_minus);
+    delta[s] = false;
+    if (s > 0) delta[s - 1] = false;
+
+    double sum = 0.0, ri = 1.0;
+    // Move the connection toward the camera: strategies s' = s+1 .. n-1.
+    for (int i = s; i <= n - 2; ++i) {
+        ri *= double(remap0(pl[i])) / double(remap0(pe[i]));
+        if (!delta[i] && !delta[i + 1]) sum += ri * ri;
+    }
+    // Toward the light: s' = s-1 .. 0.
+    ri = 1.0;
+    for (int i = s - 1; i >= 0; --i) {
+        ri *= double(remap0(pe[i])) / double(remap0(pl[i]));
+        bool delta_prev = i > 0 ? delta[i - 1] : is_delta_light(*x[0]);
+        if (!delta[i] && !delta_prev) sum += ri * ri;
+    }
+    double w = 1.0 / (1.0 + sum);
+    return std::isfinite(w) ? float(w) : 0.f;
+}
+
+Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* camera, int t,
+                             BdptSampler& sampler, Vec2* p_raster, bool mis, BdptCounters& c,
+                             PathVertex* sampled_out) const {
+    const Scene& scene = m_scene;
+    Spectrum L(0.f);
+    PathVertex sampled;
+    if (t > 1 && s != 0 && camera[t - 1].type == VertexType::light) return L;
+
+    if (s == 0) {
+        const PathVertex& pt = camera[t - 1];
+        if (pt.infinite) {
+            // Each infinite light is its own emitter with its own weight.
+            Spectrum sum(0.f);
+            PathVertex tmp = pt;
+            for (uint32_t li : scene.infinite_lights()) {
+                const Light& l = scene.light(li);
+                Spectrum le = l.le_escape(-pt.w_inf);
+                if (is_black(le)) continue;
+                tmp.light_index = int32_t(li);
+                Spectrum Ll = pt.beta * le;
+                float w = mis ? mis_weight(light, 0, camera, t, sampled, &tmp) : 1.f;
+                sum += Ll * w;
+            }
+            return sum;
+        }
+        if (pt.light_index < 0 || is_black(pt.le)) return L;
+        L = pt.beta * pt.le;
+    } else if (t == 1) {
+        const PathVertex& qs = light[s - 1];
+        if (!connectible(qs) || !m_importance.connectable()) return L;
+        Vec3 w = m_importance.position() - qs.p;
+        float d2 = length_squared(w);
+        if (!(d2 > 0.f)) return L;
+        w = w / std::sqrt(d2);
+        Vec2 pr;
+        float we = m_importance.we(-w, &pr);
+        if (!(we > 0.f)) return L;
+        sampled = PathVertex();
+        sampled.type = VertexType::camera;
+        sampled.p = m_importance.position();
+        sampled.beta = Spectrum(1.f);
+        float cos_cam = dot(-w, normalize(m_importance.camera().desc().transform.transform_vector(
+                                    Vec3(0.f, 0.f, -1.f))));
+        L = qs.beta * scatter(qs, w, true) * (we * cos_cam / d2);
+        if (is_black(L)) return Spectrum(0.f);
+        if (!visible(qs, sampled, c)) return Spectrum(0.f);
+        *p_raster = pr;
+    } else if (s == 1) {
+        const PathVertex& pt = camera[t - 1];
+        if (!connectible(pt) || scene.light_count() == 0) return L;
+        float u_light = sampler.next1d();
+        Vec2 u_pos = sampler.next2d();
+        float pmf = 0.f;
+        size_t li = scene.sample_light(u_light, &pmf);
+        const Light& l = scene.light(li);
+        LightSample ls = l.sample_li(pt.p, u_pos);
+        if (!ls.valid() || !(pmf > 0.f)) return L;
+        sampled = PathVertex();
+        sampled.type = VertexType::light;
+        sampled.light_index = int32_t(li);
+        if (std::isinf(ls.dist)) {
+            sampled.infinite = true;
+            sampled.w_inf = -ls.wi;
+        } else {
+            sampled.p = ls.p_light;
+            sampled.ng = sampled.ns =
+                is_black(ls.n_light) ? l.emitter_normal(ls.p_light) : ls.n_light;
+            sampled.error_scale =
+                ls.error_scale > 0.f ? ls.error_scale : point_error_scale(ls.p_light);
+        }
+        sampled.beta = ls.li / (pmf * ls.pdf);
+        sampled.pdf_fwd = pdf_light_origin(sampled, pt);
+        L = pt.beta * scatter(pt, ls.wi, false) * sampled.beta;
+        if (is_black(L)) return Spectrum(0.f);
+        if (!visible(pt, sampled, c)) return Spectrum(0.f);
+    } else {
+        const PathVertex& qs = light[s - 1];
+        const PathVertex& pt = camera[t - 1];
+        if (!connectible(qs) || !connectible(pt)) return L;
+        Vec3 w = pt.p - qs.p;
+        float d2 = length_squared(w);
+        if (!(d2 > 0.f)) return L;
+        w = w / std::sqrt(d2);
+        L = qs.beta * scatter(qs, w, true) * scatter(pt, -w, false) * pt.beta * (1.f / d2);
+        if (is_black(L)) return Spectrum(0.f);
+        if (!visible(qs, pt, c)) return Spectrum(0.f);
+    }
+    if (sampled_out) *sampled_out = sampled;
+    if (is_black(L)) return L;
+    float w = mis ? mis_weight(light, s, camera, t, sampled) : 1.f;
+    return L * w;
+}
+
+// ---- estimators -----------------------------------------------------------------------------
+
+Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspace& ws,
+                        BdptCounters& c) const {
+    const int max_cam = m_max_depth + 2, max_light = m_max_depth + 1;
+    if (int(ws.camera.size()) < max_cam) ws.camera.resize(size_t(max_cam));
+    if (int(ws.light.size()) < max_light) ws.light.resize(size_t(max_light));
+    c.samples += 1;
+    sampler.start_stream(BdptSampler::k_camera);
+    int nc = generate_camera_subpath(p_raster, sampler, max_cam, true, ws.camera.data(), c);
+    sampler.start_stream(BdptSampler::k_light);
+    int nl = generate_light_subpath(sampler, max_light, true, ws.light.data(), c);
+    sampler.start_stream(BdptSampler::k_connection);
+    Spectrum L(0.f);
+    for (int t = 1; t <= nc; ++t) {
+        for (int s = 0; s <= nl; ++s) {
+            int depth = s + t - 2;
+            if ((s == 1 && t == 1) || depth < 0 || depth > m_max_depth) continue;
+            Vec2 pr;
+            Spectrum lp = connect(ws.light.data(), s, ws.camera.data(), t, sampler, &pr, true, c);
+            if (is_black(lp)) continue;
+            if (t == 1) {
+                ws.splats.push_back({pr, lp});
+                c.splats += 1;
+            } else {
+                L += lp;
+            }
+        }
+    }
+    return L;
+}
+
+static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int depth, int s, int t,
+                             BdptSampler& sampler, BdptWorkspace& ws, Vec2* p_raster,
+                             bool mis, BdptCounters& c) {
+    if (t < 1 || s < 0 || s + t != depth + 2 || (s == 1 && t == 1)) return Spectrum(0.f);
+    if (int(ws.camera.size()) < t) ws.camera.resize(size_t(t));
+    if (int(ws.light.size()) < std::max(s, 1)) ws.light.resize(size_t(std::max(s, 1)));
+    c.samples += 1;
+    sampler.start_stream(BdptSampler::k_camera);
+    Vec2 u = sampler.next2d();
+    *p_raster = Vec2(u.x * float(width), u.y * float(height));
+    if (tr.generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c) != t)
+        return Spectrum(0.f);
+    sampler.start_stream(BdptSampler::k_light);
+    if (s > 0 && tr.generate_light_subpath(sampler, s, false, ws.light.data(), c) != s)
+        return Spectrum(0.f);
+    sampler.start_stream(BdptSampler::k_connection);
+    return tr.connect(ws.light.data(), s, ws.camera.data(), t, sampler, p_raster, mis, c);
+}
+
+Spectrum BdptTracer::evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
+                                       BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const {
+    return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, true, c);
+}
+
+Spectrum BdptTracer::evaluate_strategy_unweighted(int depth, int s, int t, BdptSampler& sampler,
+                                                  BdptWorkspace& ws, Vec2* p_raster,
+                                                  BdptCounters& c) const {
+    return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, false, c);
+}
+
+std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
+                                                const PathVertex* camera, int t,
+                                                const PathVertex& sampled,
+                                                float* weight_here) const {
+    const int n = s + t;
+    if (weight_here) *weight_here = mis_weight(light, s, camera, t, sampled);
+    // The whole path, light end first.
+    std::vector<PathVertex> x(static_cast<size_t>(n));
+    for (int i = 0; i < s; ++i) x[size_t(i)] = (s == 1) ? sampled : light[i];
+    for (int j = 0; j < t; ++j) x[size_t(n - 1 - j)] = (t == 1 && j == 0) ? sampled : camera[j];
+    // x_0 as a light vertex (a camera subpath may have reached it as an emissive surface).
+    if (x[0].type == VertexType::surface && x[0].light_index >= 0) {
+        PathVertex lv;
+        lv.type = VertexType::light;
+        lv.light_index = x[0].light_index;
+        lv.p = x[0].p;
+        lv.ng = lv.ns = m_scene.light(size_t(lv.light_index)).emitter_normal(lv.p);
+        lv.error_scale = x[0].error_scale;
+        x[0] = lv;
+    }
+    std::vector<float> weights(static_cast<size_t>(n), 0.f);
+    std::vector<PathVertex> L(static_cast<size_t>(n)), C(static_cast<size_t>(n));
+    for (int sp = 0; sp < n; ++sp) {
+        const int tp = n - sp;
+        // Can strategy (sp, tp) make this path?
+        bool ok = !(sp == 1 && tp == 1);
+        if (sp == 0) {
+            ok = ok && x[0].type == VertexType::light && !is_delta_light(x[0]);
+        } else {
+            ok = ok && !x[size_t(sp - 1)].delta && !x[size_t(sp)].delta &&
+                 connectible(x[size_t(sp - 1)]) && connectible(x[size_t(sp)]);
+        }
+        if (!ok) continue;
+        // Light subpath x_0 .. x_{sp-1} with the densities its random walk would store.
+        for (int i = 0; i < sp; ++i) {
+            PathVertex v = x[size_t(i)];
+            if (i == 0) v.pdf_fwd = pdf_light_origin(v, x[1]);
+            else if (i == 1) v.pdf_fwd = pdf_light(x[0], v);
+            else v.pdf_fwd = pdf(&x[size_t(i - 2)], x[size_t(i - 1)], v);
+            v.pdf_rev = (i + 2 < n) ? pdf(&x[size_t(i + 2)], x[size_t(i + 1)], v)
+                        : (i + 1 < n ? pdf(nullptr, x[size_t(i + 1)], v) : 0.f);
+            L[size_t(i)] = v;
+        }
+        // Camera subpath x_{n-1} .. x_{sp}.
+        for (int j = 0; j < tp; ++j) {
+            int i = n - 1 - j;
+            PathVertex v = x[size_t(i)];
+            if (j == 0) v.pdf_fwd = 1.f;
+            else if (j == 1) v.pdf_fwd = pdf(nullptr, x[size_t(n - 1)], v);
+            else v.pdf_fwd = pdf(&x[size_t(i + 2)], x[size_t(i + 1)], v);
+            if (i == 0) v.pdf_rev = 0.f;
+            else if (i == 1) v.pdf_rev = pdf_light(x[0], v);
+            else v.pdf_rev = pdf(&x[size_t(i - 2)], x[size_t(i - 1)], v);
+            C[size_t(j)] = v;
+        }
+        const PathVertex& samp = sp == 1 ? L[0] : (tp == 1 ? C[0] : sampled);
+        weights[size_t(sp)] = mis_weight(L.data(), sp, C.data(), tp, samp);
+    }
+    return weights;
+}
+
+}  // namespace cmlt

@@ -1,0 +1,167 @@
+#pragma once
+/// \file Bidirectional path tracing (Veach 1997 ch. 10; structure after pbrt-v4's BDPT).
+///
+/// Estimates pixel measurements with every connection strategy (s, t): s light-subpath
+/// vertices, t camera-subpath vertices, path depth s + t - 2 scattering events
+/// (`max_depth` as in the path tracer: 1 = direct lighting). Strategies:
+///  * s = 0: the camera subpath hits an emitter (area / mesh / infinite lights);
+///  * s = 1: the last camera vertex samples a light (as next-event estimation);
+///  * t = 1: a light-subpath vertex connects to the pinhole camera and is splatted at
+///    its raster position (light tracing), with the camera importance
+///    We = 1 / (A cos^4) (A: image-plane area at distance 1);
+///  * otherwise: connect the two subpath ends by a shadow ray.
+/// (s, t) = (1, 1) is not used (lights seen directly come from (0, 2) with weight 1).
+///
+/// MIS: power heuristic over all strategies that can sample the path, computed with the
+/// ratio walk over per-vertex forward / reverse area densities (pbrt-v4 MISWeight).
+/// A connection through a Dirac vertex (specular lobe, point or delta-distant light for
+/// s = 0) is impossible: its strategy gets weight 0 and contributes nothing. The camera
+/// direction density is that of the whole image, 1 / (A cos^3), which with one light
+/// path per pixel sample gives the right sample-count ratio between t = 1 and t >= 2.
+///
+/// Light subpaths carry importance: at each light-subpath vertex the adjoint BSDF gets
+/// the shading-normal correction |wo.ns| |wi.ng| / (|wo.ng| |wi.ns|) (Veach 1997 §5.3).
+///
+/// Densities of a light's first vertex: choose the light by the scene's power pmf, then
+/// its emission position (pmf * pdf_pos) -- the s = 1 strategy is weighted with that
+/// density too (pbrt's convention), though it samples with sample_li: unbiased either
+/// way, only the weights differ from the optimal. Infinite lights emit from a disk of
+/// the scene's bounding radius, perpendicular to a direction from sample_li.
+///
+/// Random numbers: stream 0 (camera): film position (2D), then per camera vertex BSDF
+/// direction (2D), lobe, roulette. Stream 1 (light): light choice, emission position
+/// (2D), emission direction (2D), then per vertex as the camera. Stream 2
+/// (connections): per s = 1 strategy, light choice and position (2D).
+#include "cameras/camera.h"
+#include "integrators/bdpt/path_sampler.h"
+#include "integrators/bdpt/path_vertex.h"
+
+#include <cstdint>
+#include <vector>
+
+namespace cmlt {
+
+class Scene;
+
+struct BdptCounters {
+    uint64_t camera_rays = 0;
+    uint64_t shadow_rays = 0;
+    uint64_t rays = 0;
+    uint64_t samples = 0;
+    uint64_t splats = 0;
+    uint64_t bad_splats = 0;  ///< non-finite t = 1 contributions (dropped)
+};
+
+/// A light-tracing contribution (t = 1) at a raster position. Summed over one light path
+/// per pixel, it is that pass's estimate of the t = 1 part of each pixel.
+struct BdptSplat {
+    Vec2 p_raster;
+    Spectrum L;
+};
+
+/// Per-thread scratch memory (vertex arrays), reused across samples.
+struct BdptWorkspace {
+    std::vector<PathVertex> camera, light;
+    std::vector<BdptSplat> splats;
+};
+
+/// Pinhole camera importance (perspective cameras); orthographic cameras have a Dirac
+/// direction and cannot be connected to (no t = 1).
+class CameraImportance {
+public:
+    CameraImportance(const Camera& camera, int width, int height);
+    bool connectable() const { return m_perspective; }
+    Vec3 position() const { return m_pos; }
+    /// Solid-angle density of the camera generating direction w (0 outside the image).
+    float pdf_dir(const Vec3& w) const;
+    /// Importance We along w leaving the camera, and its raster position.
+    float we(const Vec3& w, Vec2* p_raster) const;
+    const Camera& camera() const { return m_camera; }
+
+private:
+    const Camera& m_camera;
+    int m_width, m_height;
+    Vec3 m_pos, m_fwd;
+    float m_area = 1.f;
+    bool m_perspective = true;
+};
+
+class BdptTracer {
+public:
+    static constexpr int k_rr_start_depth = 3;
+
+    BdptTracer(const Scene& scene, const Camera& camera, int width, int height, int max_depth);
+
+    /// All strategies for one pixel sample at raster position `p_raster` (the caller
+    /// picks it; the camera stream's first 2D is *not* consumed here). Returns the
+    /// estimate of the strategies with t >= 2; t = 1 contributions are appended to
+    /// `ws.splats` (the caller clears it).
+    Spectrum li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspace& ws,
+                BdptCounters& c) const;
+
+    /// One strategy (s, t) of a path with `depth` scattering events (s + t = depth + 2),
+    /// for the Metropolis integrators: the camera stream's first 2D is the film position
+    /// over the whole image, subpaths have exactly t and s vertices (no Russian
+    /// roulette). Returns the MIS-weighted contribution and its raster position:
+    /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
+    Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
+                               BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const;
+    /// Number of strategies for a depth (depth + 2, except depth 0: only (0, 2)).
+    static int strategy_count(int depth) { return depth == 0 ? 1 : depth + 2; }
+    /// Pick (s, t) uniformly for `depth` with u in [0, 1); returns its probability.
+    static float choose_strategy(int depth, float u, int* s, int* t);
+
+    /// Unweighted contribution of (s, t) (MIS weight 1), for the per-strategy tests.
+    Spectrum evaluate_strategy_unweighted(int depth, int s, int t, BdptSampler& sampler,
+                                          BdptWorkspace& ws, Vec2* p_raster,
+                                          BdptCounters& c) const;
+
+    /// Debug: for the path made by connecting light[0..s) and camera[0..t) (+ the
+    /// `sampled` endpoint for s = 1 or t = 1), the MIS weight of every strategy
+    /// s' = 0..s+t-1 (weights[s']), computed by the production weight function on
+    /// subpaths rebuilt from the path's geometry; impossible strategies get 0. Also
+    /// returns (weight_here) the weight computed from the subpaths as sampled.
+    std::vector<float> strategy_weights(const PathVertex* light, int s, const PathVertex* camera,
+                                        int t, const PathVertex& sampled,
+                                        float* weight_here) const;
+
+    /// Subpath generation (exposed for tests): number of vertices made.
+    int generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler, int max_vertices,
+                                bool roulette, PathVertex* path, BdptCounters& c) const;
+    int generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
+                               PathVertex* path, BdptCounters& c) const;
+    /// Connect; unweighted if `mis` is false. For t = 1 sets *p_raster; `sampled` gets
+    /// the new endpoint for s = 1 / t = 1.
+    Spectrum connect(const PathVertex* light, int s, const PathVertex* camera, int t,
+                     BdptSampler& sampler, Vec2* p_raster, bool mis, BdptCounters& c,
+                     PathVertex* sampled = nullptr) const;
+
+    int max_depth() const { return m_max_depth; }
+
+private:
+    int random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
+                    int max_vertices, bool importance, bool roulette, PathVertex* path, int start,
+                    BdptCounters& c) const;
+    /// MIS weight of strategy (s, t); `pt_override` replaces camera[t - 1] (s = 0 on an
+    /// escaped vertex: one infinite light at a time).
+    float mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,
+                     const PathVertex& sampled, const PathVertex* pt_override = nullptr) const;
+    // Densities (area measure unless `to` is an infinite light).
+    float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
+    float pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const;
+    float pdf_light(const PathVertex& v, const PathVertex& next) const;
+    float pdf_light_origin(const PathVertex& v, const PathVertex& next) const;
+    bool is_delta_light(const PathVertex& v) const;
+    bool connectible(const PathVertex& v) const;
+    /// BSDF value times the cosine at v toward direction w (unit), for radiance
+    /// (camera-subpath) or importance (light-subpath, with the shading-normal correction).
+    Spectrum scatter(const PathVertex& v, const Vec3& w, bool importance) const;
+    bool visible(const PathVertex& a, const PathVertex& b, BdptCounters& c) const;
+
+    const Scene& m_scene;
+    CameraImportance m_importance;
+    int m_width, m_height;
+    int m_max_depth;
+};
+
+}  // namespace cmlt

@@ -1,0 +1,43 @@
+#pragma once
+/// \file A vertex of a BDPT subpath (Veach 1997 ch. 10; pbrt-v4's Vertex).
+///
+/// Densities `pdf_fwd` / `pdf_rev` are per unit *area* at the vertex (per solid angle
+/// for an infinite-light vertex, which is a direction): `pdf_fwd` is the density with
+/// which the vertex's own subpath generated it, `pdf_rev` the density with which the
+/// other direction would (filled in when the next vertex is sampled, or overridden by
+/// the MIS weight for the connection vertices). A vertex sampled through a Dirac lobe
+/// has `delta` set and the densities of its two neighbours' edges set to 0 (they are
+/// remapped to 1 in the ratios and strategies through it get no weight).
+#include "materials/bsdf.h"
+#include "math/vec.h"
+#include "scene/interaction.h"
+
+#include <cstdint>
+#include <optional>
+
+namespace cmlt {
+
+enum class VertexType : uint8_t { camera, light, surface };
+
+struct PathVertex {
+    VertexType type = VertexType::surface;
+    bool delta = false;      ///< surface: left (or reached) through a Dirac lobe
+    bool infinite = false;   ///< light: an infinite light (dome, distant): a direction
+    Vec3 p;                  ///< position (unused for infinite lights)
+    Vec3 ng;                 ///< geometric / emitter normal, zero for points (camera, point light)
+    Vec3 ns;                 ///< shading normal (surfaces)
+    Vec3 wo;                 ///< surfaces and hit lights: unit direction to the previous vertex
+    Vec3 w_inf;              ///< infinite light: unit direction in which the light travels
+    float error_scale = 0.f;
+    Spectrum beta{0.f};      ///< subpath throughput up to (not including) this vertex's scattering
+    Spectrum le{0.f};        ///< camera subpaths: radiance emitted toward `wo` (emitter hits)
+    float pdf_fwd = 0.f, pdf_rev = 0.f;
+    int32_t light_index = -1;  ///< light vertex, or emissive surface's triangle light; -1 if none
+    SurfaceInteraction si;     ///< surfaces
+    std::optional<Bsdf> bsdf;  ///< surfaces
+
+    bool on_surface() const { return !is_black(ng); }
+    bool is_light() const { return type == VertexType::light || light_index >= 0; }
+};
+
+}  // namespace cmlt
