@@ -7,6 +7,8 @@
 #include <nanobind/stl/array.h>
 #include <nanobind/stl/string.h>
 
+#include <cmath>
+
 namespace cmlt::bindings {
 
 using namespace nb::literals;
@@ -83,7 +85,61 @@ std::vector<Spectrum> rows3(nb::handle obj, const char* fn, const char* arg) {
     return out;
 }
 
-void set_materials(Scene& s, nb::handle diffuse, nb::handle emission) {
+/// Fill the UsdPreviewSurface fields of `m` from row `r` of the params table (float32 (K, P)).
+void material_from_params(Material& m, const float* row, size_t cols, size_t r) {
+    namespace c = material_col;
+    auto tex = [&](int col, const char* what) -> int32_t {
+        if (size_t(col) >= cols) return -1;
+        float v = row[col];
+        if (!(v >= -1.f) || !std::isfinite(v) || v != std::floor(v))
+            throw nb::value_error(("set_materials: params[" + std::to_string(r) + ", " +
+                                   std::to_string(col) + "] (" + what +
+                                   " texture id) must be -1 or a texture id, got " +
+                                   std::to_string(v))
+                                      .c_str());
+        return int32_t(v);
+    };
+    auto ch = [&](int col, uint8_t def) -> uint8_t {
+        if (size_t(col) >= cols) return def;
+        float v = row[col];
+        if (!(v >= 0.f && v <= 3.f) || v != std::floor(v))
+            throw nb::value_error(("set_materials: params[" + std::to_string(r) + ", " +
+                                   std::to_string(col) + "] (texture channel) must be 0..3")
+                                      .c_str());
+        return uint8_t(v);
+    };
+    m.preview = true;
+    m.specular = Spectrum(row[c::specular_r], row[c::specular_g], row[c::specular_b]);
+    m.use_specular_workflow = row[c::use_specular_workflow] != 0.f;
+    m.metallic = row[c::metallic];
+    m.roughness = row[c::roughness];
+    m.clearcoat = row[c::clearcoat];
+    m.clearcoat_roughness = row[c::clearcoat_roughness];
+    m.opacity = row[c::opacity];
+    m.opacity_threshold = row[c::opacity_threshold];
+    m.ior = row[c::ior];
+    for (int col = 0; col < k_param_cols_basic; ++col)
+        if (!std::isfinite(row[col]))
+            throw nb::value_error(("set_materials: params[" + std::to_string(r) + ", " +
+                                   std::to_string(col) + "] is NaN or Inf")
+                                      .c_str());
+    m.tex_diffuse = tex(c::tex_diffuse, "diffuseColor");
+    m.tex_emission = tex(c::tex_emission, "emissiveColor");
+    m.tex_specular = tex(c::tex_specular, "specularColor");
+    m.tex_normal = tex(c::tex_normal, "normal");
+    m.tex_metallic = tex(c::tex_metallic, "metallic");
+    m.tex_roughness = tex(c::tex_roughness, "roughness");
+    m.tex_clearcoat = tex(c::tex_clearcoat, "clearcoat");
+    m.tex_clearcoat_roughness = tex(c::tex_clearcoat_roughness, "clearcoatRoughness");
+    m.tex_opacity = tex(c::tex_opacity, "opacity");
+    m.ch_metallic = ch(c::ch_metallic, 0);
+    m.ch_roughness = ch(c::ch_roughness, 0);
+    m.ch_clearcoat = ch(c::ch_clearcoat, 0);
+    m.ch_clearcoat_roughness = ch(c::ch_clearcoat_roughness, 0);
+    m.ch_opacity = ch(c::ch_opacity, 3);
+}
+
+void set_materials(Scene& s, nb::handle diffuse, nb::handle emission, nb::handle params) {
     auto d = rows3(diffuse, "set_materials", "diffuse");
     auto e = rows3(emission, "set_materials", "emission");
     if (d.size() != e.size())
@@ -95,7 +151,56 @@ void set_materials(Scene& s, nb::handle diffuse, nb::handle emission) {
         mats[i].diffuse = d[i];
         mats[i].emission = e[i];
     }
+    if (!params.is_none()) {
+        AnyArray pa = as_array(params, "set_materials", "params");
+        if (pa.ndim() != 2 || (pa.shape(1) != size_t(k_param_cols_basic) &&
+                               pa.shape(1) != size_t(k_param_cols_full)))
+            throw nb::value_error(("set_materials: params must have shape (K, " +
+                                   std::to_string(k_param_cols_basic) + ") or (K, " +
+                                   std::to_string(k_param_cols_full) + ")")
+                                      .c_str());
+        const float* p = checked_matrix<float>(pa, "set_materials", "params", long(d.size()),
+                                               long(pa.shape(1)), "float32");
+        for (size_t i = 0; i < d.size(); ++i)
+            material_from_params(mats[i], p + i * pa.shape(1), pa.shape(1), i);
+    }
     s.set_materials(std::move(mats));
+}
+
+WrapMode wrap_mode(const std::string& w, const char* arg) {
+    if (w == "repeat" || w == "useMetadata" || w.empty()) return WrapMode::repeat;
+    if (w == "mirror") return WrapMode::mirror;
+    if (w == "clamp") return WrapMode::clamp;
+    if (w == "black") return WrapMode::black;
+    throw nb::value_error((std::string("add_texture: ") + arg +
+                           " must be repeat, mirror, clamp, black or useMetadata, got '" + w + "'")
+                              .c_str());
+}
+
+uint32_t add_texture(Scene& s, nb::handle image, const std::string& wrap_s,
+                     const std::string& wrap_t, const std::array<float, 4>& scale,
+                     const std::array<float, 4>& bias, const std::string& name) {
+    AnyArray a = as_array(image, "add_texture", "image");
+    if (a.dtype() != nb::dtype<float>())
+        throw nb::type_error(("add_texture: image must have dtype float32, got " +
+                              dtype_name(a.dtype()))
+                                 .c_str());
+    if (a.ndim() != 3 || a.shape(2) < 1 || a.shape(2) > 4 || a.shape(0) < 1 || a.shape(1) < 1)
+        throw nb::value_error("add_texture: image must have shape (H, W, C) with C in 1..4");
+    int64_t c = int64_t(a.shape(2)), w = int64_t(a.shape(1));
+    if (a.stride(2) != 1 || a.stride(1) != c || a.stride(0) != w * c)
+        throw nb::value_error("add_texture: image must be C-contiguous (np.ascontiguousarray)");
+    TextureDesc d;
+    d.data = static_cast<const float*>(a.data());
+    d.height = int(a.shape(0));
+    d.width = int(a.shape(1));
+    d.channels = int(a.shape(2));
+    d.wrap_s = wrap_mode(wrap_s, "wrap_s");
+    d.wrap_t = wrap_mode(wrap_t, "wrap_t");
+    d.scale = Vec4(scale[0], scale[1], scale[2], scale[3]);
+    d.bias = Vec4(bias[0], bias[1], bias[2], bias[3]);
+    d.owner = make_owner({nb::borrow(image)});
+    return s.add_texture(std::move(d), name);
 }
 
 uint32_t add_light(Scene& s, const std::string& kind, nb::handle transform,
@@ -169,8 +274,24 @@ void bind_scene(nb::module_& m) {
                 s.set_instance_transform(id, to_mat4(xf, "set_instance_transform", "transform"));
             },
             "instance_id"_a, "transform"_a)
-        .def("set_materials", &set_materials, "diffuse"_a, "emission"_a,
-             "Material table: diffuse and emission (K,3); material_ids index the rows.")
+        .def("set_materials", &set_materials, "diffuse"_a, "emission"_a, "params"_a = nb::none(),
+             "Material table: diffuse and emission (K,3); material_ids index the rows.\n\n"
+             "params=None: Lambert materials (diffuse + emission only). Otherwise every row is a\n"
+             "UsdPreviewSurface; params is float32 (K, 11) or (K, 25) with columns\n"
+             "  0-2 specularColor rgb, 3 useSpecularWorkflow (0/1), 4 metallic, 5 roughness,\n"
+             "  6 clearcoat, 7 clearcoatRoughness, 8 opacity, 9 opacityThreshold, 10 ior,\n"
+             "  texture ids (-1 = none): 11 diffuseColor, 12 emissiveColor, 13 specularColor,\n"
+             "  14 normal, 15 metallic, 16 roughness, 17 clearcoat, 18 clearcoatRoughness,\n"
+             "  19 opacity; channels (0..3 = r,g,b,a) read by the scalar inputs: 20 metallic,\n"
+             "  21 roughness, 22 clearcoat, 23 clearcoatRoughness, 24 opacity.\n"
+             "(cmlt.shot.bridge.MATERIAL_PARAM_COLUMNS mirrors this layout.)")
+        .def("add_texture", &add_texture, "image"_a, "wrap_s"_a = "repeat", "wrap_t"_a = "repeat",
+             "scale"_a = std::array<float, 4>{1.f, 1.f, 1.f, 1.f},
+             "bias"_a = std::array<float, 4>{0.f, 0.f, 0.f, 0.f}, "name"_a = "texture",
+             "Register a float32 (H, W, C) image (C-contiguous, row 0 = top, already in the\n"
+             "rendering space or raw) without copying, with the UsdUVTexture sampler state\n"
+             "(wrap repeat|mirror|clamp|black, per-channel scale and bias). Returns its id.")
+        .def_prop_ro("texture_count", &Scene::texture_count)
         .def("clear_lights", &Scene::clear_lights)
         .def("add_light", &add_light, "kind"_a, "transform"_a, "radiance"_a, "width"_a = 1.0f,
              "height"_a = 1.0f, "radius"_a = 0.5f, "length"_a = 1.0f, "angle"_a = 0.53f,

@@ -23,7 +23,8 @@ def _scene():
     cam_xf = np.array([[1, 0, 0, 0], [0, 0, 1, 1], [0, -1, 0, 0], [0, 0, 0, 1]], float)
     return FrameScene(
         time=1.0, meshes=[plane], instances=[Instance("/plane", 0, np.eye(4))],
-        materials=[Material("/m", diffuse=tuple(ALBEDO))],
+        # specular workflow with specularColor 0: UsdPreviewSurface's exact Lambertian
+        materials=[Material("/m", diffuse=tuple(ALBEDO), use_specular_workflow=True)],
         lights=[Light("/dome", "dome", np.eye(4), radiance=tuple(RADIANCE))],
         camera=Camera("/cam", cam_xf, focal_length=35, horizontal_aperture=36,
                       vertical_aperture=36),

@@ -29,7 +29,52 @@ import numpy as np
 
 from ..scene import FrameScene, Mesh, padded_points
 
-__all__ = ["SceneBridge", "UpdateReport", "BridgeError"]
+__all__ = ["SceneBridge", "UpdateReport", "BridgeError", "MATERIAL_PARAM_COLUMNS",
+           "material_params"]
+
+#: Column layout of the ``params`` table of ``core.Scene.set_materials``
+#: (src/core/materials/material.h, ``material_col``). Texture columns hold a
+#: texture id from ``Scene.add_texture`` or -1; channel columns 0..3 (r, g, b, a).
+MATERIAL_PARAM_COLUMNS = (
+    "specular_r", "specular_g", "specular_b", "use_specular_workflow", "metallic",
+    "roughness", "clearcoat", "clearcoat_roughness", "opacity", "opacity_threshold", "ior",
+    "tex_diffuse", "tex_emission", "tex_specular", "tex_normal", "tex_metallic",
+    "tex_roughness", "tex_clearcoat", "tex_clearcoat_roughness", "tex_opacity",
+    "ch_metallic", "ch_roughness", "ch_clearcoat", "ch_clearcoat_roughness", "ch_opacity",
+)
+_COL = {name: i for i, name in enumerate(MATERIAL_PARAM_COLUMNS)}
+
+
+def material_params(m, texture_ids=None) -> np.ndarray:
+    """One row of the params table for a :class:`cmlt.scene.Material`.
+
+    ``texture_ids`` maps an input name (``diffuseColor``, ``roughness`` …) to
+    ``(texture id, channel)``; inputs without an entry use their constant."""
+    row = np.full(len(MATERIAL_PARAM_COLUMNS), -1.0, dtype=np.float32)
+    row[0:3] = m.specular
+    row[_COL["use_specular_workflow"]] = 1.0 if m.use_specular_workflow else 0.0
+    for name in ("metallic", "roughness", "clearcoat", "clearcoat_roughness", "opacity",
+                 "opacity_threshold", "ior"):
+        row[_COL[name]] = float(getattr(m, name))
+    row[_COL["ch_metallic"]:] = 0.0
+    row[_COL["ch_opacity"]] = 3.0
+    for usd_name, (tid, ch) in (texture_ids or {}).items():
+        col = _TEXTURE_INPUTS.get(usd_name)
+        if col is None:
+            continue
+        row[_COL["tex_" + col]] = float(tid)
+        if "ch_" + col in _COL:
+            row[_COL["ch_" + col]] = float(ch)
+    return row
+
+
+#: UsdPreviewSurface input name -> the suffix of its tex_/ch_ columns.
+_TEXTURE_INPUTS = {
+    "diffuseColor": "diffuse", "emissiveColor": "emission", "specularColor": "specular",
+    "normal": "normal", "metallic": "metallic", "roughness": "roughness",
+    "clearcoat": "clearcoat", "clearcoatRoughness": "clearcoat_roughness",
+    "opacity": "opacity",
+}
 
 
 class BridgeError(ValueError):
@@ -106,17 +151,22 @@ class SceneBridge:
         self.last_update = UpdateReport()
 
     # -- helpers ---------------------------------------------------------
-    @staticmethod
-    def _material_arrays(fs: FrameScene) -> Tuple[np.ndarray, np.ndarray]:
-        if not fs.materials:
+    def _material_arrays(self, fs: FrameScene) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(diffuse, emission, params): every UsdPreviewSurface field of every
+        material (the full model, also for a material with only a diffuse colour)."""
+        mats = fs.materials
+        if not mats:
             # The core wants at least one material; the USD reader always
             # provides a fallback, a hand-built scene may not.
-            diffuse = np.full((1, 3), 0.18, dtype=np.float32)
-            emission = np.zeros((1, 3), dtype=np.float32)
-            return diffuse, emission
-        diffuse = np.array([m.diffuse for m in fs.materials], dtype=np.float32).reshape(-1, 3)
-        emission = np.array([m.emission for m in fs.materials], dtype=np.float32).reshape(-1, 3)
-        return diffuse, emission
+            from ..scene import Material
+            mats = [Material(name="<default>")]
+        diffuse = np.array([m.diffuse for m in mats], dtype=np.float32).reshape(-1, 3)
+        emission = np.array([m.emission for m in mats], dtype=np.float32).reshape(-1, 3)
+        params = np.stack([material_params(m, self._texture_ids(m)) for m in mats])
+        return diffuse, emission, np.ascontiguousarray(params, dtype=np.float32)
+
+    def _texture_ids(self, m) -> dict:
+        return {}
 
     def _structure_change(self, fs: FrameScene) -> str:
         """Why the scene must be rebuilt, or '' if updates suffice."""
@@ -167,14 +217,14 @@ class SceneBridge:
             t = _mat(inst.transform)
             inst_ids.append(scene.add_instance(mesh_ids[inst.mesh], t))
             transforms.append(t.copy())
-        diffuse, emission = self._material_arrays(fs)
-        scene.set_materials(diffuse, emission)
-
         self.scene = scene
+        diffuse, emission, params = self._material_arrays(fs)
+        scene.set_materials(diffuse, emission, params)
+
         self._meshes, self._mesh_ids = meshes, mesh_ids
         self._instances = [(i.name, int(i.mesh)) for i in fs.instances]
         self._instance_ids, self._transforms = inst_ids, transforms
-        self._materials = (diffuse.copy(), emission.copy())
+        self._materials = (diffuse.copy(), emission.copy(), params.copy())
 
     def _incremental(self, fs: FrameScene, report: UpdateReport) -> None:
         scene = self.scene
@@ -196,11 +246,12 @@ class SceneBridge:
             scene.set_instance_transform(self._instance_ids[k], t)
             self._transforms[k] = t.copy()
             report.transforms_updated += 1
-        diffuse, emission = self._material_arrays(fs)
+        diffuse, emission, params = self._material_arrays(fs)
         if not (np.array_equal(diffuse, self._materials[0]) and
-                np.array_equal(emission, self._materials[1])):
-            scene.set_materials(diffuse, emission)
-            self._materials = (diffuse.copy(), emission.copy())
+                np.array_equal(emission, self._materials[1]) and
+                np.array_equal(params, self._materials[2])):
+            scene.set_materials(diffuse, emission, params)
+            self._materials = (diffuse.copy(), emission.copy(), params.copy())
             report.materials_updated = True
 
     def _lights_and_camera(self, fs: FrameScene) -> None:

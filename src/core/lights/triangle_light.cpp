@@ -34,7 +34,15 @@ LightSample TriangleLight::sample_li(const Vec3& p, const Vec2& u) const {
     s.pdf = dist2 / (cos_l * m_area);
     if (!std::isfinite(s.pdf)) return LightSample();
     s.wi = wi;
-    s.li = m_le;
+    if (m_tex) {
+        float b0 = 1.f - b.x - b.y;
+        Vec2 st(m_st0.x * b0 + m_st1.x * b.x + m_st2.x * b.y,
+                m_st0.y * b0 + m_st1.y * b.x + m_st2.y * b.y);
+        Vec3 e = m_tex->eval(st).xyz();
+        s.li = Spectrum(std::fmax(0.f, e.x), std::fmax(0.f, e.y), std::fmax(0.f, e.z));
+    } else {
+        s.li = m_le;
+    }
     s.dist = dist;
     s.p_light = q;
     s.n_light = m_n;
@@ -69,6 +77,18 @@ float TriangleLight::pdf_li(const Vec3& p, const Vec3& wi) const {
     float t = dot(m_e2, qv) * inv;
     if (!(t > 0.f)) return 0.f;
     return pdf_li_point(p, p + wi * t);
+}
+
+void TriangleLight::set_texture(const Texture* tex, const Vec2& st0, const Vec2& st1,
+                                const Vec2& st2) {
+    m_tex = tex;
+    m_st0 = st0;
+    m_st1 = st1;
+    m_st2 = st2;
+    if (tex) {
+        Vec3 e = tex->mean().xyz();
+        m_le = Spectrum(std::fmax(0.f, e.x), std::fmax(0.f, e.y), std::fmax(0.f, e.z));
+    }
 }
 
 float TriangleLight::power() const { return 2.f * k_pi * m_area * luminance(m_le); }

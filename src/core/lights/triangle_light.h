@@ -4,6 +4,7 @@
 /// Emission of UsdPreviewSurface is not culled by winding (and meshes are often
 /// doubleSided), so both faces emit.
 #include "lights/light.h"
+#include "textures/texture.h"
 
 #include <cstdint>
 
@@ -23,12 +24,17 @@ public:
     void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
     Vec3 emitter_normal(const Vec3& p) const override;
     float area() const { return m_area; }
+    /// Textured emission (emissiveColor from a texture): radiance = tex(st) at the sampled
+    /// point, st interpolated from the vertices' uvs. `tex` must outlive the light.
+    void set_texture(const Texture* tex, const Vec2& st0, const Vec2& st1, const Vec2& st2);
 
 private:
     Vec3 m_p0, m_e1, m_e2, m_n;
     float m_area = 0.f;
     float m_error_scale = 0.f;
     Spectrum m_le;
+    const Texture* m_tex = nullptr;
+    Vec2 m_st0, m_st1, m_st2;
     uint32_t m_instance_id, m_prim_id;
 };
 

@@ -2,58 +2,127 @@
 /// \file The BSDF at a surface point: a lobe model in its local shading frame.
 ///
 /// `Bsdf` is a value type (no heap allocation per hit) holding a std::variant of lobe
-/// models; the integrator calls eval / pdf / sample in world space and never sees the
-/// model. New models (GGX, dielectric, clearcoat with Dirac lobes) become new variant
-/// alternatives; `is_delta` on samples and `has_non_delta()` tell the integrator when
-/// light sampling and MIS apply.
+/// models (Lambert for legacy materials, UsdPreviewSurface); the integrators call eval /
+/// pdf / sample in world space and never see the model. `is_delta` on samples and
+/// `has_non_delta()` tell the integrator when light sampling and MIS apply.
 ///
-/// Reflection is accepted only when wo and wi lie on the same side of the *geometric*
-/// normal too (no light leaks through shading normals).
+/// Sidedness: the shading frame's +z is the shading normal, which lies on the geometric
+/// normal's side (the "outside" of a dielectric). A pair (wo, wi) is a *reflection* when both
+/// lie on the same side of the geometric normal and a *transmission* otherwise; the model
+/// is only asked about pairs whose shading-frame classification agrees with the geometric
+/// one (eval / pdf return 0 and sample fails otherwise). So reflection never leaks light
+/// through the surface because of shading normals, and transmission works.
+///
+/// `TransportMode::Radiance` (camera paths, the default) scales refraction by 1/eta^2;
+/// light paths (BDPT, light tracing) pass `TransportMode::Importance`.
 #include "materials/bsdf_sample.h"
 #include "materials/lambertian.h"
 #include "materials/material.h"
+#include "materials/preview_surface.h"
 #include "math/frame.h"
 
+#include <type_traits>
 #include <variant>
 
 namespace cmlt {
 
 class Bsdf {
 public:
-    using Model = std::variant<LambertianBsdf>;
+    using Model = std::variant<LambertianBsdf, PreviewSurfaceBsdf>;
 
     Bsdf(const Model& model, const Vec3& ns, const Vec3& ng)
         : m_model(model), m_frame(ns), m_ng(ng) {}
 
-    static Bsdf from_material(const Material& mat, const Vec3& ns, const Vec3& ng) {
-        return Bsdf(LambertianBsdf(mat.diffuse), ns, ng);
-    }
+    /// The material with its constant values (no textures, no normal map); see
+    /// materials/material_eval.h for the textured version used by the integrators.
+    static Bsdf from_material(const Material& mat, const Vec3& ns, const Vec3& ng);
 
-    Spectrum eval(const Vec3& wo, const Vec3& wi) const {
-        if (dot(wo, m_ng) * dot(wi, m_ng) <= 0.f) return Spectrum(0.f);
-        Vec3 lo = m_frame.to_local(wo), li = m_frame.to_local(wi);
-        return std::visit([&](const auto& m) { return m.eval(lo, li); }, m_model);
+    Spectrum eval(const Vec3& wo, const Vec3& wi,
+                  TransportMode mode = TransportMode::Radiance) const {
+        Vec3 lo, li;
+        if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
+        return std::visit(
+            [&](const auto& m) -> Spectrum {
+                if constexpr (std::is_same_v<std::decay_t<decltype(m)>, PreviewSurfaceBsdf>)
+                    return m.eval(lo, li, mode);
+                else
+                    return m.eval(lo, li);
+            },
+            m_model);
     }
     float pdf(const Vec3& wo, const Vec3& wi) const {
-        if (dot(wo, m_ng) * dot(wi, m_ng) <= 0.f) return 0.f;
-        Vec3 lo = m_frame.to_local(wo), li = m_frame.to_local(wi);
+        Vec3 lo, li;
+        if (!consistent_sides(wo, wi, &lo, &li)) return 0.f;
         return std::visit([&](const auto& m) { return m.pdf(lo, li); }, m_model);
     }
     /// Sample wi given wo; `u2` picks the direction, `u1` the lobe.
-    BsdfSample sample(const Vec3& wo, const Vec2& u2, float u1) const {
+    BsdfSample sample(const Vec3& wo, const Vec2& u2, float u1,
+                      TransportMode mode = TransportMode::Radiance) const {
         Vec3 lo = m_frame.to_local(wo);
-        BsdfSample s = std::visit([&](const auto& m) { return m.sample(lo, u2, u1); }, m_model);
-        if (!s.valid()) return BsdfSample();
+        BsdfSample s = std::visit(
+            [&](const auto& m) -> BsdfSample {
+                if constexpr (std::is_same_v<std::decay_t<decltype(m)>, PreviewSurfaceBsdf>) {
+                    auto ps = m.sample(lo, u1, u2, mode);
+                    BsdfSample out;
+                    if (!ps) return out;
+                    out.wi = ps->wi;
+                    out.f = ps->f;
+                    out.pdf = ps->pdf;
+                    out.is_delta = ps->is_delta;
+                    out.is_transmission = ps->is_transmission;
+                    out.eta = ps->eta;
+                    return out;
+                } else {
+                    return m.sample(lo, u2, u1);
+                }
+            },
+            m_model);
+        if (!s.valid() || !is_finite(s.f)) return BsdfSample();
+        bool local_reflect = lo.z * s.wi.z > 0.f;
         s.wi = m_frame.to_world(s.wi);
-        if (dot(wo, m_ng) * dot(s.wi, m_ng) <= 0.f) return BsdfSample();
+        float go = dot(wo, m_ng), gi = dot(s.wi, m_ng);
+        if (go == 0.f || gi == 0.f) return BsdfSample();
+        if ((go * gi > 0.f) != local_reflect) return BsdfSample();
+        s.is_transmission = !local_reflect;
+        if (local_reflect) s.eta = 1.f;
         return s;
     }
+    /// Some lobe is not a Dirac delta: light sampling (NEE) and MIS make sense.
     bool has_non_delta() const {
-        return std::visit([](const auto& m) { return !m.is_delta(); }, m_model);
+        return std::visit(
+            [](const auto& m) -> bool {
+                if constexpr (std::is_same_v<std::decay_t<decltype(m)>, PreviewSurfaceBsdf>)
+                    return !m.is_pure_delta();
+                else
+                    return !m.is_delta();
+            },
+            m_model);
+    }
+    /// Rough reflectance, for AOVs (albedo) and heuristics.
+    Spectrum albedo() const {
+        return std::visit(
+            [](const auto& m) -> Spectrum {
+                if constexpr (std::is_same_v<std::decay_t<decltype(m)>, PreviewSurfaceBsdf>)
+                    return m.albedo_estimate();
+                else
+                    return m.albedo();
+            },
+            m_model);
     }
     const Vec3& shading_normal() const { return m_frame.n; }
+    const Vec3& geometric_normal() const { return m_ng; }
 
 private:
+    /// Local directions, if the shading-frame side classification of (wo, wi) agrees with
+    /// the geometric one (and neither lies in the geometric plane).
+    bool consistent_sides(const Vec3& wo, const Vec3& wi, Vec3* lo, Vec3* li) const {
+        float go = dot(wo, m_ng), gi = dot(wi, m_ng);
+        if (go == 0.f || gi == 0.f) return false;
+        *lo = m_frame.to_local(wo);
+        *li = m_frame.to_local(wi);
+        return (go * gi > 0.f) == (lo->z * li->z > 0.f);
+    }
+
     Model m_model;
     Frame m_frame;
     Vec3 m_ng;

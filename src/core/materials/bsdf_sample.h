@@ -4,12 +4,17 @@
 namespace cmlt {
 
 /// A sampled direction. For a Dirac lobe (`is_delta`), `f` and `pdf` carry the same
-/// delta factor, so `f * |cos| / pdf` is the usual weight and pdf is set to 1.
+/// delta factor, so `f * |cos| / pdf` is the usual weight (pdf = the discrete probability
+/// of the Dirac lobe). `is_transmission`: wi is on the other side of the geometric surface;
+/// `eta` is the relative IOR crossed (eta_t / eta_i, 1 for reflection), for the path's
+/// radiance-scale bookkeeping (Russian roulette).
 struct BsdfSample {
     Vec3 wi;
     Spectrum f{0.f};
     float pdf = 0.f;
     bool is_delta = false;
+    bool is_transmission = false;
+    float eta = 1.f;
     bool valid() const { return pdf > 0.f; }
 };
 

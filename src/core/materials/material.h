@@ -1,16 +1,63 @@
 #pragma once
-/// \file Material table rows (rendering-space linear RGB).
+/// \file Material table rows (rendering-space linear RGB): every UsdPreviewSurface input,
+/// each either a constant or a texture (UsdUVTexture) looked up at the hit's st.
 ///
-/// Today a material is Lambertian reflection plus (two-sided) emission. The
-/// UsdPreviewSurface issue adds lobes here and in materials/bsdf.h.
+/// `preview == false` is the legacy Lambert material (diffuse + emission only), what
+/// `Scene.set_materials(diffuse, emission)` without `params` builds; `preview == true` uses
+/// materials/preview_surface.h with every field below.
+///
+/// Textured inputs: `tex_*` is a texture id (Scene::add_texture) or -1; scalar inputs read
+/// channel `ch_*` (0..3 = r, g, b, a: the UsdUVTexture output the input is connected to).
+/// A texture replaces the constant (the constant is the fallback the reader already
+/// resolved). `tex_normal` is a tangent-space normal map (after scale/bias, in [-1, 1]^3,
+/// +z along the shading normal, +x along dp/du).
+///
+/// opacityThreshold > 0 turns opacity into a cutout (UsdPreviewSurface spec): opacity below
+/// the threshold is no surface at all (an ior-1 pass-through), anything else is opaque.
+/// Otherwise (1 - opacity) weights the dielectric (glass) lobe with `ior`.
 #include "math/vec.h"
+
+#include <cstdint>
 
 namespace cmlt {
 
 struct Material {
     Spectrum diffuse{0.18f, 0.18f, 0.18f};
     Spectrum emission{0.f, 0.f, 0.f};
-    bool is_emissive() const { return max_component(emission) > 0.f; }
+    bool preview = false;  ///< false: Lambert(diffuse) only (backward compatible)
+    Spectrum specular{0.f, 0.f, 0.f};
+    bool use_specular_workflow = false;
+    float metallic = 0.f;
+    float roughness = 0.5f;
+    float clearcoat = 0.f;
+    float clearcoat_roughness = 0.01f;
+    float opacity = 1.f;
+    float opacity_threshold = 0.f;
+    float ior = 1.5f;
+
+    int32_t tex_diffuse = -1, tex_emission = -1, tex_specular = -1, tex_normal = -1;
+    int32_t tex_metallic = -1, tex_roughness = -1, tex_clearcoat = -1,
+            tex_clearcoat_roughness = -1, tex_opacity = -1;
+    uint8_t ch_metallic = 0, ch_roughness = 0, ch_clearcoat = 0, ch_clearcoat_roughness = 0,
+            ch_opacity = 3;
+
+    bool is_emissive() const { return max_component(emission) > 0.f || tex_emission >= 0; }
 };
+
+/// Column layout of the float32 (K, P) `params` table of `Scene.set_materials`
+/// (P = k_param_cols_basic without textures, or k_param_cols_full with them).
+/// Texture columns hold a texture id or -1; channel columns 0..3 (r, g, b, a).
+namespace material_col {
+constexpr int specular_r = 0, specular_g = 1, specular_b = 2, use_specular_workflow = 3,
+              metallic = 4, roughness = 5, clearcoat = 6, clearcoat_roughness = 7, opacity = 8,
+              opacity_threshold = 9, ior = 10;
+constexpr int tex_diffuse = 11, tex_emission = 12, tex_specular = 13, tex_normal = 14,
+              tex_metallic = 15, tex_roughness = 16, tex_clearcoat = 17,
+              tex_clearcoat_roughness = 18, tex_opacity = 19;
+constexpr int ch_metallic = 20, ch_roughness = 21, ch_clearcoat = 22, ch_clearcoat_roughness = 23,
+              ch_opacity = 24;
+}  // namespace material_col
+constexpr int k_param_cols_basic = 11;
+constexpr int k_param_cols_full = 25;
 
 }  // namespace cmlt

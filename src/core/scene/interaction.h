@@ -35,6 +35,7 @@ struct SurfaceInteraction {
     Vec3 ng;           ///< unit geometric normal (CCW winding in world space)
     Vec3 ns;           ///< unit shading normal, flipped to the side of ng
     Vec2 uv;
+    Vec3 dpdu;         ///< world dp/du from the triangle's uvs (zero without uvs / degenerate)
     Vec3 wo;           ///< unit direction toward the ray origin
     float t = 0.f;
     float error_scale = 0.f;

@@ -125,6 +125,13 @@ void Scene::set_materials(std::vector<Material> materials) {
     m_dirty = true;
 }
 
+uint32_t Scene::add_texture(TextureDesc desc, const std::string& name) {
+    std::string what = "texture '" + name + "'";
+    m_textures.emplace_back(std::move(desc), what.c_str());
+    m_dirty = true;
+    return uint32_t(m_textures.size() - 1);
+}
+
 void Scene::clear_lights() {
     m_analytic.clear();
     m_dirty = true;
@@ -217,6 +224,12 @@ void Scene::build_lights() {
             Vec3 p1 = inst.xf.m.transform_point(mesh.point(v[1]));
             Vec3 p2 = inst.xf.m.transform_point(mesh.point(v[2]));
             auto tl = std::make_unique<TriangleLight>(p0, p1, p2, mat.emission, ii, prim);
+            if (mat.tex_emission >= 0) {
+                Vec2 st[3] = {Vec2(0.f, 0.f), Vec2(1.f, 0.f), Vec2(0.f, 1.f)};
+                if (mesh.data.uvs)
+                    for (int k = 0; k < 3; ++k) st[k] = mesh.uv(v[k]);
+                tl->set_texture(&m_textures[size_t(mat.tex_emission)], st[0], st[1], st[2]);
+            }
             if (!(tl->area() > 0.f)) continue;  // degenerate: never sampled, never hit
             if (!map) {
                 map = &m_tri_light_index[ii];
@@ -252,6 +265,17 @@ void Scene::commit() {
                                                 << mesh.data.material_ids[t] << " but there are "
                                                 << m_materials.size() << " materials");
         }
+    }
+    for (size_t i = 0; i < m_materials.size(); ++i) {
+        const Material& m = m_materials[i];
+        const int32_t ids[] = {m.tex_diffuse,  m.tex_emission,  m.tex_specular,
+                               m.tex_normal,   m.tex_metallic,  m.tex_roughness,
+                               m.tex_clearcoat, m.tex_clearcoat_roughness, m.tex_opacity};
+        for (int32_t id : ids)
+            if (id >= 0 && size_t(id) >= m_textures.size())
+                CMLT_THROW(SceneError, "material " << i << " refers to texture " << id
+                                                   << " but there are " << m_textures.size()
+                                                   << " textures");
     }
     m_accel->commit();
     compute_bounds();
@@ -298,8 +322,17 @@ void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction*
     if (mesh.data.uvs) {
         Vec2 t0 = mesh.uv(v[0]), t1 = mesh.uv(v[1]), t2 = mesh.uv(v[2]);
         si->uv = Vec2(t0.x * b0 + t1.x * b1 + t2.x * b2, t0.y * b0 + t1.y * b1 + t2.y * b2);
+        // dp/du from the uv parametrisation of the triangle (pbrt's Triangle::Intersect).
+        float du02 = t0.x - t2.x, du12 = t1.x - t2.x, dv02 = t0.y - t2.y, dv12 = t1.y - t2.y;
+        float det = du02 * dv12 - dv02 * du12;
+        si->dpdu = Vec3(0.f);
+        if (std::fabs(det) > 1e-12f) {
+            Vec3 d = ((p0 - p2) * dv12 - (p1 - p2) * dv02) * (1.f / det);
+            if (is_finite(d)) si->dpdu = d;
+        }
     } else {
         si->uv = Vec2(b1, b2);
+        si->dpdu = Vec3(0.f);
     }
     si->error_scale = max_component(vmax(vabs(p0), vmax(vabs(p1), vabs(p2))));
     si->instance_id = hit.instance_id;

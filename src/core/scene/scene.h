@@ -16,6 +16,7 @@
 #include "sampling/discrete_distribution.h"
 #include "scene/interaction.h"
 #include "scene/mesh.h"
+#include "textures/texture.h"
 
 #include <memory>
 #include <string>
@@ -58,6 +59,9 @@ public:
     void set_instance_transform(uint32_t instance_id, const Mat4& object_to_world);
     /// K >= 1 rows; material_ids index these.
     void set_materials(std::vector<Material> materials);
+    /// Registers an image texture (zero copy; `desc.owner` keeps it alive); returns its id,
+    /// which material texture slots and textured lights refer to.
+    uint32_t add_texture(TextureDesc desc, const std::string& name = "texture");
     void clear_lights();
     /// Validates and adds an analytic light; returns its id (index among analytic lights).
     uint32_t add_light(const LightDesc& desc);
@@ -74,6 +78,8 @@ public:
     const Instance& instance(uint32_t id) const { return m_instances[id]; }
     const Material& material(uint32_t id) const { return m_materials[id]; }
     size_t material_count() const { return m_materials.size(); }
+    const std::vector<Texture>& textures() const { return m_textures; }
+    size_t texture_count() const { return m_textures.size(); }
     const Accel& accel() const { return *m_accel; }
     Vec3 bounds_center() const { return m_center; }
     float bounds_radius() const { return m_radius; }
@@ -105,6 +111,7 @@ private:
     std::vector<std::shared_ptr<void>> m_point_owners;  ///< per mesh, latest update_mesh_points
     std::vector<Instance> m_instances;
     std::vector<Material> m_materials;
+    std::vector<Texture> m_textures;
     std::vector<std::unique_ptr<Light>> m_analytic;  ///< as added
     std::vector<std::unique_ptr<TriangleLight>> m_triangle_lights;
     std::vector<const Light*> m_lights;               ///< analytic, then triangles

@@ -5,6 +5,7 @@
 #include "integrators/path/path_tracer.h"
 
 #include "materials/bsdf.h"
+#include "materials/material_eval.h"
 #include "sampling/mis.h"
 #include "scene/scene.h"
 
@@ -19,6 +20,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
     Spectrum L(0.f), beta(1.f);
     Ray ray = camera_ray;
     bool specular_bounce = false;
+    float eta_scale = 1.f;  // product of eta^2 over refractions: undoes radiance scaling for RR
     float prev_bsdf_pdf = 0.f;
     Vec3 prev_p;
     c.samples += 1;
@@ -68,13 +70,13 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
                     pl = scene.light_pmf(size_t(li)) *
                          scene.triangle_light(size_t(li)).pdf_li_point(prev_p, si.p);
             }
-            add_emitted(mat.emission, pl);
+            add_emitted(emitted_radiance(mat, si.uv, scene.textures()), pl);
         }
 
         // Stop after max_depth scattering events.
         if (depth == m_max_depth) break;
 
-        Bsdf bsdf = Bsdf::from_material(mat, si.ns, si.ng);
+        Bsdf bsdf = make_bsdf(mat, si, scene.textures());
         const Vec3 wo = si.wo;
         const Vec3& ns = bsdf.shading_normal();
         sampler.set_dimension(1 + uint32_t(depth) * k_dims_per_bounce);
@@ -121,13 +123,14 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
         beta *= bs.f * (std::fabs(dot(bs.wi, ns)) / bs.pdf);
         if (is_black(beta) || !is_finite(beta)) break;
         specular_bounce = bs.is_delta;
+        if (bs.is_transmission) eta_scale *= bs.eta * bs.eta;
         prev_bsdf_pdf = bs.pdf;
         prev_p = si.p;
         ray = si.spawn_ray(bs.wi);
 
         // Russian roulette.
         if (depth + 1 >= k_rr_start_depth) {
-            float q = std::min(0.95f, max_component(beta));
+            float q = std::min(0.95f, max_component(beta) * eta_scale);
             if (!(u_rr < q)) break;
             beta /= q;
         }

@@ -1,0 +1,111 @@
+#include "materials/material_eval.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cmlt {
+
+namespace {
+
+const Texture* lookup(const std::vector<Texture>& textures, int32_t id) {
+    return (id >= 0 && size_t(id) < textures.size() && textures[size_t(id)].valid())
+               ? &textures[size_t(id)]
+               : nullptr;
+}
+
+Spectrum colour_input(const Spectrum& constant, int32_t tex, const Vec2& st,
+                      const std::vector<Texture>& textures) {
+    const Texture* t = lookup(textures, tex);
+    return t ? t->eval(st).xyz() : constant;
+}
+
+float scalar_input(float constant, int32_t tex, uint8_t channel, const Vec2& st,
+                   const std::vector<Texture>& textures) {
+    const Texture* t = lookup(textures, tex);
+    return t ? channel_of(t->eval(st), channel) : constant;
+}
+
+PreviewSurfaceParams constant_params(const Material& mat) {
+    PreviewSurfaceParams p;
+    p.diffuse = mat.diffuse;
+    p.specular = mat.specular;
+    p.use_specular_workflow = mat.use_specular_workflow;
+    p.metallic = mat.metallic;
+    p.roughness = mat.roughness;
+    p.clearcoat = mat.clearcoat;
+    p.clearcoat_roughness = mat.clearcoat_roughness;
+    p.opacity = mat.opacity;
+    p.ior = mat.ior;
+    return p;
+}
+
+void apply_cutout(PreviewSurfaceParams* p, float opacity_threshold) {
+    if (!(opacity_threshold > 0.f)) return;
+    if (p->opacity < opacity_threshold) {
+        p->opacity = 0.f;  // no surface: a pass-through interface
+        p->ior = 1.f;
+    } else {
+        p->opacity = 1.f;
+    }
+}
+
+}  // namespace
+
+PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
+                                    const std::vector<Texture>& textures) {
+    PreviewSurfaceParams p = constant_params(mat);
+    p.diffuse = colour_input(mat.diffuse, mat.tex_diffuse, st, textures);
+    p.specular = colour_input(mat.specular, mat.tex_specular, st, textures);
+    p.metallic = scalar_input(mat.metallic, mat.tex_metallic, mat.ch_metallic, st, textures);
+    p.roughness = scalar_input(mat.roughness, mat.tex_roughness, mat.ch_roughness, st, textures);
+    p.clearcoat = scalar_input(mat.clearcoat, mat.tex_clearcoat, mat.ch_clearcoat, st, textures);
+    p.clearcoat_roughness = scalar_input(mat.clearcoat_roughness, mat.tex_clearcoat_roughness,
+                                         mat.ch_clearcoat_roughness, st, textures);
+    p.opacity = scalar_input(mat.opacity, mat.tex_opacity, mat.ch_opacity, st, textures);
+    apply_cutout(&p, mat.opacity_threshold);
+    return p;
+}
+
+Bsdf Bsdf::from_material(const Material& mat, const Vec3& ns, const Vec3& ng) {
+    if (!mat.preview) return Bsdf(LambertianBsdf(mat.diffuse), ns, ng);
+    PreviewSurfaceParams p = constant_params(mat);
+    apply_cutout(&p, mat.opacity_threshold);
+    return Bsdf(PreviewSurfaceBsdf(p), ns, ng);
+}
+
+Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
+               const std::vector<Texture>& textures) {
+    Vec3 ns = si.ns;
+    if (const Texture* nt = lookup(textures, mat.tex_normal)) {
+        // Tangent frame from dp/du, Gram-Schmidt against the interpolated normal.
+        Vec3 t = si.dpdu - ns * dot(si.dpdu, ns);
+        if (length_squared(t) > 0.f && is_finite(t)) {
+            t = normalize(t);
+            Vec3 b = cross(ns, t);
+            Vec3 n = nt->eval(si.uv).xyz();
+            Vec3 pn = t * n.x + b * n.y + ns * n.z;
+            if (length_squared(pn) > 0.f && is_finite(pn)) {
+                pn = normalize(pn);
+                // Keep the perturbed normal on the geometric side (no inverted frames).
+                if (dot(pn, si.ng) <= 1e-4f) {
+                    pn = pn - si.ng * (dot(pn, si.ng) - 1e-4f);
+                    pn = normalize(pn);
+                }
+                if (is_finite(pn)) ns = pn;
+            }
+        }
+    }
+    if (!mat.preview) {
+        return Bsdf(LambertianBsdf(colour_input(mat.diffuse, mat.tex_diffuse, si.uv, textures)), ns,
+                    si.ng);
+    }
+    return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures)), ns, si.ng);
+}
+
+Spectrum emitted_radiance(const Material& mat, const Vec2& st,
+                          const std::vector<Texture>& textures) {
+    Spectrum e = colour_input(mat.emission, mat.tex_emission, st, textures);
+    return {std::max(0.f, e.x), std::max(0.f, e.y), std::max(0.f, e.z)};
+}
+
+}  // namespace cmlt

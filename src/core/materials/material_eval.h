@@ -1,0 +1,27 @@
+#pragma once
+/// \file A material at a surface point: textures looked up at the hit's st, the normal map
+/// applied, the UsdPreviewSurface model built. Used by every integrator (PT, BDPT, MLT).
+#include "materials/bsdf.h"
+#include "materials/material.h"
+#include "scene/interaction.h"
+#include "textures/texture.h"
+
+#include <vector>
+
+namespace cmlt {
+
+/// UsdPreviewSurface parameters of `mat` at texture coordinate `st` (textures applied,
+/// opacityThreshold cutout resolved).
+PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
+                                    const std::vector<Texture>& textures);
+
+/// The BSDF at `si`. The shading normal is si.ns, perturbed by the material's normal map
+/// when it has one and si.dpdu is known; it stays on si.ng's side.
+Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
+               const std::vector<Texture>& textures);
+
+/// Emitted radiance (two-sided) at texture coordinate `st`.
+Spectrum emitted_radiance(const Material& mat, const Vec2& st,
+                          const std::vector<Texture>& textures);
+
+}  // namespace cmlt
