@@ -43,6 +43,8 @@ MATERIAL_PARAM_COLUMNS = (
     "ch_metallic", "ch_roughness", "ch_clearcoat", "ch_clearcoat_roughness", "ch_opacity",
 )
 _COL = {name: i for i, name in enumerate(MATERIAL_PARAM_COLUMNS)}
+#: UsdUVTexture output -> channel read by a scalar input
+_CHANNELS = {"rgb": 0, "r": 0, "g": 1, "b": 2, "a": 3}
 
 
 def material_params(m, texture_ids=None) -> np.ndarray:
@@ -148,6 +150,8 @@ class SceneBridge:
         self._instance_ids: List[int] = []
         self._transforms: List[np.ndarray] = []
         self._materials: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        self._textures: dict = {}               # texture key -> core id (None: unreadable)
+        self._texture_arrays: list = []         # arrays shared with the core (zero copy)
         self.last_update = UpdateReport()
 
     # -- helpers ---------------------------------------------------------
@@ -166,7 +170,51 @@ class SceneBridge:
         return diffuse, emission, np.ascontiguousarray(params, dtype=np.float32)
 
     def _texture_ids(self, m) -> dict:
-        return {}
+        """{input name: (core texture id, channel)} for the material's texture
+        inputs; each (file, colour space, wrap, scale, bias) is loaded once per
+        core scene. A file that cannot be read gives a warning naming the
+        material and the file, and the input keeps its fallback constant."""
+        out = {}
+        for name, rec in (m.inputs or {}).items():
+            if not (isinstance(rec, dict) and "texture" in rec):
+                continue
+            path = rec.get("texture")
+            cs = "raw" if name == "normal" else (rec.get("sourceColorSpace") or "auto")
+            key = (path, cs, str(rec.get("wrapS")), str(rec.get("wrapT")),
+                   tuple(rec.get("scale") or (1, 1, 1, 1)), tuple(rec.get("bias") or (0, 0, 0, 0)))
+            if key not in self._textures:
+                self._textures[key] = self._load_texture(m.name, name, path, cs, rec)
+            tid = self._textures[key]
+            if tid is None:
+                continue
+            out[name] = (tid, _CHANNELS.get(str(rec.get("output") or "rgb"), 0))
+        return out
+
+    def _load_texture(self, material: str, input_name: str, path, cs: str, rec: dict):
+        import warnings
+        from ..usd.color import load_texture
+        try:
+            if not path:
+                raise OSError("no file")
+            img = load_texture(str(path), cs)
+        except Exception as exc:                       # missing / unreadable file
+            warnings.warn(f"{material}: texture file {rec.get('unresolved') or path!r} for "
+                          f"{input_name} cannot be read ({exc}); using the fallback value")
+            return None
+        img = np.ascontiguousarray(img, dtype=np.float32)
+        if img.ndim == 2:
+            img = img[..., None]
+        self._texture_arrays.append(img)
+        def wrap(v):
+            v = str(v or "repeat")
+            return v if v in ("repeat", "mirror", "clamp", "black") else "repeat"
+        def four(v, d):
+            v = tuple(float(x) for x in (v if v is not None else d))
+            return (v + d[len(v):])[:4]
+        return self.scene.add_texture(img, wrap(rec.get("wrapS")), wrap(rec.get("wrapT")),
+                                      four(rec.get("scale"), (1.0, 1.0, 1.0, 1.0)),
+                                      four(rec.get("bias"), (0.0, 0.0, 0.0, 0.0)),
+                                      name=f"{material}:{input_name}")
 
     def _structure_change(self, fs: FrameScene) -> str:
         """Why the scene must be rebuilt, or '' if updates suffice."""
@@ -218,6 +266,7 @@ class SceneBridge:
             inst_ids.append(scene.add_instance(mesh_ids[inst.mesh], t))
             transforms.append(t.copy())
         self.scene = scene
+        self._textures, self._texture_arrays = {}, []
         diffuse, emission, params = self._material_arrays(fs)
         scene.set_materials(diffuse, emission, params)
 
