@@ -70,7 +70,12 @@ class Mesh:
     normals: Optional[np.ndarray] = None        # float32 (N, 3) per vertex, or None
     uvs: Optional[np.ndarray] = None            # float32 (N, 2) per vertex, or None
     material_ids: Optional[np.ndarray] = None   # uint32 (M,) index into FrameScene.materials
-    deforming: bool = False                     # points are time-varying
+    deforming: bool = False                     # points (or normals) may vary in time:
+                                                # the bridge re-sends them each frame;
+                                                # False = never looked at after the first frame
+    # Motion blur: the points at the shutter's time steps (each like ``points``),
+    # evenly spaced over [shutter open, shutter close]; None = no deformation blur.
+    motion_points: Optional[List[np.ndarray]] = None
 
 
 @dataclass
@@ -81,6 +86,13 @@ class Instance:
     mesh: int                                   # index into FrameScene.meshes
     transform: np.ndarray                       # float64 (4, 4), object -> world (metres;
                                                 # includes metersPerUnit and authored scale)
+    # The transform may vary in time (an xformOp of the prim or of an ancestor,
+    # or a point instancer's arrays, has time samples). False = never looked at
+    # after the first frame. Hand-built scenes default to True (compared).
+    animated: bool = True
+    # Motion blur: object -> world at the shutter's time steps, evenly spaced
+    # over [shutter open, shutter close]; None = no transform blur.
+    motion_transforms: Optional[List[np.ndarray]] = None
 
 
 @dataclass
@@ -151,3 +163,13 @@ class FrameScene:
     meters_per_unit: float = 0.01
     up_axis: str = "Y"
     warnings: List[str] = field(default_factory=list)
+    # The structure of the frame: per mesh (name, #points, #triangles, has normals,
+    # has uvs, deforming) and per instance (name, mesh, animated). Equal signatures
+    # on consecutive frames mean the bridge can update in place. None: unknown
+    # (hand-built scenes); the bridge then checks the structure itself.
+    static_signature: Optional[Tuple] = None
+    # Motion blur over the camera shutter: on only when the shutter is open and
+    # something moves within it; ``motion_blur_reason`` says why it is on or off.
+    motion_blur: bool = False
+    motion_blur_reason: str = ""
+    motion_times: List[float] = field(default_factory=list)   # time codes of the steps

@@ -1,21 +1,27 @@
 """FrameScene (:mod:`cmlt.scene`) -> ``cmlt._core.Scene``, frame after frame.
 
 The first frame builds the core scene. Each following frame sends only what
-changed:
+can have changed, as the USD reader decided from the time samples
+(``attr.ValueMightBeTimeVarying()``, ``TransformMightBeTimeVarying()`` on the
+prim and its ancestors):
 
-* instance transforms that differ -> ``set_instance_transform``;
-* meshes whose points (or normals) differ -> ``update_mesh_points`` (the
-  core refits that mesh's BVH instead of rebuilding it);
+* a static instance (``Instance.animated`` False) or a static mesh
+  (``Mesh.deforming`` False) is never looked at again after the first frame;
+* an animated instance -> ``set_instance_transform`` (skipped when its 16
+  numbers equal the last ones: a held key costs no top-level commit);
+* a deforming mesh -> ``update_mesh_points`` (the core refits that mesh's BVH
+  only; skipped when the points and normals equal the last ones);
 * materials that differ -> ``set_materials``;
 * lights and the camera are cheap and always re-set.
 
-The scene is rebuilt from scratch when its structure changes: a different
-number or order of meshes or instances, a mesh whose topology (indices,
-point count, UVs, material ids, presence of normals) changed, or an instance
-that now points at another mesh. "Changed" is decided by comparing arrays
-with the previous frame, not by trusting ``Mesh.deforming`` alone: a
-comparison costs far less than a render, and a wrong flag must not give a
-stale image.
+The scene is rebuilt from scratch when its structure changes. Counts and
+names of meshes and instances are compared, then a cheap per-mesh check:
+point/triangle counts, and indices, UVs and material ids by *identity* (the
+reader hands a static mesh the very same arrays every frame) with an element
+comparison only when the arrays are new objects (hand-built scenes, animated
+topology); last the reader's ``FrameScene.static_signature`` (names, counts
+and static/animated flags). Hand-built scenes without flags stay safe:
+``Instance.animated`` defaults to True, so their transforms are compared.
 
 :meth:`SceneBridge.last_update` says what the last :meth:`update` did, for
 the sidecar and the tests.
@@ -87,9 +93,13 @@ class BridgeError(ValueError):
 class UpdateReport:
     rebuilt: bool = False
     reason: str = ""
-    transforms_updated: int = 0
-    meshes_updated: int = 0
+    transforms_updated: int = 0        # set_instance_transform calls
+    meshes_updated: int = 0            # update_mesh_points calls
     materials_updated: bool = False
+    static_instances: int = 0          # skipped without a look (not animated)
+    static_meshes: int = 0             # skipped without a look (not deforming)
+    animated_instances: int = 0        # looked at (updated or equal to the last frame)
+    deforming_meshes: int = 0          # looked at (updated or equal to the last frame)
 
     def as_dict(self) -> dict:
         return {
@@ -97,6 +107,10 @@ class UpdateReport:
             "transforms_updated": self.transforms_updated,
             "meshes_updated": self.meshes_updated,
             "materials_updated": self.materials_updated,
+            "static_instances": self.static_instances,
+            "static_meshes": self.static_meshes,
+            "animated_instances": self.animated_instances,
+            "deforming_meshes": self.deforming_meshes,
         }
 
 
@@ -104,6 +118,13 @@ def _optional_equal(a: Optional[np.ndarray], b: Optional[np.ndarray]) -> bool:
     if a is None or b is None:
         return a is None and b is None
     return a.shape == b.shape and np.array_equal(a, b)
+
+
+def _same(new, old_src, old) -> bool:
+    """``new`` is the array last seen (identity: O(1)) or equal to it."""
+    if new is old_src:
+        return True
+    return _optional_equal(None if new is None else np.asarray(new), old)
 
 
 def _topology_key(mesh: Mesh) -> Tuple:
@@ -123,6 +144,8 @@ class _MeshState:
     indices: np.ndarray
     uvs: Optional[np.ndarray]
     material_ids: Optional[np.ndarray]
+    # the FrameScene's own arrays last seen (identity checks)
+    src: Tuple = (None, None, None)      # (indices, uvs, material_ids)
 
 
 def _f32(a, cols: int) -> np.ndarray:
@@ -152,6 +175,7 @@ class SceneBridge:
         self._materials: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._textures: dict = {}               # texture key -> core id (None: unreadable)
         self._texture_arrays: list = []         # arrays shared with the core (zero copy)
+        self._signature = None
         self.last_update = UpdateReport()
 
     # -- helpers ---------------------------------------------------------
@@ -222,22 +246,25 @@ class SceneBridge:
             return "first frame"
         if len(fs.meshes) != len(self._meshes):
             return f"mesh count {len(self._meshes)} -> {len(fs.meshes)}"
+        inst = [(i.name, int(i.mesh)) for i in fs.instances]
+        if len(inst) != len(self._instances):
+            return f"instance count {len(self._instances)} -> {len(inst)}"
         for mesh, old in zip(fs.meshes, self._meshes):
             if _topology_key(mesh) != old.key:
                 return f"{mesh.name}: topology changed"
-            idx = np.asarray(mesh.indices)
-            if idx.shape != old.indices.shape or not np.array_equal(idx, old.indices):
+            if len(mesh.indices) != len(old.indices) or \
+                    not _same(mesh.indices, old.src[0], old.indices):
                 return f"{mesh.name}: indices changed"
-            if not _optional_equal(None if mesh.uvs is None else np.asarray(mesh.uvs), old.uvs):
+            if not _same(mesh.uvs, old.src[1], old.uvs):
                 return f"{mesh.name}: uvs changed"
-            mids = None if mesh.material_ids is None else np.asarray(mesh.material_ids)
-            if not _optional_equal(mids, old.material_ids):
+            if not _same(mesh.material_ids, old.src[2], old.material_ids):
                 return f"{mesh.name}: material ids changed"
-        inst = [(i.name, int(i.mesh)) for i in fs.instances]
+            old.src = (mesh.indices, mesh.uvs, mesh.material_ids)
         if inst != self._instances:
-            if len(inst) != len(self._instances):
-                return f"instance count {len(self._instances)} -> {len(inst)}"
             return "instances changed"
+        if fs.static_signature is not None and self._signature is not None and \
+                fs.static_signature != self._signature:
+            return "static/animated flags changed"
         return ""
 
     # -- building ---------------------------------------------------------
@@ -256,7 +283,8 @@ class SceneBridge:
                                            normals=normals, uvs=uvs, material_ids=mids))
             # keep the very arrays handed over: the core may share their
             # buffers (zero-copy), so they must stay alive and unchanged
-            meshes.append(_MeshState(_topology_key(mesh), points, normals, indices, uvs, mids))
+            meshes.append(_MeshState(_topology_key(mesh), points, normals, indices, uvs, mids,
+                                     (mesh.indices, mesh.uvs, mesh.material_ids)))
         inst_ids, transforms = [], []
         for inst in fs.instances:
             if not 0 <= inst.mesh < len(mesh_ids):
@@ -273,11 +301,16 @@ class SceneBridge:
         self._meshes, self._mesh_ids = meshes, mesh_ids
         self._instances = [(i.name, int(i.mesh)) for i in fs.instances]
         self._instance_ids, self._transforms = inst_ids, transforms
+        self._signature = fs.static_signature
         self._materials = (diffuse.copy(), emission.copy(), params.copy())
 
     def _incremental(self, fs: FrameScene, report: UpdateReport) -> None:
         scene = self.scene
         for k, (mesh, old) in enumerate(zip(fs.meshes, self._meshes)):
+            if not mesh.deforming:
+                report.static_meshes += 1          # static: not even looked at
+                continue
+            report.deforming_meshes += 1
             points = np.asarray(mesh.points, dtype=np.float32).reshape(-1, 3)
             normals = (None if mesh.normals is None else
                        np.asarray(mesh.normals, dtype=np.float32).reshape(-1, 3))
@@ -289,6 +322,10 @@ class SceneBridge:
             old.points, old.normals = p, n
             report.meshes_updated += 1
         for k, inst in enumerate(fs.instances):
+            if not inst.animated:
+                report.static_instances += 1       # static: not even looked at
+                continue
+            report.animated_instances += 1
             t = _mat(inst.transform)
             if np.array_equal(t, self._transforms[k]):
                 continue

@@ -115,11 +115,38 @@ class _Frame:
             self._render_scope_cache[key] = hit
         return hit
 
+    # ---------------------------------------------------------- time variance
+    def xform_animated(self, prim, stop=None) -> bool:
+        """Whether the transform of ``prim`` might vary in time: an xformOp of
+        ``prim`` or of an ancestor (up to and including ``stop``, or up to the
+        pseudo-root; a ``!resetXformStack!`` ends the walk) has time samples.
+        From USD's own ``TransformMightBeTimeVarying``; cached per stage."""
+        key = (prim.GetPath(), None if stop is None else stop.GetPath())
+        hit = self.state.xform_anim.get(key)
+        if hit is None:
+            hit = False
+            p = prim
+            while p and not p.IsPseudoRoot():
+                x = UsdGeom.Xformable(p)
+                if x:
+                    if x.TransformMightBeTimeVarying():
+                        hit = True
+                        break
+                    if x.GetResetXformStack():
+                        break
+                if stop is not None and p == stop:
+                    break
+                p = p.GetParent()
+            self.state.xform_anim[key] = hit
+        return hit
+
     # ---------------------------------------------------------- traversal
-    def traverse(self, root, outer: Optional[np.ndarray], depth: int = 0):
+    def traverse(self, root, outer: Optional[np.ndarray], depth: int = 0,
+                 outer_animated: bool = False):
         """Visit ``root``'s subtree. ``outer`` None: top level (world
         transforms from the XformCache); else a PointInstancer prototype
-        placed by the column matrix ``outer`` (scene units)."""
+        placed by the column matrix ``outer`` (scene units), which varies in
+        time when ``outer_animated``."""
         if depth > 8:
             self.warn(f"{root.GetPath()}: point instancers nested deeper than 8; not rendered")
             return
@@ -138,13 +165,13 @@ class _Frame:
                 t = str(prim.GetTypeName())
                 if prim.IsA(UsdGeom.PointInstancer):
                     it.PruneChildren()
-                    self._point_instancer(prim, root, outer, depth)
+                    self._point_instancer(prim, root, outer, depth, outer_animated)
                     continue
                 if t in MESH_TYPES or t in INTRINSIC_TYPES:
                     if prim.HasAPI(UsdLux.LightAPI) or prim.HasAPI(UsdLux.MeshLightAPI):
                         self.warn(f"{prim.GetPath()}: mesh lights (LightAPI on a gprim) are not "
                                   f"supported; rendered as plain geometry, not emitting")
-                    self._gprim(prim, t, root, outer)
+                    self._gprim(prim, t, root, outer, outer_animated)
                     continue
                 if t in SUPPORTED_LIGHT_TYPES:
                     if outer is None:
@@ -177,7 +204,7 @@ class _Frame:
         return outer @ gf_to_np(rel)
 
     # ---------------------------------------------------------- gprims
-    def _gprim(self, prim, type_name, root, outer):
+    def _gprim(self, prim, type_name, root, outer, outer_animated=False):
         path = prim.GetPath()
         src = prim.GetPrimInPrototype() if prim.IsInstanceProxy() else prim
         key = str(src.GetPath())
@@ -193,6 +220,7 @@ class _Frame:
             geom = self.state.shape_cache.get(skey)
             if geom is None:
                 geom = shapes.tessellate(src, self.tc)
+                geom.deforming = bool(varying)
                 if not varying:
                     self.state.shape_cache[skey] = geom
         for w in geom.warnings:
@@ -215,36 +243,57 @@ class _Frame:
                               f"(time {_tstr(self.tc)}); ignored")
                 face_mat[idx[~bad]] = mi
                 sig.append((mi, idx.tobytes()))
-            mat_ids = face_mat[geom.tri_face]
-            mkey = (key, id(geom), hash(tuple(sig)))
+            msig = hash(tuple(sig))
+            mkey = (key, id(geom), msig)
         else:
-            mat_ids = None
+            msig = base
             mkey = (key, id(geom), base)
         mi = self._mesh_index.get(mkey)
         if mi is None:
-            if mat_ids is None:
-                mat_ids = np.full(len(geom.indices), base, dtype=np.uint32)
+            # one material-id array per (gprim, binding, triangulation): a
+            # static mesh hands the bridge the same array object every frame
+            ckey = (key, msig)
+            cached = self.state.material_ids_cache.get(ckey)
+            tri_face = geom.tri_face if geom.tri_face is not None else geom.indices
+            if cached is not None and cached[0] is tri_face:
+                mat_ids = cached[1]
+            else:
+                if subsets and geom.tri_face is not None:
+                    mat_ids = face_mat[geom.tri_face]
+                else:
+                    mat_ids = np.full(len(geom.indices), base, dtype=np.uint32)
+                mat_ids = np.ascontiguousarray(mat_ids, dtype=np.uint32)
+                self.state.material_ids_cache[ckey] = (tri_face, mat_ids)
             mi = len(self.meshes)
             self.meshes.append(Mesh(name=str(path), points=geom.points, indices=geom.indices,
                                     normals=geom.normals, uvs=geom.uvs,
-                                    material_ids=np.ascontiguousarray(mat_ids, dtype=np.uint32),
+                                    material_ids=mat_ids,
                                     deforming=geom.deforming))
             self._mesh_index[mkey] = mi
         world = self._world(prim, root, outer)
-        self._add_instance(str(path), mi, world)
+        animated = outer_animated or self.xform_animated(prim, None if outer is None else root)
+        self._add_instance(str(path), mi, world, animated)
 
-    def _add_instance(self, name, mesh_index, world):
+    def _add_instance(self, name, mesh_index, world, animated=True):
         m = self.S @ world
         if not np.isfinite(m).all():
             self.warn(f"{name}: transform is not finite (time {_tstr(self.tc)}); not rendered")
             return
-        self.instances.append(Instance(name=name, mesh=mesh_index, transform=m))
+        self.instances.append(Instance(name=name, mesh=mesh_index, transform=m,
+                                       animated=bool(animated)))
 
     # ---------------------------------------------------------- instancers
-    def _point_instancer(self, prim, root, outer, depth):
+    _PI_ATTRS = ("positions", "orientations", "orientationsf", "scales", "protoIndices",
+                 "ids", "invisibleIds", "velocities", "angularVelocities", "accelerations")
+
+    def _point_instancer(self, prim, root, outer, depth, outer_animated=False):
         path = prim.GetPath()
         pi = UsdGeom.PointInstancer(prim)
         tc = self.tc
+        animated = outer_animated or \
+            self.xform_animated(prim, None if outer is None else root) or \
+            any(prim.GetAttribute(a).ValueMightBeTimeVarying()
+                for a in self._PI_ATTRS if prim.GetAttribute(a))
         protos = pi.GetPrototypesRel().GetForwardedTargets()
         proto_prims = []
         for p in protos:
@@ -291,7 +340,7 @@ class _Frame:
             if pp is None:
                 continue
             n_before = len(self.instances)
-            self.traverse(pp, W @ mats[i], depth + 1)
+            self.traverse(pp, W @ mats[i], depth + 1, animated)
             for inst in self.instances[n_before:]:
                 inst.name = f"{path}[{i}]:{inst.name}"
 
@@ -514,7 +563,15 @@ def _load_frame(stage, time, camera=None, resolution=None, render_settings=None)
                       meshes=fr.meshes, instances=fr.instances,
                       materials=fr.materials.materials or [],
                       lights=fr.lights, camera=cam, resolution=res,
-                      meters_per_unit=fr.mpu, up_axis=up, warnings=warnings)
+                      meters_per_unit=fr.mpu, up_axis=up, warnings=warnings,
+                      static_signature=static_signature(fr.meshes, fr.instances))
+
+
+def static_signature(meshes, instances) -> Tuple:
+    """The structure of a frame (see ``FrameScene.static_signature``)."""
+    return (tuple((m.name, len(m.points), len(m.indices), m.normals is None, m.uvs is None,
+                   bool(m.deforming)) for m in meshes),
+            tuple((i.name, int(i.mesh), bool(i.animated)) for i in instances))
 
 
 def _drop_prototype_placements(fr: _Frame, roots: List[Sdf.Path]):

@@ -494,7 +494,8 @@ class MeshReader:
             normals=None if normals is None else np.ascontiguousarray(normals, dtype=np.float32),
             uvs=None if uvs is None else np.ascontiguousarray(uvs, dtype=np.float32),
             tri_face=tri_face,
-            deforming=pts_varying,
+            # points or normals may change from frame to frame (USD time samples)
+            deforming=bool(pts_varying or (npv is not None and npv.varying)),
             warnings=warnings,
         )
         if not (topo_varying or pts_varying or pv_varying):

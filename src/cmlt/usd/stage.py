@@ -62,10 +62,17 @@ class StageState:
         self.open_warnings: List[str] = []
         self.mesh_cache: Dict[object, object] = {}
         self.shape_cache: Dict[object, object] = {}
+        # (prim path, stop path) -> the transform might vary in time (frame.py)
+        self.xform_anim: Dict[object, bool] = {}
+        # (gprim key, material signature) -> (tri_face, material ids): one array
+        # object per static mesh, so the bridge recognises it by identity
+        self.material_ids_cache: Dict[object, object] = {}
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._changed, stage)
 
     def _changed(self, notice, sender):
         self.mesh_cache.clear()
+        self.xform_anim.clear()
+        self.material_ids_cache.clear()
 
 
 _STATES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
