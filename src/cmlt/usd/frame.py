@@ -31,6 +31,7 @@ from .errors import UsdLoadError
 from .lights import default_dome, read_light
 from .materials import MaterialTable, subset_bindings
 from .mesh import MeshReader, SkipPrim
+from .skel import SkelBindings
 from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, _stage_file,
                     check_time_metadata, composition_warnings, ignored_reason, stage_state)
 
@@ -80,6 +81,7 @@ class _Frame:
         self._mesh_index: Dict[object, int] = {}
         self._render_scope_cache: Dict[str, bool] = {}
         self._warned: set = set()
+        self._skin_xforms: Dict[object, object] = {}
 
     def warn(self, msg: str):
         if msg not in self._warned:
@@ -114,6 +116,27 @@ class _Frame:
                     break
             self._render_scope_cache[key] = hit
         return hit
+
+    # ---------------------------------------------------------- skinning
+    def _skinning(self, prim):
+        """(skeleton query, skinning query) when UsdSkel deforms ``prim``."""
+        if self.state.skel is None:
+            self.state.skel = SkelBindings()
+        return self.state.skel.lookup(prim)
+
+    def _skinned_points(self, prim, skin, tc):
+        sq, target = skin
+        if target.HasBlendShapes():
+            self.warn(f"{prim.GetPath()}: UsdSkel blend shapes are not applied")
+        key = (sq.GetPrim().GetPath(), tc.GetValue() if not tc.IsDefault() else None)
+        xforms = self._skin_xforms.get(key)
+        if xforms is None:
+            xforms = sq.ComputeSkinningTransforms(tc)
+            self._skin_xforms[key] = xforms
+        pts = UsdGeom.Mesh(prim).GetPointsAttr().Get(tc)
+        if pts is None or xforms is None:
+            return None
+        return SkelBindings.skinned_points(sq, target, pts, tc, xforms)
 
     # ---------------------------------------------------------- time variance
     def xform_animated(self, prim, stop=None) -> bool:
@@ -208,13 +231,20 @@ class _Frame:
         path = prim.GetPath()
         src = prim.GetPrimInPrototype() if prim.IsInstanceProxy() else prim
         key = str(src.GetPath())
+        skin = None
         if type_name == "Mesh":
             reader = self.state.mesh_cache.get(key)
             if reader is None or not isinstance(reader, MeshReader):
                 uv_name = self.materials.uv_primvar_name(prim)
                 reader = MeshReader(src, uv_name)
                 self.state.mesh_cache[key] = reader
-            geom = reader.read(src, self.tc)
+            skin = self._skinning(prim) if outer is None else None
+            posed = self._skinned_points(prim, skin, self.tc) if skin is not None else None
+            if skin is not None and posed is None:
+                self.warn(f"{path}: UsdSkel cannot skin it (time {_tstr(self.tc)}); "
+                          f"rendered in its authored points")
+                skin = None
+            geom = reader.read(src, self.tc, skinned_points=posed)
         else:
             skey, varying = shapes.shape_key(src, self.tc)
             geom = self.state.shape_cache.get(skey)
@@ -270,8 +300,14 @@ class _Frame:
                                     material_ids=mat_ids,
                                     deforming=geom.deforming))
             self._mesh_index[mkey] = mi
-        world = self._world(prim, root, outer)
-        animated = outer_animated or self.xform_animated(prim, None if outer is None else root)
+        if skin is not None:
+            # skinned points are in skeleton space: placed by the Skeleton prim
+            skel_prim = skin[0].GetPrim()
+            world = gf_to_np(self.xc.GetLocalToWorldTransform(skel_prim))
+            animated = self.xform_animated(skel_prim)
+        else:
+            world = self._world(prim, root, outer)
+            animated = outer_animated or self.xform_animated(prim, None if outer is None else root)
         self._add_instance(str(path), mi, world, animated)
 
     def _add_instance(self, name, mesh_index, world, animated=True):

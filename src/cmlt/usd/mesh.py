@@ -388,16 +388,21 @@ class MeshReader:
         pts = prim.GetAttribute("points")
         return topo, bool(pts and pts.ValueMightBeTimeVarying())
 
-    def read(self, prim, time) -> MeshGeom:
-        if self.static_geom is not None:
+    def read(self, prim, time, skinned_points=None) -> MeshGeom:
+        """The geometry at ``time``. ``skinned_points``: points posed by
+        UsdSkel (skeleton space, see :mod:`cmlt.usd.skel`) replacing the
+        authored ones; the mesh is then deforming, and authored normals (not
+        skinned) are replaced by smooth normals of the posed points."""
+        if self.static_geom is not None and skinned_points is None:
             return self.static_geom
         path = self.path
         tstr = _tstr(time)
         mesh = UsdGeom.Mesh(prim)
         api = UsdGeom.PrimvarsAPI(prim)
         topo_varying, pts_varying = self._varying(prim)
+        skinned = skinned_points is not None
 
-        pts_v = mesh.GetPointsAttr().Get(time)
+        pts_v = skinned_points if skinned else mesh.GetPointsAttr().Get(time)
         points = np.asarray(pts_v, dtype=np.float64).reshape(-1, 3) if pts_v is not None \
             else np.zeros((0, 3))
         if len(points) == 0:
@@ -409,7 +414,8 @@ class MeshReader:
             npv = _normals_primvar(prim, mesh, api, time)
             if npv is not None and not npv.varying:
                 self._pv_cache["normals"] = npv
-        if npv is not None:
+        had_normals = npv is not None
+        if npv is not None and not skinned:
             primvars.append(npv)
         uvpv = find_uv_primvar(api, self.uv_name)
         uv = self._pv_cache.get("st")
@@ -481,7 +487,7 @@ class MeshReader:
                                                  f"not rendered"]))
         if normals is None:
             scheme = mesh.GetSubdivisionSchemeAttr().Get()
-            if scheme and scheme != UsdGeom.Tokens.none:
+            if (scheme and scheme != UsdGeom.Tokens.none) or (skinned and had_normals):
                 # the control cage of a subdivision surface is shaded smooth
                 normals = smooth_normals(out_pts, tri)
         with np.errstate(over="ignore", invalid="ignore"):
@@ -495,9 +501,9 @@ class MeshReader:
             uvs=None if uvs is None else np.ascontiguousarray(uvs, dtype=np.float32),
             tri_face=tri_face,
             # points or normals may change from frame to frame (USD time samples)
-            deforming=bool(pts_varying or (npv is not None and npv.varying)),
+            deforming=bool(skinned or pts_varying or (npv is not None and npv.varying)),
             warnings=warnings,
         )
-        if not (topo_varying or pts_varying or pv_varying):
+        if not (topo_varying or pts_varying or pv_varying or skinned):
             self.static_geom = geom
         return geom

@@ -67,12 +67,14 @@ class StageState:
         # (gprim key, material signature) -> (tri_face, material ids): one array
         # object per static mesh, so the bridge recognises it by identity
         self.material_ids_cache: Dict[object, object] = {}
+        self.skel = None                # cmlt.usd.skel.SkelBindings, made on first use
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._changed, stage)
 
     def _changed(self, notice, sender):
         self.mesh_cache.clear()
         self.xform_anim.clear()
         self.material_ids_cache.clear()
+        self.skel = None
 
 
 _STATES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -279,8 +281,8 @@ def stage_info(stage) -> StageInfo:
         elif prim.IsA(UsdGeom.PointInstancer):
             info.point_instancers.append(path)
         elif t == "SkelRoot":
-            info.notes.append(f"{path}: UsdSkel skinning is not applied; its meshes render "
-                              f"in their authored points")
+            info.notes.append(f"{path}: UsdSkel skinning is applied per frame with usd-core's "
+                              f"UsdSkel (skinning queries); blend shapes are not applied")
         reason = ignored_reason(prim)
         if reason:
             info.ignored.append((path, t, reason))

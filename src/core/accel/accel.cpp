@@ -21,6 +21,7 @@ struct Accel::Impl {
         RTCGeometry geom = nullptr;
         size_t n_points = 0;
         bool dirty = true;
+        bool refitted = false;  ///< points updated since the last commit
     };
     struct Instance {
         RTCGeometry geom = nullptr;
@@ -87,6 +88,7 @@ void Accel::update_mesh_points(uint32_t mesh_id, const float* points) {
     rtcCommitGeometry(mesh.geom);
     I.device->check("Accel::update_mesh_points");
     mesh.dirty = true;
+    mesh.refitted = true;
     I.top_dirty = true;
 }
 
@@ -130,12 +132,25 @@ void Accel::set_instance_transform(uint32_t instance_id, const Mat4& object_to_w
 
 void Accel::commit() {
     Impl& I = *m_impl;
+    bool any_mesh = false;
     for (auto& m : I.meshes) {
         if (!m.dirty) continue;
         rtcCommitScene(m.scene);
         I.device->check("Accel::commit (mesh BVH)");
         m.dirty = false;
         I.top_dirty = true;
+        any_mesh = true;
+    }
+    if (any_mesh) {
+        // An instance's bounds come from its instanced scene: the top level only
+        // recomputes them for instance geometries committed since its last build, so a
+        // refitted (deformed) mesh must re-commit every instance placing it.
+        for (auto& inst : I.instances) {
+            if (!I.meshes[inst.mesh].refitted) continue;
+            rtcCommitGeometry(inst.geom);
+        }
+        for (auto& m : I.meshes) m.refitted = false;
+        I.device->check("Accel::commit (instances of deformed meshes)");
     }
     if (I.top_dirty) {
         rtcCommitScene(I.top);
