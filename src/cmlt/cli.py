@@ -2,7 +2,9 @@
 
 ::
 
-    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N] [--integrator pt]
+    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N] [--integrator pt|pssmlt]
+                     [--sigma S] [--large-step-probability P] [--chains N]
+                     [--bootstrap-samples N]
                      [--seed S] [--threads N] [--res WxH] [--max-depth N]
                      [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
@@ -129,6 +131,21 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--integrator", metavar="NAME",
                    help="light transport algorithm; default: "
                    + stage_note.format("integrator", _Defaults.integrator))
+    r.add_argument("--sigma", type=float, metavar="S",
+                   help="pssmlt small-step size in primary sample space, (0, 1]; default: "
+                   + stage_note.format("sigma", _Defaults.sigma))
+    r.add_argument("--large-step-probability", type=float, metavar="P",
+                   dest="large_step_probability",
+                   help="pssmlt probability of an independent (large) step, [0, 1]; default: "
+                   + stage_note.format("largeStepProbability", _Defaults.large_step_probability))
+    r.add_argument("--chains", type=_int_at_least(1), metavar="N",
+                   help="pssmlt Markov chains per frame (fixed, so images do not depend on "
+                   "the thread count); default: " + stage_note.format("chains", _Defaults.chains))
+    r.add_argument("--bootstrap-samples", type=_int_at_least(1), metavar="N",
+                   dest="bootstrap_samples",
+                   help="pssmlt large-step samples for the normalisation and chain starts, "
+                   "counted in the --spp budget (at most half of it); default: "
+                   + stage_note.format("bootstrapSamples", _Defaults.bootstrap_samples))
     r.add_argument("--seed", type=_int_at_least(0),
                    help="shot seed, the same for every frame; default: "
                    + stage_note.format("seed", _Defaults.seed))
@@ -224,6 +241,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
 
     opts = RenderOptions(spp=args.spp, integrator=args.integrator, seed=args.seed,
                          threads=args.threads, resolution=args.res, max_depth=args.max_depth,
+                         sigma=args.sigma, large_step_probability=args.large_step_probability,
+                         chains=args.chains, bootstrap_samples=args.bootstrap_samples,
                          camera=args.camera, half=args.half, compression=args.compression,
                          output_colorspace=args.output_colorspace, ocio_config=args.ocio_config,
                          aovs=tuple(args.aov), aov_samples=args.aov_samples, crop=args.crop,

@@ -63,6 +63,11 @@ class RenderOptions:
     integrator: Optional[str] = None
     seed: Optional[int] = None
     max_depth: Optional[int] = None
+    #: Metropolis (pssmlt) settings; None = the stage's value, else the default
+    sigma: Optional[float] = None
+    large_step_probability: Optional[float] = None
+    chains: Optional[int] = None
+    bootstrap_samples: Optional[int] = None
     resolution: Optional[Tuple[int, int]] = None  # (w, h)
     camera: Optional[str] = None                  # prim path
     threads: int = 0                              # 0 = all cores; machine, not shot
@@ -122,7 +127,9 @@ class RenderOptions:
         """Flag values by setting name, for :func:`cmlt.settings.resolve_settings`."""
         return {"integrator": self.integrator, "spp": self.spp, "seed": self.seed,
                 "max_depth": self.max_depth, "resolution": self.resolution,
-                "camera": self.camera}
+                "camera": self.camera, "sigma": self.sigma,
+                "large_step_probability": self.large_step_probability,
+                "chains": self.chains, "bootstrap_samples": self.bootstrap_samples}
 
 
 @dataclass
@@ -169,7 +176,9 @@ def _core_settings(core, resolved, opts: RenderOptions, sources: Dict[str, str])
 
 
 _FLAGS = {"integrator": "--integrator", "spp": "--spp", "max_depth": "--max-depth",
-          "seed": "--seed", "threads": "--threads", "width": "--res", "height": "--res"}
+          "seed": "--seed", "threads": "--threads", "width": "--res", "height": "--res",
+          "sigma": "--sigma", "large_step_probability": "--large-step-probability",
+          "chains": "--chains", "bootstrap_samples": "--bootstrap-samples"}
 
 
 def _where(name: str, value, sources: Dict[str, str]) -> str:

@@ -13,9 +13,9 @@
 ///     and wrapping onto the torus commutes with adding);
 ///   * a sample never read before is a fresh uniform number (it is part of the current
 ///     state, whose unread coordinates are uniform and independent), then mutated.
-/// `reject()` restores every sample touched by the rejected proposal bit-exactly (value
-/// and modification iteration) and reuses the iteration number, so iterations count
-/// accepted steps only.
+/// `reject()` restores every sample touched by the rejected proposal bit-exactly (stored
+/// value and modification iteration, as before the proposal read it) and reuses the
+/// iteration number, so iterations count accepted steps only.
 ///
 /// Streams (pbrt-v4; Hachisuka et al. 2014): `k_stream_count` = 3 interleaved index
 /// spaces — camera, light, connection — so a camera subpath that reads more or fewer
@@ -240,8 +240,14 @@ private:
         if (x.last_modified == m_iteration && x.last_modified != PrimarySample::k_unread)
             return;  // already mutated by this proposal
         const Philox4x32Counter r = draw(i);
+        // back up the stored sample as it is, so reject() restores it bit for bit
+        x.value_backup = x.value;
+        x.modified_backup = x.last_modified;
 
-        // bring the current state's value up to date
+        // bring the current state's value up to date. An unread or stale sample does not
+        // enter f*(x) (x's path did not read it), so under π it is uniform and independent
+        // of everything else: drawing it afresh is a Gibbs update of that coordinate, valid
+        // whenever it happens — also again after a reject restored the stale value.
         if (x.last_modified == PrimarySample::k_unread) {
             x.value = detail::bits_to_unit(r[0], r[1]);   // unread: uniform, part of x
             x.last_modified = m_iteration - 1;
@@ -249,8 +255,6 @@ private:
             x.value = detail::bits_to_unit(r[0], r[1]);   // a large step was accepted since
             x.last_modified = m_last_large_step;
         }
-        x.value_backup = x.value;
-        x.modified_backup = x.last_modified;
 
         // mutate: fresh uniform, or the accumulated small steps σ√n (wrapped)
         if (m_large_step) {

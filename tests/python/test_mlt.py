@@ -1,0 +1,240 @@
+"""PSSMLT against the path tracer on a small diffuse Cornell-like box built through
+the Python scene API (cmlt.scene -> SceneBridge -> core).
+
+MLT pixel errors are correlated (chains wander, b is shared by every pixel), so the
+per-pixel variance of one render says little. Confidence intervals come instead from
+K independent seeds: for each statistic the K renders give a mean and a standard error,
+compared with a t-distribution (K-1 degrees of freedom). The PT reference has its own
+standard error (its variance AOV; pixels are independent), added in quadrature.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import cmlt._core as core
+from cmlt.scene import Camera, FrameScene, Instance, Material, Mesh, padded_points
+from cmlt.shot.bridge import SceneBridge
+
+pytestmark = pytest.mark.statistical
+
+ACESCG_Y = np.array([0.2722287, 0.6740818, 0.0536895])
+RES = 32
+SEEDS = 12
+MPP = 128          # mutations per pixel of each MLT run
+
+
+def _quad(name, c, u, v, mat):
+    c, u, v = (np.asarray(a, float) for a in (c, u, v))
+    pts = padded_points([c - u - v, c + u - v, c + u + v, c - u + v])
+    return Mesh(name, pts, np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+                material_ids=np.array([mat, mat], np.uint32))
+
+
+def cornell_scene():
+    """A 2 m box open towards the camera (+z): white floor, ceiling and back wall, red
+    left and green right walls, an emissive square under the ceiling; camera at z = 3.4."""
+    mats = [Material("/white", diffuse=(0.7, 0.7, 0.7)), Material("/red", diffuse=(0.6, 0.06, 0.05)),
+            Material("/green", diffuse=(0.1, 0.5, 0.1)),
+            Material("/light", diffuse=(0.0, 0.0, 0.0), emission=(12.0, 10.0, 8.0))]
+    quads = [  # normals point into the box (u x v)
+        _quad("/floor", (0, 0, 0), (0, 0, 1), (1, 0, 0), 0),
+        _quad("/ceiling", (0, 2, 0), (1, 0, 0), (0, 0, 1), 0),
+        _quad("/back", (0, 1, -1), (1, 0, 0), (0, 1, 0), 0),
+        _quad("/left", (-1, 1, 0), (0, 1, 0), (0, 0, 1), 1),
+        _quad("/right", (1, 1, 0), (0, 0, 1), (0, 1, 0), 2),
+        _quad("/lamp", (0, 1.98, 0), (0.3, 0, 0), (0, 0, 0.3), 3),
+    ]
+    cam_xf = np.eye(4)
+    cam_xf[:3, 3] = (0, 1, 3.4)
+    return FrameScene(
+        time=1.0, meshes=quads, instances=[Instance(q.name, i, np.eye(4)) for i, q in enumerate(quads)],
+        materials=mats, lights=[],
+        camera=Camera("/cam", cam_xf, focal_length=35, horizontal_aperture=24, vertical_aperture=24),
+        resolution=(RES, RES), meters_per_unit=1.0)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    bridge = SceneBridge(core)
+    s = bridge.update(cornell_scene())
+    yield s
+
+
+def _settings(integrator, spp, seed, **kw):
+    st = core.RenderSettings()
+    st.width = st.height = RES
+    st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, 8
+    st.integrator = integrator
+    for k, v in kw.items():
+        setattr(st, k, v)
+    return st
+
+
+@pytest.fixture(scope="module")
+def reference(scene):
+    r = core.render(scene, _settings("pt", 1024, 1000))
+    return np.asarray(r.image, np.float64), np.asarray(r.variance, np.float64)
+
+
+@pytest.fixture(scope="module")
+def mlt_runs(scene):
+    runs = []
+    for seed in range(SEEDS):
+        r = core.render(scene, _settings("pssmlt", MPP, seed, chains=128, bootstrap_samples=16384))
+        runs.append((np.asarray(r.image, np.float64), dict(r.stats)))
+    return runs
+
+
+def t_critical(dof, two_sided_alpha):
+    """Quantile of Student's t by bisection on the regularised incomplete beta (no scipy)."""
+    def sf(t):  # P(T > t), t >= 0
+        x = dof / (dof + t * t)
+        return 0.5 * _betainc(dof / 2, 0.5, x)
+    lo, hi = 0.0, 1e3
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if sf(mid) > two_sided_alpha / 2 else (lo, mid)
+    return hi
+
+
+def _betainc(a, b, x):
+    """Regularised incomplete beta I_x(a, b) (continued fraction, Numerical Recipes)."""
+    if x <= 0:
+        return 0.0
+    if x >= 1:
+        return 1.0
+    lbeta = math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
+    front = math.exp(lbeta + a * math.log(x) + b * math.log(1 - x))
+    if x > (a + 1) / (a + b + 2):
+        return 1.0 - _betainc(b, a, 1 - x)
+    f, c, d = 1.0, 1.0, 0.0
+    for i in range(400):
+        m = i // 2
+        if i == 0:
+            num = 1.0
+        elif i % 2 == 0:
+            num = m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
+        else:
+            num = -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))
+        d = 1.0 + num * d
+        d = 1.0 / (d if abs(d) > 1e-300 else 1e-300)
+        c = 1.0 + num / c if abs(c) > 1e-300 else 1e-300
+        f *= c * d
+        if abs(c * d - 1.0) < 1e-14:
+            break
+    return front * (f - 1.0) / a
+
+
+def test_01_t_quantile():
+    # known values: t_{0.975, 5} = 2.5706, t_{0.995, 11} = 3.1058
+    assert abs(t_critical(5, 0.05) - 2.5706) < 1e-3
+    assert abs(t_critical(11, 0.01) - 3.1058) < 1e-3
+
+
+def test_02_stats_and_finite(mlt_runs):
+    for img, st in mlt_runs:
+        assert np.isfinite(img).all() and (img >= 0).all()
+        assert st["integrator"] == "pssmlt" and st["nan_samples"] == 0
+        assert st["chains"] == 128 and st["bootstrap_samples"] == 16384
+        assert st["mutations"] == RES * RES * MPP - 16384
+        assert 0 < st["acceptance"]["large_step"] < st["acceptance"]["small_step"] < 1
+        assert st["max_rejection_streak"] < 500
+        assert st["b_stderr"] < st["b_bootstrap_stderr"]
+
+
+def test_03_mean_brightness_within_1_percent(mlt_runs, reference):
+    ref, ref_var = reference
+    n = ref.shape[0] * ref.shape[1]
+    ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
+    means = np.array([img.reshape(-1, 3).mean(0) @ ACESCG_Y for img, _ in mlt_runs])
+    m, se = means.mean(), means.std(ddof=1) / math.sqrt(SEEDS)
+    ref_se = math.sqrt(ref_var.reshape(-1, 3).sum(0) @ ACESCG_Y ** 2) / n
+    assert abs(m / ref_y - 1) < 0.01, (m, ref_y, se)
+    # and within the t confidence interval (two-sided false-alarm rate 1e-3)
+    t = t_critical(SEEDS - 1, 1e-3)
+    assert abs(m - ref_y) < t * math.hypot(se, ref_se), (m, ref_y, se, ref_se)
+
+
+def test_04_pixel_blocks_within_confidence_intervals(mlt_runs, reference):
+    """4x4 blocks of 8x8 pixels, per channel: mean over seeds vs PT, t-test with 11 dof,
+    Bonferroni over the 48 tests: family-wise false-alarm rate 1e-2."""
+    ref, ref_var = reference
+    B = 8
+    nb = RES // B
+
+    def blocks(a):
+        return a.reshape(nb, B, nb, B, 3).mean((1, 3))
+
+    runs = np.stack([blocks(img) for img, _ in mlt_runs])          # (K, nb, nb, 3)
+    m = runs.mean(0)
+    se = runs.std(0, ddof=1) / math.sqrt(SEEDS)
+    ref_b = blocks(ref)
+    ref_se = np.sqrt(ref_var.reshape(nb, B, nb, B, 3).sum((1, 3))) / (B * B)
+    t = t_critical(SEEDS - 1, 1e-2 / runs[0].size)
+    z = np.abs(m - ref_b) / np.hypot(se, ref_se)
+    assert (z < t).all(), (z.max(), t, np.unravel_index(z.argmax(), z.shape))
+    # the intervals are not vacuous: the block means are tight (median relative SE
+    # < 3% on blocks brighter than a tenth of the mean) and a 20% error in a block is
+    # flagged in most blocks
+    bright = ref_b > 0.1 * ref_b.mean()
+    rel = se[bright] / m[bright]
+    assert np.median(rel) < 0.03 and rel.max() < 0.25, (np.median(rel), rel.max())
+    z_wrong = np.abs(m - 1.2 * ref_b) / np.hypot(se, ref_se)
+    assert (z_wrong > t).mean() > 0.5, (z_wrong > t).mean()
+
+
+def test_05_bootstrap_b_is_the_mean_of_f_star(mlt_runs, reference):
+    """b = E[f*] over primary sample space = the mean pixel luminance of the PT image."""
+    ref, ref_var = reference
+    n = ref.shape[0] * ref.shape[1]
+    ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
+    ref_se = math.sqrt(ref_var.reshape(-1, 3).sum(0) @ ACESCG_Y ** 2) / n
+    for _, st in mlt_runs[:4]:
+        # 4.5 combined standard errors: false-alarm rate ~7e-6 per check
+        assert abs(st["b_bootstrap"] - ref_y) < 4.5 * math.hypot(st["b_bootstrap_stderr"], ref_se)
+        assert abs(st["b"] - ref_y) < 4.5 * math.hypot(st["b_stderr"], ref_se)
+        assert st["b_stderr"] < 0.03 * st["b"]   # the check is not vacuous
+
+
+def test_06_deterministic_with_1_and_2_threads(scene):
+    a = core.render(scene, _settings("pssmlt", 8, 5, chains=64, bootstrap_samples=2048, threads=1))
+    b = core.render(scene, _settings("pssmlt", 8, 5, chains=64, bootstrap_samples=2048, threads=2))
+    assert np.array_equal(np.asarray(a.image), np.asarray(b.image))
+
+
+def test_07_settings_reach_the_core(scene):
+    st = _settings("pssmlt", 4, 1, sigma=0.05, large_step_probability=0.5, chains=16,
+                   bootstrap_samples=1000)
+    r = core.render(scene, st)
+    assert r.stats["sigma"] == 0.05 and r.stats["large_step_probability"] == 0.5
+    assert r.stats["chains"] == 16 and r.stats["bootstrap_samples"] == 1000
+    with pytest.raises(core.SettingsError, match="large_step_probability"):
+        core.render(scene, _settings("pssmlt", 4, 1, large_step_probability=2.0))
+
+
+def test_08_cli_render_pssmlt(tmp_path):
+    """`cmlt render --integrator pssmlt` with the Metropolis flags: the sidecar records
+    the settings and the MLT stats; a bad flag value is a one-line usage error."""
+    import json
+    import os
+
+    from cmlt.cli import main
+
+    shot = os.path.join(os.path.dirname(__file__), "..", "..", "sequences", "cornell", "shot.usda")
+    out = tmp_path / "mlt.####.exr"
+    code = main(["render", shot, "--frames", "1", "--out", str(out), "--res", "16x12", "--spp", "8",
+                 "--integrator", "pssmlt", "--sigma", "0.02", "--large-step-probability", "0.4",
+                 "--chains", "16", "--bootstrap-samples", "256", "--threads", "2", "--quiet"])
+    assert code == 0
+    doc = json.loads((tmp_path / "mlt.0001.exr.json").read_text())
+    assert doc["settings"]["integrator"] == "pssmlt"
+    assert doc["settings"]["sigma"] == 0.02 and doc["settings"]["chains"] == 16
+    st = doc["stats"]
+    assert st["integrator"] == "pssmlt" and st["chains"] == 16 and st["bootstrap_samples"] == 256
+    assert st["large_step_probability"] == 0.4 and st["sigma"] == 0.02
+    assert st["mutations"] == 16 * 12 * 8 - 256
+    assert set(st["acceptance"]) == {"small_step", "large_step"}
+    assert "max_rejection_streak" in st and st["b"] > 0
+    assert main(["render", shot, "--out", str(out), "--integrator", "pssmlt",
+                 "--large-step-probability", "1.5", "--quiet"]) == 2
