@@ -274,6 +274,19 @@ void bind_scene(nb::module_& m) {
                 s.set_instance_transform(id, to_mat4(xf, "set_instance_transform", "transform"));
             },
             "instance_id"_a, "transform"_a)
+        .def(
+            "set_instance_motion",
+            [](Scene& s, uint32_t id, nb::sequence steps) {
+                std::vector<Mat4> mats;
+                for (nb::handle h : steps)
+                    mats.push_back(to_mat4(h, "set_instance_motion", "steps[k]"));
+                s.set_instance_motion(id, mats);
+            },
+            "instance_id"_a, "steps"_a,
+            "Motion blur: a sequence of >= 2 float64 (4,4) object->world transforms evenly\n"
+            "spaced over the shutter (ray time 0..1); one step = set_instance_transform.")
+        .def_prop_ro("motion_blur", &Scene::motion_blur,
+                     "Some instance carries shutter time steps (a ray time is then sampled).")
         .def("set_materials", &set_materials, "diffuse"_a, "emission"_a, "params"_a = nb::none(),
              "Material table: diffuse and emission (K,3); material_ids index the rows.\n\n"
              "params=None: Lambert materials (diffuse + emission only). Otherwise every row is a\n"

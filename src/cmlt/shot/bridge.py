@@ -14,6 +14,12 @@ prim and its ancestors):
 * materials that differ -> ``set_materials``;
 * lights and the camera are cheap and always re-set.
 
+Motion blur: an instance with ``motion_transforms`` (the reader sets them
+only when the shutter is open and the instance moves within it) gets its
+time steps with ``set_instance_motion``; an instance that stops moving goes
+back to one step. Nothing else changes, so a frame without motion costs
+nothing extra (the core samples ray times only when some instance moves).
+
 The scene is rebuilt from scratch when its structure changes. Counts and
 names of meshes and instances are compared, then a cheap per-mesh check:
 point/triangle counts, and indices, UVs and material ids by *identity* (the
@@ -100,6 +106,8 @@ class UpdateReport:
     static_meshes: int = 0             # skipped without a look (not deforming)
     animated_instances: int = 0        # looked at (updated or equal to the last frame)
     deforming_meshes: int = 0          # looked at (updated or equal to the last frame)
+    motion_blurred: int = 0            # instances with shutter time steps
+    motion_blur: bool = False          # the core samples a ray time per camera sample
 
     def as_dict(self) -> dict:
         return {
@@ -111,6 +119,8 @@ class UpdateReport:
             "static_meshes": self.static_meshes,
             "animated_instances": self.animated_instances,
             "deforming_meshes": self.deforming_meshes,
+            "motion_blurred": self.motion_blurred,
+            "motion_blur": self.motion_blur,
         }
 
 
@@ -176,6 +186,7 @@ class SceneBridge:
         self._textures: dict = {}               # texture key -> core id (None: unreadable)
         self._texture_arrays: list = []         # arrays shared with the core (zero copy)
         self._signature = None
+        self._moving: List[bool] = []           # per instance: has shutter time steps
         self.last_update = UpdateReport()
 
     # -- helpers ---------------------------------------------------------
@@ -292,6 +303,8 @@ class SceneBridge:
                                   f"but the frame has {len(mesh_ids)} meshes")
             t = _mat(inst.transform)
             inst_ids.append(scene.add_instance(mesh_ids[inst.mesh], t))
+            if inst.motion_transforms:
+                scene.set_instance_motion(inst_ids[-1], [_mat(m) for m in inst.motion_transforms])
             transforms.append(t.copy())
         self.scene = scene
         self._textures, self._texture_arrays = {}, []
@@ -301,6 +314,7 @@ class SceneBridge:
         self._meshes, self._mesh_ids = meshes, mesh_ids
         self._instances = [(i.name, int(i.mesh)) for i in fs.instances]
         self._instance_ids, self._transforms = inst_ids, transforms
+        self._moving = [bool(i.motion_transforms) for i in fs.instances]
         self._signature = fs.static_signature
         self._materials = (diffuse.copy(), emission.copy(), params.copy())
 
@@ -327,8 +341,16 @@ class SceneBridge:
                 continue
             report.animated_instances += 1
             t = _mat(inst.transform)
-            if np.array_equal(t, self._transforms[k]):
+            if inst.motion_transforms:
+                scene.set_instance_motion(self._instance_ids[k],
+                                          [_mat(m) for m in inst.motion_transforms])
+                self._moving[k] = True
+                self._transforms[k] = t.copy()
+                report.transforms_updated += 1
                 continue
+            if np.array_equal(t, self._transforms[k]) and not self._moving[k]:
+                continue
+            self._moving[k] = False
             scene.set_instance_transform(self._instance_ids[k], t)
             self._transforms[k] = t.copy()
             report.transforms_updated += 1
@@ -371,6 +393,8 @@ class SceneBridge:
         else:
             self._incremental(fs, report)
         self._lights_and_camera(fs)
+        report.motion_blurred = sum(self._moving)
+        report.motion_blur = bool(self.scene.motion_blur)
         self.scene.commit()
         self.last_update = report
         return self.scene

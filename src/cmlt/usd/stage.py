@@ -163,6 +163,7 @@ class StageInfo:
     ignored: List[Tuple[str, str, str]] = field(default_factory=list)  # (path, type, reason)
     notes: List[str] = field(default_factory=list)
     warnings: List[str] = field(default_factory=list)
+    motion_blur: str = ""            # "on: ..." / "off: ..." at the first frame, and why
 
     @property
     def frame_count(self) -> int:
@@ -176,6 +177,8 @@ class StageInfo:
             rng += " (not authored)"
         lines.append(f"time       {rng}, {self.time_codes_per_second:g} time codes/s, {self.fps:g} fps")
         lines.append(f"units      metersPerUnit {self.meters_per_unit:g}, upAxis {self.up_axis}")
+        if self.motion_blur:
+            lines.append(f"motion blur {self.motion_blur}")
         if self.prim_counts:
             counts = ", ".join(f"{k} {v}" for k, v in sorted(self.prim_counts.items()))
             lines.append(f"prims      {counts}")
@@ -236,6 +239,28 @@ def subdivision_note(prim) -> str:
     return ""
 
 
+def _motion_blur_summary(stage, info) -> str:
+    """Motion blur at the first frame: cheap when no camera has an open
+    shutter (the common case); otherwise the frame is read to see whether
+    something moves within the shutter."""
+    open_shutter = False
+    for path in info.cameras:
+        cam = UsdGeom.Camera(stage.GetPrimAtPath(path))
+        o = cam.GetShutterOpenAttr().Get(info.start)
+        c = cam.GetShutterCloseAttr().Get(info.start)
+        if o is not None and c is not None and c > o:
+            open_shutter = True
+    if not info.cameras:
+        return "off: no camera (the framing camera has a closed shutter)"
+    if not open_shutter:
+        return "off: shutter closed (shutter:close <= shutter:open)"
+    from .frame import load_frame                     # noqa: E402 (cycle)
+    try:
+        return load_frame(stage, info.start).motion_blur_reason
+    except Exception as exc:                          # pragma: no cover
+        return f"unknown: {_one_line(str(exc))}"
+
+
 def stage_info(stage) -> StageInfo:
     """Describe ``stage``: time range, units, what will and will not render."""
     if stage is None:
@@ -287,6 +312,7 @@ def stage_info(stage) -> StageInfo:
         if reason:
             info.ignored.append((path, t, reason))
     info.prim_counts = counts
+    info.motion_blur = _motion_blur_summary(stage, info)
     if info.meters_per_unit <= 0 or not math.isfinite(info.meters_per_unit):
         warnings.append(f"{info.path}: metersPerUnit is {info.meters_per_unit:g}; using 0.01")
     info.warnings = warnings

@@ -124,9 +124,26 @@ void Accel::set_instance_transform(uint32_t instance_id, const Mat4& object_to_w
     float xf[12];
     to_float3x4(object_to_world, xf);
     RTCGeometry g = I.instances[instance_id].geom;
+    rtcSetGeometryTimeStepCount(g, 1);
     rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
     rtcCommitGeometry(g);
     I.device->check("Accel::set_instance_transform");
+    I.top_dirty = true;
+}
+
+void Accel::set_instance_motion(uint32_t instance_id, const Mat4* steps, uint32_t n_steps) {
+    Impl& I = *m_impl;
+    CMLT_CHECK(instance_id < I.instances.size());
+    CMLT_CHECK(n_steps >= 1 && n_steps <= 129);  // Embree's limit on time steps
+    RTCGeometry g = I.instances[instance_id].geom;
+    rtcSetGeometryTimeStepCount(g, n_steps);
+    for (uint32_t k = 0; k < n_steps; ++k) {
+        float xf[12];
+        to_float3x4(steps[k], xf);
+        rtcSetGeometryTransform(g, k, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+    }
+    rtcCommitGeometry(g);
+    I.device->check("Accel::set_instance_motion");
     I.top_dirty = true;
 }
 
@@ -164,7 +181,7 @@ static void fill_ray(RTCRay& r, const Ray& ray) {
     r.dir_x = ray.d.x; r.dir_y = ray.d.y; r.dir_z = ray.d.z;
     r.tnear = ray.tnear;
     r.tfar = ray.tfar;
-    r.time = 0.f;
+    r.time = ray.time;
     r.mask = 0xFFFFFFFFu;
     r.id = 0;
     r.flags = 0;
@@ -209,7 +226,7 @@ void fill_packet(RayHitN& p, const int* valid, const Ray* rays, int* mask) {
         p.ray.dir_x[i] = r.d.x; p.ray.dir_y[i] = r.d.y; p.ray.dir_z[i] = r.d.z;
         p.ray.tnear[i] = r.tnear;
         p.ray.tfar[i] = r.tfar;
-        p.ray.time[i] = 0.f;
+        p.ray.time[i] = r.time;
         p.ray.mask[i] = 0xFFFFFFFFu;
         p.ray.id[i] = unsigned(i);
         p.ray.flags[i] = 0;
@@ -242,7 +259,7 @@ void fill_ray_packet(RayN& p, const int* valid, const Ray* rays, int* mask) {
         p.dir_x[i] = r.d.x; p.dir_y[i] = r.d.y; p.dir_z[i] = r.d.z;
         p.tnear[i] = r.tnear;
         p.tfar[i] = r.tfar;
-        p.time[i] = 0.f;
+        p.time[i] = r.time;
         p.mask[i] = 0xFFFFFFFFu;
         p.id[i] = unsigned(i);
         p.flags[i] = 0;

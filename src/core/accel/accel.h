@@ -45,6 +45,11 @@ public:
     /// Place a mesh. Returns the instance id (0, 1, ...), the Embree instance geometry id.
     uint32_t add_instance(uint32_t mesh_id, const Mat4& object_to_world);
     void set_instance_transform(uint32_t instance_id, const Mat4& object_to_world);
+    /// Motion blur: `n_steps` >= 2 transforms evenly spaced over the shutter (ray time
+    /// 0 .. 1); Embree interpolates the 3x4 matrices linearly between steps
+    /// (rtcSetGeometryTimeStepCount + rtcSetGeometryTransform per step).
+    /// set_instance_transform returns the instance to one time step.
+    void set_instance_motion(uint32_t instance_id, const Mat4* steps, uint32_t n_steps);
     /// Commit dirty meshes, then the top-level scene. Throws SceneError on Embree errors.
     void commit();
 

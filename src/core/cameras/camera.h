@@ -17,7 +17,17 @@
 #include "math/mat4.h"
 #include "math/ray.h"
 
+#include <cstdint>
+
 namespace cmlt {
+
+/// Motion blur: the shutter time of a camera sample (Ray::time, in [0, 1) over
+/// [shutter open, shutter close]) is drawn from its own dimension of the sample's
+/// camera-path random stream, far above any dimension a path uses. Only when the scene
+/// has motion-blurred geometry (Scene::motion_blur()) is it drawn; otherwise rays keep
+/// time 0 and every other random number of the sample is the same either way, so a
+/// scene that does not move renders bit-identically with or without the feature.
+constexpr uint32_t k_shutter_time_dimension = 0xFFFFFF00u;
 
 struct CameraDesc {
     enum class Projection { perspective, orthographic };

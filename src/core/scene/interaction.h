@@ -38,6 +38,7 @@ struct SurfaceInteraction {
     Vec3 dpdu;         ///< world dp/du from the triangle's uvs (zero without uvs / degenerate)
     Vec3 wo;           ///< unit direction toward the ray origin
     float t = 0.f;
+    float time = 0.f;  ///< shutter time of the ray that hit (spawned rays inherit it)
     float error_scale = 0.f;
     uint32_t instance_id = 0;
     uint32_t mesh_id = 0;
@@ -45,13 +46,17 @@ struct SurfaceInteraction {
     uint32_t material_id = 0;
 
     Ray spawn_ray(const Vec3& d) const {
-        return Ray(offset_ray_origin(p, ng, error_scale, d), d, 0.f, k_infinity);
+        Ray r(offset_ray_origin(p, ng, error_scale, d), d, 0.f, k_infinity);
+        r.time = time;
+        return r;
     }
     /// Shadow ray toward `target` (already offset if it lies on a surface). The ray
     /// direction is unnormalised: t runs over [0, 1 - eps].
     Ray spawn_ray_to(const Vec3& target) const {
         Vec3 o = offset_ray_origin(p, ng, error_scale, target - p);
-        return Ray(o, target - o, 0.f, 1.f - k_shadow_epsilon);
+        Ray r(o, target - o, 0.f, 1.f - k_shadow_epsilon);
+        r.time = time;
+        return r;
     }
 };
 

@@ -108,8 +108,47 @@ void Scene::set_instance_transform(uint32_t instance_id, const Mat4& object_to_w
     std::string what = "instance " + std::to_string(instance_id) + " of mesh '" +
                        m_meshes[inst.mesh_id].name + "'";
     inst.xf = Transform(object_to_world, what.c_str());
+    inst.motion.clear();
     m_accel->set_instance_transform(instance_id, object_to_world);
     m_dirty = true;
+}
+
+Mat4 Instance::matrix_at(float time) const {
+    if (motion.size() < 2) return xf.m;
+    float x = std::min(std::max(time, 0.f), 1.f) * float(motion.size() - 1);
+    size_t k = std::min(size_t(x), motion.size() - 2);
+    double f = double(x) - double(k);
+    Mat4 out;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c)
+            out.m[r][c] = (1.0 - f) * motion[k].m[r][c] + f * motion[k + 1].m[r][c];
+    return out;
+}
+
+void Scene::set_instance_motion(uint32_t instance_id, const std::vector<Mat4>& steps) {
+    if (instance_id >= m_instances.size())
+        CMLT_THROW(SceneError, "set_instance_motion: instance id " << instance_id
+                                   << " out of range (have " << m_instances.size() << " instances)");
+    if (steps.empty() || steps.size() > 129)
+        CMLT_THROW(SceneError, "set_instance_motion: need 1 to 129 time steps, got " << steps.size());
+    if (steps.size() == 1) {
+        set_instance_transform(instance_id, steps[0]);
+        return;
+    }
+    Instance& inst = m_instances[instance_id];
+    std::string what = "instance " + std::to_string(instance_id) + " of mesh '" +
+                       m_meshes[inst.mesh_id].name + "' (motion step)";
+    for (const Mat4& m : steps) Transform(m, what.c_str());  // validates every step
+    inst.xf = Transform(steps[0], what.c_str());
+    inst.motion = steps;
+    m_accel->set_instance_motion(instance_id, steps.data(), uint32_t(steps.size()));
+    m_dirty = true;
+}
+
+bool Scene::motion_blur() const {
+    for (const Instance& inst : m_instances)
+        if (inst.motion.size() > 1) return true;
+    return false;
 }
 
 void Scene::set_materials(std::vector<Material> materials) {
@@ -174,12 +213,16 @@ void Scene::compute_bounds() {
     for (const Instance& inst : m_instances) {
         const Mesh& m = m_meshes[inst.mesh_id];
         if (m.data.n_points == 0) continue;
-        for (int c = 0; c < 8; ++c) {
-            Vec3 p((c & 1) ? m.bbox_max.x : m.bbox_min.x, (c & 2) ? m.bbox_max.y : m.bbox_min.y,
-                   (c & 4) ? m.bbox_max.z : m.bbox_min.z);
-            Vec3 w = inst.xf.m.transform_point(p);
-            lo = vmin(lo, w);
-            hi = vmax(hi, w);
+        const size_t n_steps = std::max<size_t>(1, inst.motion.size());
+        for (size_t k = 0; k < n_steps; ++k) {
+            const Mat4& xm = inst.motion.empty() ? inst.xf.m : inst.motion[k];
+            for (int c = 0; c < 8; ++c) {
+                Vec3 p((c & 1) ? m.bbox_max.x : m.bbox_min.x, (c & 2) ? m.bbox_max.y : m.bbox_min.y,
+                       (c & 4) ? m.bbox_max.z : m.bbox_min.z);
+                Vec3 w = xm.transform_point(p);
+                lo = vmin(lo, w);
+                hi = vmax(hi, w);
+            }
         }
     }
     if (m_has_camera) {
@@ -303,9 +346,14 @@ void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction*
     const Mesh& mesh = m_meshes[inst.mesh_id];
     uint32_t v[3];
     mesh.triangle(hit.prim_id, v);
-    Vec3 p0 = inst.xf.m.transform_point(mesh.point(v[0]));
-    Vec3 p1 = inst.xf.m.transform_point(mesh.point(v[1]));
-    Vec3 p2 = inst.xf.m.transform_point(mesh.point(v[2]));
+    // A moving instance is placed where it is at the ray's time (as Embree placed it).
+    Transform moved;
+    if (inst.motion.size() > 1) moved = Transform(inst.matrix_at(ray.time), "moving instance");
+    const Transform& xf = inst.motion.size() > 1 ? moved : inst.xf;
+    si->time = ray.time;
+    Vec3 p0 = xf.m.transform_point(mesh.point(v[0]));
+    Vec3 p1 = xf.m.transform_point(mesh.point(v[1]));
+    Vec3 p2 = xf.m.transform_point(mesh.point(v[2]));
     float b1 = hit.u, b2 = hit.v, b0 = 1.f - b1 - b2;
     si->p = p0 * b0 + p1 * b1 + p2 * b2;
     si->t = hit.t;
@@ -316,7 +364,7 @@ void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction*
     si->ns = ng;
     if (mesh.data.normals) {
         Vec3 n = mesh.normal(v[0]) * b0 + mesh.normal(v[1]) * b1 + mesh.normal(v[2]) * b2;
-        n = normalize(inst.xf.normal.transform_normal(n));
+        n = normalize(xf.normal.transform_normal(n));
         if (!is_black(n) && is_finite(n)) si->ns = face_forward(n, ng);
     }
     if (mesh.data.uvs) {

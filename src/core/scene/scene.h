@@ -26,7 +26,13 @@ namespace cmlt {
 
 struct Instance {
     uint32_t mesh_id = 0;
-    Transform xf;  ///< object -> world, inverse, normal matrix
+    Transform xf;  ///< object -> world, inverse, normal matrix (time 0 when moving)
+    /// Motion blur: object -> world at >= 2 time steps evenly spaced over the shutter
+    /// (ray time 0 .. 1), interpolated linearly per matrix entry as Embree does; empty
+    /// for an instance without motion blur.
+    std::vector<Mat4> motion;
+    /// Object -> world at shutter time `time` (xf.m when not moving).
+    Mat4 matrix_at(float time) const;
 };
 
 /// What a ray hit first: a mesh surface, an analytic light's emitting side, or nothing.
@@ -57,6 +63,13 @@ public:
                             const float* normals, std::shared_ptr<void> owner);
     uint32_t add_instance(uint32_t mesh_id, const Mat4& object_to_world);
     void set_instance_transform(uint32_t instance_id, const Mat4& object_to_world);
+    /// Motion blur: `steps.size()` >= 2 transforms evenly spaced over the shutter (ray
+    /// time 0..1). One step is set_instance_transform. Lights built from emissive
+    /// triangles of a moving instance use its first step.
+    void set_instance_motion(uint32_t instance_id, const std::vector<Mat4>& steps);
+    /// Some instance carries motion-blur time steps: the renderer then samples a
+    /// ray time per camera sample (and only then).
+    bool motion_blur() const;
     /// K >= 1 rows; material_ids index these.
     void set_materials(std::vector<Material> materials);
     /// Registers an image texture (zero copy; `desc.owner` keeps it alive); returns its id,

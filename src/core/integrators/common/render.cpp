@@ -41,6 +41,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
     PathTracer tracer(scene, settings.max_depth);
+    const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
 
     std::vector<Tile> tiles;
     for (int y = 0; y < H; y += k_tile_size)
@@ -75,6 +76,11 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
                                     PixelSampler sampler(settings.seed, pixel, uint32_t(s));
                                     Vec2 u = sampler.get2d();
                                     Ray ray = camera.generate_ray(Vec2(float(x) + u.x, float(y) + u.y));
+                                    if (motion_blur) {
+                                        PixelSampler ts(settings.seed, pixel, uint32_t(s));
+                                        ts.set_dimension(k_shutter_time_dimension);
+                                        ray.time = ts.get1d();
+                                    }
                                     Spectrum L = tracer.li(ray, sampler, c);
                                     film.add_sample(x, y, uint32_t(s), L);
                                 }
