@@ -102,6 +102,55 @@ void dome_scene(Scene& s) {
     s.commit();
 }
 
+/// UV sphere of radius r (smooth vertex normals), n_theta x n_phi quads.
+MeshData sphere_mesh(float r, int n_theta, int n_phi, uint32_t material = 0) {
+    std::vector<Vec3> p, n;
+    std::vector<uint32_t> idx;
+    for (int i = 0; i <= n_theta; ++i) {
+        float th = k_pi * float(i) / float(n_theta);
+        for (int j = 0; j <= n_phi; ++j) {
+            float ph = 2.f * k_pi * float(j) / float(n_phi);
+            Vec3 d(std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph));
+            p.push_back(d * r);
+            n.push_back(d);
+        }
+    }
+    auto at = [&](int i, int j) { return uint32_t(i * (n_phi + 1) + j); };
+    for (int i = 0; i < n_theta; ++i)
+        for (int j = 0; j < n_phi; ++j) {
+            // Outward winding (normal = e1 x e2 points away from the centre).
+            if (i > 0) idx.insert(idx.end(), {at(i, j), at(i, j + 1), at(i + 1, j)});
+            if (i + 1 < n_theta) idx.insert(idx.end(), {at(i, j + 1), at(i + 1, j + 1), at(i + 1, j)});
+        }
+    return make_mesh_data(p, idx, std::vector<uint32_t>(idx.size() / 3, material), n);
+}
+
+/// Smooth glass sphere (UsdPreviewSurface opacity 0, ior 1.5, roughness 0) on a diffuse
+/// floor, lit by a sphere light: the caustic under the ball is found by PT only through
+/// BSDF-sampled paths that hit the light, so the light is fairly large.
+void glass_scene(Scene& s) {
+    Material floor{Spectrum(0.7f), Spectrum(0.f)};
+    Material glass;
+    glass.preview = true;
+    glass.diffuse = Spectrum(0.f);
+    glass.opacity = 0.f;
+    glass.ior = 1.5f;
+    glass.roughness = 0.f;
+    s.set_materials({floor, glass});
+    uint32_t f = s.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(2, 0, 0), Vec3(0, 0, -2)));
+    s.add_instance(f, Mat4());
+    uint32_t b = s.add_mesh("/ball", sphere_mesh(0.4f, 24, 48, 1));
+    s.add_instance(b, Mat4::translate(0, 0.41, 0));
+    LightDesc sph;
+    sph.kind = LightDesc::Kind::sphere;
+    sph.transform = Mat4::translate(0.25, 1.4, -0.1);
+    sph.radius = 0.25f;
+    sph.radiance = Spectrum(12.f, 11.f, 9.f);
+    s.add_light(sph);
+    s.set_camera(camera_at(Mat4::translate(0, 1.3, 1.6) * Mat4::rotate(-38, 1, 0, 0), 22.f, 36.f));
+    s.commit();
+}
+
 struct BlockStats {
     std::vector<double> mean, var;
 };
@@ -299,6 +348,12 @@ TEST(Bdpt, AgreesWithPtSphereLight) {
 
 TEST(Bdpt, AgreesWithPtDomeAndSun) {
     expect_pt_bdpt_agree(dome_scene, 32, 32, 128, 48, "dome + distant");
+}
+
+TEST(Bdpt, AgreesWithPtGlassCaustic) {
+    // Smooth-glass caustic: BDPT gets it from light tracing (t = 1), PT from BSDF
+    // sampling through two Dirac refractions into the sphere light.
+    expect_pt_bdpt_agree(glass_scene, 32, 32, 3072, 384, "glass caustic");
 }
 
 // ---- furnace ------------------------------------------------------------------------------

@@ -111,7 +111,7 @@ LightLeSample TriangleLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) con
     s.d = normalize(Frame(n).to_world(local));
     s.pdf_pos = 1.f / m_area;
     s.pdf_dir = 0.5f * local.z * k_inv_pi;
-    s.le = m_le;
+    s.le = radiance_at(b);  // textured emission, as sample_li and the camera hits see it
     s.error_scale = m_error_scale;
     if (!(s.pdf_dir > 0.f) || !std::isfinite(s.pdf_pos)) return LightLeSample();
     return s;

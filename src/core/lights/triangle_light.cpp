@@ -34,20 +34,21 @@ LightSample TriangleLight::sample_li(const Vec3& p, const Vec2& u) const {
     s.pdf = dist2 / (cos_l * m_area);
     if (!std::isfinite(s.pdf)) return LightSample();
     s.wi = wi;
-    if (m_tex) {
-        float b0 = 1.f - b.x - b.y;
-        Vec2 st(m_st0.x * b0 + m_st1.x * b.x + m_st2.x * b.y,
-                m_st0.y * b0 + m_st1.y * b.x + m_st2.y * b.y);
-        Vec3 e = m_tex->eval(st).xyz();
-        s.li = Spectrum(std::fmax(0.f, e.x), std::fmax(0.f, e.y), std::fmax(0.f, e.z));
-    } else {
-        s.li = m_le;
-    }
+    s.li = radiance_at(b);
     s.dist = dist;
     s.p_light = q;
     s.n_light = m_n;
     s.error_scale = m_error_scale;
     return s;
+}
+
+Spectrum TriangleLight::radiance_at(const Vec2& b) const {
+    if (!m_tex) return m_le;
+    float b0 = 1.f - b.x - b.y;
+    Vec2 st(m_st0.x * b0 + m_st1.x * b.x + m_st2.x * b.y,
+            m_st0.y * b0 + m_st1.y * b.x + m_st2.y * b.y);
+    Vec3 e = m_tex->eval(st).xyz();
+    return Spectrum(std::fmax(0.f, e.x), std::fmax(0.f, e.y), std::fmax(0.f, e.z));
 }
 
 float TriangleLight::pdf_li_point(const Vec3& p, const Vec3& q) const {

@@ -28,6 +28,10 @@ public:
     /// point, st interpolated from the vertices' uvs. `tex` must outlive the light.
     void set_texture(const Texture* tex, const Vec2& st0, const Vec2& st1, const Vec2& st2);
 
+    /// Emitted radiance at barycentrics (b1, b2) of (p1, p2): the texture at the
+    /// interpolated st when textured, else the constant.
+    Spectrum radiance_at(const Vec2& b) const;
+
 private:
     Vec3 m_p0, m_e1, m_e2, m_n;
     float m_area = 0.f;

@@ -1,6 +1,7 @@
 #include "integrators/bdpt/bdpt_tracer.h"
 
 #include "materials/bsdf.h"
+#include "materials/material_eval.h"
 #include "materials/preview_surface.h"
 #include "math/frame.h"
 #include "math/safe_math.h"
@@ -280,12 +281,13 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         v.si.wo = v.wo;
         v.error_scale = hit.si.error_scale;
         const Material& mat = scene.material(hit.si.material_id);
-        v.bsdf.emplace(Bsdf::from_material(mat, hit.si.ns, hit.si.ng));
+        // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
+        v.bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
         v.ns = v.bsdf->shading_normal();
         v.beta = beta;
         v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v);
         if (!importance && mat.is_emissive()) {
-            v.le = mat.emission;
+            v.le = emitted_radiance(mat, hit.si.uv, scene.textures());
             v.light_index = scene.triangle_light_index(hit.si.instance_id, hit.si.prim_id);
         }
         ++n;
