@@ -205,7 +205,7 @@ uint32_t add_texture(Scene& s, nb::handle image, const std::string& wrap_s,
 
 uint32_t add_light(Scene& s, const std::string& kind, nb::handle transform,
                    const std::array<float, 3>& radiance, float width, float height, float radius,
-                   float length, float angle, bool treat_as_point) {
+                   float length, float angle, bool treat_as_point, int32_t texture_id) {
     LightDesc d;
     if (kind == "rect") d.kind = LightDesc::Kind::rect;
     else if (kind == "disk") d.kind = LightDesc::Kind::disk;
@@ -224,6 +224,7 @@ uint32_t add_light(Scene& s, const std::string& kind, nb::handle transform,
     d.length = length;
     d.angle = angle;
     d.treat_as_point = treat_as_point;
+    d.texture_id = texture_id;
     return s.add_light(d);
 }
 
@@ -308,9 +309,12 @@ void bind_scene(nb::module_& m) {
         .def("clear_lights", &Scene::clear_lights)
         .def("add_light", &add_light, "kind"_a, "transform"_a, "radiance"_a, "width"_a = 1.0f,
              "height"_a = 1.0f, "radius"_a = 0.5f, "length"_a = 1.0f, "angle"_a = 0.53f,
-             "treat_as_point"_a = false,
+             "treat_as_point"_a = false, "texture_id"_a = -1,
              "Add a UsdLux light: kind rect|disk|sphere|distant|dome (cylinder: not supported "
-             "yet). radiance = intensity * 2^exposure * color (/ area if normalize).")
+             "yet). radiance = intensity * 2^exposure * color (/ area if normalize).\n"
+             "texture_id (add_texture, registered before): dome = lat-long HDR environment\n"
+             "(UsdLux/OpenEXR latlong, +Y pole, importance sampled), rect = inputs:texture:file;\n"
+             "the radiance is multiplied by the texture's rgb.")
         .def("set_camera", &set_camera, "transform"_a, "focal_length"_a, "horizontal_aperture"_a,
              "vertical_aperture"_a, "horizontal_aperture_offset"_a = 0.0f,
              "vertical_aperture_offset"_a = 0.0f, "near"_a = 0.01f, "far"_a = 1e6f,

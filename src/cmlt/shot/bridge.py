@@ -225,6 +225,21 @@ class SceneBridge:
             out[name] = (tid, _CHANNELS.get(str(rec.get("output") or "rgb"), 0))
         return out
 
+    def _light_texture(self, light) -> int:
+        """Core texture id of a dome / rect light's ``inputs:texture:file`` (loaded
+        once per core scene, colour space by bit depth), or -1. Dome: lat-long,
+        wrapping around in s and clamped at the poles; rect: clamped. An
+        unreadable file warns naming the light and keeps the untextured light."""
+        path = getattr(light, "texture", None)
+        if not path or light.kind not in ("dome", "rect"):
+            return -1
+        rec = {"wrapS": "repeat" if light.kind == "dome" else "clamp", "wrapT": "clamp"}
+        key = (str(path), "auto", "light", rec["wrapS"], rec["wrapT"])
+        if key not in self._textures:
+            self._textures[key] = self._load_texture(light.name, "texture:file", path, "auto", rec)
+        tid = self._textures[key]
+        return -1 if tid is None else int(tid)
+
     def _load_texture(self, material: str, input_name: str, path, cs: str, rec: dict):
         import warnings
         from ..usd.color import load_texture
@@ -370,7 +385,8 @@ class SceneBridge:
                             tuple(float(c) for c in light.radiance),
                             width=float(light.width), height=float(light.height),
                             radius=float(light.radius), length=float(light.length),
-                            angle=float(light.angle), treat_as_point=bool(light.treat_as_point))
+                            angle=float(light.angle), treat_as_point=bool(light.treat_as_point),
+                            texture_id=self._light_texture(light))
         cam = fs.camera
         if cam is None:
             raise BridgeError(f"time {fs.time:g}: the frame has no camera")

@@ -2,7 +2,9 @@
 
 #include "math/safe_math.h"
 #include "sampling/warp.h"
+#include "textures/texture.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace cmlt {
@@ -28,7 +30,7 @@ LightSample PlanarLight::sample_li(const Vec3& p, const Vec2& u) const {
     s.pdf = dist2 / (cos_l * m_area);
     if (!std::isfinite(s.pdf)) return LightSample();
     s.wi = wi;
-    s.li = m_radiance;
+    s.li = radiance_at(l.x, l.y);
     s.dist = dist;
     s.p_light = q;
     return s;
@@ -44,7 +46,7 @@ bool PlanarLight::intersect(const Ray& ray, float* t, Spectrum* le) const {
     if (!(th > ray.tnear && th < ray.tfar)) return false;
     if (!inside(o.x + th * d.x, o.y + th * d.y)) return false;
     *t = th;
-    *le = m_radiance;
+    *le = radiance_at(o.x + th * d.x, o.y + th * d.y);
     return true;
 }
 
@@ -60,6 +62,12 @@ float PlanarLight::pdf_li(const Vec3& p, const Vec3& wi) const {
 
 float PlanarLight::power() const { return k_pi * m_area * luminance(m_radiance); }
 
+Spectrum PlanarLight::radiance_at(float x, float y) const {
+    if (!m_tex) return m_radiance;
+    Vec3 c = m_tex->eval(Vec2(0.5f - x * m_inv_w, 0.5f - y * m_inv_h)).xyz();
+    return Spectrum(std::max(0.f, c.x), std::max(0.f, c.y), std::max(0.f, c.z)) * m_radiance;
+}
+
 static float parallelogram_area(const Mat4& m, float a, float b) {
     Vec3 ex = m.transform_vector(Vec3(a, 0.f, 0.f));
     Vec3 ey = m.transform_vector(Vec3(0.f, b, 0.f));
@@ -68,8 +76,22 @@ static float parallelogram_area(const Mat4& m, float a, float b) {
 
 RectLight::RectLight(const LightDesc& desc)
     : PlanarLight(desc, "rect light"), m_w(desc.width), m_h(desc.height) {
+    m_texture_id = desc.texture_id;
     m_area = (m_w > 0.f && m_h > 0.f) ? parallelogram_area(m_xf.m, m_w, m_h) : 0.f;
 }
+void RectLight::bind_texture(const Texture* tex) {
+    m_tex = (tex && tex->valid() && m_w > 0.f && m_h > 0.f) ? tex : nullptr;
+    m_inv_w = m_w > 0.f ? 1.f / m_w : 0.f;
+    m_inv_h = m_h > 0.f ? 1.f / m_h : 0.f;
+}
+
+float RectLight::power() const {
+    if (!m_tex) return PlanarLight::power();
+    Vec3 c = m_tex->mean().xyz();
+    Spectrum m(std::max(0.f, c.x), std::max(0.f, c.y), std::max(0.f, c.z));
+    return k_pi * m_area * luminance(m * m_radiance);
+}
+
 bool RectLight::inside(float x, float y) const {
     return std::fabs(x) <= 0.5f * m_w && std::fabs(y) <= 0.5f * m_h;
 }

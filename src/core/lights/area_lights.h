@@ -1,5 +1,10 @@
 #pragma once
 /// \file UsdLux RectLight and DiskLight: planar, one-sided, emitting toward local -Z.
+///
+/// RectLight texture (inputs:texture:file): the radiance is multiplied by the texture's
+/// rgb at st = (1/2 - x/width, 1/2 - y/height) for the local point (x, y): UsdLux puts
+/// the texture's min coordinates at (+X, +Y) and its max at (-X, -Y), so the image reads
+/// the right way round seen from the emitting (-Z) side. Sampling stays uniform by area.
 #include "lights/light.h"
 
 namespace cmlt {
@@ -15,6 +20,8 @@ public:
     LightLeSample sample_le(const Vec2& u_pos, const Vec2& u_dir) const override;
     void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
     Vec3 emitter_normal(const Vec3& p) const override;
+    /// Radiance emitted at local point (x, y) (textured rect lights vary).
+    Spectrum radiance_at(float x, float y) const;
 
 protected:
     PlanarLight(const LightDesc& desc, const char* what);
@@ -27,11 +34,15 @@ protected:
     Spectrum m_radiance;
     Vec3 m_n_emit;   ///< unit world normal of the emitting side (local -Z)
     float m_area = 0.f;
+    const Texture* m_tex = nullptr;  ///< rect only
+    float m_inv_w = 0.f, m_inv_h = 0.f;
 };
 
 class RectLight final : public PlanarLight {
 public:
     explicit RectLight(const LightDesc& desc);
+    void bind_texture(const Texture* tex) override;
+    float power() const override;
 
 protected:
     bool inside(float x, float y) const override;

@@ -57,22 +57,4 @@ float DistantLight::power() const {
     return k_pi * m_scene_radius * m_scene_radius * irradiance;
 }
 
-DomeLight::DomeLight(const LightDesc& desc) : m_radiance(desc.radiance) {
-    m_is_infinite = true;
-}
-
-LightSample DomeLight::sample_li(const Vec3&, const Vec2& u) const {
-    LightSample s;
-    s.wi = square_to_uniform_sphere(u);
-    s.li = m_radiance;
-    s.pdf = k_inv_4pi;
-    return s;
-}
-
-float DomeLight::pdf_li(const Vec3&, const Vec3&) const { return k_inv_4pi; }
-
-float DomeLight::power() const {
-    return 4.f * k_pi * k_pi * m_scene_radius * m_scene_radius * luminance(m_radiance);
-}
-
 }  // namespace cmlt

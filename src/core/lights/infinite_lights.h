@@ -1,5 +1,5 @@
 #pragma once
-/// \file UsdLux DistantLight and DomeLight.
+/// \file UsdLux DistantLight (and, through dome_light.h, DomeLight).
 ///
 /// DistantLight: light travels toward local -Z, so the direction *to* the light is local
 /// +Z. `angle` is the angular diameter in degrees. angle > 0: a cone of directions with
@@ -7,8 +7,8 @@
 /// it. angle == 0: a Dirac direction; `radiance` is then read as the irradiance on a
 /// surface facing the light (the limit of a normalised distant light).
 ///
-/// DomeLight: constant radiance from every direction (textures later), sampled uniformly
-/// over the sphere; escaping rays see it.
+/// DomeLight: lights/dome_light.h (constant or lat-long textured).
+#include "lights/dome_light.h"
 #include "lights/light.h"
 
 namespace cmlt {
@@ -29,18 +29,5 @@ private:
     float m_scene_radius = 1.f;
 };
 
-class DomeLight final : public Light {
-public:
-    explicit DomeLight(const LightDesc& desc);
-    LightSample sample_li(const Vec3& p, const Vec2& u) const override;
-    float pdf_li(const Vec3& p, const Vec3& wi) const override;
-    Spectrum le_escape(const Vec3& d) const override { return m_radiance; }
-    void preprocess(const Vec3& center, float radius) override { m_scene_radius = radius; }
-    float power() const override;
-
-private:
-    Spectrum m_radiance;
-    float m_scene_radius = 1.f;
-};
 
 }  // namespace cmlt

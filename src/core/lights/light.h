@@ -14,7 +14,11 @@
 #include "math/ray.h"
 #include "math/vec.h"
 
+#include <cstdint>
+
 namespace cmlt {
+
+class Texture;
 
 struct LightSample {
     Vec3 wi;                   ///< unit direction toward the light
@@ -50,6 +54,9 @@ struct LightDesc {
     float width = 1.f, height = 1.f, radius = 0.5f, length = 1.f;
     float angle = 0.53f;       ///< distant: angular diameter, degrees
     bool treat_as_point = false;
+    /// Texture id (Scene::add_texture) or -1: dome (lat-long, lights/dome_light.h) and
+    /// rect (lights/area_lights.h) multiply their radiance by it.
+    int32_t texture_id = -1;
 };
 
 class Light {
@@ -82,6 +89,12 @@ public:
     /// Unit normal of the emitting side at a point on the light (zero for a point light).
     virtual Vec3 emitter_normal(const Vec3& /*p*/) const { return Vec3(0.f); }
 
+    /// Texture this light was created with (LightDesc::texture_id), or -1.
+    int32_t texture_id() const { return m_texture_id; }
+    /// Called at commit (before preprocess) with the scene's texture `texture_id()`; the
+    /// texture outlives the light's use until the next commit.
+    virtual void bind_texture(const Texture* /*tex*/) {}
+
     bool is_delta() const { return m_is_delta; }
     bool is_infinite() const { return m_is_infinite; }
     /// Finite analytic emitter tested by `intersect` (rect, disk, sphere).
@@ -91,6 +104,7 @@ protected:
     bool m_is_delta = false;
     bool m_is_infinite = false;
     bool m_is_analytic_area = false;
+    int32_t m_texture_id = -1;
 };
 
 }  // namespace cmlt

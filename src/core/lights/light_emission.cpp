@@ -30,7 +30,7 @@ LightLeSample PlanarLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) const
     s.d = normalize(Frame(m_n_emit).to_world(local));
     s.pdf_pos = 1.f / m_area;
     s.pdf_dir = local.z * k_inv_pi;
-    s.le = m_radiance;
+    s.le = radiance_at(l.x, l.y);
     s.error_scale = point_error_scale(s.p);
     if (!(s.pdf_dir > 0.f) || !std::isfinite(s.pdf_pos)) return LightLeSample();
     return s;

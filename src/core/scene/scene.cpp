@@ -187,6 +187,12 @@ uint32_t Scene::add_light(const LightDesc& desc) {
     nonneg(desc.height, "height");
     nonneg(desc.radius, "radius");
     nonneg(desc.length, "length");
+    if (desc.texture_id >= 0 &&
+        !(desc.kind == LightDesc::Kind::dome || desc.kind == LightDesc::Kind::rect))
+        CMLT_THROW(SceneError, "add_light: only dome and rect lights take a texture");
+    if (desc.texture_id >= int32_t(m_textures.size()))
+        CMLT_THROW(SceneError, "add_light: texture id " << desc.texture_id << " not registered ("
+                                                         << m_textures.size() << " textures)");
     std::unique_ptr<Light> light;
     switch (desc.kind) {
         case LightDesc::Kind::rect: light.reset(new RectLight(desc)); break;
@@ -246,6 +252,8 @@ void Scene::build_lights() {
     m_triangle_lights.clear();
     m_tri_light_index.assign(m_instances.size(), {});
     for (auto& l : m_analytic) {
+        if (l->texture_id() >= 0 && size_t(l->texture_id()) < m_textures.size())
+            l->bind_texture(&m_textures[size_t(l->texture_id())]);
         l->preprocess(m_center, m_radius);
         uint32_t idx = uint32_t(m_lights.size());
         if (l->is_infinite()) m_infinite.push_back(idx);
