@@ -230,7 +230,7 @@ uint32_t add_light(Scene& s, const std::string& kind, nb::handle transform,
 
 void set_camera(Scene& s, nb::handle transform, float focal_length, float ha, float va, float hoff,
                 float voff, float near_, float far_, float f_stop, float focus_distance,
-                const std::string& projection) {
+                const std::string& projection, float lens_unit) {
     CameraDesc d;
     d.transform = to_mat4(transform, "set_camera", "transform");
     d.focal_length = focal_length;
@@ -242,6 +242,7 @@ void set_camera(Scene& s, nb::handle transform, float focal_length, float ha, fl
     d.far = far_;
     d.f_stop = f_stop;
     d.focus_distance = focus_distance;
+    d.lens_unit = lens_unit;
     if (projection == "perspective") d.projection = CameraDesc::Projection::perspective;
     else if (projection == "orthographic") d.projection = CameraDesc::Projection::orthographic;
     else
@@ -318,7 +319,11 @@ void bind_scene(nb::module_& m) {
         .def("set_camera", &set_camera, "transform"_a, "focal_length"_a, "horizontal_aperture"_a,
              "vertical_aperture"_a, "horizontal_aperture_offset"_a = 0.0f,
              "vertical_aperture_offset"_a = 0.0f, "near"_a = 0.01f, "far"_a = 1e6f,
-             "f_stop"_a = 0.0f, "focus_distance"_a = 0.0f, "projection"_a = "perspective")
+             "f_stop"_a = 0.0f, "focus_distance"_a = 0.0f, "projection"_a = "perspective",
+             "lens_unit"_a = 0.001f,
+             "Camera (looks down local -Z). Thin-lens depth of field when f_stop > 0 and\n"
+             "focus_distance > 0 (metres): lens radius = focal_length * lens_unit / (2 f_stop)\n"
+             "metres, lens_unit = metres per focal-length unit (0.001: mm).")
         .def("commit", &Scene::commit, "Build/refit BVHs and the light list.")
         .def_prop_ro("mesh_count", &Scene::mesh_count)
         .def_prop_ro("instance_count", &Scene::instance_count)

@@ -396,7 +396,8 @@ class SceneBridge:
                          vertical_aperture_offset=float(cam.vertical_aperture_offset),
                          near=float(cam.near), far=float(cam.far),
                          f_stop=float(cam.f_stop), focus_distance=float(cam.focus_distance),
-                         projection=str(cam.projection))
+                         projection=str(cam.projection),
+                         lens_unit=float(getattr(cam, "lens_unit", 0.001) or 0.001))
 
     # -- public ----------------------------------------------------------
     def update(self, fs: FrameScene):

@@ -1,5 +1,6 @@
 #include "cameras/camera.h"
 
+#include "sampling/warp.h"
 #include "util/error.h"
 
 #include <cmath>
@@ -26,6 +27,9 @@ void CameraDesc::validate() const {
     if (!(f_stop >= 0.f)) CMLT_THROW(SceneError, "camera: f_stop must be >= 0, got " << f_stop);
     if (!(focus_distance >= 0.f))
         CMLT_THROW(SceneError, "camera: focus_distance must be >= 0, got " << focus_distance);
+    if (!std::isfinite(f_stop) || !std::isfinite(focus_distance))
+        CMLT_THROW(SceneError, "camera: f_stop and focus_distance must be finite");
+    pos(lens_unit, "lens_unit");
     Transform(transform, "camera");
 }
 
@@ -34,6 +38,27 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
     desc.validate();
     m_win_w = desc.horizontal_aperture;
     m_win_h = desc.horizontal_aperture * float(height) / float(width);
+    if (desc.projection == CameraDesc::Projection::perspective && desc.f_stop > 0.f &&
+        desc.focus_distance > 0.f) {
+        float r = desc.focal_length * desc.lens_unit / (2.f * desc.f_stop);
+        m_lens_radius = (r > 0.f && std::isfinite(r)) ? r : 0.f;
+    }
+}
+
+Ray Camera::generate_ray(const Vec2& p_raster, const Vec2& u_lens) const {
+    if (!has_lens()) return generate_ray(p_raster);
+    Vec2 w = raster_to_window(p_raster);
+    // Pinhole direction at depth 1, scaled to the plane of focus.
+    Vec3 pf(w.x / m_desc.focal_length * m_desc.focus_distance,
+            w.y / m_desc.focal_length * m_desc.focus_distance, -m_desc.focus_distance);
+    Vec2 d = square_to_uniform_disk_concentric(u_lens);
+    Vec3 pl(d.x * m_lens_radius, d.y * m_lens_radius, 0.f);
+    Vec3 dc = normalize(pf - pl);
+    // near / far are depths along -Z: t = depth / -dc.z.
+    float inv = 1.f / -dc.z;
+    Vec3 o = m_xf.m.transform_point(pl);
+    Vec3 dw = normalize(m_xf.m.transform_vector(dc));
+    return Ray(o, dw, m_desc.near * inv, m_desc.far * inv);
 }
 
 Vec2 Camera::raster_to_window(const Vec2& p) const {

@@ -13,7 +13,17 @@
 /// unit), at the camera plane; rays are parallel to -Z.
 ///
 /// near/far clip the ray by depth along -Z (for a transform without scale).
-/// f_stop / focus_distance are kept for the thin-lens issue; today it is a pinhole.
+/// Depth of field (thin lens): only for a perspective camera with f_stop > 0 and
+/// focus_distance > 0 (otherwise a pinhole, bit-identical to the camera without the
+/// feature). The lens is a disk in the camera's z = 0 plane of radius
+///   r = focal_length * lens_unit / (2 f_stop)   (metres; lens_unit = metres per lens unit)
+/// and the plane of focus is z = -focus_distance (metres, camera space). A ray through
+/// raster p and lens sample u starts at the concentric-disk point r d(u) and passes
+/// through the point of the plane of focus that the pinhole ray through p reaches, so
+/// every ray of a pixel converges there, and a point at depth z spreads over a circle
+/// of confusion of diameter 2 r |z - focus| / z on the plane of focus (in the image:
+/// times focal / focus). The lens sample comes from its own dimension
+/// (k_lens_dimension) of the sample's camera-path stream, drawn only with a lens.
 #include "math/mat4.h"
 #include "math/ray.h"
 
@@ -28,6 +38,8 @@ namespace cmlt {
 /// time 0 and every other random number of the sample is the same either way, so a
 /// scene that does not move renders bit-identically with or without the feature.
 constexpr uint32_t k_shutter_time_dimension = 0xFFFFFF00u;
+/// Thin lens: the 2-D lens position of a camera sample (see Camera::has_lens).
+constexpr uint32_t k_lens_dimension = 0xFFFFFF10u;
 
 struct CameraDesc {
     enum class Projection { perspective, orthographic };
@@ -41,6 +53,7 @@ struct CameraDesc {
     float far = 1e6f;
     float f_stop = 0.f;
     float focus_distance = 0.f;
+    float lens_unit = 0.001f;  ///< metres per focal-length unit (mm: 0.001), thin lens only
     Projection projection = Projection::perspective;
 
     /// Throws SceneError naming the bad field.
@@ -53,6 +66,13 @@ public:
 
     /// Primary ray through raster position `p_raster`; direction is unit length.
     Ray generate_ray(const Vec2& p_raster) const;
+    /// Primary ray through `p_raster` and lens position `u_lens` in [0,1)^2 (thin lens);
+    /// the pinhole ray when the camera has no lens.
+    Ray generate_ray(const Vec2& p_raster, const Vec2& u_lens) const;
+    /// Thin lens in use (perspective, f_stop > 0, focus_distance > 0).
+    bool has_lens() const { return m_lens_radius > 0.f; }
+    /// Lens radius in metres (0 for a pinhole).
+    float lens_radius() const { return m_lens_radius; }
     /// Project a world point to raster coordinates; false if behind the camera.
     bool world_to_raster(const Vec3& p_world, Vec2* p_raster) const;
 
@@ -67,6 +87,7 @@ private:
     Transform m_xf;
     int m_width, m_height;
     float m_win_w, m_win_h;  ///< window size in aperture units
+    float m_lens_radius = 0.f;
 };
 
 }  // namespace cmlt

@@ -56,7 +56,10 @@ Vec3 leave_point(const PathVertex& v, const Vec3& w) {
 CameraImportance::CameraImportance(const Camera& camera, int width, int height)
     : m_camera(camera), m_width(width), m_height(height) {
     const CameraDesc& d = camera.desc();
-    m_perspective = d.projection == CameraDesc::Projection::perspective;
+    // A thin lens is not connected to (no t = 1): the camera vertex then counts as a
+    // Dirac vertex in the MIS ratio walk, which drops the t = 1 strategy and leaves the
+    // other weights summing to 1 (see bdpt_tracer.h).
+    m_perspective = d.projection == CameraDesc::Projection::perspective && !camera.has_lens();
     m_pos = camera.position();
     m_fwd = normalize(d.transform.transform_vector(Vec3(0.f, 0.f, -1.f)));
     // Image window at distance 1 (see cameras/camera.h for the framing).
@@ -334,7 +337,9 @@ int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampl
                                         BdptCounters& c) const {
     if (max_vertices < 1) return 0;
     const Camera& cam = m_importance.camera();
-    Ray ray = cam.generate_ray(p_raster);
+    // Thin lens: the lens position is the camera stream's next 2D (drawn only with a lens).
+    Ray ray = cam.has_lens() ? cam.generate_ray(p_raster, sampler.next2d())
+                             : cam.generate_ray(p_raster);
     PathVertex& v = path[0];
     v = PathVertex();
     v.type = VertexType::camera;

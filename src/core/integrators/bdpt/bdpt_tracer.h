@@ -11,6 +11,11 @@
 ///    We = 1 / (A cos^4) (A: image-plane area at distance 1);
 ///  * otherwise: connect the two subpath ends by a shadow ray.
 /// (s, t) = (1, 1) is not used (lights seen directly come from (0, 2) with weight 1).
+/// With a thin lens (Camera::has_lens) or an orthographic camera the camera cannot be
+/// connected to: t = 1 is disabled and the camera vertex is treated as a Dirac vertex
+/// in the MIS weights, so the remaining strategies' weights still sum to 1 (the
+/// light-tracing share of caustics seen directly through the lens is then carried by
+/// the other strategies; correct but noisier).
 ///
 /// MIS: power heuristic over all strategies that can sample the path, computed with the
 /// ratio walk over per-vertex forward / reverse area densities (pbrt-v4 MISWeight).

@@ -76,6 +76,12 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
                                     PixelSampler sampler(settings.seed, pixel, uint32_t(s));
                                     Vec2 u = sampler.get2d();
                                     Ray ray = camera.generate_ray(Vec2(float(x) + u.x, float(y) + u.y));
+                                    if (camera.has_lens()) {  // thin lens: its own dimension
+                                        PixelSampler ls(settings.seed, pixel, uint32_t(s));
+                                        ls.set_dimension(k_lens_dimension);
+                                        ray = camera.generate_ray(
+                                            Vec2(float(x) + u.x, float(y) + u.y), ls.get2d());
+                                    }
                                     if (motion_blur) {
                                         PixelSampler ts(settings.seed, pixel, uint32_t(s));
                                         ts.set_dimension(k_shutter_time_dimension);
