@@ -98,10 +98,16 @@ def main(argv=None) -> int:
 
     rows = []
     for integ in integrators:
-        # calibrate seconds per sample per pixel for this integrator
-        _, dt = timed_render(core, scene, settings(core, integ, args.calibrate_spp, (w, h),
+        # Calibrate seconds per sample per pixel for this integrator: a short run, then
+        # one long enough (about half a second) that start-up costs do not dominate.
+        cal_spp = args.calibrate_spp
+        _, dt = timed_render(core, scene, settings(core, integ, cal_spp, (w, h),
                                                    args.seed, args.threads, {}))
-        per_spp = dt / args.calibrate_spp
+        if dt < 0.4:
+            cal_spp = max(cal_spp + 1, int(cal_spp * 0.5 / max(dt, 1e-3)))
+            _, dt = timed_render(core, scene, settings(core, integ, cal_spp, (w, h),
+                                                       args.seed, args.threads, {}))
+        per_spp = dt / cal_spp
         for budget in budgets:
             spp = max(1, int(round(budget / per_spp)))
             r, dt = timed_render(core, scene, settings(core, integ, spp, (w, h), args.seed,
