@@ -122,6 +122,15 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["max_rejection_streak"] = m.max_rejection_streak;
         d["clamped_splats"] = m.clamped_splats;
         d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
+        if (st.integrator == "cmlt") {
+            d["tries"] = m.tries;
+            d["inner_length"] = m.inner_length;
+            d["inner"] = m.inner;
+            d["packets"] = m.packets;
+            d["packet_width"] = m.packet_width;
+            d["packet_queries"] = m.packet_queries;
+            d["path_evaluations"] = m.path_evaluations;
+        }
     }
     out.stats = d;
     return out;
@@ -140,7 +149,8 @@ void bind_render(nb::module_& m) {
         .def_rw("seed", &RenderSettings::seed, "RNG seed, 0..2^64-1 (default 0)")
         .def_rw("threads", &RenderSettings::threads, "worker threads, 0 = all cores (default 0)")
         .def_rw("integrator", &RenderSettings::integrator,
-                "'pt' (default) or 'pssmlt' (spp = mutations per pixel, bootstrap included)")
+                "'pt' (default), 'bdpt', 'pssmlt' or 'cmlt' (MLT: spp = mutations / path "
+                "evaluations per pixel, bootstrap included)")
         .def_rw("sigma", &RenderSettings::sigma,
                 "pssmlt small-step Gaussian sigma per primary sample, (0, 1] (default 0.01)")
         .def_rw("large_step_probability", &RenderSettings::large_step_probability,
@@ -151,6 +161,15 @@ void bind_render(nb::module_& m) {
         .def_rw("bootstrap_samples", &RenderSettings::bootstrap_samples,
                 "pssmlt large-step samples estimating b and seeding the chains, >= 1; at most "
                 "half of spp*W*H is used (default 100000)")
+        .def_rw("tries", &RenderSettings::tries,
+                "cmlt: k, candidates per inner step, 1..64 (default 8)")
+        .def_rw("inner_length", &RenderSettings::inner_length,
+                "cmlt: m, inner steps per outer (large) step, >= 1 (default 8)")
+        .def_rw("inner", &RenderSettings::inner,
+                "cmlt inner rule: 'bundle' (default, exact), 'mtm' (exact), 'seed' (biased)")
+        .def_rw("packets", &RenderSettings::packets,
+                "cmlt: trace a bundle's camera rays as Embree packets (default True); the "
+                "image is bit-identical either way")
         .def("__repr__", [](const RenderSettings& s) {
             return "RenderSettings(width=" + std::to_string(s.width) +
                    ", height=" + std::to_string(s.height) + ", spp=" + std::to_string(s.spp) +
@@ -159,7 +178,9 @@ void bind_render(nb::module_& m) {
                    "', sigma=" + std::to_string(s.sigma) +
                    ", large_step_probability=" + std::to_string(s.large_step_probability) +
                    ", chains=" + std::to_string(s.chains) +
-                   ", bootstrap_samples=" + std::to_string(s.bootstrap_samples) + ")";
+                   ", bootstrap_samples=" + std::to_string(s.bootstrap_samples) +
+                   ", tries=" + std::to_string(s.tries) + ", inner_length=" + std::to_string(s.inner_length) +
+                   ", inner='" + s.inner + "', packets=" + (s.packets ? "True" : "False") + ")";
         });
 
     nb::class_<PyRenderResult>(m, "RenderResult")

@@ -404,9 +404,10 @@ bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
     return true;
 }
 
-SceneHit Scene::intersect(const Ray& ray) const {
+SceneHit Scene::intersect(const Ray& ray) const { return resolve_hit(ray, m_accel->intersect(ray)); }
+
+SceneHit Scene::resolve_hit(const Ray& ray, const Hit& h) const {
     SceneHit out;
-    Hit h = m_accel->intersect(ray);
     float tmax = h.valid() ? h.t : ray.tfar;
     // Analytic emitters are not in the BVH: test them and keep the nearest.
     for (uint32_t li : m_analytic_area) {

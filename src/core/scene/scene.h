@@ -110,6 +110,9 @@ public:
 
     // ---- queries (after commit) ----------------------------------------------------
     SceneHit intersect(const Ray& ray) const;
+    /// Scene::intersect for a mesh hit `h` of `ray` found elsewhere (e.g. a packet
+    /// query): tests the analytic emitters up to h and fills the interaction.
+    SceneHit resolve_hit(const Ray& ray, const Hit& h) const;
     bool intersect_surface(const Ray& ray, SurfaceInteraction* si) const;
     bool occluded(const Ray& ray) const { return m_accel->occluded(ray); }
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;

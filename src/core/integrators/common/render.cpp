@@ -3,6 +3,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "integrators/bdpt/bdpt_integrator.h"
+#include "integrators/cmlt/cmlt_integrator.h"
 #include "integrators/mlt/pssmlt_integrator.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng.h"
@@ -36,6 +37,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     if (scene.dirty()) scene.commit();
     if (settings.integrator == "bdpt") return render_bdpt(scene, settings, progress);
     if (settings.integrator == "pssmlt") return render_pssmlt(scene, settings, progress);
+    if (settings.integrator == "cmlt") return render_cmlt(scene, settings, progress);
 
     const int W = settings.width, H = settings.height;
     Camera camera(scene.camera_desc(), W, H);

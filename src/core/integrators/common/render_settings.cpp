@@ -14,9 +14,19 @@ void RenderSettings::validate() const {
     if (max_depth < 1)
         CMLT_THROW(SettingsError, "RenderSettings.max_depth must be >= 1, got " << max_depth);
     if (threads < 0) CMLT_THROW(SettingsError, "RenderSettings.threads must be >= 0, got " << threads);
-    if (integrator != "pt" && integrator != "bdpt" && integrator != "pssmlt")
+    if (integrator != "pt" && integrator != "bdpt" && integrator != "pssmlt" && integrator != "cmlt")
         CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '"
-                                      << integrator << "' (available: 'pt', 'bdpt', 'pssmlt')");
+                                      << integrator << "' (available: 'pt', 'bdpt', 'pssmlt', 'cmlt')");
+    if (tries < 1 || tries > 64)
+        CMLT_THROW(SettingsError, "RenderSettings.tries must be in [1, 64], got " << tries);
+    if (inner_length < 1)
+        CMLT_THROW(SettingsError, "RenderSettings.inner_length must be >= 1, got " << inner_length);
+    if (inner != "seed" && inner != "mtm" && inner != "bundle")
+        CMLT_THROW(SettingsError, "RenderSettings.inner: unknown inner rule '"
+                                      << inner << "' (available: 'seed', 'mtm', 'bundle')");
+    if (mlt_path_sampler != "pt" && mlt_path_sampler != "bdpt")
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_path_sampler: unknown path sampler '"
+                                      << mlt_path_sampler << "' (available: 'bdpt', 'pt')");
     if (!(sigma > 0.0 && sigma <= 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.sigma must be in (0, 1], got " << sigma);
     if (!(large_step_probability >= 0.0 && large_step_probability <= 1.0))

@@ -17,7 +17,8 @@ struct RenderSettings {
     int threads = 0;               ///< worker threads, 0 = all cores, >= 0
     std::string integrator = "pt"; ///< "pt" (path tracing with NEE + MIS), "bdpt" (bidirectional),
                                    ///< "pssmlt" (primary-sample-space MLT over PT's sampling;
-                                   ///< `spp` = mutations per pixel, bootstrap included)
+                                   ///< `spp` = mutations per pixel, bootstrap included),
+                                   ///< "cmlt" (coherent MLT; `spp` = path evaluations per pixel)
 
     // Metropolis (pssmlt). Defaults: pbrt-v4's published MLT defaults (shared/NOTES.md).
     double sigma = 0.01;                  ///< small-step Gaussian σ per primary sample, (0, 1]
@@ -27,11 +28,24 @@ struct RenderSettings {
     int bootstrap_samples = 100000;       ///< large-step samples for b and the chain starts,
                                           ///< >= 1; at most half of spp·W·H is used
 
+    // Coherent MLT (cmlt, DESIGN.md §3): after each outer large step, `inner_length`
+    // inner steps of `tries` candidates each, drawn as one bundle by a lens / caustic
+    // perturbation (σ_lens = sigma · max(W, H) pixels) or a pixel move.
+    // Defaults: parameter study on sequences/cornell at equal time (see
+    // integrators/cmlt/cmlt_integrator.h).
+    int tries = 8;                 ///< k, candidates per inner step, [1, 64]
+    int inner_length = 8;          ///< m, inner steps per outer step, >= 1
+    std::string inner = "bundle";  ///< inner rule: "bundle" (multiple-proposal MH, exact),
+                                   ///< "mtm" (Liu et al., exact), "seed" (the seminar's
+                                   ///< 2k splats; biased, comparison only)
+    bool packets = true;           ///< trace a bundle's camera rays as Embree packets; off:
+                                   ///< one by one (bit-identical image, for comparison)
+
     /// Throws SettingsError naming the bad field.
     void validate() const;
 };
 
-/// Statistics of a Metropolis render (pssmlt).
+/// Statistics of a Metropolis render (pssmlt, cmlt).
 struct MltStats {
     bool enabled = false;
     double b = 0, b_stderr = 0;                      ///< normalisation E[f*], bootstrap + large steps
@@ -46,7 +60,15 @@ struct MltStats {
     double acceptance_small = 0, acceptance_large = 0;  ///< fraction of steps that moved
     uint64_t max_rejection_streak = 0;               ///< longest run of rejections in a chain
     uint64_t clamped_splats = 0;                     ///< splats beyond the film's range
-    std::string kernel_stats_json;                   ///< mlt::KernelStats::write_json
+    std::string kernel_stats_json;                   ///< mlt::KernelStats::write_json (cmlt:
+                                                     ///< + lens/caustic/pixel_move)
+    // cmlt only
+    int tries = 0, inner_length = 0;                 ///< k, m
+    std::string inner;                               ///< inner rule
+    bool packets = false;                            ///< camera rays traced as packets
+    int packet_width = 0;                            ///< widest packet used (1 = scalar)
+    uint64_t packet_queries = 0;                     ///< packet intersect calls
+    uint64_t path_evaluations = 0;                   ///< paths traced, bootstrap included
 };
 
 struct RenderStats {

@@ -30,20 +30,31 @@ public:
     PssmltTracer(const PathTracer& tracer, const Camera& camera, int width, int height)
         : m_tracer(tracer), m_camera(camera), m_width(width), m_height(height) {}
 
-    /// Evaluate the sampler's current proposal. `Sampler`: MltSampler (or any sampler
-    /// with start_stream + the path_tracer.h interface).
+    /// The camera ray of the sampler's current proposal (camera stream, dimension 0 =
+    /// film position) and its pixel. Leaves the sampler on the camera stream after the
+    /// film position, where evaluate's path sampling continues.
     template <class Sampler>
-    PathSample evaluate(Sampler& sampler, PathCounters& counters) const {
-        PathSample s;
+    Ray camera_ray(Sampler& sampler, uint32_t* pixel) const {
         sampler.start_stream(MltSampler::camera);
         sampler.set_dimension(0);
         const Vec2 u = sampler.get2d();
         const Vec2 p_raster(u.x * float(m_width), u.y * float(m_height));
         const int x = std::min(int(p_raster.x), m_width - 1);
         const int y = std::min(int(p_raster.y), m_height - 1);
-        s.pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
-        const Ray ray = m_camera.generate_ray(p_raster);
-        s.L = m_tracer.li(ray, sampler, counters);
+        *pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
+        return m_camera.generate_ray(p_raster);
+    }
+
+    /// Evaluate the sampler's current proposal. `Sampler`: MltSampler (or any sampler
+    /// with start_stream + the path_tracer.h interface). `first_hit`, if given, is what
+    /// camera_ray(sampler) hits first (coherent MLT traces the camera rays of a bundle
+    /// as one Embree packet, integrators/cmlt): the camera ray is then not traced again.
+    template <class Sampler>
+    PathSample evaluate(Sampler& sampler, PathCounters& counters,
+                        const SceneHit* first_hit = nullptr) const {
+        PathSample s;
+        const Ray ray = camera_ray(sampler, &s.pixel);
+        s.L = m_tracer.li(ray, sampler, counters, first_hit);
         if (!is_finite(s.L)) {
             s.invalid = true;
             s.L = Spectrum(0.f);

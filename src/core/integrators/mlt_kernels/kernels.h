@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <type_traits>
 #include <utility>
 
 #include "proposals.h"
@@ -99,6 +100,26 @@ inline std::size_t select_by_target(const double* w, std::size_t n, double t) {
 
 inline double min1(double v) { return v < 1.0 ? v : 1.0; }
 
+/// Optional batch hook: a Target with a member `void prepare(State* states, std::size_t n)
+/// const` is called once with all the points of a bundle (mtm_step's candidates, its
+/// reference points, bundle_step's candidates) after they are drawn and before any is
+/// evaluated, so a renderer can trace their first rays together (Embree packets). The
+/// kernels draw every point of a bundle before evaluating any; the target never reads
+/// the kernel RNG, so the random stream and every result are the same with or without
+/// a prepare hook.
+template <class Target, class State, class = void>
+struct has_prepare : std::false_type {};
+template <class Target, class State>
+struct has_prepare<Target, State,
+                   std::void_t<decltype(std::declval<const Target&>().prepare(std::declval<State*>(),
+                                                                              std::size_t{}))>>
+    : std::true_type {};
+
+template <class Target, class State>
+inline void prepare(const Target& f, State* states, std::size_t n) {
+  if constexpr (has_prepare<Target, State>::value) f.prepare(states, n);
+}
+
 }  // namespace detail
 
 /// One Metropolis–Hastings step with a single proposal y ~ T(x→·) and expected-value
@@ -172,8 +193,9 @@ StepResult mtm_step(Chain<State>& chain, const Target& f, const Proposal& propos
 
   // 1. draw and evaluate the k candidates (one coherent bundle in the renderer)
   double fy_sum = 0.0;
+  for (std::size_t l = 0; l < k; ++l) proposal.sample(chain.x, ws.y[l], rng);
+  detail::prepare(f, ws.y.data(), k);
   for (std::size_t l = 0; l < k; ++l) {
-    proposal.sample(chain.x, ws.y[l], rng);
     ws.fy[l] = detail::evaluate(f, ws.y[l], r);
     fy_sum += ws.fy[l];
   }
@@ -189,8 +211,9 @@ StepResult mtm_step(Chain<State>& chain, const Target& f, const Proposal& propos
 
   // 3. reference points around y*; z_k = x enters through chain.fx (not copied)
   double fz_sum = chain.fx;
+  for (std::size_t l = 0; l + 1 < k; ++l) proposal.sample(y_star, ws.z[l], rng);
+  if (k > 1) detail::prepare(f, ws.z.data(), k - 1);
   for (std::size_t l = 0; l + 1 < k; ++l) {
-    proposal.sample(y_star, ws.z[l], rng);
     ws.fz[l] = detail::evaluate(f, ws.z[l], r);
     fz_sum += ws.fz[l];
   }
@@ -251,8 +274,9 @@ StepResult bundle_step(Chain<State>& chain, const Target& f, const Proposal& pro
   // draw the bundle: centre around x, candidates around the centre
   proposal.sample(chain.x, ws.centre, rng);
   double fy_sum = 0.0;
+  for (std::size_t l = 0; l < k; ++l) proposal.sample(ws.centre, ws.y[l], rng);
+  detail::prepare(f, ws.y.data(), k);
   for (std::size_t l = 0; l < k; ++l) {
-    proposal.sample(ws.centre, ws.y[l], rng);
     ws.fy[l] = detail::evaluate(f, ws.y[l], r);
     fy_sum += ws.fy[l];
   }

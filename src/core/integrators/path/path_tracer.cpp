@@ -4,6 +4,7 @@
 
 namespace cmlt {
 
-template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&, PathCounters&) const;
+template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&, PathCounters&,
+                                              const SceneHit*) const;
 
 }  // namespace cmlt

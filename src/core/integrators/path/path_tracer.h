@@ -31,6 +31,7 @@
 namespace cmlt {
 
 class Scene;
+struct SceneHit;
 
 struct PathCounters {
     uint64_t camera_rays = 0;
@@ -47,8 +48,12 @@ public:
     PathTracer(const Scene& scene, int max_depth) : m_scene(scene), m_max_depth(max_depth) {}
 
     /// Radiance along a camera ray (may be non-finite only through a bug; the film checks).
+    /// `first_hit`, if given, is what `camera_ray` hits first (Scene::intersect's answer,
+    /// e.g. from a packet query: integrators/cmlt); it is used instead of tracing the
+    /// camera ray again. The camera ray is still counted in the counters.
     template <class Sampler>
-    Spectrum li(const Ray& camera_ray, Sampler& sampler, PathCounters& counters) const;
+    Spectrum li(const Ray& camera_ray, Sampler& sampler, PathCounters& counters,
+                const SceneHit* first_hit = nullptr) const;
 
 private:
     const Scene& m_scene;
@@ -56,6 +61,6 @@ private:
 };
 
 extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,
-                                                     PathCounters&) const;
+                                                     PathCounters&, const SceneHit*) const;
 
 }  // namespace cmlt

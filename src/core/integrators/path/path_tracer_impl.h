@@ -15,7 +15,8 @@
 namespace cmlt {
 
 template <class Sampler>
-Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c) const {
+Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c,
+                        const SceneHit* first_hit) const {
     const Scene& scene = m_scene;
     Spectrum L(0.f), beta(1.f);
     Ray ray = camera_ray;
@@ -28,7 +29,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
 
     for (int depth = 0;; ++depth) {
         // Find the next vertex.
-        SceneHit hit = scene.intersect(ray);
+        SceneHit hit = (depth == 0 && first_hit) ? *first_hit : scene.intersect(ray);
         c.rays += 1;
 
         // Emission seen by this ray, MIS-weighted against light sampling.

@@ -1,0 +1,318 @@
+// Coherent MLT frame loop; see cmlt_integrator.h (estimator) and cmlt_state.h (state,
+// perturbations, packets).
+#include "integrators/cmlt/cmlt_integrator.h"
+
+#include "cameras/camera.h"
+#include "integrators/cmlt/cmlt_state.h"
+#include "integrators/mlt/mlt_sampler.h"
+#include "integrators/mlt/pssmlt_tracer.h"
+#include "integrators/mlt/splat_film.h"
+#include "integrators/mlt_kernels/mlt_kernels.h"
+#include "integrators/path/path_tracer_impl.h"
+#include "scene/scene.h"
+#include "util/error.h"
+#include "util/fp_mode.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <sstream>
+
+namespace cmlt {
+
+namespace {
+
+using coherent::LargeStepProposal;
+using coherent::Perturbation;
+using coherent::PerturbationProposal;
+using coherent::State;
+using coherent::StateKey;
+using mlt::RngDomain;
+
+constexpr int k_rounds = 16;  ///< progress / cancel granularity (slices of each chain's budget)
+
+struct AtomicCounters {
+    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0}, invalid{0}, packets{0};
+    void add(const PathCounters& c, uint64_t bad, uint64_t packet_queries = 0) {
+        camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
+        shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
+        rays.fetch_add(c.rays, std::memory_order_relaxed);
+        samples.fetch_add(c.samples, std::memory_order_relaxed);
+        invalid.fetch_add(bad, std::memory_order_relaxed);
+        packets.fetch_add(packet_queries, std::memory_order_relaxed);
+    }
+};
+
+mlt::InnerRule parse_rule(const std::string& name) {
+    if (name == "seed") return mlt::InnerRule::seed;
+    if (name == "mtm") return mlt::InnerRule::mtm;
+    return mlt::InnerRule::bundle;
+}
+
+struct ChainState {
+    ChainState(uint64_t seed, uint32_t id, size_t tries, State x, double fx)
+        : rng(seed, RngDomain::chain, id), id(id), ws(tries, x) {
+        chain.x = std::move(x);
+        chain.fx = fx;
+    }
+    mlt::CounterRng rng;  ///< kernel numbers (perturbation choice, offsets, acceptance)
+    uint32_t id;
+    mlt::Workspace<State> ws;
+    mlt::Chain<State> chain;
+    uint64_t outer = 0;                 ///< outer steps taken (keys the large steps)
+    uint64_t budget = 0, evaluations = 0, steps = 0;
+    mlt::KernelStats stats;
+    std::array<mlt::ChainStats, coherent::k_perturbation_count> perturbation{};
+    mlt::NormalisationAccumulator large;
+    uint64_t streak = 0, max_streak = 0, invalid = 0;
+};
+
+}  // namespace
+
+RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
+    const int W = settings.width, H = settings.height;
+    const uint64_t pixels = uint64_t(W) * uint64_t(H);
+    Camera camera(scene.camera_desc(), W, H);
+    PathTracer pt(scene, settings.max_depth);
+    const mlt::PssmltTracer tracer(pt, camera, W, H);
+    const uint64_t seed = settings.seed;
+    const size_t k = size_t(settings.tries);
+    const int m = settings.inner_length;
+    const mlt::InnerRule rule = parse_rule(settings.inner);
+    const double sigma_pixels = settings.sigma * double(std::max(W, H));
+    const double sigma_primary = settings.sigma;
+    const int max_width = Accel::max_packet_width();
+
+    const uint64_t budget = uint64_t(settings.spp) * pixels;
+    const uint64_t n_boot =
+        std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.bootstrap_samples), budget / 2));
+    const uint64_t n_mut = budget - n_boot;
+    // a chain's block (outer step + inner chain) costs about 1 + m·k evaluations: no more
+    // chains than blocks fit in the budget
+    const uint64_t block = 1 + uint64_t(m) * uint64_t(k);
+    const uint64_t n_chains =
+        std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.chains), n_mut / block));
+
+    const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
+    tbb::task_arena arena(threads);
+    AtomicCounters counters;
+    mlt::SplatFilm film(W, H);
+    const auto t0 = std::chrono::steady_clock::now();
+
+    auto make_target = [&](PathCounters* c, uint64_t* packet_queries) {
+        coherent::Target f;
+        f.tracer = &tracer;
+        f.scene = &scene;
+        f.seed = seed;
+        f.counters = c;
+        f.packets = settings.packets;
+        f.max_width = max_width;
+        f.packet_queries = packet_queries;
+        return f;
+    };
+
+    // 1. bootstrap: the points of PSSMLT's bootstrap, keys (bootstrap, i, 1)
+    std::vector<double> boot_f(n_boot, 0.0);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_boot, 256), [&](const tbb::blocked_range<uint64_t>& r) {
+            ScopedFtzDaz ftz;
+            PathCounters c;
+            uint64_t bad = 0;
+            const coherent::Target f = make_target(&c, nullptr);
+            State s;
+            for (uint64_t i = r.begin(); i != r.end(); ++i) {
+                s.key = StateKey{RngDomain::bootstrap, uint32_t(i), 1};
+                boot_f[i] = f(s);
+                bad += s.sample.invalid ? 1 : 0;
+            }
+            counters.add(c, bad);
+        });
+    });
+    mlt::NormalisationAccumulator boot_acc;
+    for (double v : boot_f) boot_acc.add(v);
+    const mlt::NormalisationEstimate b_boot = boot_acc.estimate();
+
+    // 2. chain starts: resample the pool ∝ f* (same numbers as pssmlt)
+    std::vector<std::unique_ptr<ChainState>> chains;
+    if (b_boot.nonzero > 0 && n_mut > 0) {
+        mlt::CounterRng rng(seed, RngDomain::resample, 0);
+        const std::vector<size_t> start = mlt::resample_start_indices(boot_f, size_t(n_chains), rng);
+        chains.resize(n_chains);
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
+                ScopedFtzDaz ftz;
+                PathCounters c;
+                const coherent::Target f = make_target(&c, nullptr);
+                for (uint64_t ci = r.begin(); ci != r.end(); ++ci) {
+                    State x;
+                    x.key = StateKey{RngDomain::bootstrap, uint32_t(start[ci]), 1};
+                    const double fx = f(x);
+                    CMLT_CHECK_MSG(fx == boot_f[start[ci]],
+                                   "cmlt: replaying bootstrap sample " << start[ci] << " gave a different path");
+                    chains[ci] = std::make_unique<ChainState>(seed, uint32_t(ci), k, std::move(x), fx);
+                    chains[ci]->budget = n_mut / n_chains + (ci < n_mut % n_chains ? 1 : 0);
+                }
+                counters.add(c, 0);
+            });
+        });
+    }
+
+    // 3. run the chains: outer large step, then m inner bundle steps
+    bool cancelled = false;
+    for (int round = 0; round < k_rounds && !chains.empty(); ++round) {
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+                ScopedFtzDaz ftz;
+                PathCounters c;
+                uint64_t packet_queries = 0;
+                const coherent::Target f = make_target(&c, &packet_queries);
+                for (size_t ci = r.begin(); ci != r.end(); ++ci) {
+                    ChainState& st = *chains[ci];
+                    const uint64_t end = st.budget * uint64_t(round + 1) / k_rounds;
+                    auto splat = [&](const State& s, double w) {
+                        if (s.sample.f > 0.0) film.add(s.sample.pixel, s.sample.L, w / s.sample.f);
+                    };
+                    auto record = [&](const mlt::StepResult& res) {
+                        st.evaluations += res.evaluations;
+                        ++st.steps;
+                        st.stats.record(res);
+                        if (res.moved) {
+                            st.streak = 0;
+                        } else {
+                            st.max_streak = std::max(st.max_streak, ++st.streak);
+                        }
+                    };
+                    while (st.evaluations < end) {
+                        // outer: independent large step, key (chain, id, n)
+                        const LargeStepProposal large{StateKey{RngDomain::chain, st.id, ++st.outer}};
+                        const mlt::StepResult res =
+                            mlt::metropolis_step(st.chain, f, large, splat, st.rng, st.ws, mlt::MutationKind::large_step);
+                        const State& proposed = res.moved ? st.chain.x : st.ws.y[0];
+                        st.large.add(proposed.sample.f);
+                        st.invalid += proposed.sample.invalid ? 1 : 0;
+                        record(res);
+                        // inner chain
+                        for (int i = 0; i < m; ++i) {
+                            Perturbation kind = Perturbation::lens;
+                            if (st.rng.uniform() < coherent::k_pixel_move_probability)
+                                kind = Perturbation::pixel_move;
+                            else if (coherent::light_traced(st.chain.x.sample))
+                                kind = Perturbation::caustic;
+                            const PerturbationProposal prop =
+                                PerturbationProposal::make(kind, seed, sigma_pixels, sigma_primary, W, H);
+                            const mlt::StepResult ir = mlt::inner_step(rule, st.chain, f, prop, splat, st.rng, st.ws);
+                            st.perturbation[size_t(kind)].record(ir);
+                            st.invalid += ir.invalid_values;
+                            record(ir);
+                        }
+                    }
+                }
+                counters.add(c, 0, packet_queries);
+            });
+        });
+        const uint64_t spp_done = uint64_t(settings.spp) * uint64_t(round + 1) / k_rounds;
+        if (progress && !progress(spp_done, uint64_t(settings.spp)) && round + 1 < k_rounds) {
+            cancelled = true;
+            break;
+        }
+    }
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    // 4. normalisation and stats, merged in chain order
+    mlt::NormalisationAccumulator b_acc = boot_acc;
+    mlt::KernelStats kstats;
+    std::array<mlt::ChainStats, coherent::k_perturbation_count> pstats{};
+    uint64_t steps = 0, evaluations = 0, max_streak = 0, invalid = 0;
+    for (const auto& st : chains) {
+        b_acc.merge(st->large);
+        kstats.merge(st->stats);
+        for (size_t i = 0; i < pstats.size(); ++i) pstats[i].merge(st->perturbation[i]);
+        steps += st->steps;
+        evaluations += st->evaluations;
+        max_streak = std::max(max_streak, st->max_streak);
+        invalid += st->invalid;
+    }
+    const mlt::NormalisationEstimate b = b_acc.estimate();
+
+    RenderResult res;
+    res.width = W;
+    res.height = H;
+    res.image.assign(size_t(pixels) * 3, 0.f);
+    res.variance.assign(size_t(pixels) * 3, 0.f);
+    if (steps > 0) {
+        const double scale = b.mean * double(pixels) / double(steps);
+        for (size_t i = 0; i < pixels; ++i)
+            for (int c = 0; c < 3; ++c) res.image[3 * i + c] = float(scale * film.sum(i, c));
+    }
+    res.cancelled = cancelled;
+
+    RenderStats& st = res.stats;
+    st.time_s = secs;
+    st.samples = counters.samples.load();
+    st.camera_rays = counters.camera_rays.load();
+    st.shadow_rays = counters.shadow_rays.load();
+    st.rays = counters.rays.load();
+    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    st.nan_samples = counters.invalid.load() + invalid;
+    st.threads = threads;
+    st.integrator = settings.integrator;
+    st.spp = settings.spp;
+    st.seed = settings.seed;
+    MltStats& ms = st.mlt;
+    ms.enabled = true;
+    ms.b = b.mean;
+    ms.b_stderr = b.std_error;
+    ms.b_bootstrap = b_boot.mean;
+    ms.b_bootstrap_stderr = b_boot.std_error;
+    ms.bootstrap_samples = n_boot;
+    ms.bootstrap_nonzero = b_boot.nonzero;
+    ms.chains = chains.size();
+    ms.mutations = steps;
+    ms.mutations_per_pixel = double(steps) / double(pixels);
+    ms.large_step_probability = 0.0;
+    ms.sigma = settings.sigma;
+    const mlt::ChainStats& large = kstats[mlt::MutationKind::large_step];
+    mlt::ChainStats inner;
+    for (size_t i = 0; i < pstats.size(); ++i) inner.merge(pstats[i]);
+    ms.small_steps = inner.steps;
+    ms.large_steps = large.steps;
+    ms.acceptance_small = inner.acceptance_rate();
+    ms.acceptance_large = large.acceptance_rate();
+    ms.max_rejection_streak = max_streak;
+    ms.clamped_splats = film.clamped();
+    ms.tries = settings.tries;
+    ms.inner_length = settings.inner_length;
+    ms.inner = settings.inner;
+    ms.packets = settings.packets;
+    ms.packet_width = settings.packets ? max_width : 1;
+    ms.packet_queries = counters.packets.load();
+    ms.path_evaluations = evaluations + n_boot;
+    // kernel stats by mutation name, then the perturbations (acceptance per type)
+    std::ostringstream os;
+    kstats.write_json(os);
+    std::string json = os.str();
+    json.pop_back();  // '}'
+    bool first = json.size() <= 1;
+    std::ostringstream ps;
+    for (size_t i = 0; i < pstats.size(); ++i) {
+        const mlt::ChainStats& s = pstats[i];
+        if (s.steps == 0) continue;
+        ps << (first ? "" : ", ") << '"' << coherent::perturbation_name(Perturbation(i)) << "\": {\"steps\": "
+           << s.steps << ", \"moved\": " << s.moved << ", \"acceptance_rate\": " << s.acceptance_rate()
+           << ", \"mean_acceptance\": " << s.mean_acceptance() << ", \"evaluations\": " << s.evaluations
+           << ", \"zero_values\": " << s.zero_values << ", \"invalid_values\": " << s.invalid_values
+           << ", \"splats\": " << s.splats << '}';
+        first = false;
+    }
+    ms.kernel_stats_json = json + ps.str() + "}";
+    return res;
+}
+
+}  // namespace cmlt
