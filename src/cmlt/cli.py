@@ -2,9 +2,11 @@
 
 ::
 
-    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N] [--integrator pt|pssmlt]
+    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N]
+                     [--integrator pt|bdpt|pssmlt|cmlt]
                      [--sigma S] [--large-step-probability P] [--chains N]
-                     [--bootstrap-samples N]
+                     [--bootstrap-samples N] [--tries K] [--inner-length M]
+                     [--inner seed|mtm|bundle] [--no-packets]
                      [--seed S] [--threads N] [--res WxH] [--max-depth N]
                      [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
@@ -146,6 +148,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pssmlt large-step samples for the normalisation and chain starts, "
                    "counted in the --spp budget (at most half of it); default: "
                    + stage_note.format("bootstrapSamples", _Defaults.bootstrap_samples))
+    r.add_argument("--tries", type=_int_at_least(1), metavar="K",
+                   help="cmlt candidates per inner step (one coherent bundle), 1..64; default: "
+                   + stage_note.format("tries", _Defaults.tries))
+    r.add_argument("--inner-length", type=_int_at_least(1), metavar="M", dest="inner_length",
+                   help="cmlt inner steps after each outer (large) step; default: "
+                   + stage_note.format("innerLength", _Defaults.inner_length))
+    r.add_argument("--inner", choices=("seed", "mtm", "bundle"),
+                   help="cmlt inner rule: bundle (multiple-proposal MH, exact), mtm "
+                   "(multiple-try Metropolis, exact), seed (the seminar's 2k splats, biased; "
+                   "comparison only); default: " + stage_note.format("inner", _Defaults.inner))
+    r.add_argument("--no-packets", action="store_false", dest="packets",
+                   help="cmlt: trace a bundle's camera rays one by one instead of as Embree "
+                   "packets (same image, bit for bit; for timing comparisons)")
     r.add_argument("--seed", type=_int_at_least(0),
                    help="shot seed, the same for every frame; default: "
                    + stage_note.format("seed", _Defaults.seed))
@@ -243,6 +258,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          threads=args.threads, resolution=args.res, max_depth=args.max_depth,
                          sigma=args.sigma, large_step_probability=args.large_step_probability,
                          chains=args.chains, bootstrap_samples=args.bootstrap_samples,
+                         tries=args.tries, inner_length=args.inner_length, inner=args.inner,
+                         packets=args.packets,
                          camera=args.camera, half=args.half, compression=args.compression,
                          output_colorspace=args.output_colorspace, ocio_config=args.ocio_config,
                          aovs=tuple(args.aov), aov_samples=args.aov_samples, crop=args.crop,

@@ -68,6 +68,13 @@ class RenderOptions:
     large_step_probability: Optional[float] = None
     chains: Optional[int] = None
     bootstrap_samples: Optional[int] = None
+    #: coherent MLT (cmlt) settings; None = the stage's value, else the default
+    tries: Optional[int] = None
+    inner_length: Optional[int] = None
+    inner: Optional[str] = None
+    #: cmlt: trace a bundle's camera rays as Embree packets (machine, not shot: the
+    #: image is bit-identical either way)
+    packets: bool = True
     resolution: Optional[Tuple[int, int]] = None  # (w, h)
     camera: Optional[str] = None                  # prim path
     threads: int = 0                              # 0 = all cores; machine, not shot
@@ -129,7 +136,8 @@ class RenderOptions:
                 "max_depth": self.max_depth, "resolution": self.resolution,
                 "camera": self.camera, "sigma": self.sigma,
                 "large_step_probability": self.large_step_probability,
-                "chains": self.chains, "bootstrap_samples": self.bootstrap_samples}
+                "chains": self.chains, "bootstrap_samples": self.bootstrap_samples,
+                "tries": self.tries, "inner_length": self.inner_length, "inner": self.inner}
 
 
 @dataclass
@@ -165,6 +173,7 @@ def _core_settings(core, resolved, opts: RenderOptions, sources: Dict[str, str])
     st = core.RenderSettings()
     values = dict(resolved.as_dict())
     values["threads"] = int(opts.threads)
+    values["packets"] = bool(opts.packets)
     for name, value in values.items():
         if name in ("resolution", "camera") or not hasattr(st, name):
             continue
@@ -178,7 +187,8 @@ def _core_settings(core, resolved, opts: RenderOptions, sources: Dict[str, str])
 _FLAGS = {"integrator": "--integrator", "spp": "--spp", "max_depth": "--max-depth",
           "seed": "--seed", "threads": "--threads", "width": "--res", "height": "--res",
           "sigma": "--sigma", "large_step_probability": "--large-step-probability",
-          "chains": "--chains", "bootstrap_samples": "--bootstrap-samples"}
+          "chains": "--chains", "bootstrap_samples": "--bootstrap-samples",
+          "tries": "--tries", "inner_length": "--inner-length", "inner": "--inner"}
 
 
 def _where(name: str, value, sources: Dict[str, str]) -> str:

@@ -1,0 +1,130 @@
+"""Coherent MLT (integrator 'cmlt') on the diffuse Cornell-like box of test_mlt.py,
+against a path-traced reference.
+
+Statistics as in test_mlt.py: MLT pixel errors are correlated, so confidence
+intervals come from K independent seeds (t-distribution, K-1 degrees of freedom),
+with the PT reference's own standard error added in quadrature. Block means: 4x4
+blocks of 8x8 pixels, Bonferroni over the 16 blocks at a family-wise false-alarm
+rate of 1e-3 per rule checked (so a correct integrator fails this test about once in
+a thousand runs per asserted rule). The mean brightness of an MLT image is b exactly
+(every step splats weight 1), so the mean check tests the normalisation; the
+block check is what sees a biased inner rule.
+"""
+import numpy as np
+import pytest
+
+import cmlt._core as core
+from cmlt.shot.bridge import SceneBridge
+
+from test_mlt import ACESCG_Y, RES, cornell_scene, t_critical
+
+pytestmark = pytest.mark.statistical
+SEEDS = 8
+EVALS = 384         # path evaluations per pixel of each cmlt run
+ALPHA = 1e-3        # family-wise false-alarm rate of the block check (per rule)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return SceneBridge(core).update(cornell_scene())
+
+
+def _render(scene, integrator, spp, seed=0, **kw):
+    st = core.RenderSettings()
+    st.width = st.height = RES
+    st.spp, st.seed, st.integrator = spp, seed, integrator
+    for k, v in kw.items():
+        setattr(st, k, v)
+    r = core.render(scene, st)
+    return np.asarray(r.image, dtype=np.float64), np.asarray(r.variance, np.float64), r.stats
+
+
+@pytest.fixture(scope="module")
+def reference(scene):
+    img, var, _ = _render(scene, "pt", 2048, seed=1234)
+    return img, var
+
+
+def _lum(img):
+    return img @ ACESCG_Y
+
+
+def _blocks(a):
+    b = RES // 4
+    return a.reshape(4, b, 4, b).mean(axis=(1, 3)).ravel()
+
+
+def _runs(scene, inner, seeds=SEEDS):
+    return [_render(scene, "cmlt", EVALS, seed=s, inner=inner, chains=256,
+                    bootstrap_samples=150000) for s in range(seeds)]
+
+
+def _check(runs, reference, assert_exact):
+    ref, ref_var = reference
+    ref_l, ref_lv = _lum(ref), ref_var @ (ACESCG_Y ** 2)
+    K = len(runs)
+    means = np.array([_lum(img).mean() for img, _, _ in runs])
+    ratio = means.mean() / ref_l.mean()
+    blocks = np.array([_blocks(_lum(img)) for img, _, _ in runs])
+    ref_b = _blocks(ref_l)
+    ref_b_se = np.sqrt(_blocks(ref_lv) / (RES // 4) ** 2)
+    se = np.sqrt(blocks.var(axis=0, ddof=1) / K + ref_b_se ** 2)
+    t = (blocks.mean(axis=0) - ref_b) / se
+    crit = t_critical(K - 1, ALPHA / t.size)
+    rel = blocks.mean(axis=0) / ref_b - 1
+    brightest = int(np.argmax(ref_b))
+    print(f"mean ratio {ratio:.4f}; block |t| max {np.abs(t).max():.2f} (crit {crit:.2f}); "
+          f"block bias max {np.abs(rel).max():+.3%}; brightest block {rel[brightest]:+.3%}")
+    for img, _, st in runs:
+        assert np.isfinite(img).all() and st["nan_samples"] == 0
+    if assert_exact:
+        m_se = np.sqrt(means.var(ddof=1) / K + (ref_l.std() / ref_l.size ** 0.5) ** 2)
+        assert abs(ratio - 1) < 0.01 + 3 * m_se / ref_l.mean(), ratio
+        assert abs(ratio - 1) < 0.01
+        assert np.all(np.abs(t) < crit), t
+    return ratio, rel
+
+
+@pytest.mark.parametrize("inner", ["bundle", "mtm", "seed"])
+def test_cmlt_converges_to_pt(scene, reference, inner):
+    """Exactness asserted for bundle (default) and mtm; the seed rule's bias is printed."""
+    runs = _runs(scene, inner)
+    print(f"\ninner={inner}:", end=" ")
+    _check(runs, reference, assert_exact=inner != "seed")
+    st = runs[0][2]
+    assert st["inner"] == inner and st["tries"] == 8 and st["inner_length"] == 8
+    assert inner in st["kernel_stats"] and "lens" in st["kernel_stats"]
+    assert "pixel_move" in st["kernel_stats"] and "large_step" in st["kernel_stats"]
+
+
+@pytest.mark.parametrize("inner", ["bundle", "mtm", "seed"])
+def test_packets_bit_identical_to_scalar(scene, inner):
+    a, _, sa = _render(scene, "cmlt", 64, seed=3, inner=inner, chains=64, bootstrap_samples=5000,
+                       packets=True)
+    b, _, sb = _render(scene, "cmlt", 64, seed=3, inner=inner, chains=64, bootstrap_samples=5000,
+                       packets=False)
+    assert sa["packet_queries"] > 0 and sb["packet_queries"] == 0
+    assert sa["packet_width"] >= 4 and sb["packet_width"] == 1
+    assert np.array_equal(a, b)
+    assert sa["rays"] == sb["rays"]
+
+
+def test_deterministic_over_threads(scene):
+    imgs = [_render(scene, "cmlt", 64, seed=5, chains=64, bootstrap_samples=5000, threads=t)[0]
+            for t in (1, 2, 3)]
+    assert np.array_equal(imgs[0], imgs[1]) and np.array_equal(imgs[0], imgs[2])
+    other = _render(scene, "cmlt", 64, seed=6, chains=64, bootstrap_samples=5000)[0]
+    assert not np.array_equal(imgs[0], other)
+
+
+def test_settings_validation(scene):
+    st = core.RenderSettings()
+    st.width = st.height = 8
+    st.integrator = "cmlt"
+    for field, bad in (("tries", 0), ("tries", 65), ("inner_length", 0), ("inner", "nope")):
+        s2 = core.RenderSettings()
+        s2.width = s2.height = 8
+        s2.integrator = "cmlt"
+        setattr(s2, field, bad)
+        with pytest.raises(core.SettingsError, match=field):
+            core.render(scene, s2)
