@@ -4,8 +4,10 @@
 
 #include "integrators/aov/aov_pass.h"
 #include "integrators/common/render.h"
+#include "integrators/mlt/chain_state.h"
 #include "util/error.h"
 
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 
 #include <exception>
@@ -20,7 +22,27 @@ struct PyRenderResult {
     nb::object image, variance;
     bool cancelled = false;
     nb::dict stats;
+    std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt only, else None
 };
+
+/// One chain state as a dict (inspection and tests).
+nb::dict chain_state_dict(const mlt::ChainState& c) {
+    nb::dict d;
+    d["chain_id"] = c.chain_id;
+    nb::list u;
+    for (const auto& v : c.u) {
+        nb::list l;
+        for (float x : v) l.append(x);
+        u.append(l);
+    }
+    d["u"] = u;
+    d["depth"] = c.depth;
+    d["s"] = c.s;
+    d["t"] = c.t;
+    d["f_star"] = c.f_star;
+    d["colour"] = nb::make_tuple(c.colour.x, c.colour.y, c.colour.z);
+    return d;
+}
 
 nb::object to_numpy(std::vector<float>&& v, int h, int w) {
     auto* heap = new std::vector<float>(std::move(v));
@@ -80,6 +102,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     out.image = to_numpy(std::move(res.image), res.height, res.width);
     out.variance = to_numpy(std::move(res.variance), res.height, res.width);
     out.cancelled = res.cancelled;
+    out.mlt_states = std::move(res.mlt_states);
     const RenderStats& st = res.stats;
     nb::dict d;
     d["time_s"] = st.time_s;
@@ -120,6 +143,11 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         steps["large_step"] = m.large_steps;
         d["steps"] = steps;
         d["max_rejection_streak"] = m.max_rejection_streak;
+        d["long_streak_rejections"] = m.long_streak_rejections;
+        if (st.integrator == "pssmlt") {
+            d["path_sampler"] = m.path_sampler;
+            d["imported_chains"] = m.imported_chains;
+        }
         d["clamped_splats"] = m.clamped_splats;
         d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
         if (st.integrator == "cmlt") {
@@ -139,6 +167,32 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
 }  // namespace
 
 void bind_render(nb::module_& m) {
+    nb::class_<mlt::ChainStates>(
+        m, "MltStates",
+        "Final states of a pssmlt render's chains (RenderResult.mlt_states), to start the "
+        "next render's chains from (RenderSettings.mlt_initial_states). Opaque; "
+        "to_bytes()/from_bytes() serialise it (integrators/mlt/chain_state.h).")
+        .def("__len__", [](const mlt::ChainStates& s) { return s.chains.size(); })
+        .def_prop_ro("path_sampler", [](const mlt::ChainStates& s) { return s.path_sampler; })
+        .def("chain", [](const mlt::ChainStates& s, size_t i) {
+                 if (i >= s.chains.size()) throw nb::index_error("MltStates.chain: index out of range");
+                 return chain_state_dict(s.chains[i]);
+             }, "i"_a,
+             "Chain i's state: {'chain_id', 'u': [camera, light, connection] lists of primary "
+             "samples (NaN = none), 'depth', 's', 't', 'f_star', 'colour'}")
+        .def("to_bytes", [](const mlt::ChainStates& s) {
+            const std::string b = s.to_bytes();
+            return nb::bytes(b.data(), b.size());
+        })
+        .def_static("from_bytes", [](nb::bytes b) {
+            try {
+                return std::make_shared<mlt::ChainStates>(
+                    mlt::ChainStates::from_bytes(std::string(b.c_str(), b.size())));
+            } catch (const std::invalid_argument& e) {
+                throw nb::value_error(e.what());
+            }
+        }, "data"_a);
+
     nb::class_<RenderSettings>(m, "RenderSettings", "Settings of one frame (validated by render).")
         .def(nb::init<>())
         .def_rw("width", &RenderSettings::width, "image width, >= 1 (default 640)")
@@ -161,6 +215,18 @@ void bind_render(nb::module_& m) {
         .def_rw("bootstrap_samples", &RenderSettings::bootstrap_samples,
                 "pssmlt large-step samples estimating b and seeding the chains, >= 1; at most "
                 "half of spp*W*H is used (default 100000)")
+        .def_rw("mlt_path_sampler", &RenderSettings::mlt_path_sampler,
+                "pssmlt path sampler: 'bdpt' (default; multiplexed over depth and strategy "
+                "(s, t)) or 'pt' (the path tracer)")
+        .def_prop_rw(
+            "mlt_initial_states",
+            [](const RenderSettings& s) {
+                return std::const_pointer_cast<mlt::ChainStates>(s.mlt_initial_states);
+            },
+            [](RenderSettings& s, std::shared_ptr<mlt::ChainStates> v) { s.mlt_initial_states = std::move(v); },
+            nb::arg("value").none(),
+            "pssmlt: MltStates to start the chains from (one chain per state) instead of "
+            "resampling the bootstrap; None (default) = bootstrap")
         .def_rw("tries", &RenderSettings::tries,
                 "cmlt: k, candidates per inner step, 1..64 (default 8)")
         .def_rw("inner_length", &RenderSettings::inner_length,
@@ -188,7 +254,9 @@ void bind_render(nb::module_& m) {
         .def_ro("variance", &PyRenderResult::variance,
                 "float32 (H, W, 3), sample variance of each pixel's mean")
         .def_ro("cancelled", &PyRenderResult::cancelled)
-        .def_ro("stats", &PyRenderResult::stats);
+        .def_ro("stats", &PyRenderResult::stats)
+        .def_ro("mlt_states", &PyRenderResult::mlt_states,
+                "pssmlt: MltStates, the final state of every chain; None otherwise");
 
     m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
           "Render one frame. progress(done, total) is called between chunks of samples per "

@@ -292,3 +292,122 @@ TEST(MltSampler, LuminanceWeightsAreACEScg) {
     EXPECT_EQ(target_luminance(Spectrum(-1.f, 0.f, 0.f)), 0.0);
     EXPECT_EQ(target_luminance(Spectrum(INFINITY, 0.f, 0.f)), 0.0);
 }
+
+// ---- multiplexed MLT: technique samples, state export / import ----------------------
+
+#include "integrators/mlt/chain_state.h"
+#include "integrators/mlt/technique.h"
+
+namespace {
+
+/// A toy "path": reads a data-dependent number of samples from the three streams (the
+/// technique first, as PssmltTracer does) and returns a value of them all.
+double toy_path(MltSampler& s) {
+    s.start_stream(MltSampler::connection);
+    const Vec2 t = s.get2d();
+    s.start_stream(MltSampler::camera);
+    double v = s.get2d().x;
+    const int n = 1 + int(t.x * 4.f);
+    for (int i = 0; i < n; ++i) v += 0.5 * s.get1d();
+    s.start_stream(MltSampler::light);
+    v += s.get2d().y;
+    return v + t.y;
+}
+
+}  // namespace
+
+TEST(MltSampler, FrozenTechniqueSlotsChangeOnlyAtLargeSteps) {
+    MltSampler s(9, 0.05, 0.0);
+    s.freeze_in_small_steps(MltSampler::connection, 2);
+    s.start_iteration(true);
+    toy_path(s);
+    s.accept();
+    const double t0 = s.sample(MltSampler::index(MltSampler::connection, 0));
+    const double t1 = s.sample(MltSampler::index(MltSampler::connection, 1));
+    int camera_moved = 0;
+    for (int k = 0; k < 200; ++k) {
+        const double c_before = s.samples()[MltSampler::index(MltSampler::camera, 0)].value;
+        s.start_iteration(false);
+        toy_path(s);
+        EXPECT_EQ(s.sample(MltSampler::index(MltSampler::connection, 0)), t0);
+        EXPECT_EQ(s.sample(MltSampler::index(MltSampler::connection, 1)), t1);
+        camera_moved += s.sample(MltSampler::index(MltSampler::camera, 0)) != c_before;
+        if (k % 3) s.accept(); else s.reject();
+    }
+    EXPECT_EQ(camera_moved, 200);  // other coordinates do move
+    s.start_iteration(true);
+    toy_path(s);
+    EXPECT_NE(s.sample(MltSampler::index(MltSampler::connection, 0)), t0);
+}
+
+TEST(MltSampler, ExportedStateReplaysToTheSamePath) {
+    MltSampler s(3, 0.02, 0.3);
+    s.start_iteration(true);
+    double fx = toy_path(s);
+    s.accept();
+    for (int k = 0; k < 300; ++k) {
+        s.start_iteration();
+        const double fy = toy_path(s);
+        if (s.uniform() < 0.5) {
+            s.accept();
+            fx = fy;
+        } else {
+            s.reject();
+        }
+    }
+    const auto u = s.current_state();
+    // round trip through float (ChainState) and bytes
+    ChainStates states;
+    ChainState c;
+    c.chain_id = 77;
+    for (size_t k = 0; k < 3; ++k) c.u[k].assign(u[k].begin(), u[k].end());
+    states.chains.push_back(c);
+    const ChainStates back = ChainStates::from_bytes(states.to_bytes());
+    ASSERT_EQ(back.chains.size(), 1u);
+    EXPECT_EQ(back.chains[0].chain_id, 77u);
+    EXPECT_EQ(back.to_bytes(), states.to_bytes());
+    EXPECT_THROW(ChainStates::from_bytes(states.to_bytes().substr(0, 20)), std::invalid_argument);
+
+    MltSampler t(11, 0.02, 0.3);  // another key: only the imported values matter
+    t.import_state(back.chains[0].u);
+    t.begin_replay();
+    const double f_import = toy_path(t);
+    t.end_replay();
+    EXPECT_EQ(f_import, fx);
+    // the replay did not mutate anything the path read, and the imported state exports
+    // the same values again (read coordinates only)
+    const auto u2 = t.current_state();
+    for (size_t k = 0; k < 3; ++k)
+        for (size_t i = 0; i < std::min(u[k].size(), u2[k].size()); ++i)
+            if (!std::isnan(u[k][i])) EXPECT_EQ(float(u[k][i]), float(u2[k][i]));
+    // and the chain goes on: small steps from the imported state
+    t.start_iteration(false);
+    toy_path(t);
+    t.reject();
+    t.begin_replay();
+    EXPECT_EQ(toy_path(t), fx);
+    t.end_replay();
+}
+
+TEST(Technique, DepthPmfSumsToOneAndInverseCdfMatches) {
+    for (int max_depth : {1, 5, 64}) {
+        TechniqueSampler ts(max_depth);
+        double sum = 0;
+        for (int d = 0; d <= max_depth; ++d) {
+            EXPECT_GT(ts.depth_pmf(d), 0.0);
+            sum += ts.depth_pmf(d);
+        }
+        EXPECT_NEAR(sum, 1.0, 1e-12);
+        // chi-square of depths from a regular grid of u: exact up to the grid
+        std::vector<double> count(size_t(max_depth) + 1, 0.0);
+        const int n = 1 << 20;
+        for (int i = 0; i < n; ++i) count[size_t(ts.depth((i + 0.5) / n))] += 1;
+        for (int d = 0; d <= max_depth; ++d)
+            EXPECT_NEAR(count[size_t(d)] / n, ts.depth_pmf(d), 2.0 / n) << d;
+        // choose(): pmf = p(depth) p(s,t | depth); every (s, t) valid
+        int depth, s, t;
+        const double p = ts.choose(0.999f, 0.5f, &depth, &s, &t);
+        EXPECT_EQ(s + t, depth + 2);
+        EXPECT_NEAR(p, ts.depth_pmf(depth) / BdptTracer::strategy_count(depth), 1e-12);
+    }
+}

@@ -66,6 +66,7 @@ def _settings(integrator, spp, seed, **kw):
     st.width = st.height = RES
     st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, 8
     st.integrator = integrator
+    st.mlt_path_sampler = "pt"   # this file: PSSMLT over the path tracer (bdpt: test_mlt_bdpt.py)
     for k, v in kw.items():
         setattr(st, k, v)
     return st

@@ -2,10 +2,15 @@
 /// \file Render settings, results and statistics shared by all integrators.
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace cmlt {
+
+namespace mlt {
+struct ChainStates;  // integrators/mlt/chain_state.h
+}
 
 /// Settings of one frame. Each field: default, valid range.
 struct RenderSettings {
@@ -27,6 +32,11 @@ struct RenderSettings {
                                           ///< does not depend on the thread count)
     int bootstrap_samples = 100000;       ///< large-step samples for b and the chain starts,
                                           ///< >= 1; at most half of spp·W·H is used
+    std::string mlt_path_sampler = "bdpt";  ///< pssmlt's path sampler: "bdpt" (multiplexed
+                                            ///< over depth and (s, t)) or "pt" (path tracer)
+    /// pssmlt: start the chains from these states instead of resampling the bootstrap
+    /// (one chain per state; integrators/mlt/chain_state.h). nullptr / empty: bootstrap.
+    std::shared_ptr<const mlt::ChainStates> mlt_initial_states;
 
     // Coherent MLT (cmlt, DESIGN.md §3): after each outer large step, `inner_length`
     // inner steps of `tries` candidates each, drawn as one bundle by a lens / caustic
@@ -59,6 +69,9 @@ struct MltStats {
     uint64_t small_steps = 0, large_steps = 0;
     double acceptance_small = 0, acceptance_large = 0;  ///< fraction of steps that moved
     uint64_t max_rejection_streak = 0;               ///< longest run of rejections in a chain
+    uint64_t long_streak_rejections = 0;             ///< rejections in runs longer than 1000
+    std::string path_sampler;                        ///< pssmlt: "bdpt" | "pt"
+    uint64_t imported_chains = 0;                    ///< chains started from given states
     uint64_t clamped_splats = 0;                     ///< splats beyond the film's range
     std::string kernel_stats_json;                   ///< mlt::KernelStats::write_json (cmlt:
                                                      ///< + lens/caustic/pixel_move)
@@ -95,6 +108,8 @@ struct RenderResult {
     std::vector<float> variance;  ///< (H, W, 3), sample variance of the pixel mean
     bool cancelled = false;
     RenderStats stats;
+    /// pssmlt: the final state of every chain (integrators/mlt/chain_state.h).
+    std::shared_ptr<mlt::ChainStates> mlt_states;
 };
 
 /// Called from the calling thread between chunks with (done, total) samples per pixel;

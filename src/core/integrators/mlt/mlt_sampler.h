@@ -23,6 +23,24 @@
 /// stream k: `k + 3·s`. One sampler *dimension* owns two slots (`get2d` reads both,
 /// `get1d` the first), matching PixelSampler where a dimension yields up to two numbers.
 ///
+/// Frozen slots: `freeze_in_small_steps(stream, slots)` exempts the first `slots` slots of
+/// one stream from small steps (they change only at large steps). Multiplexed MLT over
+/// BDPT keeps its technique (depth, s, t: connection stream, dimension 0, technique.h)
+/// this way: a small step is then a symmetric Gaussian walk on the other coordinates
+/// with the technique coordinates held (a δ kernel on them, also symmetric), so
+/// T(x→y) = T(y→x) still holds; large steps redraw them and keep the chain ergodic.
+/// (pbrt-v4's MLTIntegrator does perturb its strategy sample in small steps — valid too,
+/// but a crossing of a strategy boundary then reinterprets every sample of the path, a
+/// near-certain rejection dressed as a small step.)
+///
+/// Export / import (chain-state carry-over): `current_state()` returns the coordinates
+/// the current path read (last modified at the current iteration) per stream, NaN for
+/// the others — those do not enter f*(x) and are, under the target, uniform and
+/// independent, so a fresh uniform on import is exact. `import_state()` installs such a
+/// vector; `begin_replay()` / `end_replay()` bracket one evaluation of the imported
+/// state without mutation (a NaN / unread coordinate it reads gets a fresh uniform and
+/// becomes part of the state).
+///
 /// Random numbers are a pure function of (seed, domain, id, proposal number, sample
 /// index) through Philox-4x32 (sampling/rng.h): a chain's numbers depend neither on the
 /// thread that runs it nor on the order in which dimensions are read. The proposal
@@ -31,6 +49,7 @@
 #include "math/vec.h"
 #include "sampling/rng.h"
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -182,6 +201,57 @@ public:
         --m_iteration;
     }
 
+    /// Exempt slots [0, slots) of `stream` from small steps (see the file comment).
+    void freeze_in_small_steps(uint32_t stream, uint32_t slots) {
+        m_frozen_stream = stream;
+        m_frozen_slots = slots;
+    }
+
+    /// Per stream, the value of slot s of the current state (the coordinates the current
+    /// path read), NaN where the current state has no value of its own. Call between
+    /// steps (after accept / reject).
+    std::array<std::vector<double>, k_stream_count> current_state() const {
+        std::array<std::vector<double>, k_stream_count> u;
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        for (size_t i = 0; i < m_x.size(); ++i) {
+            const PrimarySample& x = m_x[i];
+            if (x.last_modified != m_iteration || x.last_modified == PrimarySample::k_unread) continue;
+            std::vector<double>& v = u[i % k_stream_count];
+            const size_t slot = i / k_stream_count;
+            if (v.size() <= slot) v.resize(slot + 1, nan);
+            v[slot] = x.value;
+        }
+        return u;
+    }
+
+    /// Replace the state by `u` (per stream, slot values in [0, 1); NaN or missing =
+    /// no value: drawn afresh when first read). The iteration counters restart; the
+    /// proposal counter (which keys the numbers) is kept. Follow with begin_replay(),
+    /// one evaluation, end_replay() to know f* of the state.
+    template <class Vector>
+    void import_state(const std::array<Vector, k_stream_count>& u) {
+        m_x.clear();
+        m_iteration = 0;
+        m_last_large_step = 0;
+        m_large_step = false;
+        for (uint32_t k = 0; k < k_stream_count; ++k)
+            for (size_t slot = 0; slot < u[k].size(); ++slot) {
+                const double v = double(u[k][slot]);
+                if (!(v >= 0.0 && v < 1.0)) continue;  // NaN / out of range: no value
+                const size_t i = index(k, uint32_t(slot));
+                if (i >= m_x.size()) m_x.resize(i + 1);
+                m_x[i].value = v;
+                m_x[i].last_modified = m_iteration;
+            }
+    }
+    /// Evaluate the current state without mutating it (see import_state).
+    void begin_replay() {
+        m_replay = true;
+        ++m_proposal;
+        start_stream(camera);
+    }
+    void end_replay() { m_replay = false; }
+
     bool large_step() const { return m_large_step; }
     int64_t iteration() const { return m_iteration; }
     uint64_t proposals() const { return m_proposal; }
@@ -240,6 +310,13 @@ private:
         if (x.last_modified == m_iteration && x.last_modified != PrimarySample::k_unread)
             return;  // already mutated by this proposal
         const Philox4x32Counter r = draw(i);
+        if (m_replay) {  // evaluating the state itself: only coordinates without a value move
+            if (x.last_modified == PrimarySample::k_unread) {
+                x.value = detail::bits_to_unit(r[0], r[1]);
+                x.last_modified = m_iteration;
+            }
+            return;
+        }
         // back up the stored sample as it is, so reject() restores it bit for bit
         x.value_backup = x.value;
         x.modified_backup = x.last_modified;
@@ -259,6 +336,9 @@ private:
         // mutate: fresh uniform, or the accumulated small steps σ√n (wrapped)
         if (m_large_step) {
             x.value = detail::bits_to_unit(r[2], r[3]);
+        } else if (m_frozen_slots > 0 && i % k_stream_count == m_frozen_stream &&
+                   i / k_stream_count < m_frozen_slots) {
+            // held by small steps (technique samples): the value stays
         } else {
             const int64_t n = m_iteration - x.last_modified;
             const Philox4x32Counter g =
@@ -282,6 +362,9 @@ private:
     int64_t m_last_large_step = 0;  ///< iteration of the last accepted large step
     uint64_t m_proposal = 0;        ///< every proposal, never reused (keys the numbers)
     bool m_large_step = true;
+    bool m_replay = false;
+    uint32_t m_frozen_stream = connection;
+    uint32_t m_frozen_slots = 0;  ///< slots of m_frozen_stream held by small steps
     uint32_t m_stream = camera;
     uint32_t m_dimension = 0;
 };

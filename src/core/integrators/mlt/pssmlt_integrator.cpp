@@ -2,6 +2,8 @@
 #include "integrators/mlt/pssmlt_integrator.h"
 
 #include "cameras/camera.h"
+#include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/mlt/splat_film.h"
@@ -32,6 +34,8 @@ using mlt::RngDomain;
 
 /// Progress/cancel granularity: every chain advances by 1/k_rounds of its mutations.
 constexpr int k_rounds = 16;
+/// Rejection runs longer than this count as "stuck" in MltStats::long_streak_rejections.
+constexpr uint64_t k_long_streak = 1000;
 
 /// Ray counters summed over tasks (integer sums: order-independent).
 struct AtomicCounters {
@@ -63,8 +67,8 @@ struct SamplerProposal {
 };
 
 /// One Markov chain and everything it accumulates.
-struct ChainState {
-    ChainState(MltSampler s, PathSample x) : sampler(std::move(s)), ws(1, PathSample{}) {
+struct ChainRun {
+    ChainRun(MltSampler s, PathSample x) : sampler(std::move(s)), ws(1, PathSample{}) {
         chain.x = x;
         chain.fx = x.f;
     }
@@ -74,9 +78,32 @@ struct ChainState {
     uint64_t budget = 0, done = 0;
     mlt::KernelStats stats;
     mlt::NormalisationAccumulator large;  ///< f* of the large-step proposals
-    uint64_t streak = 0, max_streak = 0;
+    uint64_t streak = 0, max_streak = 0, long_streak_rejections = 0;
     uint64_t invalid = 0;
+    uint64_t chain_id = 0;
+
+    void end_streak() {
+        if (streak > k_long_streak) long_streak_rejections += streak;
+        streak = 0;
+    }
 };
+
+/// The chain's current state as a ChainState (see chain_state.h).
+mlt::ChainState export_chain(const ChainRun& c) {
+    mlt::ChainState out;
+    out.chain_id = c.chain_id;
+    const auto u = c.sampler.current_state();
+    for (size_t k = 0; k < u.size(); ++k) out.u[k].assign(u[k].begin(), u[k].end());
+    const PathSample& x = c.chain.x;
+    if (x.depth >= 0) {
+        out.depth = uint32_t(x.depth);
+        out.s = uint32_t(x.s);
+        out.t = uint32_t(x.t);
+    }
+    out.f_star = c.chain.fx;
+    out.colour = x.L;
+    return out;
+}
 
 }  // namespace
 
@@ -85,8 +112,25 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     const int W = settings.width, H = settings.height;
     const uint64_t pixels = uint64_t(W) * uint64_t(H);
     Camera camera(scene.camera_desc(), W, H);
+    const bool use_bdpt = settings.mlt_path_sampler == "bdpt";
     PathTracer pt(scene, settings.max_depth);
-    const mlt::PssmltTracer tracer(pt, camera, W, H);
+    BdptTracer bdpt(scene, camera, W, H, settings.max_depth);
+    const mlt::PssmltTracer tracer = use_bdpt ? mlt::PssmltTracer(bdpt, camera, W, H)
+                                              : mlt::PssmltTracer(pt, camera, W, H);
+    // multiplexed MLT: the technique samples change at large steps only (mlt_sampler.h)
+    const auto make_sampler = [&](RngDomain domain, uint32_t id) {
+        MltSampler smp(settings.seed, settings.sigma, settings.large_step_probability, domain, id);
+        if (use_bdpt)
+            smp.freeze_in_small_steps(MltSampler::connection,
+                                      mlt::k_technique_dimensions * MltSampler::k_slots_per_dimension);
+        return smp;
+    };
+    const mlt::ChainStates* initial = settings.mlt_initial_states.get();
+    if (initial && initial->chains.empty()) initial = nullptr;
+    if (initial && initial->path_sampler != settings.mlt_path_sampler)
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_initial_states: states of the '"
+                                      << initial->path_sampler << "' path sampler cannot start '"
+                                      << settings.mlt_path_sampler << "' chains");
     const uint64_t seed = settings.seed;
     const double sigma = settings.sigma, p_large = settings.large_step_probability;
 
@@ -94,7 +138,9 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     const uint64_t budget = uint64_t(settings.spp) * pixels;
     const uint64_t n_boot = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.bootstrap_samples), budget / 2));
     const uint64_t n_mut = budget - n_boot;
-    const uint64_t n_chains = std::min<uint64_t>(uint64_t(settings.chains), n_mut);
+    const uint64_t n_chains =
+        initial ? std::min<uint64_t>(initial->chains.size(), n_mut)
+                : std::min<uint64_t>(uint64_t(settings.chains), n_mut);
 
     const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
     tbb::task_arena arena(threads);
@@ -110,7 +156,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
             PathCounters c;
             uint64_t bad = 0;
             for (uint64_t i = r.begin(); i != r.end(); ++i) {
-                MltSampler smp(seed, sigma, p_large, RngDomain::bootstrap, uint32_t(i));
+                MltSampler smp = make_sampler(RngDomain::bootstrap, uint32_t(i));
                 smp.start_iteration(true);
                 const PathSample s = tracer.evaluate(smp, c);
                 boot_f[i] = s.f;
@@ -124,8 +170,31 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     const mlt::NormalisationEstimate b_boot = boot_acc.estimate();
 
     // 2. chain starts: resample the pool ∝ f*, replay the chosen sample, rekey to the chain
-    std::vector<std::unique_ptr<ChainState>> chains;
-    if (b_boot.nonzero > 0 && n_chains > 0) {
+    //    (or: the given states, re-evaluated in this frame's scene)
+    std::vector<std::unique_ptr<ChainRun>> chains;
+    if (initial && n_chains > 0) {
+        chains.resize(n_chains);
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
+                ScopedFtzDaz ftz;
+                PathCounters c;
+                uint64_t bad = 0;
+                for (uint64_t k = r.begin(); k != r.end(); ++k) {
+                    const mlt::ChainState& in = initial->chains[k];
+                    MltSampler smp = make_sampler(RngDomain::chain, uint32_t(k));
+                    smp.import_state(in.u);
+                    smp.begin_replay();
+                    const PathSample x = tracer.evaluate(smp, c);
+                    smp.end_replay();
+                    bad += x.invalid ? 1 : 0;
+                    chains[k] = std::make_unique<ChainRun>(std::move(smp), x);
+                    chains[k]->chain_id = in.chain_id;
+                    chains[k]->budget = n_mut / n_chains + (k < n_mut % n_chains ? 1 : 0);
+                }
+                counters.add(c, bad);
+            });
+        });
+    } else if (b_boot.nonzero > 0 && n_chains > 0) {
         mlt::CounterRng rng(seed, RngDomain::resample, 0);
         const std::vector<size_t> start = mlt::resample_start_indices(boot_f, size_t(n_chains), rng);
         chains.resize(n_chains);
@@ -134,14 +203,15 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                 ScopedFtzDaz ftz;
                 PathCounters c;
                 for (uint64_t k = r.begin(); k != r.end(); ++k) {
-                    MltSampler smp(seed, sigma, p_large, RngDomain::bootstrap, uint32_t(start[k]));
+                    MltSampler smp = make_sampler(RngDomain::bootstrap, uint32_t(start[k]));
                     smp.start_iteration(true);
                     const PathSample x = tracer.evaluate(smp, c);
                     CMLT_CHECK_MSG(x.f == boot_f[start[k]], "pssmlt: replaying bootstrap sample "
                                                                 << start[k] << " gave a different path");
                     smp.accept();
                     smp.set_key(RngDomain::chain, uint32_t(k));
-                    chains[k] = std::make_unique<ChainState>(std::move(smp), x);
+                    chains[k] = std::make_unique<ChainRun>(std::move(smp), x);
+                    chains[k]->chain_id = k;
                     chains[k]->budget = n_mut / n_chains + (k < n_mut % n_chains ? 1 : 0);
                 }
                 counters.add(c, 0);
@@ -158,7 +228,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                 ScopedFtzDaz ftz;
                 PathCounters c;
                 for (size_t k = r.begin(); k != r.end(); ++k) {
-                    ChainState& st = *chains[k];
+                    ChainRun& st = *chains[k];
                     const uint64_t end = st.budget * uint64_t(round + 1) / k_rounds;
                     PathSample last;
                     const SamplerProposal proposal{&tracer, &st.sampler, &c, &last};
@@ -172,7 +242,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                             large ? mlt::MutationKind::large_step : mlt::MutationKind::small_step);
                         if (res.moved) {
                             st.sampler.accept();
-                            st.streak = 0;
+                            st.end_streak();
                         } else {
                             st.sampler.reject();
                             st.max_streak = std::max(st.max_streak, ++st.streak);
@@ -196,8 +266,14 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     // 4. normalisation: bootstrap + every large step, merged in chain order
     mlt::NormalisationAccumulator b_acc = boot_acc;
     mlt::KernelStats kstats;
-    uint64_t mutations = 0, max_streak = 0, invalid = 0;
+    uint64_t mutations = 0, max_streak = 0, invalid = 0, long_streaks = 0;
+    auto states = std::make_shared<mlt::ChainStates>();
+    states->path_sampler = settings.mlt_path_sampler;
+    states->chains.reserve(chains.size());
     for (const auto& st : chains) {
+        st->end_streak();
+        long_streaks += st->long_streak_rejections;
+        states->chains.push_back(export_chain(*st));
         b_acc.merge(st->large);
         kstats.merge(st->stats);
         mutations += st->done;
@@ -217,6 +293,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
             for (int k = 0; k < 3; ++k) res.image[3 * i + k] = float(scale * film.sum(i, k));
     }
     res.cancelled = cancelled;
+    res.mlt_states = std::move(states);
 
     RenderStats& st = res.stats;
     st.time_s = secs;
@@ -250,6 +327,9 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     m.acceptance_small = small.acceptance_rate();
     m.acceptance_large = large.acceptance_rate();
     m.max_rejection_streak = max_streak;
+    m.long_streak_rejections = long_streaks;
+    m.path_sampler = settings.mlt_path_sampler;
+    m.imported_chains = initial ? chains.size() : 0;
     m.clamped_splats = film.clamped();
     std::ostringstream os;
     kstats.write_json(os);

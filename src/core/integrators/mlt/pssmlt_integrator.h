@@ -1,7 +1,20 @@
 #pragma once
-/// \file Primary-sample-space Metropolis light transport (Kelemen et al. 2002) over the
-/// path tracer's sampling routine — the frame loop: bootstrap, chain starts, chains in
-/// parallel, normalisation, image.
+/// \file Primary-sample-space Metropolis light transport (Kelemen et al. 2002) — the
+/// frame loop: bootstrap, chain starts, chains in parallel, normalisation, image. The
+/// path sampler (pssmlt_tracer.h) is multiplexed BDPT by default (Hachisuka et al. 2014:
+/// the technique — depth, (s, t) — is part of the state, drawn from its own primary
+/// samples, held fixed by small steps and redrawn by large steps; technique.h) or the
+/// path tracer (RenderSettings::mlt_path_sampler = "pt").
+///
+/// Depth handling: the depth is part of the state with a fixed pmf (technique.h), not
+/// pbrt's per-depth bootstrap with chains pinned to a depth: resampling the bootstrap
+/// pool ∝ f* already distributes the chains over depths ∝ b_depth, and large steps
+/// let every chain move between depths, so a chain's time per depth converges to
+/// b_depth / b instead of being fixed by the (multinomial) start.
+///
+/// Chain states: RenderSettings::mlt_initial_states replaces step 2 (chains start from
+/// the given states, re-evaluated in this frame's scene; the bootstrap still gives b);
+/// RenderResult::mlt_states returns every chain's final state (chain_state.h).
 ///
 /// Estimator (Veach 1997 §11.3; DESIGN.md §2). With f*(u) = luminance(L(u)) over primary
 /// samples u ∈ [0,1)^∞ and b = ∫ f*(u) du:

@@ -2,14 +2,23 @@
 /// \file Per-chain path work of PSSMLT: turn the sampler's current primary samples into a
 /// path sample (film position, contribution, f*).
 ///
-/// Dimension layout (camera stream): dimension 0 = film position over the whole image,
-/// then the path tracer's own layout (path_tracer.h: bounce b uses 1 + 5b ..). The path
-/// is sampled by PathTracer::li (NEE + MIS), so f* is the luminance of PT's estimator
-/// for that film position; PSSMLT then redistributes PT's samples by f*. Multiplexing
-/// over BDPT strategies (DESIGN.md §2) replaces `li` by the strategy evaluation, on the
-/// light and connection streams of the same sampler.
+/// Two path samplers (RenderSettings::mlt_path_sampler):
+///  * "bdpt" (default; multiplexed MLT, Hachisuka et al. 2014, DESIGN.md §2): the
+///    technique — depth and strategy (s, t) — comes from the connection stream's
+///    dimension 0 (technique.h), the path from BdptTracer::evaluate_strategy on the three
+///    streams (camera stream dimension 0 = film position, then BDPT's layout; light
+///    stream; connection stream from dimension 1). L = C_st / p(technique), f* =
+///    luminance(L) = luminance(f · w_st / p_st) in the notation of DESIGN.md §2. The
+///    integrator holds the technique samples fixed in small steps
+///    (MltSampler::freeze_in_small_steps).
+///  * "pt": camera stream only: dimension 0 = film position, then the path tracer's own
+///    layout (path_tracer.h: bounce b uses 1 + 5b ..); L = PathTracer::li (NEE + MIS).
+/// Both satisfy E[L · 1{pixel j}] = I_j / (W·H) for a uniform state, so the integrator's
+/// normalisation is the same.
 #include "cameras/camera.h"
+#include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/mlt/mlt_sampler.h"
+#include "integrators/mlt/technique.h"
 #include "integrators/path/path_tracer.h"
 
 #include <algorithm>
@@ -23,12 +32,38 @@ struct PathSample {
     Spectrum L{0.f};     ///< contribution (PT estimate for the sampled film position)
     double f = 0.0;      ///< f* = luminance(L) in the rendering space, ≥ 0
     bool invalid = false;  ///< L was not finite (f = 0, never splatted)
+    int depth = -1, s = -1, t = -1;  ///< technique (bdpt sampler); -1 for the pt sampler
+};
+
+/// BdptSampler over an MltSampler-like sampler (start_stream, set_dimension, get1d,
+/// get2d): BDPT's connection stream starts after the technique dimensions.
+template <class Sampler>
+class BdptStreamAdapter final : public BdptSampler {
+public:
+    explicit BdptStreamAdapter(Sampler& s) : m_s(s) {}
+    void start_stream(int index) override {
+        m_s.start_stream(uint32_t(index));
+        if (index == BdptSampler::k_connection) m_s.set_dimension(k_technique_dimensions);
+    }
+    float next1d() override { return m_s.get1d(); }
+    Vec2 next2d() override { return m_s.get2d(); }
+
+private:
+    Sampler& m_s;
 };
 
 class PssmltTracer {
 public:
+    /// The "pt" path sampler.
     PssmltTracer(const PathTracer& tracer, const Camera& camera, int width, int height)
-        : m_tracer(tracer), m_camera(camera), m_width(width), m_height(height) {}
+        : m_tracer(&tracer), m_camera(camera), m_width(width), m_height(height), m_technique(0) {}
+    /// The "bdpt" path sampler (multiplexed over depth ∈ [0, bdpt.max_depth()] and (s, t)).
+    PssmltTracer(const BdptTracer& bdpt, const Camera& camera, int width, int height)
+        : m_bdpt(&bdpt), m_camera(camera), m_width(width), m_height(height),
+          m_technique(bdpt.max_depth()) {}
+
+    bool bdpt() const { return m_bdpt != nullptr; }
+    const TechniqueSampler& technique() const { return m_technique; }
 
     /// The camera ray of the sampler's current proposal (camera stream, dimension 0 =
     /// film position) and its pixel. Leaves the sampler on the camera stream after the
@@ -49,12 +84,15 @@ public:
     /// with start_stream + the path_tracer.h interface). `first_hit`, if given, is what
     /// camera_ray(sampler) hits first (coherent MLT traces the camera rays of a bundle
     /// as one Embree packet, integrators/cmlt): the camera ray is then not traced again.
+    /// With the bdpt sampler `first_hit` is ignored (BDPT traces its own camera ray:
+    /// same result, one more ray).
     template <class Sampler>
     PathSample evaluate(Sampler& sampler, PathCounters& counters,
                         const SceneHit* first_hit = nullptr) const {
+        if (m_bdpt) return evaluate_bdpt(sampler, counters);
         PathSample s;
         const Ray ray = camera_ray(sampler, &s.pixel);
-        s.L = m_tracer.li(ray, sampler, counters, first_hit);
+        s.L = m_tracer->li(ray, sampler, counters, first_hit);
         if (!is_finite(s.L)) {
             s.invalid = true;
             s.L = Spectrum(0.f);
@@ -68,9 +106,48 @@ public:
     int height() const { return m_height; }
 
 private:
-    const PathTracer& m_tracer;
+    template <class Sampler>
+    PathSample evaluate_bdpt(Sampler& sampler, PathCounters& counters) const {
+        PathSample s;
+        sampler.start_stream(MltSampler::connection);
+        sampler.set_dimension(0);
+        const Vec2 ut = sampler.get2d();
+        const double pmf = m_technique.choose(ut.x, ut.y, &s.depth, &s.s, &s.t);
+        thread_local BdptWorkspace ws;
+        BdptCounters c;
+        BdptStreamAdapter<Sampler> adapter(sampler);
+        Vec2 p_raster;
+        const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c);
+        counters.camera_rays += c.camera_rays;
+        counters.shadow_rays += c.shadow_rays;
+        counters.rays += c.rays;
+        counters.samples += c.samples;
+        if (!is_finite(C)) {
+            s.invalid = true;
+            return s;
+        }
+        // film position: the camera stream's (t ≥ 2) or the light-tracing splat's (t = 1)
+        if (!(p_raster.x >= 0.f && p_raster.y >= 0.f && p_raster.x < float(m_width) &&
+              p_raster.y < float(m_height)))
+            return s;  // off the image: contributes nothing (f* = 0)
+        const int x = std::min(int(p_raster.x), m_width - 1);
+        const int y = std::min(int(p_raster.y), m_height - 1);
+        s.pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
+        s.L = C * float(1.0 / pmf);
+        if (!is_finite(s.L)) {
+            s.invalid = true;
+            s.L = Spectrum(0.f);
+            return s;
+        }
+        s.f = target_luminance(s.L);
+        return s;
+    }
+
+    const PathTracer* m_tracer = nullptr;
+    const BdptTracer* m_bdpt = nullptr;
     const Camera& m_camera;
     int m_width, m_height;
+    TechniqueSampler m_technique;
 };
 
 }  // namespace cmlt::mlt
