@@ -113,4 +113,5 @@ NB_MODULE(_core, m) {
           "Largest ray-packet width (4, 8 or 16) this Embree build supports natively on this CPU.");
     bind_scene(m);
     bind_render(m);
+    bind_temporal(m);
 }

@@ -1,0 +1,237 @@
+// Carrying chain populations across frames; see carry.h.
+#include "temporal/carry.h"
+
+#include "cameras/camera.h"
+#include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/mlt/mlt_sampler.h"
+#include "integrators/mlt/pssmlt_tracer.h"
+#include "integrators/path/path_tracer_impl.h"
+#include "scene/scene.h"
+#include "util/error.h"
+#include "util/fp_mode.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+
+namespace cmlt::temporal {
+
+namespace {
+
+using mlt::MltSampler;
+using mlt::RngDomain;
+
+/// The path tracers of one frame, built as render_pssmlt builds them (same path sampler,
+/// same max depth, same resolution), so f* here is f* there.
+struct Tracers {
+    Tracers(const Scene& scene, const RenderSettings& s)
+        : camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth),
+          bdpt(scene, camera, s.width, s.height, s.max_depth),
+          tracer(s.mlt_path_sampler == "bdpt" ? mlt::PssmltTracer(bdpt, camera, s.width, s.height)
+                                              : mlt::PssmltTracer(pt, camera, s.width, s.height)) {}
+    Camera camera;
+    PathTracer pt;
+    BdptTracer bdpt;
+    mlt::PssmltTracer tracer;
+};
+
+/// A primary sample as a float the path routines would read (never 1: MltSampler's
+/// to_float; 1.0f would read back as "no value" on import).
+float to_state_float(double u) {
+    const float f = float(u);
+    return f < 1.f ? f : 0x1.fffffep-1f;
+}
+
+void fill_state(mlt::ChainState& out, const MltSampler& smp, const mlt::PathSample& x) {
+    const auto u = smp.current_state();
+    for (size_t k = 0; k < u.size(); ++k) {
+        out.u[k].resize(u[k].size());
+        for (size_t i = 0; i < u[k].size(); ++i)
+            out.u[k][i] = std::isnan(u[k][i]) ? std::numeric_limits<float>::quiet_NaN()
+                                              : to_state_float(u[k][i]);
+    }
+    out.depth = x.depth >= 0 ? uint32_t(x.depth) : 0u;
+    out.s = x.s >= 0 ? uint32_t(x.s) : 0u;
+    out.t = x.t >= 0 ? uint32_t(x.t) : 0u;
+    out.f_star = x.f;
+    out.colour = x.L;
+}
+
+template <class Fn>
+void parallel(const RenderSettings& s, uint64_t n, Fn&& fn) {
+    const int threads = s.threads > 0 ? s.threads : tbb::info::default_concurrency();
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 16), [&](const tbb::blocked_range<uint64_t>& r) {
+            ScopedFtzDaz ftz;  // as the render's chains: the same f* bit for bit
+            PathCounters c;
+            for (uint64_t i = r.begin(); i != r.end(); ++i) fn(i, c);
+        });
+    });
+}
+
+void check_settings(const RenderSettings& s, const char* fn) {
+    if (s.width < 1 || s.height < 1)
+        CMLT_THROW(SettingsError, fn << ": resolution " << s.width << "x" << s.height << " is empty");
+    if (s.mlt_path_sampler != "bdpt" && s.mlt_path_sampler != "pt")
+        CMLT_THROW(SettingsError, fn << ": unknown path sampler '" << s.mlt_path_sampler << "'");
+}
+
+}  // namespace
+
+std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const RenderSettings& settings,
+                                                  const mlt::ChainStates& states) {
+    check_settings(settings, "evaluate_states");
+    if (states.path_sampler != settings.mlt_path_sampler)
+        CMLT_THROW(SettingsError, "evaluate_states: states of the '" << states.path_sampler
+                                      << "' path sampler cannot be evaluated with '"
+                                      << settings.mlt_path_sampler << "'");
+    const Tracers tr(scene, settings);
+    auto out = std::make_shared<mlt::ChainStates>();
+    out->path_sampler = states.path_sampler;
+    out->chains.resize(states.chains.size());
+    parallel(settings, states.chains.size(), [&](uint64_t i, PathCounters& c) {
+        const mlt::ChainState& in = states.chains[i];
+        MltSampler smp(settings.seed, settings.sigma, settings.large_step_probability,
+                       RngDomain(k_domain_evaluate), uint32_t(i));
+        smp.import_state(in.u);
+        smp.begin_replay();
+        const mlt::PathSample x = tr.tracer.evaluate(smp, c);
+        smp.end_replay();
+        mlt::ChainState& o = out->chains[i];
+        o.chain_id = in.chain_id;
+        fill_state(o, smp, x);
+    });
+    return out;
+}
+
+std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSettings& settings,
+                                              uint64_t pool_seed, uint64_t count) {
+    check_settings(settings, "sample_pool");
+    const Tracers tr(scene, settings);
+    auto out = std::make_shared<mlt::ChainStates>();
+    out->path_sampler = settings.mlt_path_sampler;
+    out->chains.resize(size_t(count));
+    parallel(settings, count, [&](uint64_t j, PathCounters& c) {
+        MltSampler smp(pool_seed, settings.sigma, settings.large_step_probability,
+                       RngDomain(k_domain_pool), uint32_t(j));
+        smp.start_iteration(true);
+        const mlt::PathSample x = tr.tracer.evaluate(smp, c);
+        smp.accept();
+        mlt::ChainState& o = out->chains[j];
+        o.chain_id = j;
+        fill_state(o, smp, x);
+    });
+    return out;
+}
+
+std::vector<uint64_t> systematic_resample(const std::vector<double>& weights, uint64_t n, double u0) {
+    double total = 0.0;
+    for (double w : weights) total += (std::isfinite(w) && w > 0.0) ? w : 0.0;
+    std::vector<uint64_t> out;
+    if (!(total > 0.0) || n == 0) return out;
+    out.reserve(size_t(n));
+    const double step = total / double(n);
+    double next = u0 * step, cum = 0.0;
+    size_t i = 0;
+    for (uint64_t k = 0; k < n; ++k, next = (u0 + double(k)) * step) {
+        // the index whose cumulative interval [cum, cum + w_i) holds `next`
+        while (i < weights.size()) {
+            const double w = (std::isfinite(weights[i]) && weights[i] > 0.0) ? weights[i] : 0.0;
+            if (w > 0.0 && next < cum + w) break;
+            cum += w;
+            ++i;
+        }
+        if (i == weights.size()) {  // rounding at the top end: the last positive weight
+            size_t j = weights.size();
+            while (j > 0 && !(std::isfinite(weights[j - 1]) && weights[j - 1] > 0.0)) --j;
+            out.push_back(uint64_t(j - 1));
+            continue;
+        }
+        out.push_back(uint64_t(i));
+    }
+    return out;
+}
+
+double carry_uniform(uint64_t seed, uint32_t key) {
+    mlt::CounterRng rng(seed, RngDomain(k_domain_carry), key);
+    return rng.uniform();
+}
+
+RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<double>& f_new) {
+    CMLT_CHECK_MSG(f_old.size() == f_new.size(), "ratio_statistics: size mismatch");
+    RatioStats r;
+    double mean = 0.0, m2 = 0.0;  // Welford, in index order
+    for (size_t i = 0; i < f_old.size(); ++i) {
+        if (!(f_old[i] > 0.0) || !std::isfinite(f_old[i])) continue;
+        const double w = std::isfinite(f_new[i]) && f_new[i] > 0.0 ? f_new[i] / f_old[i] : 0.0;
+        if (w == 0.0) ++r.zero;
+        ++r.count;
+        const double d = w - mean;
+        mean += d / double(r.count);
+        m2 += d * (w - mean);
+    }
+    r.mean = mean;
+    r.variance = r.count > 1 ? m2 / double(r.count - 1) : 0.0;
+    return r;
+}
+
+CarryPlan plan_carry(const std::vector<double>& f_old, const std::vector<double>& f_new,
+                     const std::vector<double>& pool_old, const std::vector<double>& pool_new,
+                     double b_old, uint64_t n, double u0) {
+    CMLT_CHECK_MSG(f_old.size() == f_new.size(), "plan_carry: carried f_old / f_new size mismatch");
+    CMLT_CHECK_MSG(pool_old.empty() || pool_old.size() == pool_new.size(),
+                   "plan_carry: pool_old / pool_new size mismatch");
+    const double nc = double(f_old.size()), np = double(pool_new.size());
+    const bool have_b = std::isfinite(b_old) && b_old > 0.0;
+    // mixture density (unnormalised): n · f*_f(x) / b_f + N · 1
+    const auto density = [&](double fo) {
+        const double carried = (have_b && std::isfinite(fo) && fo > 0.0) ? nc * fo / b_old : 0.0;
+        return carried + np;
+    };
+    const auto weight = [&](double fo, double fn) {
+        if (!(std::isfinite(fn) && fn > 0.0)) return 0.0;
+        const double q = density(fo);
+        return q > 0.0 ? fn / q : 0.0;
+    };
+    std::vector<double> w;
+    w.reserve(f_old.size() + pool_new.size());
+    CarryPlan plan;
+    for (size_t i = 0; i < f_old.size(); ++i) {
+        // a carried particle is a draw from π_f only if the previous frame had b_f > 0
+        const double wi = have_b ? weight(f_old[i], f_new[i]) : 0.0;
+        plan.weight_carried += wi;
+        w.push_back(wi);
+    }
+    for (size_t j = 0; j < pool_new.size(); ++j) {
+        const double wj = weight(pool_old.empty() ? 0.0 : pool_old[j], pool_new[j]);
+        plan.weight_pool += wj;
+        w.push_back(wj);
+    }
+    plan.picks = systematic_resample(w, n, u0);
+    for (uint64_t p : plan.picks) (p < f_old.size() ? plan.from_carried : plan.from_pool) += 1;
+    return plan;
+}
+
+std::shared_ptr<mlt::ChainStates> gather_states(const mlt::ChainStates& a, const mlt::ChainStates& b,
+                                                const std::vector<uint64_t>& picks, uint64_t pool_id_base) {
+    auto out = std::make_shared<mlt::ChainStates>();
+    out->path_sampler = a.chains.empty() ? b.path_sampler : a.path_sampler;
+    out->chains.reserve(picks.size());
+    for (uint64_t p : picks) {
+        if (p < a.chains.size()) {
+            out->chains.push_back(a.chains[size_t(p)]);
+        } else {
+            const uint64_t j = p - a.chains.size();
+            CMLT_CHECK_MSG(j < b.chains.size(), "gather_states: pick " << p << " out of range");
+            out->chains.push_back(b.chains[size_t(j)]);
+            out->chains.back().chain_id = pool_id_base + j;
+        }
+    }
+    return out;
+}
+
+}  // namespace cmlt::temporal

@@ -1,0 +1,109 @@
+#pragma once
+/// \file Carrying a Markov-chain population from frame f to frame f+1 (DESIGN.md §4,
+/// "carried chain states") — generic over the integrator: anything that runs chains of
+/// MltSampler states through a PssmltTracer (pssmlt, cmlt) and exports / imports
+/// mlt::ChainStates (integrators/mlt/chain_state.h) can use it.
+///
+/// The population at the end of frame f, {u_i}, i = 1..n, is (approximately) distributed
+/// ∝ f*_f (the chains are in equilibrium). To start frame f+1 without bias we treat it as
+/// a set of particles (sequential Monte Carlo):
+///
+///   1. evaluate f*_{f+1}(u_i) in the new scene (evaluate_states). A coordinate the state
+///      has no value for (NaN: the old path did not read it) is uniform and independent
+///      under π_f, so drawing it now is exact; the drawn value is written back into the
+///      state, so the chain later replays exactly the path that was weighted;
+///   2. add a pool of N independent uniform points v_j (sample_pool; a large step each,
+///      keyed by (shot seed, pool domain, j) — the same points every frame), whose f*_f
+///      (the previous frame's pool evaluation) and f*_{f+1} are known;
+///   3. weight every particle x of the union by the deterministic-mixture (balance
+///      heuristic) importance weight of the new target against the mixture proposal
+///        W(x) = f*_{f+1}(x) / ( n · f*_f(x) / b_f  +  N · 1 )
+///      (carried particles were drawn from π_f = f*_f / b_f, pool particles from the
+///      uniform density 1); self-normalised, Σ_x W(x) δ_x / Σ W is an importance sample
+///      of π_{f+1} = f*_{f+1} / b_{f+1} whose proposal covers the whole space (the pool),
+///      so light that appears in frame f+1 (a lamp switched on, f*_f = 0 there) is found
+///      — carried particles cannot see it, pool particles can, and they are weighted up
+///      exactly where the carried population is thin;
+///   4. resample n chain starts ∝ W with systematic resampling (one uniform, keyed by
+///      (seed, resample domain, frame key): deterministic). Importance resampling from a
+///      weighted sample targeting π_{f+1} gives starts distributed (as n, N grow) ∝
+///      π_{f+1}: the chains start in equilibrium, as bootstrap resampling does for a
+///      fresh frame. A carried particle whose new weight is ~0 simply dies; the pool
+///      refreshes it.
+///
+/// With a static scene f*_{f+1} = f*_f, every carried weight is b_f / (n + N b_f / f*_f),
+/// and the chains continue where they stopped (with stored seeds the numbers are the
+/// same as in frame f, so the population settles and consecutive frames agree).
+///
+/// The ratio estimator of the normalisation (DESIGN.md §4) comes out of step 1:
+///   b_ratio = b_f · mean_i( f*_{f+1}(u_i) / f*_f(u_i) ),
+/// since E_{π_f}[f*_{f+1}/f*_f] = b_{f+1}/b_f on the support of f*_f (ratio_statistics).
+#include "integrators/common/render_settings.h"
+#include "integrators/mlt/chain_state.h"
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace cmlt {
+class Scene;
+}
+
+namespace cmlt::temporal {
+
+/// Counter domains of the temporal numbers (MltSampler's RngDomain is an 8-bit field;
+/// these values are outside the ones mlt_sampler.h names).
+inline constexpr uint32_t k_domain_evaluate = 0x40;  ///< id = carried state index
+inline constexpr uint32_t k_domain_pool = 0x41;      ///< id = pool point index
+inline constexpr uint32_t k_domain_carry = 0x42;     ///< id = frame key: the resampling uniform
+
+/// Evaluate every state of `states` in `scene` (f* and colour of the new frame, the
+/// technique decoded again) with the settings' path sampler; coordinates without a value
+/// that the path reads are drawn (keyed by (seed, k_domain_evaluate, i)) and stored.
+/// Returns the completed states (f_star, colour, depth/s/t of the new frame).
+std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const RenderSettings& settings,
+                                                  const mlt::ChainStates& states);
+
+/// N independent uniform points (one large step each, keyed by (pool_seed,
+/// k_domain_pool, j)) evaluated in `scene`: their states (f_star = f*).
+std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSettings& settings,
+                                              uint64_t pool_seed, uint64_t count);
+
+/// Systematic resampling: `n` indices into `weights` (≥ 0, finite), index i drawn
+/// ⌊n W_i / ΣW + fractional offset⌋ times, with one uniform u0 ∈ [0, 1). Sorted.
+/// Empty if Σ weights = 0.
+std::vector<uint64_t> systematic_resample(const std::vector<double>& weights, uint64_t n, double u0);
+
+/// Uniform in [0, 1) keyed by (seed, k_domain_carry, key).
+double carry_uniform(uint64_t seed, uint32_t key);
+
+/// Ratio statistics over the carried states: w_i = f_new_i / f_old_i for f_old_i > 0.
+struct RatioStats {
+    uint64_t count = 0;  ///< states with f_old > 0
+    double mean = 0.0;   ///< mean w
+    double variance = 0.0;  ///< sample variance of w (n − 1)
+    uint64_t zero = 0;   ///< states whose new f* is 0 (lost their contribution)
+};
+RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<double>& f_new);
+
+/// The plan of step 3–4: mixture weights of carried (f_old, f_new) and pool (pool_old,
+/// pool_new) particles, n starts resampled with uniform u0. pool_old may be empty (no
+/// previous pool evaluation: pool points then count as uncovered by the carried
+/// population, f*_f = 0). Returned indices < carried count are carried particles, the
+/// others pool particles (index − carried count).
+struct CarryPlan {
+    std::vector<uint64_t> picks;
+    uint64_t from_carried = 0, from_pool = 0;
+    double weight_carried = 0.0, weight_pool = 0.0;  ///< Σ W of each group
+};
+CarryPlan plan_carry(const std::vector<double>& f_old, const std::vector<double>& f_new,
+                     const std::vector<double>& pool_old, const std::vector<double>& pool_new,
+                     double b_old, uint64_t n, double u0);
+
+/// A ChainStates of picked states: pick p < a.size() → a.chains[p], else b.chains[p − a.size()];
+/// chain c gets chain_id = the picked state's chain_id for carried picks, and
+/// `pool_id_base + j` for pool point j. f_star / colour are kept (the new frame's).
+std::shared_ptr<mlt::ChainStates> gather_states(const mlt::ChainStates& a, const mlt::ChainStates& b,
+                                                const std::vector<uint64_t>& picks, uint64_t pool_id_base);
+
+}  // namespace cmlt::temporal
