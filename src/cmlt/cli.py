@@ -13,6 +13,8 @@
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
                      [--display NAME] [--view NAME]
+                     [--seed-per-frame] [--independent-frames] [--no-smoothing]
+                     [--state-dir DIR [--fresh-start-on-bad-state]]
                      [--resume] [--quiet | --log-json]
     cmlt inspect SHOT | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
@@ -205,6 +207,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="OCIO view of previews (default: the display's default view)")
     r.add_argument("--resume", action="store_true",
                    help="skip frames whose image already exists")
+    t = r.add_argument_group("sequences (DESIGN.md §4)")
+    t.add_argument("--seed-per-frame", action="store_true", default=None, dest="seed_per_frame",
+                   help="fold the frame number into the seed (independent noise per frame, "
+                   "for comparison; default: one seed for the shot, stored seeds)")
+    t.add_argument("--independent-frames", action="store_false", default=None,
+                   dest="carry_states",
+                   help="do not start each frame's chains from the previous frame's states")
+    t.add_argument("--no-smoothing", action="store_false", default=None,
+                   dest="smooth_normalization",
+                   help="normalise each frame by its own b (no smoothing over frames)")
+    t.add_argument("--state-dir", metavar="DIR", dest="state_dir",
+                   help="write DIR/state.####.bin per frame (chain states, normalisation "
+                   "history) and continue from the state of the frame before the first one "
+                   "rendered, bit-identically to one job")
+    t.add_argument("--fresh-start-on-bad-state", action="store_true",
+                   dest="fresh_start_on_bad_state",
+                   help="a corrupted, truncated or mismatched state file: warn and start "
+                   "fresh instead of failing")
     loud = r.add_mutually_exclusive_group()
     loud.add_argument("--quiet", "-q", action="store_true",
                       help="print nothing but errors")
@@ -264,7 +284,11 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          output_colorspace=args.output_colorspace, ocio_config=args.ocio_config,
                          aovs=tuple(args.aov), aov_samples=args.aov_samples, crop=args.crop,
                          preview=args.preview, preview_format=args.preview_format,
-                         display=args.display, view=args.view)
+                         display=args.display, view=args.view,
+                         carry_states=args.carry_states,
+                         smooth_normalization=args.smooth_normalization,
+                         seed_per_frame=args.seed_per_frame, state_dir=args.state_dir,
+                         fresh_start_on_bad_state=args.fresh_start_on_bad_state)
     log = None
     if args.log_json:
         from .shot.progress import JsonReporter

@@ -97,6 +97,16 @@ class RenderOptions:
     #: OCIO display / view of previews (None: sRGB display, its default view)
     display: Optional[str] = None
     view: Optional[str] = None
+    #: temporal (DESIGN.md §4; None = the stage's cmlt:temporal:* value, else the
+    #: default): start each frame's chains from the previous frame's, smooth b,
+    #: fold the frame number into the seed (for comparison)
+    carry_states: Optional[bool] = None
+    smooth_normalization: Optional[bool] = None
+    seed_per_frame: Optional[bool] = None
+    #: write DIR/state.####.bin per frame and continue from the previous frame's
+    state_dir: Optional[str] = None
+    #: a bad state file: warn and start fresh instead of failing
+    fresh_start_on_bad_state: bool = False
 
     def check(self) -> None:
         """Flag-level checks that need neither the stage nor the core."""
@@ -137,7 +147,10 @@ class RenderOptions:
                 "camera": self.camera, "sigma": self.sigma,
                 "large_step_probability": self.large_step_probability,
                 "chains": self.chains, "bootstrap_samples": self.bootstrap_samples,
-                "tries": self.tries, "inner_length": self.inner_length, "inner": self.inner}
+                "tries": self.tries, "inner_length": self.inner_length, "inner": self.inner,
+                "carry_states": self.carry_states,
+                "smooth_normalization": self.smooth_normalization,
+                "seed_per_frame": self.seed_per_frame}
 
 
 @dataclass
@@ -371,6 +384,41 @@ def _render_interruptible(core, scene, st, reporter: Reporter):
     return box["result"], interrupted, last_total[0]
 
 
+def _temporal_driver(core, resolved, shot, width, height, opts: RenderOptions, rep, result):
+    from ..temporal import TemporalDriver
+
+    def warn(msg):
+        rep.warnings([msg])
+        if msg not in result.warnings:
+            result.warnings.append(msg)
+
+    return TemporalDriver(core, resolved, shot, width, height, state_dir=opts.state_dir,
+                          fresh_start_on_bad_state=opts.fresh_start_on_bad_state, warn=warn)
+
+
+def _load_previous_state(temporal, pred, frame, opts: RenderOptions, info, rep, result):
+    """Read the state of frame ``pred`` for ``frame`` (``--state-dir``); a bad
+    file is a RenderError (one line naming it) unless --fresh-start-on-bad-state."""
+    from ..temporal import StateError
+    from ..temporal.state import state_path
+
+    if not opts.state_dir:
+        return None
+    try:
+        note = temporal.load_previous(pred, frame)
+    except StateError as exc:
+        raise RenderError(f"{exc} (use --fresh-start-on-bad-state to start frame {frame:g} "
+                          "fresh)") from None
+    if note is None and (info.start is None or pred >= info.start) \
+            and not os.path.exists(state_path(opts.state_dir, pred)):
+        msg = (f"{state_path(opts.state_dir, pred)}: no state of frame {pred:g}; "
+               f"frame {frame:g} starts fresh")
+        rep.warnings([msg])
+        if msg not in result.warnings:
+            result.warnings.append(msg)
+    return note
+
+
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
@@ -425,12 +473,20 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
 
     result = SequenceResult(frames=list(frame_list), settings=settings_record,
                             sources=dict(sources))
+    if opts.state_dir:
+        settings_record["state_dir"] = os.path.abspath(opts.state_dir)
     todo = []
     for f, path in zip(frame_list, outputs):
         if resume and os.path.isfile(path):
             result.skipped.append(path)
         else:
             todo.append((f, path))
+    # the frame before each frame (temporal carry-over): the previous one in the
+    # list, or for the list's first frame one step back
+    step = (frame_list[1] - frame_list[0]) if len(frame_list) > 1 else 1.0
+    predecessor = {f: (frame_list[i - 1] if i > 0 else f - step) for i, f in enumerate(frame_list)}
+    temporal = None
+    last_rendered = None
 
     rep = reporter or Reporter(show_progress=progress, quiet=quiet)
     bridge = SceneBridge(core)
@@ -467,6 +523,21 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     scene = bridge.update(fs)
                 except (core.SceneError, BridgeError) as exc:
                     raise RenderError(f"{shot}: frame {frame:g}: {exc}") from None
+                if temporal is None:
+                    temporal = _temporal_driver(core, resolved, shot, int(width), int(height),
+                                                opts, rep, result)
+                pred = predecessor[frame]
+                if last_rendered is None or last_rendered != pred:
+                    # not continuing in memory: the state file of the frame before, if any
+                    temporal.forget()
+                    note = _load_previous_state(temporal, pred, frame, opts, info, rep, result)
+                    if note:
+                        rep.info(note)
+                try:
+                    trec = temporal.prepare(scene, st, frame)
+                except core.SettingsError as exc:
+                    msg, usage = _settings_message(str(exc), resolved, sources)
+                    raise (UsageError if usage else RenderError)(msg) from None
                 try:
                     r, interrupted, units = _render_interruptible(core, scene, st, rep)
                 except core.SettingsError as exc:
@@ -481,6 +552,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 if not np.isfinite(image).all():
                     raise RenderError(f"{shot}: frame {frame:g}: the core returned "
                                       f"{int((~np.isfinite(image)).sum())} non-finite pixel values")
+                image, trec, state_bytes = temporal.finish(r, stats, image, frame, trec)
                 aov_images = _aov_images(core, scene, st, r, aovs, opts, stats)
                 stats["wall_time_s"] = time.perf_counter() - t0
                 record = {
@@ -492,6 +564,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     "stats": stats,
                     "scene_update": bridge.last_update.as_dict(),
                     "warnings": list(fs.warnings), "cmlt_version": __version__,
+                    "temporal": trec,
                 }
                 metadata = _header_metadata(frame, fs, shot_abs, record["camera"], resolved, stats)
                 try:
@@ -501,6 +574,12 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                         shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
                         write_preview(shown, pv, display, view)
                         record["preview"] = os.path.basename(pv)
+                    state_file = None
+                    if opts.state_dir:
+                        # before the image: a finished frame always has its state
+                        from ..temporal.state import state_path, write_state
+                        state_file = write_state(state_path(opts.state_dir, frame), state_bytes)
+                        trec["state_out"] = os.path.abspath(state_file)
                     write_sidecar(path, record)
                     write_exr(path, _to_output(image, opts.output_colorspace), half=opts.half,
                               compression=opts.compression, colorspace=None,
@@ -512,6 +591,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
                     raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") \
                         from None
+                temporal.advance(state_bytes, state_file or f"<state of frame {frame:g}>")
+                last_rendered = frame
                 result.written.append(path)
                 result.stats[frame] = stats
                 rep.end_frame(frame, path, stats, units)

@@ -1,0 +1,130 @@
+"""The normalisation b of a frame, estimated twice and smoothed over time.
+
+Per frame f+1 (DESIGN.md §4):
+
+* ``b_fresh`` — the core's own estimate (bootstrap + every large step of the
+  frame; independent of the carried chains), with its standard error;
+* ``b_ratio = b_f · mean_i(f*_{f+1}(u_i) / f*_f(u_i))`` over the chain states
+  carried from frame f (``E_{π_f}[f*_{f+1}/f*_f] = b_{f+1}/b_f`` on the support
+  of f*_f), with ``σ²_ratio = (σ_f m)² + b_f² var(w)/n`` (b_f's own error
+  propagated, plus the sample mean's);
+* change detection: ``|b_fresh − b_ratio| > z·sqrt(σ²_fresh + σ²_ratio)``
+  (the ratio estimator cannot see paths that were black in frame f — a light
+  switched on — the fresh estimate can; their disagreement is the signal).
+  Without carried states: ``|b_fresh − b_f| > z·sqrt(σ²_fresh + σ²_f)``.
+  A change resets: ``b_combined = b_smoothed = b_fresh`` (no lag);
+* otherwise ``b_combined`` = the inverse-variance combination of the two, and
+  ``b_smoothed`` = a causal exponential filter in log space over the
+  combined values, the previous smoothed value first transported to this
+  frame by the ratio mean m (so a smooth change the ratio sees is followed
+  without lag): ``log b_s = α log b_combined + (1 − α) log(b_{s,f} · m)``.
+  Its standard error is kept from collapsing (frames rendered with stored
+  seeds are correlated, so treating them as independent would make the
+  filter ever more confident) by a floor ``σ_fresh / sqrt(window)``.
+
+The image of the frame is rescaled to ``b_smoothed`` (``histogram · b /
+mutations`` is linear in b).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Optional
+
+__all__ = ["NormRecord", "update_normalization", "Z_CHANGE", "ALPHA", "WINDOW"]
+
+#: change threshold in standard errors
+Z_CHANGE = 4.0
+#: weight of the new frame in the exponential smoothing (log space)
+ALPHA = 0.25
+#: the smoothed b is never more certain than this many fresh frames
+WINDOW = 8
+
+
+@dataclass
+class NormRecord:
+    """One frame's normalisation (all b in the core's units)."""
+    frame: float
+    b_fresh: float
+    s_fresh: float
+    b_ratio: float = math.nan          # NaN: no carried states
+    s_ratio: float = math.nan
+    b_combined: float = math.nan
+    s_combined: float = math.nan
+    b_smoothed: float = math.nan
+    s_smoothed: float = math.nan
+    change: bool = True
+    #: the b the image was normalised with (b_smoothed with smoothing, else b_fresh)
+    b_used: float = math.nan
+    s_used: float = math.nan
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _ok(x) -> bool:
+    return x is not None and math.isfinite(x) and x > 0.0
+
+
+def update_normalization(frame: float, b_fresh: float, s_fresh: float,
+                         prev: Optional[NormRecord] = None, ratio: Optional[dict] = None,
+                         smooth: bool = True, z: float = Z_CHANGE, alpha: float = ALPHA,
+                         window: int = WINDOW) -> NormRecord:
+    """This frame's record from the previous one. ``ratio``: the core's
+    ``temporal_ratio_statistics`` over the carried states (``mean``,
+    ``variance``, ``count``), or None."""
+    s_fresh = float(s_fresh) if math.isfinite(s_fresh) and s_fresh >= 0 else 0.0
+    r = NormRecord(frame=float(frame), b_fresh=float(b_fresh), s_fresh=s_fresh)
+    have_prev = prev is not None and _ok(prev.b_used)
+    m = None
+    if have_prev and ratio is not None and int(ratio.get("count", 0)) > 0:
+        m = float(ratio["mean"])
+        n = int(ratio["count"])
+        var_w = max(float(ratio.get("variance", 0.0)), 0.0)
+        s_prev = prev.s_used if math.isfinite(prev.s_used) else 0.0
+        r.b_ratio = prev.b_used * m
+        r.s_ratio = math.sqrt((s_prev * m) ** 2 + prev.b_used ** 2 * var_w / n)
+        # the ratio estimator is blind to mass that appears outside the old support
+        # (a light moving into new areas) and its chains are correlated: never trust it
+        # more than the fresh estimate, or its small per-frame deficits accumulate
+        r.s_ratio = max(r.s_ratio, s_fresh)
+
+    if not _ok(b_fresh):
+        r.change = True
+    elif m is not None:
+        r.change = abs(b_fresh - r.b_ratio) > z * math.sqrt(s_fresh ** 2 + r.s_ratio ** 2)
+    elif have_prev:
+        s_prev = prev.s_used if math.isfinite(prev.s_used) else 0.0
+        r.change = abs(b_fresh - prev.b_used) > z * math.sqrt(s_fresh ** 2 + s_prev ** 2)
+    else:
+        r.change = True                      # first frame: nothing to smooth with
+
+    if r.change or not smooth:
+        r.b_combined, r.s_combined = r.b_fresh, s_fresh
+        r.b_smoothed, r.s_smoothed = r.b_fresh, s_fresh
+    else:
+        if m is not None and _ok(r.b_ratio):
+            vf, vr = s_fresh ** 2, r.s_ratio ** 2
+            if vf > 0 and vr > 0:
+                r.b_combined = (b_fresh / vf + r.b_ratio / vr) / (1 / vf + 1 / vr)
+                r.s_combined = math.sqrt(1 / (1 / vf + 1 / vr))
+            elif vr == 0 and vf > 0:           # an exact ratio (e.g. a static scene)
+                r.b_combined, r.s_combined = r.b_ratio, 0.0
+            else:
+                r.b_combined, r.s_combined = b_fresh, s_fresh
+            pred = prev.b_smoothed * m if _ok(prev.b_smoothed) and m > 0 else r.b_combined
+        else:
+            r.b_combined, r.s_combined = b_fresh, s_fresh
+            pred = prev.b_smoothed if _ok(prev.b_smoothed) else b_fresh
+        if _ok(r.b_combined) and _ok(pred):
+            r.b_smoothed = math.exp(alpha * math.log(r.b_combined) + (1 - alpha) * math.log(pred))
+        else:
+            r.b_smoothed = b_fresh
+        s_prev = prev.s_smoothed if math.isfinite(prev.s_smoothed) else s_fresh
+        s = math.sqrt((alpha * r.s_combined) ** 2 + ((1 - alpha) * s_prev * (m or 1.0)) ** 2)
+        r.s_smoothed = max(s, s_fresh / math.sqrt(window))
+    if smooth:
+        r.b_used, r.s_used = r.b_smoothed, r.s_smoothed
+    else:
+        r.b_used, r.s_used = r.b_fresh, s_fresh
+    return r

@@ -1,0 +1,195 @@
+"""Per-frame state files: ``DIR/state.####.bin``.
+
+Everything frame f+1 needs from frame f, so that a sequence can continue in
+another job bit-identically (``cmlt render --frames 13:24 --state-dir DIR``
+reads ``state.0012.bin``). Little-endian::
+
+    header   8s  magic  b"CMLTSTAT"
+             u32 version (STATE_VERSION)
+             u64 shot hash          (first 8 bytes of sha256(absolute shot path))
+             u32 width, u32 height
+             16s integrator         (ASCII, NUL padded)
+             u64 seed               (the shot seed, not a per-frame one)
+             u64 chain count        (chain states in the payload)
+             f64 frame              (the frame that wrote it)
+             u64 settings hash      (sha256 of every setting that changes the chains)
+             u64 payload length
+    payload  u64 n | n bytes        chain states (core MltStates.to_bytes; 0 bytes: none)
+             u64 m | m × f64        f* of the refresh pool points in this frame
+             u32 k | k × record     normalisation history, oldest first (see below)
+    trailer  u32 CRC-32 (zlib) of header + payload
+
+record = 11 × f64 (frame, b_fresh, s_fresh, b_ratio, s_ratio, b_combined,
+s_combined, b_smoothed, s_smoothed, b_used, s_used) + u8 change.
+
+The frame loop always goes through these bytes, also when it keeps the state
+in memory between frames of one job, so a split sequence sees exactly the
+values a single job sees.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import struct
+import zlib
+from dataclasses import dataclass, field
+from typing import List, Optional, Sequence
+
+from .normalization import NormRecord
+
+__all__ = ["STATE_MAGIC", "STATE_VERSION", "StateError", "FrameState", "encode_state",
+           "decode_state", "read_state", "write_state", "state_path", "shot_hash",
+           "settings_hash", "HISTORY_LIMIT"]
+
+STATE_MAGIC = b"CMLTSTAT"
+STATE_VERSION = 1
+#: normalisation records kept (oldest dropped)
+HISTORY_LIMIT = 256
+
+_HEADER = struct.Struct("<8sIQII16sQQdQQ")
+_RECORD = struct.Struct("<11dB")
+_REC_FIELDS = ("frame", "b_fresh", "s_fresh", "b_ratio", "s_ratio", "b_combined", "s_combined",
+               "b_smoothed", "s_smoothed", "b_used", "s_used")
+
+
+class StateError(ValueError):
+    """A state file that cannot be used; the message is one line naming the
+    file and what is wrong."""
+
+
+@dataclass
+class FrameState:
+    shot_hash: int
+    width: int
+    height: int
+    integrator: str
+    seed: int
+    frame: float
+    settings_hash: int
+    chain_states: bytes = b""                 # core MltStates.to_bytes()
+    chain_count: int = 0
+    pool_f: List[float] = field(default_factory=list)
+    history: List[NormRecord] = field(default_factory=list)
+
+    @property
+    def last(self) -> Optional[NormRecord]:
+        return self.history[-1] if self.history else None
+
+
+def shot_hash(shot: str) -> int:
+    return int.from_bytes(hashlib.sha256(os.path.abspath(shot).encode("utf-8")).digest()[:8],
+                          "little")
+
+
+def settings_hash(values: dict) -> int:
+    text = json.dumps(values, sort_keys=True, default=str)
+    return int.from_bytes(hashlib.sha256(text.encode("utf-8")).digest()[:8], "little")
+
+
+def state_path(state_dir: str, frame: float) -> str:
+    """``DIR/state.0012.bin``; fractional frames ``DIR/state.0012.500.bin``."""
+    f = float(frame)
+    if f == int(f):
+        name = f"state.{int(f):04d}.bin" if f >= 0 else f"state.-{int(-f):04d}.bin"
+    else:
+        name = f"state.{f:08.3f}.bin"
+    return os.path.join(state_dir, name)
+
+
+def encode_state(s: FrameState) -> bytes:
+    hist = list(s.history)[-HISTORY_LIMIT:]
+    payload = bytearray()
+    payload += struct.pack("<Q", len(s.chain_states)) + bytes(s.chain_states)
+    payload += struct.pack("<Q", len(s.pool_f))
+    payload += struct.pack(f"<{len(s.pool_f)}d", *s.pool_f)
+    payload += struct.pack("<I", len(hist))
+    for r in hist:
+        payload += _RECORD.pack(*(float(getattr(r, k)) for k in _REC_FIELDS), 1 if r.change else 0)
+    integ = s.integrator.encode("ascii")[:16]
+    header = _HEADER.pack(STATE_MAGIC, STATE_VERSION, s.shot_hash, s.width, s.height, integ,
+                          s.seed, s.chain_count, float(s.frame), s.settings_hash, len(payload))
+    body = header + bytes(payload)
+    return body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF)
+
+
+def decode_state(data: bytes, path: str = "<state>") -> FrameState:
+    """Parse a state file's bytes; :class:`StateError` names ``path``."""
+    def bad(what: str) -> StateError:
+        return StateError(f"{path}: {what}")
+
+    if len(data) < len(STATE_MAGIC) or data[:len(STATE_MAGIC)] != STATE_MAGIC:
+        raise bad("not a cmlt state file (bad magic)")
+    if len(data) < _HEADER.size:
+        raise bad(f"truncated state file ({len(data)} bytes, the header alone is {_HEADER.size})")
+    (_, version, sh, w, h, integ, seed, count, frame, seth, plen) = _HEADER.unpack_from(data, 0)
+    if version != STATE_VERSION:
+        raise bad(f"state format version {version}, this cmlt reads version {STATE_VERSION}")
+    want = _HEADER.size + plen + 4
+    if len(data) < want:
+        raise bad(f"truncated state file ({len(data)} of {want} bytes)")
+    if len(data) > want:
+        raise bad(f"trailing bytes after the state ({len(data)} bytes, expected {want})")
+    (crc,) = struct.unpack_from("<I", data, want - 4)
+    if zlib.crc32(data[:want - 4]) & 0xFFFFFFFF != crc:
+        raise bad("checksum mismatch (the state file is corrupted)")
+    out = FrameState(shot_hash=sh, width=w, height=h,
+                     integrator=integ.rstrip(b"\0").decode("ascii", "replace"), seed=seed,
+                     frame=frame, settings_hash=seth, chain_count=count)
+    p = _HEADER.size
+    try:
+        (n,) = struct.unpack_from("<Q", data, p); p += 8
+        out.chain_states = bytes(data[p:p + n]); p += n
+        (m,) = struct.unpack_from("<Q", data, p); p += 8
+        out.pool_f = list(struct.unpack_from(f"<{m}d", data, p)); p += 8 * m
+        (k,) = struct.unpack_from("<I", data, p); p += 4
+        for _ in range(k):
+            vals = _RECORD.unpack_from(data, p); p += _RECORD.size
+            rec = NormRecord(**dict(zip(_REC_FIELDS, vals[:11])), change=bool(vals[11]))
+            out.history.append(rec)
+    except struct.error as exc:
+        raise bad(f"malformed payload ({exc})") from None
+    if p != want - 4:
+        raise bad("malformed payload (length does not match its contents)")
+    return out
+
+
+def read_state(path: str) -> FrameState:
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except FileNotFoundError:
+        raise StateError(f"{path}: no such state file") from None
+    except OSError as exc:
+        raise StateError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    return decode_state(data, path)
+
+
+def write_state(path: str, data: bytes) -> str:
+    """Write encoded state bytes atomically (temporary name + rename)."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    tmp = f"{path}.tmp.{os.getpid()}"
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+    os.replace(tmp, path)
+    return path
+
+
+def check_compatible(s: FrameState, path: str, *, shot_hash_: int, width: int, height: int,
+                     integrator: str, seed: int, settings_hash_: int, frame: float) -> None:
+    """:class:`StateError` if the state was written for something else."""
+    def bad(what: str) -> StateError:
+        return StateError(f"{path}: {what}")
+    if s.shot_hash != shot_hash_:
+        raise bad("written for a different shot")
+    if (s.width, s.height) != (width, height):
+        raise bad(f"written at {s.width}x{s.height}, this render is {width}x{height}")
+    if s.integrator != integrator:
+        raise bad(f"written by integrator {s.integrator!r}, this render uses {integrator!r}")
+    if s.seed != seed:
+        raise bad(f"written with seed {s.seed}, this render uses seed {seed}")
+    if s.settings_hash != settings_hash_:
+        raise bad("written with different render settings (spp, chains, sigma, ... differ)")
+    if not math.isclose(s.frame, frame):
+        raise bad(f"holds frame {s.frame:g}, expected frame {frame:g}")
