@@ -81,7 +81,7 @@ def test_static_shot_flicker_quarter_of_independent_frames(tmp_path):
 
 @pytest.mark.xfail(reason="issue 5 target not met yet: TF ratio 0.33 (needs <= 0.25) and "
                           "relMSE 1.11x (needs <= 1.10x) at 48x48, 8 frames, 16 mutations/px",
-                   strict=False)
+                   strict=True)
 def test_static_shot_tf_quarter(tmp_path):
     ref_res = render_sequence(STATIC, "1", os.path.join(str(tmp_path), "ref", "r.####.exr"),
                               RenderOptions(integrator="pt", resolution=(48, 48), spp=1024),
