@@ -185,6 +185,10 @@ def _core_settings(core, resolved, opts: RenderOptions, sources: Dict[str, str])
     knows is set (the MLT fields reach the core as soon as it has them)."""
     st = core.RenderSettings()
     values = dict(resolved.as_dict())
+    # A setting that would silently do nothing is an error (STYLE.md §5).
+    if float(values.get("time_budget", 0.0) or 0.0) > 0.0 and not hasattr(st, "time_budget"):
+        raise UsageError(f"{_where('time_budget', values['time_budget'], sources)}: "
+                         "time budgets are not implemented yet; set a sample budget (spp)")
     values["threads"] = int(opts.threads)
     values["packets"] = bool(opts.packets)
     for name, value in values.items():
