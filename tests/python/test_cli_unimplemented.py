@@ -12,7 +12,8 @@ CORNELL = os.path.join(ROOT, "sequences", "cornell", "shot.usda")
 
 def test_time_budget_in_stage_is_a_clear_error(tmp_path, capsys):
     path = str(tmp_path / "shot.usda")
-    Usd.Stage.Open(CORNELL).GetRootLayer().Export(path)
+    source = Usd.Stage.Open(CORNELL)          # keep the stage alive while its layer is used
+    source.GetRootLayer().Export(path)
     stage = Usd.Stage.Open(path)
     prim = stage.GetPrimAtPath("/Render/Settings")
     prim.ApplyAPI("CmltRenderSettingsAPI")
