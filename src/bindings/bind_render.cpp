@@ -151,6 +151,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["clamped_splats"] = m.clamped_splats;
         d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
         if (st.integrator == "cmlt") {
+            d["path_sampler"] = m.path_sampler;
             d["tries"] = m.tries;
             d["inner_length"] = m.inner_length;
             d["inner"] = m.inner;

@@ -93,6 +93,7 @@ def test_cmlt_converges_to_pt(scene, reference, inner):
     _check(runs, reference, assert_exact=inner != "seed")
     st = runs[0][2]
     assert st["inner"] == inner and st["tries"] == 8 and st["inner_length"] == 8
+    assert st["path_sampler"] == "bdpt"   # the default path sampler (multiplexed BDPT)
     assert inner in st["kernel_stats"] and "lens" in st["kernel_stats"]
     assert "pixel_move" in st["kernel_stats"] and "large_step" in st["kernel_stats"]
 
@@ -128,3 +129,118 @@ def test_settings_validation(scene):
         setattr(s2, field, bad)
         with pytest.raises(core.SettingsError, match=field):
             core.render(scene, s2)
+
+
+def test_pt_sampler_packets_bit_identical(scene):
+    """The path-tracer sampler is still available (every path takes the lens
+    perturbation: no caustic steps)."""
+    kw = dict(chains=64, bootstrap_samples=5000, mlt_path_sampler="pt")
+    a, _, sa = _render(scene, "cmlt", 64, seed=3, packets=True, **kw)
+    b, _, sb = _render(scene, "cmlt", 64, seed=3, packets=False, **kw)
+    assert sa["path_sampler"] == "pt" and sa["packet_queries"] > 0
+    assert np.array_equal(a, b) and sa["rays"] == sb["rays"]
+    assert "caustic" not in sa["kernel_stats"]
+
+
+# ---- the glass caustic of test_mlt_bdpt.py (L S S D E, found by light tracing) ----------
+
+CAUSTIC_SEEDS = 10
+CAUSTIC_EVALS = 512      # path evaluations per pixel of each cmlt run
+CAUSTIC_REF_SPP = 1024   # BDPT reference
+
+
+@pytest.fixture(scope="module")
+def caustic():
+    from test_mlt_bdpt import MAX_DEPTH, RES as C_RES, caustic_scene
+
+    scene = SceneBridge(core).update(caustic_scene())
+
+    def settings(integrator, spp, seed, **kw):
+        st = core.RenderSettings()
+        st.width = st.height = C_RES
+        st.spp, st.seed, st.max_depth, st.integrator = spp, seed, MAX_DEPTH, integrator
+        st.chains, st.bootstrap_samples = 256, 32768
+        for k, v in kw.items():
+            setattr(st, k, v)
+        return st
+
+    return scene, settings
+
+
+@pytest.fixture(scope="module")
+def caustic_runs(caustic):
+    scene, settings = caustic
+    r = core.render(scene, settings("bdpt", CAUSTIC_REF_SPP, 1000))
+    ref = np.asarray(r.image, np.float64), np.asarray(r.variance, np.float64)
+    runs = []
+    for seed in range(CAUSTIC_SEEDS):
+        r = core.render(scene, settings("cmlt", CAUSTIC_EVALS, seed, inner="bundle"))
+        runs.append((np.asarray(r.image, np.float64), dict(r.stats)))
+    return ref, runs
+
+
+def test_caustic_finite_and_caustic_perturbation_accepted(caustic_runs):
+    _, runs = caustic_runs
+    for img, st in runs:
+        assert np.isfinite(img).all() and (img >= 0).all() and st["nan_samples"] == 0
+        assert st["path_sampler"] == "bdpt"
+        ks = st["kernel_stats"]
+        # light-traced (t = 1) paths take the caustic perturbation, and it moves them
+        assert ks["caustic"]["steps"] > 0 and ks["caustic"]["moved"] > 0, ks
+        assert ks["lens"]["moved"] > 0 and ks["pixel_move"]["steps"] > 0
+    moved = sum(st["kernel_stats"]["caustic"]["moved"] for _, st in runs)
+    steps = sum(st["kernel_stats"]["caustic"]["steps"] for _, st in runs)
+    print(f"\ncaustic perturbation: {steps} steps, acceptance {moved / steps:.3f}")
+
+
+def test_caustic_mean_within_t_interval(caustic_runs):
+    """Mean brightness over the seeds vs BDPT: Student's t at a false-alarm rate of 1e-3,
+    the reference's SE (variance AOV) in quadrature (as test_mlt_bdpt.py; no 1% check on
+    this heavy-tailed scene, see its docstring)."""
+    (ref, ref_var), runs = caustic_runs
+    n = ref.shape[0] * ref.shape[1]
+    ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
+    ref_se = np.sqrt(ref_var.reshape(-1, 3).sum(0) @ ACESCG_Y ** 2) / n
+    means = np.array([img.reshape(-1, 3).mean(0) @ ACESCG_Y for img, _ in runs])
+    m, se = means.mean(), means.std(ddof=1) / np.sqrt(len(runs))
+    print(f"\ncaustic cmlt: mean Y {m:.5f} +- {se:.5f}, BDPT {ref_y:.5f} +- {ref_se:.5f}, "
+          f"ratio {m / ref_y:.4f}")
+    t = t_critical(len(runs) - 1, 1e-3)
+    assert abs(m - ref_y) < t * np.hypot(se, ref_se), (m, ref_y, se, ref_se)
+
+
+def test_caustic_blocks_within_t_intervals(caustic_runs):
+    """4x4 blocks of 8x8 pixels per channel (caustic, ball, light) vs BDPT: t-test with
+    K-1 dof, Bonferroni over the 48 tests at a family-wise false-alarm rate of 1e-2 (as
+    test_mlt_bdpt.py). Black blocks count as agreeing."""
+    (ref, ref_var), runs = caustic_runs
+    B = 8
+    nb = ref.shape[0] // B
+
+    def blocks(a):
+        return a.reshape(nb, B, nb, B, 3).mean((1, 3))
+
+    runs_b = np.stack([blocks(img) for img, _ in runs])
+    m, se = runs_b.mean(0), runs_b.std(0, ddof=1) / np.sqrt(len(runs))
+    ref_b = blocks(ref)
+    ref_se = np.sqrt(ref_var.reshape(nb, B, nb, B, 3).sum((1, 3))) / (B * B)
+    den = np.hypot(se, ref_se)
+    black = (den == 0) & (m == ref_b)
+    z = np.where(black, 0.0, np.abs(m - ref_b) / np.where(den > 0, den, 1e-300))
+    t = t_critical(len(runs) - 1, 1e-2 / z.size)
+    print(f"\ncaustic blocks: max z {z.max():.2f} (critical {t:.2f})")
+    assert (z < t).all(), (z.max(), t, np.unravel_index(z.argmax(), z.shape))
+
+
+@pytest.mark.parametrize("inner", ["bundle", "mtm"])
+def test_caustic_packets_bit_identical_to_scalar(caustic, inner):
+    """BDPT sampler: the packet-traced first hit enters BDPT's camera subpath."""
+    scene, settings = caustic
+    a = core.render(scene, settings("cmlt", 64, 3, inner=inner, chains=64, bootstrap_samples=5000,
+                                    packets=True))
+    b = core.render(scene, settings("cmlt", 64, 3, inner=inner, chains=64, bootstrap_samples=5000,
+                                    packets=False))
+    assert a.stats["packet_queries"] > 0 and b.stats["packet_queries"] == 0
+    assert a.stats["kernel_stats"]["caustic"]["moved"] > 0
+    assert np.array_equal(np.asarray(a.image), np.asarray(b.image))
+    assert a.stats["rays"] == b.stats["rays"]

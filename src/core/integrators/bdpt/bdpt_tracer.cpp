@@ -216,7 +216,7 @@ bool BdptTracer::visible(const PathVertex& a, const PathVertex& b, BdptCounters&
 
 int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
                             int max_vertices, bool importance, bool roulette, PathVertex* path,
-                            int start, BdptCounters& c) const {
+                            int start, BdptCounters& c, const SceneHit* first_hit) const {
     const Scene& scene = m_scene;
     int n = start;  // vertices so far (path[n - 1] is the previous one)
     float pdf_fwd_sa = pdf_dir;
@@ -231,7 +231,7 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         path[n - 2].pdf_rev = convert_density(prev.bsdf->pdf(w, prev.wo), prev, path[n - 2]);
     };
     while (n < max_vertices) {
-        SceneHit hit = scene.intersect(ray);
+        SceneHit hit = (n == start && first_hit) ? *first_hit : scene.intersect(ray);
         c.rays += 1;
         PathVertex& prev = path[n - 1];
         if (hit.kind == SceneHit::Kind::miss) {
@@ -334,7 +334,7 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
 
 int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler,
                                         int max_vertices, bool roulette, PathVertex* path,
-                                        BdptCounters& c) const {
+                                        BdptCounters& c, const SceneHit* first_hit) const {
     if (max_vertices < 1) return 0;
     const Camera& cam = m_importance.camera();
     // Thin lens: the lens position is the camera stream's next 2D (drawn only with a lens).
@@ -352,7 +352,7 @@ int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampl
     float pdf_dir = m_importance.pdf_dir(ray.d);
     if (!(pdf_dir > 0.f)) pdf_dir = 1.f;  // edge of the image (float rounding)
     return random_walk(ray, Spectrum(1.f), pdf_dir, sampler, max_vertices, false, roulette, path,
-                       1, c);
+                       1, c, cam.has_lens() ? nullptr : first_hit);
 }
 
 int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
@@ -600,7 +600,7 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
 
 static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int depth, int s, int t,
                              BdptSampler& sampler, BdptWorkspace& ws, Vec2* p_raster,
-                             bool mis, BdptCounters& c) {
+                             bool mis, BdptCounters& c, const SceneHit* first_hit = nullptr) {
     if (t < 1 || s < 0 || s + t != depth + 2 || (s == 1 && t == 1)) return Spectrum(0.f);
     if (int(ws.camera.size()) < t) ws.camera.resize(size_t(t));
     if (int(ws.light.size()) < std::max(s, 1)) ws.light.resize(size_t(std::max(s, 1)));
@@ -608,7 +608,7 @@ static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int de
     sampler.start_stream(BdptSampler::k_camera);
     Vec2 u = sampler.next2d();
     *p_raster = Vec2(u.x * float(width), u.y * float(height));
-    if (tr.generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c) != t)
+    if (tr.generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c, first_hit) != t)
         return Spectrum(0.f);
     sampler.start_stream(BdptSampler::k_light);
     if (s > 0 && tr.generate_light_subpath(sampler, s, false, ws.light.data(), c) != s)
@@ -618,8 +618,10 @@ static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int de
 }
 
 Spectrum BdptTracer::evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
-                                       BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const {
-    return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, true, c);
+                                       BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c,
+                                       const SceneHit* first_hit) const {
+    return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, true, c,
+                        first_hit);
 }
 
 Spectrum BdptTracer::evaluate_strategy_unweighted(int depth, int s, int t, BdptSampler& sampler,

@@ -47,6 +47,7 @@
 namespace cmlt {
 
 class Scene;
+struct SceneHit;
 
 struct BdptCounters {
     uint64_t camera_rays = 0;
@@ -109,8 +110,13 @@ public:
     /// over the whole image, subpaths have exactly t and s vertices (no Russian
     /// roulette). Returns the MIS-weighted contribution and its raster position:
     /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
+    /// `first_hit`, if given, is what the camera ray for the film position hits first
+    /// (Scene::intersect's answer for Camera::generate_ray(p_raster); coherent MLT traces
+    /// the camera rays of a bundle as one packet): that ray is then not traced again.
+    /// Ignored with a thin lens (the lens sample moves the ray) and for t = 1.
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
-                               BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const;
+                               BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c,
+                               const SceneHit* first_hit = nullptr) const;
     /// Number of strategies for a depth (depth + 2, except depth 0: only (0, 2)).
     static int strategy_count(int depth) { return depth == 0 ? 1 : depth + 2; }
     /// Pick (s, t) uniformly for `depth` with u in [0, 1); returns its probability.
@@ -130,9 +136,12 @@ public:
                                         int t, const PathVertex& sampled,
                                         float* weight_here) const;
 
-    /// Subpath generation (exposed for tests): number of vertices made.
+    /// Subpath generation (exposed for tests): number of vertices made. `first_hit`: the
+    /// precomputed first intersection of the camera ray (see evaluate_strategy; ignored
+    /// with a thin lens).
     int generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler, int max_vertices,
-                                bool roulette, PathVertex* path, BdptCounters& c) const;
+                                bool roulette, PathVertex* path, BdptCounters& c,
+                                const SceneHit* first_hit = nullptr) const;
     int generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
                                PathVertex* path, BdptCounters& c) const;
     /// Connect; unweighted if `mis` is false. For t = 1 sets *p_raster; `sampled` gets
@@ -146,7 +155,7 @@ public:
 private:
     int random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
                     int max_vertices, bool importance, bool roulette, PathVertex* path, int start,
-                    BdptCounters& c) const;
+                    BdptCounters& c, const SceneHit* first_hit = nullptr) const;
     /// MIS weight of strategy (s, t); `pt_override` replaces camera[t - 1] (s = 0 on an
     /// escaped vertex: one infinite light at a time).
     float mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,

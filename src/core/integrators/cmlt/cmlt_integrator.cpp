@@ -3,6 +3,7 @@
 #include "integrators/cmlt/cmlt_integrator.h"
 
 #include "cameras/camera.h"
+#include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/cmlt/cmlt_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
@@ -81,7 +82,12 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     const uint64_t pixels = uint64_t(W) * uint64_t(H);
     Camera camera(scene.camera_desc(), W, H);
     PathTracer pt(scene, settings.max_depth);
-    const mlt::PssmltTracer tracer(pt, camera, W, H);
+    BdptTracer bdpt(scene, camera, W, H, settings.max_depth);
+    // path sampler: multiplexed BDPT (default; t = 1 paths take the caustic perturbation)
+    // or the path tracer (every path takes the lens perturbation)
+    const mlt::PssmltTracer tracer = settings.mlt_path_sampler == "bdpt"
+                                         ? mlt::PssmltTracer(bdpt, camera, W, H)
+                                         : mlt::PssmltTracer(pt, camera, W, H);
     const uint64_t seed = settings.seed;
     const size_t k = size_t(settings.tries);
     const int m = settings.inner_length;
@@ -290,6 +296,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     ms.tries = settings.tries;
     ms.inner_length = settings.inner_length;
     ms.inner = settings.inner;
+    ms.path_sampler = settings.mlt_path_sampler;
     ms.packets = settings.packets;
     ms.packet_width = settings.packets ? max_width : 1;
     ms.packet_queries = counters.packets.load();

@@ -36,9 +36,11 @@
 /// technique is light tracing (t = 1, the camera vertex connected directly), else lens.
 /// The technique (s, t) is part of the state but read from dimensions the lens and
 /// caustic perturbations never touch, so every candidate has the same technique as x and
-/// the state-dependent choice keeps detailed balance. As long as PssmltTracer samples
-/// paths with the path tracer (camera side only; its PathSample has no technique), every
-/// path takes the lens perturbation.
+/// the state-dependent choice keeps detailed balance. With the bdpt path sampler (the
+/// default, RenderSettings::mlt_path_sampler) light-traced paths — in particular the
+/// (L|D) S+ D E caustics seen through the t = 1 connection — take the caustic
+/// perturbation; with the pt sampler (technique t = -1) every path takes the lens
+/// perturbation.
 ///
 /// Coherence. A bundle's k candidates are k wrapped-Gaussian offsets of one point (mtm:
 /// x; bundle: the bundle centre c, itself drawn around x) — Box–Muller Gaussians from
