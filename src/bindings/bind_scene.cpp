@@ -205,7 +205,9 @@ uint32_t add_texture(Scene& s, nb::handle image, const std::string& wrap_s,
 
 uint32_t add_light(Scene& s, const std::string& kind, nb::handle transform,
                    const std::array<float, 3>& radiance, float width, float height, float radius,
-                   float length, float angle, bool treat_as_point, int32_t texture_id) {
+                   float length, float angle, bool treat_as_point, int32_t texture_id,
+                   float cone_angle, float cone_softness, float focus,
+                   const std::array<float, 3>& focus_tint) {
     LightDesc d;
     if (kind == "rect") d.kind = LightDesc::Kind::rect;
     else if (kind == "disk") d.kind = LightDesc::Kind::disk;
@@ -225,6 +227,10 @@ uint32_t add_light(Scene& s, const std::string& kind, nb::handle transform,
     d.angle = angle;
     d.treat_as_point = treat_as_point;
     d.texture_id = texture_id;
+    d.cone_angle = cone_angle;
+    d.cone_softness = cone_softness;
+    d.focus = focus;
+    d.focus_tint = Spectrum(focus_tint[0], focus_tint[1], focus_tint[2]);
     return s.add_light(d);
 }
 
@@ -310,9 +316,14 @@ void bind_scene(nb::module_& m) {
         .def("clear_lights", &Scene::clear_lights)
         .def("add_light", &add_light, "kind"_a, "transform"_a, "radiance"_a, "width"_a = 1.0f,
              "height"_a = 1.0f, "radius"_a = 0.5f, "length"_a = 1.0f, "angle"_a = 0.53f,
-             "treat_as_point"_a = false, "texture_id"_a = -1,
-             "Add a UsdLux light: kind rect|disk|sphere|distant|dome (cylinder: not supported "
-             "yet). radiance = intensity * 2^exposure * color (/ area if normalize).\n"
+             "treat_as_point"_a = false, "texture_id"_a = -1, "cone_angle"_a = 180.0f,
+             "cone_softness"_a = 0.0f, "focus"_a = 0.0f,
+             "focus_tint"_a = std::array<float, 3>{0.f, 0.f, 0.f},
+             "Add a UsdLux light: kind rect|disk|sphere|distant|dome|cylinder (cylinder: the\n"
+             "side along local X emits outward; treat_as_point = treatAsLine is ignored).\n"
+             "radiance = intensity * 2^exposure * color (/ area if normalize).\n"
+             "cone_angle (degrees, half-angle about -Z), cone_softness, focus, focus_tint:\n"
+             "UsdLux ShapingAPI for rect, disk, sphere, cylinder (lights/shaping.h).\n"
              "texture_id (add_texture, registered before): dome = lat-long HDR environment\n"
              "(UsdLux/OpenEXR latlong, +Y pole, importance sampled), rect = inputs:texture:file;\n"
              "the radiance is multiplied by the texture's rgb.")

@@ -120,6 +120,13 @@ class Light:
     treat_as_point: bool = False                # sphere treatAsPoint; cylinder treatAsLine
     texture: Optional[str] = None               # rect / dome texture file (resolved path)
     normalize: bool = False
+    # UsdLux ShapingAPI (rect, disk, sphere, cylinder): cone half-angle about the
+    # light's -Z in degrees (180: none), cone softness in [0, 1], focus exponent and
+    # focus tint (rendering-space RGB). Formula: src/core/lights/shaping.h.
+    cone_angle: float = 180.0
+    cone_softness: float = 0.0
+    focus: float = 0.0
+    focus_tint: Tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass

@@ -386,7 +386,12 @@ class SceneBridge:
                             width=float(light.width), height=float(light.height),
                             radius=float(light.radius), length=float(light.length),
                             angle=float(light.angle), treat_as_point=bool(light.treat_as_point),
-                            texture_id=self._light_texture(light))
+                            texture_id=self._light_texture(light),
+                            cone_angle=float(getattr(light, "cone_angle", 180.0)),
+                            cone_softness=float(getattr(light, "cone_softness", 0.0)),
+                            focus=float(getattr(light, "focus", 0.0)),
+                            focus_tint=tuple(float(c) for c in
+                                             getattr(light, "focus_tint", (0.0, 0.0, 0.0))))
         cam = fs.camera
         if cam is None:
             raise BridgeError(f"time {fs.time:g}: the frame has no camera")

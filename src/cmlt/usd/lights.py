@@ -157,6 +157,21 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
         area = 2.0 * math.pi * (1.0 - math.cos(half))        # solid angle of the cone
     elif kind == "dome":
         light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
+    if kind in ("rect", "disk", "sphere", "cylinder"):
+        light.cone_angle = num("shaping:cone:angle", 180.0)
+        light.cone_softness = num("shaping:cone:softness", 0.0)
+        light.focus = num("shaping:focus", 0.0)
+        tint = light_input(prim, "shaping:focusTint", (0.0, 0.0, 0.0), time)
+        try:
+            tint = tuple(float(c) for c in tint)
+        except (TypeError, ValueError):
+            tint = (0.0, 0.0, 0.0)
+        if len(tint) == 3 and all(math.isfinite(c) for c in tint):
+            light.focus_tint = tint
+        ies = prim.GetAttribute("inputs:shaping:ies:file")
+        if ies and ies.HasAuthoredValue() and ies.Get(time):
+            warnings.append(f"{path}: inputs:shaping:ies:file (IES profile) is not "
+                            f"supported; ignored")
     if normalize and area is not None:
         if area > 0:
             radiance = radiance / area

@@ -12,6 +12,10 @@ namespace cmlt {
 PlanarLight::PlanarLight(const LightDesc& desc, const char* what)
     : m_xf(desc.transform, what), m_radiance(desc.radiance) {
     m_n_emit = normalize(m_xf.normal.transform_normal(Vec3(0.f, 0.f, -1.f)));
+    Vec3 zneg = m_xf.m.transform_vector(Vec3(0.f, 0.f, -1.f));
+    float lz = length(zneg);
+    m_shaping = Shaping(lz > 0.f ? zneg / lz : m_n_emit, desc.cone_angle, desc.cone_softness,
+                        desc.focus, desc.focus_tint);
     m_is_analytic_area = true;
 }
 
@@ -30,7 +34,7 @@ LightSample PlanarLight::sample_li(const Vec3& p, const Vec2& u) const {
     s.pdf = dist2 / (cos_l * m_area);
     if (!std::isfinite(s.pdf)) return LightSample();
     s.wi = wi;
-    s.li = radiance_at(l.x, l.y);
+    s.li = radiance_at(l.x, l.y) * m_shaping.eval(-wi);
     s.dist = dist;
     s.p_light = q;
     return s;
@@ -46,7 +50,7 @@ bool PlanarLight::intersect(const Ray& ray, float* t, Spectrum* le) const {
     if (!(th > ray.tnear && th < ray.tfar)) return false;
     if (!inside(o.x + th * d.x, o.y + th * d.y)) return false;
     *t = th;
-    *le = radiance_at(o.x + th * d.x, o.y + th * d.y);
+    *le = radiance_at(o.x + th * d.x, o.y + th * d.y) * m_shaping.eval(-normalize(ray.d));
     return true;
 }
 
@@ -60,7 +64,9 @@ float PlanarLight::pdf_li(const Vec3& p, const Vec3& wi) const {
     return std::isfinite(pdf) ? pdf : 0.f;
 }
 
-float PlanarLight::power() const { return k_pi * m_area * luminance(m_radiance); }
+float PlanarLight::power() const {
+    return k_pi * m_area * luminance(m_radiance) * m_shaping.power_factor(true);
+}
 
 Spectrum PlanarLight::radiance_at(float x, float y) const {
     if (!m_tex) return m_radiance;
@@ -89,7 +95,7 @@ float RectLight::power() const {
     if (!m_tex) return PlanarLight::power();
     Vec3 c = m_tex->mean().xyz();
     Spectrum m(std::max(0.f, c.x), std::max(0.f, c.y), std::max(0.f, c.z));
-    return k_pi * m_area * luminance(m * m_radiance);
+    return k_pi * m_area * luminance(m * m_radiance) * m_shaping.power_factor(true);
 }
 
 bool RectLight::inside(float x, float y) const {

@@ -6,6 +6,7 @@
 /// the texture's min coordinates at (+X, +Y) and its max at (-X, -Y), so the image reads
 /// the right way round seen from the emitting (-Z) side. Sampling stays uniform by area.
 #include "lights/light.h"
+#include "lights/shaping.h"
 
 namespace cmlt {
 
@@ -36,6 +37,7 @@ protected:
     float m_area = 0.f;
     const Texture* m_tex = nullptr;  ///< rect only
     float m_inv_w = 0.f, m_inv_h = 0.f;
+    Shaping m_shaping;  ///< UsdLux ShapingAPI (lights/shaping.h)
 };
 
 class RectLight final : public PlanarLight {

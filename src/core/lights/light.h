@@ -42,7 +42,10 @@ struct LightLeSample {
     float pdf_pos = 0.f;     ///< area density of p (1 for a point light: Dirac position)
     float pdf_dir = 0.f;     ///< solid-angle density of d given p
     float error_scale = 0.f; ///< for offsetting rays leaving p
-    bool valid() const { return pdf_pos > 0.f && pdf_dir > 0.f && !is_black(le); }
+    /// Positive densities. `le` may be black (a shaped light outside its cone, a black
+    /// texel): the light subpath must still start, or BDPT would lose its s = 1
+    /// strategy (which resamples the light with sample_li) for that sample -- a bias.
+    bool valid() const { return pdf_pos > 0.f && pdf_dir > 0.f; }
 };
 
 /// Parameters of an analytic light as given by Python (see cmlt/scene.py `Light`).
@@ -54,6 +57,11 @@ struct LightDesc {
     float width = 1.f, height = 1.f, radius = 0.5f, length = 1.f;
     float angle = 0.53f;       ///< distant: angular diameter, degrees
     bool treat_as_point = false;
+    /// UsdLux ShapingAPI (rect, disk, sphere, cylinder; lights/shaping.h): cone half-angle
+    /// about local -Z in degrees (180: none), cone softness in [0, 1], focus exponent
+    /// (0: none) and focus tint.
+    float cone_angle = 180.f, cone_softness = 0.f, focus = 0.f;
+    Spectrum focus_tint{0.f};
     /// Texture id (Scene::add_texture) or -1: dome (lat-long, lights/dome_light.h) and
     /// rect (lights/area_lights.h) multiply their radiance by it.
     int32_t texture_id = -1;
@@ -97,7 +105,7 @@ public:
 
     bool is_delta() const { return m_is_delta; }
     bool is_infinite() const { return m_is_infinite; }
-    /// Finite analytic emitter tested by `intersect` (rect, disk, sphere).
+    /// Finite analytic emitter tested by `intersect` (rect, disk, sphere, cylinder).
     bool is_analytic_area() const { return m_is_analytic_area; }
 
 protected:

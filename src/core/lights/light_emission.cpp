@@ -30,7 +30,7 @@ LightLeSample PlanarLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) const
     s.d = normalize(Frame(m_n_emit).to_world(local));
     s.pdf_pos = 1.f / m_area;
     s.pdf_dir = local.z * k_inv_pi;
-    s.le = radiance_at(l.x, l.y);
+    s.le = radiance_at(l.x, l.y) * m_shaping.eval(s.d);
     s.error_scale = point_error_scale(s.p);
     if (!(s.pdf_dir > 0.f) || !std::isfinite(s.pdf_pos)) return LightLeSample();
     return s;
@@ -54,7 +54,7 @@ LightLeSample SphereLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) const
         s.d = square_to_uniform_sphere(u_dir);
         s.pdf_pos = 1.f;
         s.pdf_dir = k_inv_4pi;
-        s.le = m_radiance * (k_pi * m_radius * m_radius);  // intensity
+        s.le = m_radiance * m_shaping.eval(s.d) * (k_pi * m_radius * m_radius);  // intensity
         s.error_scale = point_error_scale(s.p);
         return s;
     }
@@ -65,7 +65,7 @@ LightLeSample SphereLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) const
     s.d = normalize(Frame(n).to_world(local));
     s.pdf_pos = 1.f / (4.f * k_pi * m_radius * m_radius);
     s.pdf_dir = local.z * k_inv_pi;
-    s.le = m_radiance;
+    s.le = m_radiance * m_shaping.eval(s.d);
     s.error_scale = point_error_scale(s.p) + m_radius;
     if (!(s.pdf_dir > 0.f) || !std::isfinite(s.pdf_pos)) return LightLeSample();
     return s;

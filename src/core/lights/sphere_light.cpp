@@ -16,6 +16,10 @@ SphereLight::SphereLight(const LightDesc& desc) : m_radiance(desc.radiance) {
     m_point = desc.treat_as_point;
     m_is_delta = m_point;
     m_is_analytic_area = !m_point;
+    Vec3 zneg = xf.m.transform_vector(Vec3(0.f, 0.f, -1.f));
+    float lz = length(zneg);
+    m_shaping = Shaping(lz > 0.f ? zneg / lz : Vec3(0.f, 0.f, -1.f), desc.cone_angle,
+                        desc.cone_softness, desc.focus, desc.focus_tint);
 }
 
 bool SphereLight::hit_sphere(const Vec3& o, const Vec3& d, float* t) const {
@@ -42,7 +46,7 @@ LightSample SphereLight::sample_li(const Vec3& p, const Vec2& u) const {
     if (m_point) {
         if (!(dist_c > 0.f)) return s;
         s.wi = to_c / dist_c;
-        s.li = m_radiance * (k_pi * m_radius * m_radius / (dist_c * dist_c));
+        s.li = m_radiance * m_shaping.eval(-s.wi) * (k_pi * m_radius * m_radius / (dist_c * dist_c));
         s.pdf = 1.f;
         s.is_delta = true;
         s.dist = dist_c;
@@ -61,7 +65,7 @@ LightSample SphereLight::sample_li(const Vec3& p, const Vec2& u) const {
         t = dist_c * std::max(0.f, dot(wi, to_c / dist_c));
     }
     s.wi = wi;
-    s.li = m_radiance;
+    s.li = m_radiance * m_shaping.eval(-wi);
     s.pdf = 1.f / (2.f * k_pi * omc);
     s.dist = t;
     s.p_light = p + wi * t;
@@ -84,14 +88,14 @@ bool SphereLight::intersect(const Ray& ray, float* t, Spectrum* le) const {
     if (!hit_sphere(ray.o, ray.d, &th)) return false;
     if (!(th > ray.tnear && th < ray.tfar)) return false;
     *t = th;
-    *le = m_radiance;
+    *le = m_radiance * m_shaping.eval(-normalize(ray.d));
     return true;
 }
 
 float SphereLight::power() const {
     float area = 4.f * k_pi * m_radius * m_radius;
     // Point: 4 pi I with I = L pi r^2 -- the same as the sphere's pi * area * L.
-    return k_pi * area * luminance(m_radiance);
+    return k_pi * area * luminance(m_radiance) * m_shaping.power_factor(false);
 }
 
 }  // namespace cmlt

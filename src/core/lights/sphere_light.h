@@ -4,6 +4,7 @@
 /// intensity of the sphere seen from afar). Emits outward only; from inside it is dark.
 /// Non-uniform scale is approximated by the radius times cbrt(|det|).
 #include "lights/light.h"
+#include "lights/shaping.h"
 
 namespace cmlt {
 
@@ -24,6 +25,7 @@ private:
     float m_radius = 0.f;
     Spectrum m_radiance;
     bool m_point = false;
+    Shaping m_shaping;  ///< UsdLux ShapingAPI (lights/shaping.h)
 };
 
 }  // namespace cmlt

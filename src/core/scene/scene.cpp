@@ -1,6 +1,7 @@
 #include "scene/scene.h"
 
 #include "lights/area_lights.h"
+#include "lights/cylinder_light.h"
 #include "lights/infinite_lights.h"
 #include "lights/sphere_light.h"
 #include "util/error.h"
@@ -200,8 +201,7 @@ uint32_t Scene::add_light(const LightDesc& desc) {
         case LightDesc::Kind::sphere: light.reset(new SphereLight(desc)); break;
         case LightDesc::Kind::distant: light.reset(new DistantLight(desc)); break;
         case LightDesc::Kind::dome: light.reset(new DomeLight(desc)); break;
-        case LightDesc::Kind::cylinder:
-            throw SettingsError("add_light: kind 'cylinder' is not supported yet");
+        case LightDesc::Kind::cylinder: light.reset(new CylinderLight(desc)); break;
     }
     m_analytic.push_back(std::move(light));
     m_dirty = true;
