@@ -5,6 +5,10 @@
 #include "integrators/aov/aov_pass.h"
 #include "integrators/common/render.h"
 #include "integrators/mlt/chain_state.h"
+#include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/pixel_importance.h"
+#include "integrators/path/path_tracer.h"
+#include "scene/scene.h"
 #include "util/error.h"
 
 #include <nanobind/stl/shared_ptr.h>
@@ -20,6 +24,7 @@ namespace {
 
 struct PyRenderResult {
     nb::object image, variance;
+    nb::object direct;  ///< None unless an MLT render had a direct pass
     bool cancelled = false;
     nb::dict stats;
     std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt only, else None
@@ -101,6 +106,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     PyRenderResult out;
     out.image = to_numpy(std::move(res.image), res.height, res.width);
     out.variance = to_numpy(std::move(res.variance), res.height, res.width);
+    out.direct = res.direct.empty() ? nb::none() : to_numpy(std::move(res.direct), res.height, res.width);
     out.cancelled = res.cancelled;
     out.mlt_states = std::move(res.mlt_states);
     const RenderStats& st = res.stats;
@@ -111,6 +117,9 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     d["shadow_rays"] = st.shadow_rays;
     d["rays"] = st.rays;
     d["rays_per_s"] = st.rays_per_s;
+    d["busy_s"] = st.busy_s;
+    d["trace_s"] = st.trace_s;
+    d["shade_s"] = st.shade_s;
     d["nan_samples"] = st.nan_samples;
     if (st.nan_samples > 0) {
         d["first_nan_pixel"] = nb::make_tuple(st.first_nan_x, st.first_nan_y);
@@ -149,6 +158,13 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
             d["imported_chains"] = m.imported_chains;
         }
         d["clamped_splats"] = m.clamped_splats;
+        d["importance"] = m.importance;
+        d["pilot_evaluations"] = m.pilot_evaluations;
+        d["direct_evaluations"] = m.direct_evaluations;
+        d["min_depth"] = m.min_depth;
+        d["states_visited"] = m.states_visited;
+        d["top_occupancy"] = m.top_occupancy;
+        d["path_evaluations"] = m.path_evaluations;
         d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
         if (st.integrator == "cmlt") {
             d["path_sampler"] = m.path_sampler;
@@ -158,7 +174,6 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
             d["packets"] = m.packets;
             d["packet_width"] = m.packet_width;
             d["packet_queries"] = m.packet_queries;
-            d["path_evaluations"] = m.path_evaluations;
         }
     }
     out.stats = d;
@@ -199,6 +214,9 @@ void bind_render(nb::module_& m) {
         .def_rw("width", &RenderSettings::width, "image width, >= 1 (default 640)")
         .def_rw("height", &RenderSettings::height, "image height, >= 1 (default 480)")
         .def_rw("spp", &RenderSettings::spp, "samples per pixel, >= 1 (default 16)")
+        .def_rw("time_budget", &RenderSettings::time_budget,
+                "seconds, >= 0 (default 0 = none): the frame also stops when this much time has "
+                "passed (whichever of spp and time comes first)")
         .def_rw("max_depth", &RenderSettings::max_depth,
                 "max scattering events, >= 1; 1 = direct lighting (default 64)")
         .def_rw("seed", &RenderSettings::seed, "RNG seed, 0..2^64-1 (default 0)")
@@ -228,6 +246,36 @@ void bind_render(nb::module_& m) {
             nb::arg("value").none(),
             "pssmlt: MltStates to start the chains from (one chain per state) instead of "
             "resampling the bootstrap; None (default) = bootstrap")
+        .def_rw("mlt_importance", &RenderSettings::mlt_importance,
+                "pssmlt/cmlt importance: 'pixel' (default; f* = luminance / smoothed pilot "
+                "brightness of the pixel, chains cover the image about uniformly) or "
+                "'luminance' (f* = luminance)")
+        .def_rw("mlt_direct_spp", &RenderSettings::mlt_direct_spp,
+                "pssmlt/cmlt: path-traced samples per pixel of the direct pass (depths 0 and 1), "
+                "0..1024 (default 8; 0 = the chains render every depth); counted in the budget")
+        .def_rw("mlt_pilot_spp", &RenderSettings::mlt_pilot_spp,
+                "path-traced samples per pixel of the 'pixel' importance's pilot, 1..64 "
+                "(default 1; counted in the budget)")
+        .def_prop_rw(
+            "mlt_pilot",
+            [](const RenderSettings& s) -> nb::object {
+                if (!s.mlt_pilot) return nb::none();
+                std::vector<float> copy(*s.mlt_pilot);
+                return to_numpy(std::move(copy), s.height, s.width);
+            },
+            [](RenderSettings& s, nb::object v) {
+                if (v.is_none()) {
+                    s.mlt_pilot.reset();
+                    return;
+                }
+                auto a = nb::cast<nb::ndarray<const float, nb::c_contig, nb::device::cpu>>(v);
+                if (a.ndim() != 3 || a.shape(2) != 3)
+                    throw std::invalid_argument("RenderSettings.mlt_pilot: expected a float32 (H, W, 3) array");
+                s.mlt_pilot = std::make_shared<const std::vector<float>>(a.data(), a.data() + a.size());
+            },
+            nb::arg("value").none(),
+            "the pilot image (float32 (H, W, 3)) of the 'pixel' importance to use instead of "
+            "rendering one; None (default) = render it")
         .def_rw("tries", &RenderSettings::tries,
                 "cmlt: k, candidates per inner step, 1..64 (default 8)")
         .def_rw("inner_length", &RenderSettings::inner_length,
@@ -247,13 +295,17 @@ void bind_render(nb::module_& m) {
                    ", chains=" + std::to_string(s.chains) +
                    ", bootstrap_samples=" + std::to_string(s.bootstrap_samples) +
                    ", tries=" + std::to_string(s.tries) + ", inner_length=" + std::to_string(s.inner_length) +
-                   ", inner='" + s.inner + "', packets=" + (s.packets ? "True" : "False") + ")";
+                   ", inner='" + s.inner + "', mlt_importance='" + s.mlt_importance +
+                   "', packets=" + (s.packets ? "True" : "False") + ")";
         });
 
     nb::class_<PyRenderResult>(m, "RenderResult")
         .def_ro("image", &PyRenderResult::image, "float32 (H, W, 3), row 0 at the top")
         .def_ro("variance", &PyRenderResult::variance,
                 "float32 (H, W, 3), sample variance of each pixel's mean")
+        .def_ro("direct", &PyRenderResult::direct,
+                "pssmlt/cmlt with a direct pass: its float32 (H, W, 3) image, already part of "
+                "`image`; None otherwise")
         .def_ro("cancelled", &PyRenderResult::cancelled)
         .def_ro("stats", &PyRenderResult::stats)
         .def_ro("mlt_states", &PyRenderResult::mlt_states,
@@ -262,6 +314,40 @@ void bind_render(nb::module_& m) {
     m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
           "Render one frame. progress(done, total) is called between chunks of samples per "
           "pixel on the calling thread; returning False cancels.");
+    m.def(
+        "mlt_pilot",
+        [](Scene& scene, const RenderSettings& settings) {
+            settings.validate();
+            if (!scene.has_camera()) throw SceneError("mlt_pilot: the scene has no camera (call set_camera)");
+            if (scene.dirty()) scene.commit();
+            std::vector<float> img;
+            {
+                nb::gil_scoped_release release;
+                PathCounters c;
+                img = mlt::render_pilot(scene, settings, mlt::MltContext::pilot_spp(settings), c);
+            }
+            return to_numpy(std::move(img), settings.height, settings.width);
+        },
+        "scene"_a, "settings"_a,
+        "The pilot image of the 'pixel' MLT importance (float32 (H, W, 3)): "
+        "settings.mlt_pilot_spp (at most spp/8) path-traced samples per pixel in a stream of their own. "
+        "Set it as settings.mlt_pilot to share one pilot between a render and its "
+        "carry-over evaluations.");
+    m.def(
+        "mlt_importance_map",
+        [](nb::ndarray<const float, nb::c_contig, nb::device::cpu> pilot) {
+            if (pilot.ndim() != 3 || pilot.shape(2) != 3)
+                throw std::invalid_argument("mlt_importance_map: expected a float32 (H, W, 3) pilot");
+            const int h = int(pilot.shape(0)), w = int(pilot.shape(1));
+            const std::vector<float> v(pilot.data(), pilot.data() + pilot.size());
+            mlt::PixelImportance imp(v, w, h);
+            std::vector<float> p = imp.importance();
+            if (p.empty()) p.assign(size_t(w) * size_t(h), 1.f);
+            return to_numpy_2d(std::move(p), h, w);
+        },
+        "pilot"_a,
+        "P per pixel (float32 (H, W)) of the 'pixel' importance built from a pilot image: "
+        "f* = luminance / P (all ones for a black pilot: the luminance target).");
     m.def("render_aovs", &render_aovs_py, "scene"_a, "settings"_a, "samples"_a = 4,
           "Integrator-independent AOV pass (first hits of `samples` jittered camera rays per "
           "pixel; uses settings.width/height/seed/threads). Returns {'albedo': (H, W, 3) mean "

@@ -121,12 +121,17 @@ TEST(Pssmlt, BudgetAndStats) {
     mixed_scene(s);
     RenderSettings st = mlt_settings(32, 24, 16);
     st.large_step_probability = 0.25;
+    st.mlt_direct_spp = 3;  // pilot 1 spp + direct 3 spp of the 16
     RenderResult r = render(s, st);
     const MltStats& m = r.stats.mlt;
     ASSERT_TRUE(m.enabled);
-    const uint64_t budget = 32 * 24 * 16;
+    const uint64_t pixels = 32 * 24, budget = pixels * (16 - 1 - 3);
+    EXPECT_EQ(m.pilot_evaluations, pixels);
+    EXPECT_EQ(m.direct_evaluations, 3 * pixels);
+    EXPECT_EQ(m.min_depth, 2);
     EXPECT_EQ(m.bootstrap_samples, 4096u);
     EXPECT_EQ(m.mutations, budget - 4096u);
+    EXPECT_EQ(m.path_evaluations, 16 * pixels);
     EXPECT_EQ(m.chains, 64u);
     EXPECT_EQ(m.small_steps + m.large_steps, m.mutations);
     // large steps are drawn with probability 0.25: 5 binomial sd
@@ -145,6 +150,22 @@ TEST(Pssmlt, BudgetAndStats) {
     EXPECT_EQ(r2.stats.mlt.bootstrap_samples, budget / 2);
     EXPECT_EQ(r2.stats.mlt.mutations, budget - budget / 2);
     EXPECT_NE(m.kernel_stats_json.find("\"small_step\""), std::string::npos);
+    // the direct pass is at most spp/4, the pilot at most spp/8 (a small budget stays the
+    // chains'); the luminance target needs no pilot; no direct pass: chains do every depth
+    st.bootstrap_samples = 4096;
+    st.spp = 8;
+    st.mlt_direct_spp = 16;
+    RenderResult r3 = render(s, st);
+    EXPECT_EQ(r3.stats.mlt.direct_evaluations, 2 * pixels);
+    EXPECT_EQ(r3.stats.mlt.pilot_evaluations, pixels);
+    st.mlt_importance = "luminance";
+    st.mlt_direct_spp = 0;
+    RenderResult r4 = render(s, st);
+    EXPECT_EQ(r4.stats.mlt.pilot_evaluations, 0u);
+    EXPECT_EQ(r4.stats.mlt.direct_evaluations, 0u);
+    EXPECT_EQ(r4.stats.mlt.min_depth, 0);
+    EXPECT_EQ(r4.stats.mlt.bootstrap_samples, 8 * pixels / 2);  // capped at half
+    EXPECT_EQ(r4.stats.mlt.mutations, 8 * pixels - 8 * pixels / 2);
 }
 
 TEST(Pssmlt, FurnaceMeanIsBWithinItsStandardError) {
@@ -155,6 +176,8 @@ TEST(Pssmlt, FurnaceMeanIsBWithinItsStandardError) {
     furnace_scene(s, 0.5f, 1.f);
     RenderSettings st = mlt_settings(16, 16, 64);
     st.bootstrap_samples = 8192;
+    st.mlt_importance = "luminance";  // the image mean is b only for f* = luminance and
+    st.mlt_direct_spp = 0;            // chains that render every depth
     RenderResult r = render(s, st);
     const MltStats& m = r.stats.mlt;
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(channel_mean(r, c), m.b, 1e-4 * m.b);
@@ -171,6 +194,7 @@ TEST(Pssmlt, MostlyBlackSceneHasNoStuckChainAndNoNaN) {
     slit_scene(s);
     RenderSettings st = mlt_settings(32, 32, 64, 3);
     st.chains = 32;  // ~1900 mutations per chain
+    st.mlt_direct_spp = 0;  // the chains render the directly lit strip too
     RenderResult r = render(s, st);
     const MltStats& m = r.stats.mlt;
     EXPECT_TRUE(all_finite(r));

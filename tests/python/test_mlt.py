@@ -138,7 +138,11 @@ def test_02_stats_and_finite(mlt_runs):
         assert np.isfinite(img).all() and (img >= 0).all()
         assert st["integrator"] == "pssmlt" and st["nan_samples"] == 0
         assert st["chains"] == 128 and st["bootstrap_samples"] == 16384
-        assert st["mutations"] == RES * RES * MPP - 16384
+        # budget: pilot 1 spp + direct pass 8 spp (depths 0, 1) + bootstrap + chains
+        assert st["importance"] == "pixel" and st["min_depth"] == 2
+        assert st["pilot_evaluations"] == RES * RES and st["direct_evaluations"] == 8 * RES * RES
+        assert st["mutations"] == RES * RES * (MPP - 9) - 16384
+        assert st["path_evaluations"] == RES * RES * MPP
         assert 0 < st["acceptance"]["large_step"] < st["acceptance"]["small_step"] < 1
         assert st["max_rejection_streak"] < 500
         assert st["b_stderr"] < st["b_bootstrap_stderr"]
@@ -185,13 +189,16 @@ def test_04_pixel_blocks_within_confidence_intervals(mlt_runs, reference):
     assert (z_wrong > t).mean() > 0.5, (z_wrong > t).mean()
 
 
-def test_05_bootstrap_b_is_the_mean_of_f_star(mlt_runs, reference):
-    """b = E[f*] over primary sample space = the mean pixel luminance of the PT image."""
+def test_05_bootstrap_b_is_the_mean_of_f_star(scene, reference):
+    """With the luminance target and no direct pass, b = E[f*] over primary sample space
+    = the mean pixel luminance of the PT image."""
     ref, ref_var = reference
     n = ref.shape[0] * ref.shape[1]
     ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
     ref_se = math.sqrt(ref_var.reshape(-1, 3).sum(0) @ ACESCG_Y ** 2) / n
-    for _, st in mlt_runs[:4]:
+    for seed in range(4):
+        st = dict(core.render(scene, _settings("pssmlt", MPP, seed, chains=128, bootstrap_samples=16384,
+                                               mlt_importance="luminance", mlt_direct_spp=0)).stats)
         # 4.5 combined standard errors: false-alarm rate ~7e-6 per check
         assert abs(st["b_bootstrap"] - ref_y) < 4.5 * math.hypot(st["b_bootstrap_stderr"], ref_se)
         assert abs(st["b"] - ref_y) < 4.5 * math.hypot(st["b_stderr"], ref_se)
@@ -234,7 +241,8 @@ def test_08_cli_render_pssmlt(tmp_path):
     st = doc["stats"]
     assert st["integrator"] == "pssmlt" and st["chains"] == 16 and st["bootstrap_samples"] == 256
     assert st["large_step_probability"] == 0.4 and st["sigma"] == 0.02
-    assert st["mutations"] == 16 * 12 * 8 - 256
+    # 8 evaluations per pixel: pilot 1, direct pass min(8, 8 / 4) = 2, bootstrap 256
+    assert st["mutations"] == 16 * 12 * (8 - 1 - 2) - 256
     assert set(st["acceptance"]) == {"small_step", "large_step"}
     assert "max_rejection_streak" in st and st["b"] > 0
     assert main(["render", shot, "--out", str(out), "--integrator", "pssmlt",

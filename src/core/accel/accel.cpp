@@ -1,5 +1,7 @@
 #include "accel/accel.h"
 
+#include "util/cycle_clock.h"
+
 #include "accel/embree_device.h"
 #include "util/error.h"
 
@@ -176,6 +178,24 @@ void Accel::commit() {
     }
 }
 
+namespace {
+
+/// Ticks this thread spent inside BVH queries since the last take_trace_ticks().
+thread_local uint64_t t_trace_ticks = 0;
+
+struct TraceScope {
+    uint64_t start = cycle_now();
+    ~TraceScope() { t_trace_ticks += cycle_now() - start; }
+};
+
+}  // namespace
+
+uint64_t Accel::take_trace_ticks() {
+    const uint64_t t = t_trace_ticks;
+    t_trace_ticks = 0;
+    return t;
+}
+
 static void fill_ray(RTCRay& r, const Ray& ray) {
     r.org_x = ray.o.x; r.org_y = ray.o.y; r.org_z = ray.o.z;
     r.dir_x = ray.d.x; r.dir_y = ray.d.y; r.dir_z = ray.d.z;
@@ -188,6 +208,7 @@ static void fill_ray(RTCRay& r, const Ray& ray) {
 }
 
 Hit Accel::intersect(const Ray& ray) const {
+    const TraceScope timer;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
@@ -207,6 +228,7 @@ Hit Accel::intersect(const Ray& ray) const {
 }
 
 bool Accel::occluded(const Ray& ray) const {
+    const TraceScope timer;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRay r;
@@ -270,6 +292,7 @@ void fill_ray_packet(RayN& p, const int* valid, const Ray* rays, int* mask) {
 
 void Accel::intersect_packet(int width, const int* valid, const Ray* rays, Hit* hits,
                              bool coherent) const {
+    const TraceScope timer;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -302,6 +325,7 @@ void Accel::intersect_packet(int width, const int* valid, const Ray* rays, Hit* 
 
 void Accel::occluded_packet(int width, const int* valid, const Ray* rays, bool* occluded,
                             bool coherent) const {
+    const TraceScope timer;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;

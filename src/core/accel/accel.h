@@ -69,6 +69,11 @@ public:
     void occluded_packet(int width, const int* valid, const Ray* rays, bool* occluded,
                          bool coherent = true) const;
 
+    /// Ticks (util/cycle_clock.h) the calling thread spent in the queries above since
+    /// the previous call; resets the thread's count. For the trace / shade split of
+    /// the render stats.
+    static uint64_t take_trace_ticks();
+
     /// Largest packet width with native support in this Embree build on this CPU (4, 8 or 16).
     static int max_packet_width();
 

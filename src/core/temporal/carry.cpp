@@ -3,6 +3,7 @@
 
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/mlt/mlt_context.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/path/path_tracer_impl.h"
@@ -24,18 +25,13 @@ namespace {
 using mlt::MltSampler;
 using mlt::RngDomain;
 
-/// The path tracers of one frame, built as render_pssmlt builds them (same path sampler,
-/// same max depth, same resolution), so f* here is f* there.
+/// The path samplers of one frame, built as the renders build them (mlt_context.h), so
+/// f* here is f* there.
 struct Tracers {
-    Tracers(const Scene& scene, const RenderSettings& s)
-        : camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth),
-          bdpt(scene, camera, s.width, s.height, s.max_depth),
-          tracer(s.mlt_path_sampler == "bdpt" ? mlt::PssmltTracer(bdpt, camera, s.width, s.height)
-                                              : mlt::PssmltTracer(pt, camera, s.width, s.height)) {}
-    Camera camera;
-    PathTracer pt;
-    BdptTracer bdpt;
-    mlt::PssmltTracer tracer;
+    Tracers(const Scene& scene, const RenderSettings& s) : ctx(scene, s, pilot_counters), tracer(ctx.tracer) {}
+    PathCounters pilot_counters;
+    mlt::MltContext ctx;
+    const mlt::PssmltTracer& tracer;
 };
 
 /// A primary sample as a float the path routines would read (never 1: MltSampler's

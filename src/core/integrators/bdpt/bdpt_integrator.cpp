@@ -3,6 +3,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/common/frame_loop.h"
 #include "scene/scene.h"
 #include "util/fp_mode.h"
 
@@ -50,15 +51,14 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     std::vector<std::vector<BdptSplat>> tile_splats(tiles.size());
     tbb::enumerable_thread_specific<BdptWorkspace> workspaces;
 
-    const int spp = settings.spp;
-    const int chunk = std::max(1, (spp + 15) / 16);
-    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0}, splats{0},
-        bad_splats{0};
-    auto t0 = std::chrono::steady_clock::now();
+    FrameCounters counters;
+    const CycleRate rate;
+    const auto t0 = std::chrono::steady_clock::now();
+    const PassSchedule schedule(settings, t0);
     bool cancelled = false;
     int done = 0;
-    while (done < spp) {
-        const int s1 = std::min(spp, done + chunk);
+    while (const int n = schedule.next(done)) {
+        const int s1 = done + n;
         for (int pass = done; pass < s1; ++pass) {
             // Trace: one sample per pixel, splats kept per tile.
             arena.execute([&] {
@@ -66,6 +66,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
                     tbb::blocked_range<size_t>(0, tiles.size(), 1),
                     [&](const tbb::blocked_range<size_t>& r) {
                         ScopedFtzDaz ftz;
+                        const TaskTimer timer(counters);
                         BdptWorkspace& ws = workspaces.local();
                         BdptCounters c;
                         for (size_t ti = r.begin(); ti != r.end(); ++ti) {
@@ -90,12 +91,9 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
                                     }
                                 }
                         }
-                        camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
-                        shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
-                        rays.fetch_add(c.rays, std::memory_order_relaxed);
-                        samples.fetch_add(c.samples, std::memory_order_relaxed);
-                        splats.fetch_add(c.splats, std::memory_order_relaxed);
-                        bad_splats.fetch_add(c.bad_splats, std::memory_order_relaxed);
+                        counters.add(c);
+                        counters.splats.fetch_add(c.splats, std::memory_order_relaxed);
+                        counters.bad_splats.fetch_add(c.bad_splats, std::memory_order_relaxed);
                     },
                     tbb::simple_partitioner());
             });
@@ -126,12 +124,13 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
             });
         }
         done = s1;
-        if (progress && !progress(uint64_t(done), uint64_t(spp)) && done < spp) {
+        if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
+            schedule.next(done) > 0) {
             cancelled = true;
             break;
         }
     }
-    double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     RenderResult res;
     res.width = W;
@@ -141,14 +140,9 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     film.develop(res.image.data(), res.variance.data());
     res.cancelled = cancelled;
     RenderStats& st = res.stats;
-    st.time_s = secs;
-    st.samples = samples.load();
-    st.camera_rays = camera_rays.load();
-    st.shadow_rays = shadow_rays.load();
-    st.rays = rays.load();
-    st.splats = splats.load();
-    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
-    st.nan_samples = film.nan_samples() + bad_splats.load();
+    fill_frame_stats(st, counters, rate, secs);
+    st.splats = counters.splats.load();
+    st.nan_samples = film.nan_samples() + counters.bad_splats.load();
     int fx, fy;
     uint32_t fs;
     if (film.first_nan(&fx, &fy, &fs)) {
@@ -158,7 +152,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     }
     st.threads = threads;
     st.integrator = settings.integrator;
-    st.spp = spp;
+    st.spp = done;
     st.seed = settings.seed;
     return res;
 }

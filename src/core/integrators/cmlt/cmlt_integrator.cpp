@@ -5,6 +5,8 @@
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/cmlt/cmlt_state.h"
+#include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/mlt/splat_film.h"
@@ -37,20 +39,6 @@ using coherent::State;
 using coherent::StateKey;
 using mlt::RngDomain;
 
-constexpr int k_rounds = 16;  ///< progress / cancel granularity (slices of each chain's budget)
-
-struct AtomicCounters {
-    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0}, invalid{0}, packets{0};
-    void add(const PathCounters& c, uint64_t bad, uint64_t packet_queries = 0) {
-        camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
-        shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
-        rays.fetch_add(c.rays, std::memory_order_relaxed);
-        samples.fetch_add(c.samples, std::memory_order_relaxed);
-        invalid.fetch_add(bad, std::memory_order_relaxed);
-        packets.fetch_add(packet_queries, std::memory_order_relaxed);
-    }
-};
-
 mlt::InnerRule parse_rule(const std::string& name) {
     if (name == "seed") return mlt::InnerRule::seed;
     if (name == "mtm") return mlt::InnerRule::mtm;
@@ -72,7 +60,8 @@ struct ChainState {
     mlt::KernelStats stats;
     std::array<mlt::ChainStats, coherent::k_perturbation_count> perturbation{};
     mlt::NormalisationAccumulator large;
-    uint64_t streak = 0, max_streak = 0, invalid = 0;
+    mlt::StreakTracker streaks;
+    uint64_t invalid = 0;
 };
 
 }  // namespace
@@ -80,14 +69,21 @@ struct ChainState {
 RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
     const int W = settings.width, H = settings.height;
     const uint64_t pixels = uint64_t(W) * uint64_t(H);
-    Camera camera(scene.camera_desc(), W, H);
-    PathTracer pt(scene, settings.max_depth);
-    BdptTracer bdpt(scene, camera, W, H, settings.max_depth);
+    const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
+    tbb::task_arena arena(threads);
+    FrameCounters counters;
+    const CycleRate rate;
+    const auto t0 = std::chrono::steady_clock::now();
+
+    // 1. pilot (in the context) and direct pass
+    PathCounters pilot_counters;
+    const mlt::MltContext ctx(scene, settings, pilot_counters);
+    counters.add(pilot_counters);
     // path sampler: multiplexed BDPT (default; t = 1 paths take the caustic perturbation)
     // or the path tracer (every path takes the lens perturbation)
-    const mlt::PssmltTracer tracer = settings.mlt_path_sampler == "bdpt"
-                                         ? mlt::PssmltTracer(bdpt, camera, W, H)
-                                         : mlt::PssmltTracer(pt, camera, W, H);
+    const mlt::PssmltTracer& tracer = ctx.tracer;
+    const PtPassImage direct = mlt::render_direct(scene, settings, counters);
+
     const uint64_t seed = settings.seed;
     const size_t k = size_t(settings.tries);
     const int m = settings.inner_length;
@@ -96,21 +92,13 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     const double sigma_primary = settings.sigma;
     const int max_width = Accel::max_packet_width();
 
-    const uint64_t budget = uint64_t(settings.spp) * pixels;
-    const uint64_t n_boot =
-        std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.bootstrap_samples), budget / 2));
-    const uint64_t n_mut = budget - n_boot;
+    const mlt::FrameBudget budget = mlt::FrameBudget::plan(settings);
+    const uint64_t n_mut = budget.chains;
     // a chain's block (outer step + inner chain) costs about 1 + m·k evaluations: no more
     // chains than blocks fit in the budget
     const uint64_t block = 1 + uint64_t(m) * uint64_t(k);
-    const uint64_t n_chains =
-        std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.chains), n_mut / block));
-
-    const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
-    tbb::task_arena arena(threads);
-    AtomicCounters counters;
+    const uint64_t n_chains = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.chains), n_mut / block));
     mlt::SplatFilm film(W, H);
-    const auto t0 = std::chrono::steady_clock::now();
 
     auto make_target = [&](PathCounters* c, uint64_t* packet_queries) {
         coherent::Target f;
@@ -124,28 +112,21 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
         return f;
     };
 
-    // 1. bootstrap: the points of PSSMLT's bootstrap, keys (bootstrap, i, 1)
-    std::vector<double> boot_f(n_boot, 0.0);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_boot, 256), [&](const tbb::blocked_range<uint64_t>& r) {
-            ScopedFtzDaz ftz;
-            PathCounters c;
-            uint64_t bad = 0;
+    // 2. bootstrap: the points of PSSMLT's bootstrap, keys (bootstrap, i, 1)
+    const std::vector<double> boot_f =
+        mlt::run_bootstrap(arena, budget.bootstrap, counters, [&](uint64_t i, PathCounters& c, bool& invalid) {
             const coherent::Target f = make_target(&c, nullptr);
             State s;
-            for (uint64_t i = r.begin(); i != r.end(); ++i) {
-                s.key = StateKey{RngDomain::bootstrap, uint32_t(i), 1};
-                boot_f[i] = f(s);
-                bad += s.sample.invalid ? 1 : 0;
-            }
-            counters.add(c, bad);
+            s.key = StateKey{RngDomain::bootstrap, uint32_t(i), 1};
+            const double v = f(s);
+            invalid = s.sample.invalid;
+            return v;
         });
-    });
     mlt::NormalisationAccumulator boot_acc;
     for (double v : boot_f) boot_acc.add(v);
     const mlt::NormalisationEstimate b_boot = boot_acc.estimate();
 
-    // 2. chain starts: resample the pool ∝ f* (same numbers as pssmlt)
+    // 3. chain starts: resample the pool ∝ f* (same numbers as pssmlt)
     std::vector<std::unique_ptr<ChainState>> chains;
     if (b_boot.nonzero > 0 && n_mut > 0) {
         mlt::CounterRng rng(seed, RngDomain::resample, 0);
@@ -154,6 +135,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
                 ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
                 PathCounters c;
                 const coherent::Target f = make_target(&c, nullptr);
                 for (uint64_t ci = r.begin(); ci != r.end(); ++ci) {
@@ -165,23 +147,26 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                     chains[ci] = std::make_unique<ChainState>(seed, uint32_t(ci), k, std::move(x), fx);
                     chains[ci]->budget = n_mut / n_chains + (ci < n_mut % n_chains ? 1 : 0);
                 }
-                counters.add(c, 0);
+                counters.add(c);
             });
         });
     }
 
-    // 3. run the chains: outer large step, then m inner bundle steps
+    // 4. run the chains in rounds: outer large step, then m inner bundle steps
     bool cancelled = false;
-    for (int round = 0; round < k_rounds && !chains.empty(); ++round) {
+    ChainSchedule schedule(settings, t0, chains.size());
+    uint64_t evaluations = 0;
+    while (!chains.empty() && schedule.begin_round(evaluations)) {
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
                 ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
                 PathCounters c;
                 uint64_t packet_queries = 0;
                 const coherent::Target f = make_target(&c, &packet_queries);
                 for (size_t ci = r.begin(); ci != r.end(); ++ci) {
                     ChainState& st = *chains[ci];
-                    const uint64_t end = st.budget * uint64_t(round + 1) / k_rounds;
+                    const uint64_t end = schedule.round_end(st.budget, st.evaluations);
                     auto splat = [&](const State& s, double w) {
                         if (s.sample.f > 0.0) film.add(s.sample.pixel, s.sample.L, w / s.sample.f);
                     };
@@ -189,11 +174,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                         st.evaluations += res.evaluations;
                         ++st.steps;
                         st.stats.record(res);
-                        if (res.moved) {
-                            st.streak = 0;
-                        } else {
-                            st.max_streak = std::max(st.max_streak, ++st.streak);
-                        }
+                        st.streaks.record(res.moved);
                     };
                     while (st.evaluations < end) {
                         // outer: independent large step, key (chain, id, n)
@@ -223,26 +204,36 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                 counters.add(c, 0, packet_queries);
             });
         });
-        const uint64_t spp_done = uint64_t(settings.spp) * uint64_t(round + 1) / k_rounds;
-        if (progress && !progress(spp_done, uint64_t(settings.spp)) && round + 1 < k_rounds) {
+        schedule.end_round();
+        evaluations = 0;
+        bool all_done = true;
+        for (const auto& st : chains) {
+            evaluations += st->evaluations;
+            all_done = all_done && st->evaluations >= st->budget;
+        }
+        if (all_done) break;
+        if (progress && !progress(schedule.progress_done(), schedule.progress_total()) && !schedule.last_round()) {
             cancelled = true;
             break;
         }
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    // 4. normalisation and stats, merged in chain order
+    // 5. normalisation and stats, merged in chain order
     mlt::NormalisationAccumulator b_acc = boot_acc;
     mlt::KernelStats kstats;
+    mlt::StreakTracker streaks;
     std::array<mlt::ChainStats, coherent::k_perturbation_count> pstats{};
-    uint64_t steps = 0, evaluations = 0, max_streak = 0, invalid = 0;
+    uint64_t steps = 0, invalid = 0;
+    evaluations = 0;
     for (const auto& st : chains) {
+        st->streaks.end();
+        streaks.merge(st->streaks);
         b_acc.merge(st->large);
         kstats.merge(st->stats);
         for (size_t i = 0; i < pstats.size(); ++i) pstats[i].merge(st->perturbation[i]);
         steps += st->steps;
         evaluations += st->evaluations;
-        max_streak = std::max(max_streak, st->max_streak);
         invalid += st->invalid;
     }
     const mlt::NormalisationEstimate b = b_acc.estimate();
@@ -250,40 +241,22 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     RenderResult res;
     res.width = W;
     res.height = H;
-    res.image.assign(size_t(pixels) * 3, 0.f);
-    res.variance.assign(size_t(pixels) * 3, 0.f);
-    if (steps > 0) {
-        const double scale = b.mean * double(pixels) / double(steps);
-        for (size_t i = 0; i < pixels; ++i)
-            for (int c = 0; c < 3; ++c) res.image[3 * i + c] = float(scale * film.sum(i, c));
-    }
+    mlt::develop_image(res, film, b.mean, steps, direct);
     res.cancelled = cancelled;
 
     RenderStats& st = res.stats;
-    st.time_s = secs;
-    st.samples = counters.samples.load();
-    st.camera_rays = counters.camera_rays.load();
-    st.shadow_rays = counters.shadow_rays.load();
-    st.rays = counters.rays.load();
-    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    fill_frame_stats(st, counters, rate, secs);
     st.nan_samples = counters.invalid.load() + invalid;
     st.threads = threads;
     st.integrator = settings.integrator;
     st.spp = settings.spp;
     st.seed = settings.seed;
     MltStats& ms = st.mlt;
-    ms.enabled = true;
-    ms.b = b.mean;
-    ms.b_stderr = b.std_error;
-    ms.b_bootstrap = b_boot.mean;
-    ms.b_bootstrap_stderr = b_boot.std_error;
-    ms.bootstrap_samples = n_boot;
-    ms.bootstrap_nonzero = b_boot.nonzero;
+    mlt::fill_common_mlt_stats(ms, settings, budget, b, b_boot, streaks);
     ms.chains = chains.size();
     ms.mutations = steps;
     ms.mutations_per_pixel = double(steps) / double(pixels);
     ms.large_step_probability = 0.0;
-    ms.sigma = settings.sigma;
     const mlt::ChainStats& large = kstats[mlt::MutationKind::large_step];
     mlt::ChainStats inner;
     for (size_t i = 0; i < pstats.size(); ++i) inner.merge(pstats[i]);
@@ -291,16 +264,14 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     ms.large_steps = large.steps;
     ms.acceptance_small = inner.acceptance_rate();
     ms.acceptance_large = large.acceptance_rate();
-    ms.max_rejection_streak = max_streak;
     ms.clamped_splats = film.clamped();
     ms.tries = settings.tries;
     ms.inner_length = settings.inner_length;
     ms.inner = settings.inner;
-    ms.path_sampler = settings.mlt_path_sampler;
     ms.packets = settings.packets;
     ms.packet_width = settings.packets ? max_width : 1;
     ms.packet_queries = counters.packets.load();
-    ms.path_evaluations = evaluations + n_boot;
+    ms.path_evaluations = budget.pilot + budget.direct + budget.bootstrap + evaluations;
     // kernel stats by mutation name, then the perturbations (acceptance per type)
     std::ostringstream os;
     kstats.write_json(os);

@@ -4,6 +4,7 @@
 #include "film/film.h"
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
+#include "integrators/common/frame_loop.h"
 #include "integrators/mlt/pssmlt_integrator.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng.h"
@@ -53,61 +54,44 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
     tbb::task_arena arena(threads);
 
-    // Chunks of samples per pixel: at most ~16 progress calls per frame.
-    const int spp = settings.spp;
-    const int chunk = std::max(1, (spp + 15) / 16);
-
-    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0};
-    auto t0 = std::chrono::steady_clock::now();
+    // Chunks of samples per pixel: about 16 progress calls per frame (frame_loop.h).
+    FrameCounters counters;
+    const CycleRate rate;
+    const auto t0 = std::chrono::steady_clock::now();
+    const PassSchedule schedule(settings, t0);
     bool cancelled = false;
     int done = 0;
-    while (done < spp) {
-        const int s0 = done, s1 = std::min(spp, done + chunk);
+    while (const int n = schedule.next(done)) {
+        const int s0 = done, s1 = done + n;
         arena.execute([&] {
             tbb::parallel_for(
                 tbb::blocked_range<size_t>(0, tiles.size(), 1),
                 [&](const tbb::blocked_range<size_t>& r) {
                     ScopedFtzDaz ftz;
+                    const TaskTimer timer(counters);
                     PathCounters c;
                     for (size_t ti = r.begin(); ti != r.end(); ++ti) {
                         const Tile& tile = tiles[ti];
                         for (int y = tile.y0; y < tile.y1; ++y)
-                            for (int x = tile.x0; x < tile.x1; ++x) {
-                                uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
+                            for (int x = tile.x0; x < tile.x1; ++x)
                                 for (int s = s0; s < s1; ++s) {
-                                    PixelSampler sampler(settings.seed, pixel, uint32_t(s));
-                                    Vec2 u = sampler.get2d();
-                                    Ray ray = camera.generate_ray(Vec2(float(x) + u.x, float(y) + u.y));
-                                    if (camera.has_lens()) {  // thin lens: its own dimension
-                                        PixelSampler ls(settings.seed, pixel, uint32_t(s));
-                                        ls.set_dimension(k_lens_dimension);
-                                        ray = camera.generate_ray(
-                                            Vec2(float(x) + u.x, float(y) + u.y), ls.get2d());
-                                    }
-                                    if (motion_blur) {
-                                        PixelSampler ts(settings.seed, pixel, uint32_t(s));
-                                        ts.set_dimension(k_shutter_time_dimension);
-                                        ray.time = ts.get1d();
-                                    }
-                                    Spectrum L = tracer.li(ray, sampler, c);
+                                    const Spectrum L = tracer.pixel_sample(camera, motion_blur, settings.seed,
+                                                                           x, y, W, uint32_t(s), c);
                                     film.add_sample(x, y, uint32_t(s), L);
                                 }
-                            }
                     }
-                    camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
-                    shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
-                    rays.fetch_add(c.rays, std::memory_order_relaxed);
-                    samples.fetch_add(c.samples, std::memory_order_relaxed);
+                    counters.add(c);
                 },
                 tbb::simple_partitioner());
         });
         done = s1;
-        if (progress && !progress(uint64_t(done), uint64_t(spp)) && done < spp) {
+        if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
+            schedule.next(done) > 0) {
             cancelled = true;
             break;
         }
     }
-    double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     RenderResult res;
     res.width = W;
@@ -117,12 +101,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     film.develop(res.image.data(), res.variance.data());
     res.cancelled = cancelled;
     RenderStats& st = res.stats;
-    st.time_s = secs;
-    st.samples = samples.load();
-    st.camera_rays = camera_rays.load();
-    st.shadow_rays = shadow_rays.load();
-    st.rays = rays.load();
-    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    fill_frame_stats(st, counters, rate, secs);
     st.nan_samples = film.nan_samples();
     int fx, fy;
     uint32_t fs;
@@ -133,7 +112,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     }
     st.threads = threads;
     st.integrator = settings.integrator;
-    st.spp = spp;
+    st.spp = done;
     st.seed = settings.seed;
     return res;
 }

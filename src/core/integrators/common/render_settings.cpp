@@ -2,6 +2,8 @@
 
 #include "util/error.h"
 
+#include <cmath>
+
 namespace cmlt {
 
 void RenderSettings::validate() const {
@@ -11,6 +13,8 @@ void RenderSettings::validate() const {
         CMLT_THROW(SettingsError, "RenderSettings.width * height is too large (" << width << " x "
                                                                                << height << ")");
     if (spp < 1) CMLT_THROW(SettingsError, "RenderSettings.spp must be >= 1, got " << spp);
+    if (!(time_budget >= 0.0) || !std::isfinite(time_budget))
+        CMLT_THROW(SettingsError, "RenderSettings.time_budget must be >= 0 seconds, got " << time_budget);
     if (max_depth < 1)
         CMLT_THROW(SettingsError, "RenderSettings.max_depth must be >= 1, got " << max_depth);
     if (threads < 0) CMLT_THROW(SettingsError, "RenderSettings.threads must be >= 0, got " << threads);
@@ -27,6 +31,13 @@ void RenderSettings::validate() const {
     if (mlt_path_sampler != "pt" && mlt_path_sampler != "bdpt")
         CMLT_THROW(SettingsError, "RenderSettings.mlt_path_sampler: unknown path sampler '"
                                       << mlt_path_sampler << "' (available: 'bdpt', 'pt')");
+    if (mlt_importance != "pixel" && mlt_importance != "luminance")
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_importance: unknown importance '"
+                                      << mlt_importance << "' (available: 'pixel', 'luminance')");
+    if (mlt_pilot_spp < 1 || mlt_pilot_spp > 64)
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_pilot_spp must be in [1, 64], got " << mlt_pilot_spp);
+    if (mlt_direct_spp < 0 || mlt_direct_spp > 1024)
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_direct_spp must be in [0, 1024], got " << mlt_direct_spp);
     if (!(sigma > 0.0 && sigma <= 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.sigma must be in (0, 1], got " << sigma);
     if (!(large_step_probability >= 0.0 && large_step_probability <= 1.0))

@@ -17,6 +17,8 @@ struct RenderSettings {
     int width = 640;               ///< image width in pixels, >= 1
     int height = 480;              ///< image height in pixels, >= 1
     int spp = 16;                  ///< samples per pixel, >= 1
+    double time_budget = 0.0;      ///< seconds, >= 0; > 0: the frame also stops when this
+                                   ///< much time has passed (integrators/common/frame_loop.h)
     int max_depth = 64;            ///< max scattering events (pbrt): 1 = direct lighting, >= 1
     uint64_t seed = 0;             ///< RNG seed; same seed -> same image at any thread count
     int threads = 0;               ///< worker threads, 0 = all cores, >= 0
@@ -37,6 +39,22 @@ struct RenderSettings {
     /// pssmlt: start the chains from these states instead of resampling the bootstrap
     /// (one chain per state; integrators/mlt/chain_state.h). nullptr / empty: bootstrap.
     std::shared_ptr<const mlt::ChainStates> mlt_initial_states;
+    /// Importance function of the chains (integrators/mlt/pixel_importance.h): "pixel"
+    /// (f* = luminance / smoothed pilot brightness of the pixel: chains cover the image
+    /// about uniformly) or "luminance" (f* = luminance, classic MLT).
+    std::string mlt_importance = "pixel";
+    /// Path-traced samples per pixel of the pilot image of the "pixel" importance, [1, 64];
+    /// they count against the budget of path evaluations.
+    int mlt_pilot_spp = 1;
+    /// pssmlt/cmlt: path-traced samples per pixel of the direct pass, [0, 1024]. With
+    /// n > 0 paths of 0 and 1 scattering events (emitters seen directly, direct lighting)
+    /// are rendered by ordinary Monte Carlo (NEE + MIS, n samples per pixel, counted in
+    /// the budget) and the chains render depth >= 2 only; 0 = the chains render all.
+    int mlt_direct_spp = 8;
+    /// The pilot image (H, W, 3) to use instead of rendering one (the temporal driver
+    /// renders it once per frame for the render and its carry-over evaluations). Its
+    /// cost is counted as if rendered (mlt_pilot_spp · W·H evaluations).
+    std::shared_ptr<const std::vector<float>> mlt_pilot;
 
     // Coherent MLT (cmlt, DESIGN.md §3): after each outer large step, `inner_length`
     // inner steps of `tries` candidates each, drawn as one bundle by a lens / caustic
@@ -73,6 +91,14 @@ struct MltStats {
     std::string path_sampler;                        ///< pssmlt: "bdpt" | "pt"
     uint64_t imported_chains = 0;                    ///< chains started from given states
     uint64_t clamped_splats = 0;                     ///< splats beyond the film's range
+    uint64_t states_visited = 0;                     ///< distinct chain states (runs)
+    double top_occupancy = 0;                        ///< share of steps spent in the most-
+                                                     ///< occupied 0.1 % of the states
+    std::string importance;                          ///< "pixel" | "luminance"
+    uint64_t pilot_evaluations = 0;                  ///< budget spent on the pilot image
+    uint64_t direct_evaluations = 0;                 ///< budget spent on the direct pass
+    int min_depth = 0;                               ///< shortest path the chains render
+    double time_budget = 0;                          ///< seconds (0: none)
     std::string kernel_stats_json;                   ///< mlt::KernelStats::write_json (cmlt:
                                                      ///< + lens/caustic/pixel_move)
     // cmlt only
@@ -92,6 +118,10 @@ struct RenderStats {
     uint64_t rays = 0;          ///< every BVH query (camera + bounce + shadow)
     uint64_t splats = 0;        ///< bdpt: light-tracing (t = 1) contributions splatted
     double rays_per_s = 0;
+    /// CPU time summed over the worker threads: busy in the frame's parallel work, of it
+    /// inside BVH queries (tracing), and the rest (shading: BSDFs, lights, sampling, MIS,
+    /// splatting). Serial parts of the frame (setup, reductions) are in neither.
+    double busy_s = 0, trace_s = 0, shade_s = 0;
     uint64_t nan_samples = 0;   ///< non-finite samples dropped by the film
     int first_nan_x = -1, first_nan_y = -1;
     int64_t first_nan_sample = -1;
@@ -106,6 +136,9 @@ struct RenderResult {
     int width = 0, height = 0;
     std::vector<float> image;     ///< (H, W, 3), row 0 at the top
     std::vector<float> variance;  ///< (H, W, 3), sample variance of the pixel mean
+    /// pssmlt / cmlt with a direct pass: its image (H, W, 3), already part of `image`
+    /// (the rest is the chains', which the temporal driver rescales); else empty.
+    std::vector<float> direct;
     bool cancelled = false;
     RenderStats stats;
     /// pssmlt: the final state of every chain (integrators/mlt/chain_state.h).

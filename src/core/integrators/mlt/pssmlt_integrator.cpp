@@ -4,6 +4,8 @@
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/mlt/chain_state.h"
+#include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/mlt/splat_film.h"
@@ -31,23 +33,6 @@ namespace {
 using mlt::MltSampler;
 using mlt::PathSample;
 using mlt::RngDomain;
-
-/// Progress/cancel granularity: every chain advances by 1/k_rounds of its mutations.
-constexpr int k_rounds = 16;
-/// Rejection runs longer than this count as "stuck" in MltStats::long_streak_rejections.
-constexpr uint64_t k_long_streak = 1000;
-
-/// Ray counters summed over tasks (integer sums: order-independent).
-struct AtomicCounters {
-    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0}, invalid{0};
-    void add(const PathCounters& c, uint64_t bad) {
-        camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
-        shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
-        rays.fetch_add(c.rays, std::memory_order_relaxed);
-        samples.fetch_add(c.samples, std::memory_order_relaxed);
-        invalid.fetch_add(bad, std::memory_order_relaxed);
-    }
-};
 
 /// The proposal of metropolis_step: the sampler has begun an iteration (large or small);
 /// "sampling" the proposal is tracing the path its primary samples describe. Both
@@ -78,14 +63,9 @@ struct ChainRun {
     uint64_t budget = 0, done = 0;
     mlt::KernelStats stats;
     mlt::NormalisationAccumulator large;  ///< f* of the large-step proposals
-    uint64_t streak = 0, max_streak = 0, long_streak_rejections = 0;
+    mlt::StreakTracker streaks;
     uint64_t invalid = 0;
     uint64_t chain_id = 0;
-
-    void end_streak() {
-        if (streak > k_long_streak) long_streak_rejections += streak;
-        streak = 0;
-    }
 };
 
 /// The chain's current state as a ChainState (see chain_state.h).
@@ -111,12 +91,20 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                            const ProgressCallback& progress) {
     const int W = settings.width, H = settings.height;
     const uint64_t pixels = uint64_t(W) * uint64_t(H);
-    Camera camera(scene.camera_desc(), W, H);
     const bool use_bdpt = settings.mlt_path_sampler == "bdpt";
-    PathTracer pt(scene, settings.max_depth);
-    BdptTracer bdpt(scene, camera, W, H, settings.max_depth);
-    const mlt::PssmltTracer tracer = use_bdpt ? mlt::PssmltTracer(bdpt, camera, W, H)
-                                              : mlt::PssmltTracer(pt, camera, W, H);
+    const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
+    tbb::task_arena arena(threads);
+    FrameCounters counters;
+    const CycleRate rate;
+    const auto t0 = std::chrono::steady_clock::now();
+
+    // 1. pilot (in the context) and direct pass
+    PathCounters pilot_counters;
+    const mlt::MltContext ctx(scene, settings, pilot_counters);
+    counters.add(pilot_counters);
+    const mlt::PssmltTracer& tracer = ctx.tracer;
+    const PtPassImage direct = mlt::render_direct(scene, settings, counters);
+
     // multiplexed MLT: the technique samples change at large steps only (mlt_sampler.h)
     const auto make_sampler = [&](RngDomain domain, uint32_t id) {
         MltSampler smp(settings.seed, settings.sigma, settings.large_step_probability, domain, id);
@@ -132,51 +120,35 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                                       << initial->path_sampler << "' path sampler cannot start '"
                                       << settings.mlt_path_sampler << "' chains");
     const uint64_t seed = settings.seed;
-    const double sigma = settings.sigma, p_large = settings.large_step_probability;
-
-    // Budget: spp·W·H path evaluations, the bootstrap included (at most half of it).
-    const uint64_t budget = uint64_t(settings.spp) * pixels;
-    const uint64_t n_boot = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.bootstrap_samples), budget / 2));
-    const uint64_t n_mut = budget - n_boot;
-    const uint64_t n_chains =
-        initial ? std::min<uint64_t>(initial->chains.size(), n_mut)
-                : std::min<uint64_t>(uint64_t(settings.chains), n_mut);
-
-    const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
-    tbb::task_arena arena(threads);
-    AtomicCounters counters;
+    const mlt::FrameBudget budget = mlt::FrameBudget::plan(settings);
+    const uint64_t n_mut = budget.chains;
+    const uint64_t n_chains = initial ? std::min<uint64_t>(initial->chains.size(), n_mut)
+                                      : std::min<uint64_t>(uint64_t(settings.chains), n_mut);
     mlt::SplatFilm film(W, H);
-    const auto t0 = std::chrono::steady_clock::now();
 
-    // 1. bootstrap: N independent large-step samples, keyed (seed, bootstrap, i)
-    std::vector<double> boot_f(n_boot, 0.0);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_boot, 256), [&](const tbb::blocked_range<uint64_t>& r) {
-            ScopedFtzDaz ftz;
-            PathCounters c;
-            uint64_t bad = 0;
-            for (uint64_t i = r.begin(); i != r.end(); ++i) {
-                MltSampler smp = make_sampler(RngDomain::bootstrap, uint32_t(i));
-                smp.start_iteration(true);
-                const PathSample s = tracer.evaluate(smp, c);
-                boot_f[i] = s.f;
-                bad += s.invalid ? 1 : 0;
-            }
-            counters.add(c, bad);
+    // 2. bootstrap: N independent large-step samples, keyed (seed, bootstrap, i)
+    const std::vector<double> boot_f =
+        mlt::run_bootstrap(arena, budget.bootstrap, counters, [&](uint64_t i, PathCounters& c, bool& invalid) {
+            MltSampler smp = make_sampler(RngDomain::bootstrap, uint32_t(i));
+            smp.start_iteration(true);
+            const PathSample s = tracer.evaluate(smp, c);
+            invalid = s.invalid;
+            return s.f;
         });
-    });
     mlt::NormalisationAccumulator boot_acc;
     for (double f : boot_f) boot_acc.add(f);  // index order: deterministic
     const mlt::NormalisationEstimate b_boot = boot_acc.estimate();
 
-    // 2. chain starts: resample the pool ∝ f*, replay the chosen sample, rekey to the chain
+    // 3. chain starts: resample the pool ∝ f*, replay the chosen sample, rekey to the chain
     //    (or: the given states, re-evaluated in this frame's scene)
     std::vector<std::unique_ptr<ChainRun>> chains;
+    const auto chain_budget = [&](uint64_t k) { return n_mut / n_chains + (k < n_mut % n_chains ? 1 : 0); };
     if (initial && n_chains > 0) {
         chains.resize(n_chains);
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
                 ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
                 PathCounters c;
                 uint64_t bad = 0;
                 for (uint64_t k = r.begin(); k != r.end(); ++k) {
@@ -189,7 +161,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                     bad += x.invalid ? 1 : 0;
                     chains[k] = std::make_unique<ChainRun>(std::move(smp), x);
                     chains[k]->chain_id = in.chain_id;
-                    chains[k]->budget = n_mut / n_chains + (k < n_mut % n_chains ? 1 : 0);
+                    chains[k]->budget = chain_budget(k);
                 }
                 counters.add(c, bad);
             });
@@ -201,6 +173,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
                 ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
                 PathCounters c;
                 for (uint64_t k = r.begin(); k != r.end(); ++k) {
                     MltSampler smp = make_sampler(RngDomain::bootstrap, uint32_t(start[k]));
@@ -212,24 +185,27 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                     smp.set_key(RngDomain::chain, uint32_t(k));
                     chains[k] = std::make_unique<ChainRun>(std::move(smp), x);
                     chains[k]->chain_id = k;
-                    chains[k]->budget = n_mut / n_chains + (k < n_mut % n_chains ? 1 : 0);
+                    chains[k]->budget = chain_budget(k);
                 }
-                counters.add(c, 0);
+                counters.add(c);
             });
         });
     }
 
-    // 3. run the chains, k_rounds slices each, expected-value splatting into the film
+    // 4. run the chains in rounds (frame_loop.h), expected-value splatting into the film
     const auto target = [](const PathSample& s) { return s.f; };
     bool cancelled = false;
-    for (int round = 0; round < k_rounds && !chains.empty(); ++round) {
+    ChainSchedule schedule(settings, t0, chains.size());
+    uint64_t evaluations = 0;
+    while (!chains.empty() && schedule.begin_round(evaluations)) {
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
                 ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
                 PathCounters c;
                 for (size_t k = r.begin(); k != r.end(); ++k) {
                     ChainRun& st = *chains[k];
-                    const uint64_t end = st.budget * uint64_t(round + 1) / k_rounds;
+                    const uint64_t end = schedule.round_end(st.budget, st.done);
                     PathSample last;
                     const SamplerProposal proposal{&tracer, &st.sampler, &c, &last};
                     auto splat = [&](const PathSample& s, double w) {
@@ -240,44 +216,47 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                         const mlt::StepResult res = mlt::metropolis_step(
                             st.chain, target, proposal, splat, st.sampler, st.ws,
                             large ? mlt::MutationKind::large_step : mlt::MutationKind::small_step);
-                        if (res.moved) {
-                            st.sampler.accept();
-                            st.end_streak();
-                        } else {
-                            st.sampler.reject();
-                            st.max_streak = std::max(st.max_streak, ++st.streak);
-                        }
+                        if (res.moved) st.sampler.accept();
+                        else st.sampler.reject();
+                        st.streaks.record(res.moved);
                         if (large) st.large.add(last.f);
                         st.invalid += last.invalid ? 1 : 0;
                         st.stats.record(res);
                     }
                 }
-                counters.add(c, 0);
+                counters.add(c);
             });
         });
-        const uint64_t spp_done = uint64_t(settings.spp) * uint64_t(round + 1) / k_rounds;
-        if (progress && !progress(spp_done, uint64_t(settings.spp)) && round + 1 < k_rounds) {
+        schedule.end_round();
+        evaluations = 0;
+        bool all_done = true;
+        for (const auto& st : chains) {
+            evaluations += st->done;
+            all_done = all_done && st->done >= st->budget;
+        }
+        if (all_done) break;
+        if (progress && !progress(schedule.progress_done(), schedule.progress_total()) && !schedule.last_round()) {
             cancelled = true;
             break;
         }
     }
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    // 4. normalisation: bootstrap + every large step, merged in chain order
+    // 5. normalisation: bootstrap + every large step, merged in chain order
     mlt::NormalisationAccumulator b_acc = boot_acc;
     mlt::KernelStats kstats;
-    uint64_t mutations = 0, max_streak = 0, invalid = 0, long_streaks = 0;
+    mlt::StreakTracker streaks;
+    uint64_t mutations = 0, invalid = 0;
     auto states = std::make_shared<mlt::ChainStates>();
     states->path_sampler = settings.mlt_path_sampler;
     states->chains.reserve(chains.size());
     for (const auto& st : chains) {
-        st->end_streak();
-        long_streaks += st->long_streak_rejections;
+        st->streaks.end();
+        streaks.merge(st->streaks);
         states->chains.push_back(export_chain(*st));
         b_acc.merge(st->large);
         kstats.merge(st->stats);
         mutations += st->done;
-        max_streak = std::max(max_streak, st->max_streak);
         invalid += st->invalid;
     }
     const mlt::NormalisationEstimate b = b_acc.estimate();
@@ -285,52 +264,32 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     RenderResult res;
     res.width = W;
     res.height = H;
-    res.image.assign(size_t(pixels) * 3, 0.f);
-    res.variance.assign(size_t(pixels) * 3, 0.f);  // no per-pixel variance for correlated chains
-    if (mutations > 0) {
-        const double scale = b.mean * double(pixels) / double(mutations);
-        for (size_t i = 0; i < pixels; ++i)
-            for (int k = 0; k < 3; ++k) res.image[3 * i + k] = float(scale * film.sum(i, k));
-    }
+    mlt::develop_image(res, film, b.mean, mutations, direct);
     res.cancelled = cancelled;
     res.mlt_states = std::move(states);
 
     RenderStats& st = res.stats;
-    st.time_s = secs;
-    st.samples = counters.samples.load();
-    st.camera_rays = counters.camera_rays.load();
-    st.shadow_rays = counters.shadow_rays.load();
-    st.rays = counters.rays.load();
-    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    fill_frame_stats(st, counters, rate, secs);
     st.nan_samples = counters.invalid.load() + invalid;
     st.threads = threads;
     st.integrator = settings.integrator;
     st.spp = settings.spp;
     st.seed = settings.seed;
     MltStats& m = st.mlt;
-    m.enabled = true;
-    m.b = b.mean;
-    m.b_stderr = b.std_error;
-    m.b_bootstrap = b_boot.mean;
-    m.b_bootstrap_stderr = b_boot.std_error;
-    m.bootstrap_samples = n_boot;
-    m.bootstrap_nonzero = b_boot.nonzero;
+    mlt::fill_common_mlt_stats(m, settings, budget, b, b_boot, streaks);
     m.chains = chains.size();
     m.mutations = mutations;
     m.mutations_per_pixel = double(mutations) / double(pixels);
-    m.large_step_probability = p_large;
-    m.sigma = sigma;
+    m.large_step_probability = settings.large_step_probability;
     const mlt::ChainStats& small = kstats[mlt::MutationKind::small_step];
     const mlt::ChainStats& large = kstats[mlt::MutationKind::large_step];
     m.small_steps = small.steps;
     m.large_steps = large.steps;
     m.acceptance_small = small.acceptance_rate();
     m.acceptance_large = large.acceptance_rate();
-    m.max_rejection_streak = max_streak;
-    m.long_streak_rejections = long_streaks;
-    m.path_sampler = settings.mlt_path_sampler;
     m.imported_chains = initial ? chains.size() : 0;
     m.clamped_splats = film.clamped();
+    m.path_evaluations = budget.pilot + budget.direct + budget.bootstrap + mutations;
     std::ostringstream os;
     kstats.write_json(os);
     m.kernel_stats_json = os.str();

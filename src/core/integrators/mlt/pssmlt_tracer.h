@@ -18,6 +18,7 @@
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/mlt/mlt_sampler.h"
+#include "integrators/mlt/pixel_importance.h"
 #include "integrators/mlt/technique.h"
 #include "integrators/path/path_tracer.h"
 
@@ -30,7 +31,7 @@ namespace cmlt::mlt {
 struct PathSample {
     uint32_t pixel = 0;  ///< y·W + x
     Spectrum L{0.f};     ///< contribution (PT estimate for the sampled film position)
-    double f = 0.0;      ///< f* = luminance(L) in the rendering space, ≥ 0
+    double f = 0.0;      ///< f* = luminance(L) / P(pixel) (pixel_importance.h), ≥ 0
     bool invalid = false;  ///< L was not finite (f = 0, never splatted)
     int depth = -1, s = -1, t = -1;  ///< technique (bdpt sampler); -1 for the pt sampler
 };
@@ -58,9 +59,14 @@ public:
     PssmltTracer(const PathTracer& tracer, const Camera& camera, int width, int height)
         : m_tracer(&tracer), m_camera(camera), m_width(width), m_height(height), m_technique(0) {}
     /// The "bdpt" path sampler (multiplexed over depth ∈ [0, bdpt.max_depth()] and (s, t)).
-    PssmltTracer(const BdptTracer& bdpt, const Camera& camera, int width, int height)
+    /// Depths below `min_depth` are left out (a direct pass renders them).
+    PssmltTracer(const BdptTracer& bdpt, const Camera& camera, int width, int height, int min_depth = 0)
         : m_bdpt(&bdpt), m_camera(camera), m_width(width), m_height(height),
-          m_technique(bdpt.max_depth()) {}
+          m_technique(bdpt.max_depth(), min_depth) {}
+
+    /// The importance function of f* (pixel_importance.h); default: luminance.
+    void set_importance(const PixelImportance* importance) { m_importance = importance; }
+    const PixelImportance* importance() const { return m_importance; }
 
     bool bdpt() const { return m_bdpt != nullptr; }
     const TechniqueSampler& technique() const { return m_technique; }
@@ -98,8 +104,14 @@ public:
             s.L = Spectrum(0.f);
             return s;
         }
-        s.f = target_luminance(s.L);
+        s.f = target(s.L, s.pixel);
         return s;
+    }
+
+    /// f* of a contribution L landing in `pixel`.
+    double target(const Spectrum& L, uint32_t pixel) const {
+        const double y = target_luminance(L);
+        return (m_importance && y > 0.0) ? y * m_importance->weight(pixel) : y;
     }
 
     int width() const { return m_width; }
@@ -141,11 +153,12 @@ private:
             s.L = Spectrum(0.f);
             return s;
         }
-        s.f = target_luminance(s.L);
+        s.f = target(s.L, s.pixel);
         return s;
     }
 
     const PathTracer* m_tracer = nullptr;
+    const PixelImportance* m_importance = nullptr;
     const BdptTracer* m_bdpt = nullptr;
     const Camera& m_camera;
     int m_width, m_height;

@@ -10,7 +10,8 @@
 /// for every depth in [0, max_depth] — the same normalisation as PT's estimator for a
 /// uniform film position, so PSSMLT's b · histogram / mutations-per-pixel is unchanged.
 ///
-/// Depth pmf: geometric with a floor, p(d) ∝ max(ρ^d, k_depth_floor) on [0, max_depth],
+/// Depth pmf: geometric with a floor, p(d) ∝ max(ρ^(d − min_depth), k_depth_floor) on
+/// [min_depth, max_depth] (min_depth 0 unless a direct pass renders the short paths),
 /// ρ = k_depth_ratio. Any pmf with
 /// p(d) > 0 for every d gives the same image (f* carries 1/p(d)); it only shapes where
 /// *large steps* go (an independence proposal is best ∝ the target's depth marginal
@@ -41,15 +42,23 @@ inline constexpr uint32_t k_technique_dimensions = 1;
 
 class TechniqueSampler {
 public:
-    explicit TechniqueSampler(int max_depth) : m_cdf(size_t(std::max(max_depth, 0)) + 2, 0.0) {
+    /// Depths in [min_depth, max_depth] (min_depth ≤ max_depth; the Metropolis
+    /// integrators use min_depth 2 when their direct pass renders depths 0 and 1).
+    explicit TechniqueSampler(int max_depth, int min_depth = 0)
+        : m_cdf(size_t(std::max(max_depth, 0)) + 2, 0.0), m_min_depth(std::min(std::max(min_depth, 0), max_depth)) {
         double w = 1.0, sum = 0.0;
-        for (int d = 0; d <= max_depth; ++d, w *= k_depth_ratio) {
-            sum += std::max(w, k_depth_floor);
+        for (int d = 0; d <= max_depth; ++d) {
+            if (d >= m_min_depth) {
+                sum += std::max(w, k_depth_floor);
+                w *= k_depth_ratio;
+            }
             m_cdf[size_t(d) + 1] = sum;
         }
         for (double& c : m_cdf) c /= sum;
         m_cdf.back() = 1.0;
     }
+
+    int min_depth() const { return m_min_depth; }
 
     int max_depth() const { return int(m_cdf.size()) - 2; }
 
@@ -62,7 +71,7 @@ public:
     /// Depth for u ∈ [0, 1): the d with cdf[d] ≤ u < cdf[d+1].
     int depth(double u) const {
         const auto it = std::upper_bound(m_cdf.begin() + 1, m_cdf.end(), u);
-        return std::min(int(it - m_cdf.begin()) - 1, max_depth());
+        return std::max(std::min(int(it - m_cdf.begin()) - 1, max_depth()), m_min_depth);
     }
 
     /// Choose depth and (s, t) from the two technique samples; returns the technique's
@@ -76,6 +85,7 @@ public:
 
 private:
     std::vector<double> m_cdf;  ///< m_cdf[d] = P(depth < d), m_cdf[max+1] = 1
+    int m_min_depth = 0;
 };
 
 }  // namespace cmlt::mlt

@@ -1,8 +1,29 @@
 #include "integrators/path/path_tracer.h"
 
+#include "cameras/camera.h"
 #include "integrators/path/path_tracer_impl.h"
 
 namespace cmlt {
+
+Spectrum PathTracer::pixel_sample(const Camera& camera, bool motion_blur, uint64_t seed, int x,
+                                  int y, int width, uint32_t s, PathCounters& counters) const {
+    const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
+    PixelSampler sampler(seed, pixel, s);
+    const Vec2 u = sampler.get2d();
+    const Vec2 p_film(float(x) + u.x, float(y) + u.y);
+    Ray ray = camera.generate_ray(p_film);
+    if (camera.has_lens()) {  // thin lens: its own dimension
+        PixelSampler ls(seed, pixel, s);
+        ls.set_dimension(k_lens_dimension);
+        ray = camera.generate_ray(p_film, ls.get2d());
+    }
+    if (motion_blur) {
+        PixelSampler ts(seed, pixel, s);
+        ts.set_dimension(k_shutter_time_dimension);
+        ray.time = ts.get1d();
+    }
+    return li(ray, sampler, counters);
+}
 
 template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&, PathCounters&,
                                               const SceneHit*) const;

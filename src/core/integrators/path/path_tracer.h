@@ -30,6 +30,7 @@
 
 namespace cmlt {
 
+class Camera;
 class Scene;
 struct SceneHit;
 
@@ -45,7 +46,10 @@ public:
     static constexpr uint32_t k_dims_per_bounce = 5;
     static constexpr int k_rr_start_depth = 3;
 
-    PathTracer(const Scene& scene, int max_depth) : m_scene(scene), m_max_depth(max_depth) {}
+    /// Paths of `min_depth` ≤ depth ≤ `max_depth` scattering events (min_depth 0: all;
+    /// the Metropolis integrators leave depths below 2 to their direct pass).
+    PathTracer(const Scene& scene, int max_depth, int min_depth = 0)
+        : m_scene(scene), m_max_depth(max_depth), m_min_depth(min_depth) {}
 
     /// Radiance along a camera ray (may be non-finite only through a bug; the film checks).
     /// `first_hit`, if given, is what `camera_ray` hits first (Scene::intersect's answer,
@@ -55,9 +59,17 @@ public:
     Spectrum li(const Ray& camera_ray, Sampler& sampler, PathCounters& counters,
                 const SceneHit* first_hit = nullptr) const;
 
+    /// One independent pixel sample of pixel (x, y), sample index `s`: film position
+    /// (dimension 0), lens (k_lens_dimension, with a thin lens), shutter time
+    /// (k_shutter_time_dimension, when `motion_blur`), then li — the numbers keyed by
+    /// (seed, pixel, s) through PixelSampler.
+    Spectrum pixel_sample(const Camera& camera, bool motion_blur, uint64_t seed, int x, int y,
+                          int width, uint32_t s, PathCounters& counters) const;
+
 private:
     const Scene& m_scene;
     int m_max_depth;
+    int m_min_depth;
 };
 
 extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,

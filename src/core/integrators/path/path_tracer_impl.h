@@ -34,7 +34,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
 
         // Emission seen by this ray, MIS-weighted against light sampling.
         auto add_emitted = [&](const Spectrum& le, float light_pdf_sa) {
-            if (is_black(le)) return;
+            if (is_black(le) || depth < m_min_depth) return;
             if (depth == 0 || specular_bounce) {
                 L += beta * le;
             } else {
@@ -88,7 +88,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
         float u_rr = sampler.get1d();
 
         // Next-event estimation: one light chosen by power.
-        if (bsdf.has_non_delta() && scene.light_count() > 0) {
+        if (bsdf.has_non_delta() && scene.light_count() > 0 && depth + 1 >= m_min_depth) {
             float pmf = 0.f;
             size_t li = scene.sample_light(u_light, &pmf);
             const Light& light = scene.light(li);

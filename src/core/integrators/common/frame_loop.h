@@ -1,0 +1,170 @@
+#pragma once
+/// \file Pieces every integrator's frame loop shares: counters summed over parallel
+/// tasks, the trace / shade time split, and the schedule of passes (pt, bdpt) or chain
+/// rounds (pssmlt, cmlt) under a sample budget and an optional time budget.
+///
+/// Budgets. `spp` is the budget of samples (pt, bdpt) or path evaluations per pixel
+/// (pssmlt, cmlt). With `time_budget` > 0 seconds the frame also stops when that much
+/// wall time has passed since the frame started — whichever comes first; work is
+/// scheduled in chunks sized from the measured speed so a frame ends within about a
+/// sixteenth of its budget of the mark (and at least one chunk always runs). A timed
+/// frame depends on the machine's speed, so it is not reproducible bit for bit; a
+/// sample-budget frame is.
+#include "accel/accel.h"
+#include "integrators/common/render_settings.h"
+#include "util/cycle_clock.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+
+namespace cmlt {
+
+/// Counters of one frame summed over its tasks (integer sums: order-independent).
+struct FrameCounters {
+    std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0};
+    std::atomic<uint64_t> invalid{0}, packets{0}, splats{0}, bad_splats{0};
+    std::atomic<uint64_t> busy_ticks{0}, trace_ticks{0};
+
+    /// Ray counts of PathCounters or BdptCounters.
+    template <class C>
+    void add(const C& c, uint64_t invalid_samples = 0, uint64_t packet_queries = 0) {
+        camera_rays.fetch_add(c.camera_rays, std::memory_order_relaxed);
+        shadow_rays.fetch_add(c.shadow_rays, std::memory_order_relaxed);
+        rays.fetch_add(c.rays, std::memory_order_relaxed);
+        samples.fetch_add(c.samples, std::memory_order_relaxed);
+        invalid.fetch_add(invalid_samples, std::memory_order_relaxed);
+        packets.fetch_add(packet_queries, std::memory_order_relaxed);
+    }
+};
+
+/// RAII over one parallel task body: adds the task's wall ticks (busy time) and the
+/// ticks its thread spent in BVH queries (Accel::take_trace_ticks) to the counters.
+class TaskTimer {
+public:
+    explicit TaskTimer(FrameCounters& c) : m_c(c), m_t0(cycle_now()) { Accel::take_trace_ticks(); }
+    ~TaskTimer() {
+        m_c.busy_ticks.fetch_add(cycle_now() - m_t0, std::memory_order_relaxed);
+        m_c.trace_ticks.fetch_add(Accel::take_trace_ticks(), std::memory_order_relaxed);
+    }
+    TaskTimer(const TaskTimer&) = delete;
+    TaskTimer& operator=(const TaskTimer&) = delete;
+
+private:
+    FrameCounters& m_c;
+    uint64_t m_t0;
+};
+
+/// The counters' common stats (rays, samples, time split) into `st`.
+inline void fill_frame_stats(RenderStats& st, const FrameCounters& c, const CycleRate& rate, double secs) {
+    st.time_s = secs;
+    st.samples = c.samples.load();
+    st.camera_rays = c.camera_rays.load();
+    st.shadow_rays = c.shadow_rays.load();
+    st.rays = c.rays.load();
+    st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    const double per_s = rate.per_second();
+    st.busy_s = double(c.busy_ticks.load()) / per_s;
+    st.trace_s = std::min(st.busy_s, double(c.trace_ticks.load()) / per_s);
+    st.shade_s = st.busy_s - st.trace_s;
+}
+
+/// Passes (pt, bdpt): how many sample passes to run next.
+class PassSchedule {
+public:
+    PassSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point start)
+        : m_spp(s.spp), m_seconds(s.time_budget), m_start(start), m_chunk(std::max(1, (s.spp + 15) / 16)) {}
+
+    bool timed() const { return m_seconds > 0.0; }
+    double elapsed() const {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+    }
+    /// Passes to run after `done` of them (0: stop).
+    int next(int done) const {
+        if (done >= m_spp) return 0;
+        if (!timed()) return std::min(m_chunk, m_spp - done);
+        const double t = elapsed();
+        if (done > 0 && t >= m_seconds) return 0;
+        if (done == 0) return 1;
+        const double per_pass = t / double(done);
+        const double slice = std::min(m_seconds - t, m_seconds / 16.0);
+        const double n = std::floor(slice / std::max(per_pass, 1e-9));
+        return int(std::max(1.0, std::min(n, double(m_spp - done))));
+    }
+    /// Progress as (done, total) for the callback: passes, or milliseconds when timed.
+    uint64_t progress_done(int done) const {
+        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0) : uint64_t(done);
+    }
+    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+
+private:
+    int m_spp;
+    double m_seconds;
+    std::chrono::steady_clock::time_point m_start;
+    int m_chunk;
+};
+
+/// Chain rounds (pssmlt, cmlt): the evaluation count each chain runs to in this round.
+/// Fixed budget: k_rounds slices of each chain's budget. Timed: a quota per chain per
+/// round, sized from the measured evaluation rate, until the time is up (or every
+/// chain has spent its budget).
+class ChainSchedule {
+public:
+    static constexpr int k_rounds = 16;  ///< progress / cancel granularity of a fixed budget
+
+    ChainSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point frame_start, uint64_t chains)
+        : m_seconds(s.time_budget), m_spp(s.spp), m_start(frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
+
+    bool timed() const { return m_seconds > 0.0; }
+    double elapsed() const {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+    }
+
+    /// Begin the next round; false when the frame is done. `evaluations_so_far`: every
+    /// chain's evaluations summed (for the rate).
+    bool begin_round(uint64_t evaluations_so_far) {
+        if (!timed()) return m_round < k_rounds;
+        const double t = elapsed();
+        if (m_round > 0 && t >= m_seconds) return false;
+        if (m_round == 0) {
+            m_rate_t0 = t;
+            m_quota = 16;
+        } else {
+            const double dt = t - m_rate_t0;
+            const double rate = dt > 0 ? double(evaluations_so_far) / dt : 0.0;  // evaluations / s
+            const double slice = std::min(m_seconds - t, m_seconds / 16.0);
+            const double q = rate * slice / double(m_chains);
+            m_quota = uint64_t(std::max(1.0, std::min(q, 1e12)));
+        }
+        return true;
+    }
+    /// Evaluation count chain with `budget` and `done` evaluations runs to this round.
+    uint64_t round_end(uint64_t budget, uint64_t done) const {
+        if (!timed()) return budget * uint64_t(m_round + 1) / k_rounds;
+        return std::min(budget, done + m_quota);
+    }
+    /// After the round: false if every chain has spent its budget (timed) — the caller
+    /// knows; here only the round counter advances.
+    void end_round() { ++m_round; }
+    int round() const { return m_round; }
+    bool last_round() const { return !timed() && m_round >= k_rounds; }
+
+    uint64_t progress_done() const {
+        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0)
+                       : uint64_t(m_spp) * uint64_t(m_round) / k_rounds;
+    }
+    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+
+private:
+    double m_seconds;
+    int m_spp;
+    std::chrono::steady_clock::time_point m_start;
+    uint64_t m_chains;
+    int m_round = 0;
+    double m_rate_t0 = 0.0;
+    uint64_t m_quota = 16;
+};
+
+}  // namespace cmlt

@@ -1,0 +1,69 @@
+#pragma once
+/// \file What every Metropolis computation of one frame shares (pssmlt, cmlt, and the
+/// carry-over evaluations of temporal/carry.h): the camera, both path samplers, the
+/// importance function, and the PssmltTracer over them — built once, the same way
+/// everywhere, so f* in one place is f* in every other bit for bit.
+#include "cameras/camera.h"
+#include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/common/render_settings.h"
+#include "integrators/mlt/pixel_importance.h"
+#include "integrators/mlt/pssmlt_tracer.h"
+#include "integrators/path/path_tracer.h"
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <memory>
+
+namespace cmlt::mlt {
+
+struct MltContext {
+    /// Renders the pilot of the "pixel" importance unless settings.mlt_pilot holds it;
+    /// its rays go to `counters`.
+    MltContext(const Scene& scene, const RenderSettings& s, PathCounters& counters)
+        : camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth, min_depth(s)),
+          bdpt(scene, camera, s.width, s.height, s.max_depth),
+          importance(make_importance(scene, s, counters, &pilot_rendered)),
+          tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s))
+                                              : PssmltTracer(pt, camera, s.width, s.height)) {
+        tracer.set_importance(importance.get());
+    }
+    MltContext(const MltContext&) = delete;
+    MltContext& operator=(const MltContext&) = delete;
+
+    /// Pilot samples per pixel: mlt_pilot_spp for the "pixel" importance (at most spp/8,
+    /// at least 1), else 0.
+    static int pilot_spp(const RenderSettings& s) {
+        return s.mlt_importance == "pixel" ? std::max(1, std::min(s.mlt_pilot_spp, s.spp / 8)) : 0;
+    }
+    /// Direct-pass samples per pixel: mlt_direct_spp, at most spp/4 (a small budget stays
+    /// mostly the chains'); 0 = no direct pass.
+    static int direct_spp(const RenderSettings& s) { return std::min(s.mlt_direct_spp, s.spp / 4); }
+    /// Path evaluations the pilot costs in the budget (whether rendered here or given).
+    static uint64_t pilot_cost(const RenderSettings& s) {
+        return uint64_t(pilot_spp(s)) * uint64_t(s.width) * uint64_t(s.height);
+    }
+    /// Path evaluations of the direct pass.
+    static uint64_t direct_cost(const RenderSettings& s) {
+        return uint64_t(direct_spp(s)) * uint64_t(s.width) * uint64_t(s.height);
+    }
+    /// Shortest path the chains render: 2 with a direct pass, else 0.
+    static int min_depth(const RenderSettings& s) { return direct_spp(s) > 0 ? 2 : 0; }
+    /// Do the chains have any paths to render (not with a direct pass and max_depth 1)?
+    static bool chains_needed(const RenderSettings& s) { return s.max_depth >= min_depth(s); }
+    /// Path evaluations left for bootstrap and chains: spp·W·H minus the pilot and the
+    /// direct pass (≥ 2).
+    static uint64_t evaluation_budget(const RenderSettings& s) {
+        const uint64_t total = uint64_t(s.spp) * uint64_t(s.width) * uint64_t(s.height);
+        const uint64_t used = std::min(total, pilot_cost(s) + direct_cost(s));
+        return std::max<uint64_t>(2, total - used);
+    }
+
+    Camera camera;
+    PathTracer pt;
+    BdptTracer bdpt;
+    uint64_t pilot_rendered = 0;  ///< pilot samples rendered here (0 if given or not needed)
+    std::shared_ptr<const PixelImportance> importance;
+    PssmltTracer tracer;
+};
+
+}  // namespace cmlt::mlt

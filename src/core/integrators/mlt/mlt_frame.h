@@ -1,0 +1,194 @@
+#pragma once
+/// \file What the Metropolis frame loops (pssmlt_integrator.cpp, cmlt_integrator.cpp)
+/// share around their chains: the split of the budget, the direct pass, the bootstrap
+/// of b, the occupancy statistic of "stuck" chains, and the final image.
+///
+/// Budget of a frame, spp·W·H path evaluations (a path evaluation is one traced
+/// path: a bootstrap sample, a proposal or a candidate, a pilot or direct sample):
+///   1. pilot of the pixel importance: mlt_pilot_spp·W·H (pixel_importance.h);
+///   2. direct pass: mlt_direct_spp·W·H path-traced samples of depth ≤ 1, added to the
+///      image as they are (pt_pass.h); the chains then render depth ≥ 2 only;
+///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples;
+///   4. the chains: the rest, split evenly over the chains.
+/// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
+#include "integrators/common/frame_loop.h"
+#include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/splat_film.h"
+#include "integrators/mlt_kernels/normalisation.h"
+#include "integrators/path/pt_pass.h"
+#include "util/fp_mode.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <map>
+#include <vector>
+
+namespace cmlt::mlt {
+
+struct FrameBudget {
+    uint64_t pilot = 0, direct = 0, bootstrap = 0, chains = 0;
+
+    static FrameBudget plan(const RenderSettings& s) {
+        FrameBudget b;
+        b.pilot = MltContext::pilot_cost(s);
+        b.direct = MltContext::direct_cost(s);
+        if (!MltContext::chains_needed(s)) return b;  // max_depth 1 with a direct pass
+        const uint64_t left = MltContext::evaluation_budget(s);
+        b.bootstrap = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(s.bootstrap_samples), left / 2));
+        b.chains = left - b.bootstrap;
+        return b;
+    }
+};
+
+/// The direct pass (depths 0 and 1) of a frame, empty without one.
+inline PtPassImage render_direct(const Scene& scene, const RenderSettings& s, FrameCounters& counters) {
+    const int spp = MltContext::direct_spp(s);
+    if (spp <= 0) return PtPassImage{};
+    PathCounters c;
+    PtPassImage img = render_pt_pass(scene, s, spp, k_direct_sample_base, std::min(1, s.max_depth), c);
+    counters.add(c, img.nan_samples);
+    return img;
+}
+
+/// f* of bootstrap samples 0..n−1, evaluated in parallel by `eval(i, PathCounters&,
+/// bool& invalid) -> double`; then b from them in index order (deterministic).
+template <class Eval>
+std::vector<double> run_bootstrap(tbb::task_arena& arena, uint64_t n, FrameCounters& counters, Eval&& eval) {
+    std::vector<double> f(n, 0.0);
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 256), [&](const tbb::blocked_range<uint64_t>& r) {
+            ScopedFtzDaz ftz;
+            const TaskTimer timer(counters);
+            PathCounters c;
+            uint64_t bad = 0;
+            for (uint64_t i = r.begin(); i != r.end(); ++i) {
+                bool invalid = false;
+                f[i] = eval(i, c, invalid);
+                bad += invalid ? 1 : 0;
+            }
+            counters.add(c, bad);
+        });
+    });
+    return f;
+}
+
+/// How long chains sit in one state. A state is occupied for 1 + (rejections that
+/// follow) steps; `top_fraction(q)` is the share of all steps spent in the most-occupied
+/// fraction q of the states visited (issue 4's "no chain sticks" measure: with q = 0.1 %
+/// a healthy chain population gives a few percent, a stuck one most of its steps).
+class Occupancy {
+public:
+    void add_run(uint64_t steps) {
+        if (steps == 0) return;
+        if (steps < k_dense) ++m_dense[steps];
+        else ++m_sparse[steps];
+        m_total += steps;
+        ++m_states;
+    }
+    void merge(const Occupancy& o) {
+        for (size_t i = 0; i < k_dense; ++i) m_dense[i] += o.m_dense[i];
+        for (const auto& kv : o.m_sparse) m_sparse[kv.first] += kv.second;
+        m_total += o.m_total;
+        m_states += o.m_states;
+    }
+    uint64_t states() const { return m_states; }
+    uint64_t steps() const { return m_total; }
+    double top_fraction(double q) const {
+        if (m_total == 0) return 0.0;
+        uint64_t take = uint64_t(std::ceil(q * double(m_states)));
+        uint64_t sum = 0;
+        for (auto it = m_sparse.rbegin(); it != m_sparse.rend() && take > 0; ++it) {
+            const uint64_t k = std::min(take, it->second);
+            sum += k * it->first;
+            take -= k;
+        }
+        for (size_t len = k_dense; len-- > 1 && take > 0;) {
+            const uint64_t k = std::min(take, m_dense[len]);
+            sum += k * len;
+            take -= k;
+        }
+        return double(sum) / double(m_total);
+    }
+
+private:
+    static constexpr size_t k_dense = 256;
+    uint64_t m_dense[k_dense] = {};
+    std::map<uint64_t, uint64_t> m_sparse;
+    uint64_t m_total = 0, m_states = 0;
+};
+
+/// Rejection runs and occupancy of one chain.
+struct StreakTracker {
+    static constexpr uint64_t k_long_streak = 1000;  ///< "stuck" rejection run (stats)
+    uint64_t streak = 0, max_streak = 0, long_streak_rejections = 0;
+    Occupancy occupancy;
+
+    void record(bool moved) {
+        if (moved) {
+            end();
+        } else {
+            max_streak = std::max(max_streak, ++streak);
+        }
+    }
+    void merge(const StreakTracker& o) {
+        max_streak = std::max(max_streak, o.max_streak);
+        long_streak_rejections += o.long_streak_rejections;
+        occupancy.merge(o.occupancy);
+    }
+    /// The current state's run ends (a move, or the end of the frame).
+    void end() {
+        if (streak > k_long_streak) long_streak_rejections += streak;
+        occupancy.add_run(streak + 1);
+        streak = 0;
+    }
+};
+
+/// The frame's image: b·W·H/steps times the splat sums, plus the direct pass; the
+/// variance AOV is the direct pass's (correlated chain samples have none per pixel).
+inline void develop_image(RenderResult& res, const SplatFilm& film, double b, uint64_t steps,
+                          const PtPassImage& direct) {
+    const size_t pixels = size_t(res.width) * size_t(res.height);
+    res.image.assign(pixels * 3, 0.f);
+    res.variance.assign(pixels * 3, 0.f);
+    const double scale = steps > 0 ? b * double(pixels) / double(steps) : 0.0;
+    for (size_t i = 0; i < pixels; ++i)
+        for (int k = 0; k < 3; ++k) {
+            const double chain = scale * film.sum(i, k);
+            const double d = direct.mean.empty() ? 0.0 : double(direct.mean[3 * i + k]);
+            res.image[3 * i + k] = float(chain + d);
+        }
+    if (!direct.mean.empty()) {
+        res.direct = direct.mean;
+        res.variance = direct.variance;
+    }
+}
+
+/// MltStats fields both Metropolis integrators fill the same way.
+inline void fill_common_mlt_stats(MltStats& m, const RenderSettings& s, const FrameBudget& budget,
+                                  const NormalisationEstimate& b, const NormalisationEstimate& b_boot,
+                                  const StreakTracker& streaks) {
+    m.enabled = true;
+    m.b = b.mean;
+    m.b_stderr = b.std_error;
+    m.b_bootstrap = b_boot.mean;
+    m.b_bootstrap_stderr = b_boot.std_error;
+    m.bootstrap_samples = budget.bootstrap;
+    m.bootstrap_nonzero = b_boot.nonzero;
+    m.sigma = s.sigma;
+    m.max_rejection_streak = streaks.max_streak;
+    m.long_streak_rejections = streaks.long_streak_rejections;
+    m.states_visited = streaks.occupancy.states();
+    m.top_occupancy = streaks.occupancy.top_fraction(0.001);
+    m.path_sampler = s.mlt_path_sampler;
+    m.importance = s.mlt_importance;
+    m.pilot_evaluations = budget.pilot;
+    m.direct_evaluations = budget.direct;
+    m.min_depth = MltContext::min_depth(s);
+    m.time_budget = s.time_budget;
+}
+
+}  // namespace cmlt::mlt

@@ -1,0 +1,81 @@
+#pragma once
+/// \file The importance function of the Metropolis chains (pssmlt, cmlt).
+///
+/// MLT's chains visit states x in proportion to a target f*(x); any f* > 0 wherever the
+/// contribution is non-zero gives an unbiased image, because each splat adds L(x)/f*(x)
+/// (times b = E[f*]; DESIGN.md §2). Which f* is used decides where the work goes:
+///
+///  * "luminance" (Veach; Kelemen et al.): f* = Y(L). The chains spend time ∝ brightness.
+///    A directly visible lamp of a few pixels can hold most of the image's energy
+///    (sequences/caustic_glass at frame 1: ten light pixels carry 77 % of it) and then
+///    eats most of the mutations, while the rest of the frame stays noisy and blotchy.
+///  * "pixel" (default; the arbitrary-importance form of Hoberock & Hart 2010, the
+///    "two-stage" MLT of Mitsuba 0.5): f* = Y(L) / P(pixel(x)), P a smooth estimate of the
+///    pixel's brightness. The chains then cover the image about uniformly, and inside
+///    a pixel they still follow the contribution — light through a slit, caustics.
+///
+/// P comes from a pilot pass of the path tracer (`pilot_spp` samples per pixel, keyed by
+/// the seed like every stream, so consecutive frames of a static shot get the same P),
+/// made robust before use:
+///   1. fireflies: a pixel's luminance is clamped to the largest of its 8 neighbours
+///      (an isolated outlier is noise of a 1-spp estimate; a lamp covers neighbours);
+///   2. blur: the separable [1 2 1] / 4 tent, twice (a 5×5 footprint);
+///   3. floor: P ≥ k_floor · mean(P), so dark pixels (or caustics the pilot missed) get
+///      at most 1 / k_floor times their fair share of mutations;
+///   4. an all-black pilot (nothing lit, or nothing the path tracer finds) gives P = 1:
+///      the luminance target.
+/// The pilot's samples count against the frame's budget of path evaluations.
+#include "math/vec.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace cmlt {
+
+class Scene;
+struct RenderSettings;
+struct PathCounters;
+
+namespace mlt {
+
+/// Per-pixel weights 1 / P of the "pixel" importance (see the file comment).
+class PixelImportance {
+public:
+    /// Relative floor of P (step 3).
+    static constexpr double k_floor = 0.05;
+
+    PixelImportance() = default;  ///< luminance target (weight 1 everywhere)
+    /// From a pilot image (H, W, 3 floats, scene-linear, row 0 at the top).
+    PixelImportance(const std::vector<float>& pilot, int width, int height);
+
+    bool uniform() const { return m_inv.empty(); }
+    /// 1 / P(pixel) (1 for the luminance target).
+    double weight(uint32_t pixel) const { return m_inv.empty() ? 1.0 : double(m_inv[pixel]); }
+    /// P per pixel (empty for the luminance target), for stats and tests.
+    std::vector<float> importance() const;
+    int width() const { return m_width; }
+    int height() const { return m_height; }
+
+private:
+    std::vector<float> m_inv;
+    int m_width = 0, m_height = 0;
+};
+
+/// The pilot image: `spp` path-traced samples per pixel keyed by (seed, pixel, sample)
+/// in a stream of their own (H, W, 3). Adds its rays to `counters`.
+std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
+                                PathCounters& counters);
+
+/// The importance of a frame for its settings: `mlt_importance` "luminance" → uniform;
+/// "pixel" → from `settings.mlt_pilot` if given (it must be W×H×3), else from
+/// render_pilot at `mlt_pilot_spp`. `pilot_evaluations` (if given) receives the path
+/// samples the pilot cost (0 when it was given or not needed).
+std::shared_ptr<const PixelImportance> make_importance(const Scene& scene,
+                                                       const RenderSettings& settings,
+                                                       PathCounters& counters,
+                                                       uint64_t* pilot_evaluations = nullptr);
+
+}  // namespace mlt
+}  // namespace cmlt
