@@ -25,9 +25,11 @@ namespace {
 struct PyRenderResult {
     nb::object image, variance;
     nb::object direct;  ///< None unless an MLT render had a direct pass
+    nb::object bootstrap_f;  ///< float32 (N,) for pssmlt / cmlt, else None
     bool cancelled = false;
     nb::dict stats;
     std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt only, else None
+    std::shared_ptr<mlt::ChainStates> mlt_start_states;
 };
 
 /// One chain state as a dict (inspection and tests).
@@ -107,8 +109,17 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     out.image = to_numpy(std::move(res.image), res.height, res.width);
     out.variance = to_numpy(std::move(res.variance), res.height, res.width);
     out.direct = res.direct.empty() ? nb::none() : to_numpy(std::move(res.direct), res.height, res.width);
+    if (res.bootstrap_f.empty()) {
+        out.bootstrap_f = nb::none();
+    } else {
+        auto* heap = new std::vector<float>(std::move(res.bootstrap_f));
+        nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+        size_t shape[1] = {heap->size()};
+        out.bootstrap_f = nb::ndarray<nb::numpy, float>(heap->data(), 1, shape, owner).cast();
+    }
     out.cancelled = res.cancelled;
     out.mlt_states = std::move(res.mlt_states);
+    out.mlt_start_states = std::move(res.mlt_start_states);
     const RenderStats& st = res.stats;
     nb::dict d;
     d["time_s"] = st.time_s;
@@ -246,32 +257,32 @@ void bind_render(nb::module_& m) {
             nb::arg("value").none(),
             "pssmlt: MltStates to start the chains from (one chain per state) instead of "
             "resampling the bootstrap; None (default) = bootstrap")
-        .def_rw("mlt_importance", &RenderSettings::mlt_importance,
+        .def_rw("importance", &RenderSettings::importance,
                 "pssmlt/cmlt importance: 'pixel' (default; f* = luminance / smoothed pilot "
                 "brightness of the pixel, chains cover the image about uniformly) or "
                 "'luminance' (f* = luminance)")
-        .def_rw("mlt_direct_spp", &RenderSettings::mlt_direct_spp,
+        .def_rw("direct_spp", &RenderSettings::direct_spp,
                 "pssmlt/cmlt: path-traced samples per pixel of the direct pass (depths 0 and 1), "
                 "0..1024 (default 8; 0 = the chains render every depth); counted in the budget")
-        .def_rw("mlt_pilot_spp", &RenderSettings::mlt_pilot_spp,
+        .def_rw("pilot_spp", &RenderSettings::pilot_spp,
                 "path-traced samples per pixel of the 'pixel' importance's pilot, 1..64 "
                 "(default 1; counted in the budget)")
         .def_prop_rw(
-            "mlt_pilot",
+            "pilot",
             [](const RenderSettings& s) -> nb::object {
-                if (!s.mlt_pilot) return nb::none();
-                std::vector<float> copy(*s.mlt_pilot);
+                if (!s.pilot) return nb::none();
+                std::vector<float> copy(*s.pilot);
                 return to_numpy(std::move(copy), s.height, s.width);
             },
             [](RenderSettings& s, nb::object v) {
                 if (v.is_none()) {
-                    s.mlt_pilot.reset();
+                    s.pilot.reset();
                     return;
                 }
                 auto a = nb::cast<nb::ndarray<const float, nb::c_contig, nb::device::cpu>>(v);
                 if (a.ndim() != 3 || a.shape(2) != 3)
-                    throw std::invalid_argument("RenderSettings.mlt_pilot: expected a float32 (H, W, 3) array");
-                s.mlt_pilot = std::make_shared<const std::vector<float>>(a.data(), a.data() + a.size());
+                    throw std::invalid_argument("RenderSettings.pilot: expected a float32 (H, W, 3) array");
+                s.pilot = std::make_shared<const std::vector<float>>(a.data(), a.data() + a.size());
             },
             nb::arg("value").none(),
             "the pilot image (float32 (H, W, 3)) of the 'pixel' importance to use instead of "
@@ -295,7 +306,7 @@ void bind_render(nb::module_& m) {
                    ", chains=" + std::to_string(s.chains) +
                    ", bootstrap_samples=" + std::to_string(s.bootstrap_samples) +
                    ", tries=" + std::to_string(s.tries) + ", inner_length=" + std::to_string(s.inner_length) +
-                   ", inner='" + s.inner + "', mlt_importance='" + s.mlt_importance +
+                   ", inner='" + s.inner + "', importance='" + s.importance +
                    "', packets=" + (s.packets ? "True" : "False") + ")";
         });
 
@@ -306,8 +317,13 @@ void bind_render(nb::module_& m) {
         .def_ro("direct", &PyRenderResult::direct,
                 "pssmlt/cmlt with a direct pass: its float32 (H, W, 3) image, already part of "
                 "`image`; None otherwise")
+        .def_ro("bootstrap_f", &PyRenderResult::bootstrap_f,
+                "pssmlt/cmlt: float32 (N,) f* of the bootstrap samples by index (the same "
+                "points every frame with stored seeds); None otherwise")
         .def_ro("cancelled", &PyRenderResult::cancelled)
         .def_ro("stats", &PyRenderResult::stats)
+        .def_ro("mlt_start_states", &PyRenderResult::mlt_start_states,
+                "pssmlt: MltStates every chain started the frame from; None otherwise")
         .def_ro("mlt_states", &PyRenderResult::mlt_states,
                 "pssmlt: MltStates, the final state of every chain; None otherwise");
 
@@ -315,10 +331,10 @@ void bind_render(nb::module_& m) {
           "Render one frame. progress(done, total) is called between chunks of samples per "
           "pixel on the calling thread; returning False cancels.");
     m.def(
-        "mlt_pilot",
+        "render_pilot",
         [](Scene& scene, const RenderSettings& settings) {
             settings.validate();
-            if (!scene.has_camera()) throw SceneError("mlt_pilot: the scene has no camera (call set_camera)");
+            if (!scene.has_camera()) throw SceneError("pilot: the scene has no camera (call set_camera)");
             if (scene.dirty()) scene.commit();
             std::vector<float> img;
             {
@@ -330,14 +346,14 @@ void bind_render(nb::module_& m) {
         },
         "scene"_a, "settings"_a,
         "The pilot image of the 'pixel' MLT importance (float32 (H, W, 3)): "
-        "settings.mlt_pilot_spp (at most spp/8) path-traced samples per pixel in a stream of their own. "
-        "Set it as settings.mlt_pilot to share one pilot between a render and its "
+        "settings.pilot_spp (at most spp/8) path-traced samples per pixel in a stream of their own. "
+        "Set it as settings.pilot to share one pilot between a render and its "
         "carry-over evaluations.");
     m.def(
-        "mlt_importance_map",
+        "importance_map",
         [](nb::ndarray<const float, nb::c_contig, nb::device::cpu> pilot) {
             if (pilot.ndim() != 3 || pilot.shape(2) != 3)
-                throw std::invalid_argument("mlt_importance_map: expected a float32 (H, W, 3) pilot");
+                throw std::invalid_argument("importance_map: expected a float32 (H, W, 3) pilot");
             const int h = int(pilot.shape(0)), w = int(pilot.shape(1));
             const std::vector<float> v(pilot.data(), pilot.data() + pilot.size());
             mlt::PixelImportance imp(v, w, h);

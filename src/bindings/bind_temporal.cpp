@@ -84,6 +84,18 @@ void bind_temporal(nb::module_& m) {
             return d;
         },
         "f_old"_a, "f_new"_a, "Mean and variance of f_new/f_old over states with f_old > 0.");
+    m.def(
+        "temporal_concat_states",
+        [](const mlt::ChainStates& a, const mlt::ChainStates& b) {
+            if (!a.chains.empty() && !b.chains.empty() && a.path_sampler != b.path_sampler)
+                throw SettingsError("temporal_concat_states: states of the '" + a.path_sampler +
+                                    "' and '" + b.path_sampler + "' path samplers");
+            auto out = std::make_shared<mlt::ChainStates>(a);
+            if (out->chains.empty()) out->path_sampler = b.path_sampler;
+            out->chains.insert(out->chains.end(), b.chains.begin(), b.chains.end());
+            return out;
+        },
+        "a"_a, "b"_a, "The states of a followed by those of b (ids kept).");
     m.def("temporal_systematic_resample", &temporal::systematic_resample, "weights"_a, "n"_a, "u0"_a);
     m.def("temporal_carry_uniform", &temporal::carry_uniform, "seed"_a, "key"_a);
     m.def("temporal_gather_states", &temporal::gather_states, "carried"_a, "pool"_a, "picks"_a,

@@ -132,6 +132,10 @@ def build_parser() -> argparse.ArgumentParser:
     stage_note = "the stage's cmlt:{} if authored, else {}"
     r.add_argument("--spp", type=_int_at_least(1),
                    help="samples per pixel; default: " + stage_note.format("spp", _Defaults.spp))
+    r.add_argument("--time", "--time-budget", type=float, metavar="SECONDS", dest="time_budget",
+                   help="render each frame for this many seconds instead of to a sample "
+                   "budget (with --spp too: whichever comes first); default: "
+                   + stage_note.format("timeBudget", "0 (off)"))
     r.add_argument("--integrator", metavar="NAME",
                    help="light transport algorithm; default: "
                    + stage_note.format("integrator", _Defaults.integrator))
@@ -160,6 +164,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cmlt inner rule: bundle (multiple-proposal MH, exact), mtm "
                    "(multiple-try Metropolis, exact), seed (the seminar's 2k splats, biased; "
                    "comparison only); default: " + stage_note.format("inner", _Defaults.inner))
+    r.add_argument("--importance", choices=("pixel", "luminance"),
+                   help="pssmlt/cmlt importance: pixel (luminance over a pilot image's pixel "
+                   "brightness: even coverage of the image) or luminance (classic MLT); "
+                   "default: " + stage_note.format("importance", _Defaults.importance))
+    r.add_argument("--direct-spp", type=_int_at_least(0), metavar="N", dest="direct_spp",
+                   help="pssmlt/cmlt: path-traced samples per pixel of the direct pass "
+                   "(emitters seen directly, direct light; at most spp/4), 0 = the chains "
+                   "render everything; default: " + stage_note.format("directSpp", _Defaults.direct_spp))
+    r.add_argument("--pilot-spp", type=_int_at_least(1), metavar="N", dest="pilot_spp",
+                   help="pssmlt/cmlt: path-traced samples per pixel of the pilot image of "
+                   "the pixel importance (at most spp/8); default: "
+                   + stage_note.format("pilotSpp", _Defaults.pilot_spp))
     r.add_argument("--no-packets", action="store_false", dest="packets",
                    help="cmlt: trace a bundle's camera rays one by one instead of as Embree "
                    "packets (same image, bit for bit; for timing comparisons)")
@@ -274,7 +290,9 @@ def _resume_command(argv: Sequence[str]) -> str:
 def _cmd_render(args, argv: Sequence[str]) -> int:
     from .shot import RenderCancelled, RenderError, RenderOptions, UsageError, render_sequence
 
-    opts = RenderOptions(spp=args.spp, integrator=args.integrator, seed=args.seed,
+    opts = RenderOptions(spp=args.spp, time_budget=args.time_budget, importance=args.importance,
+                         direct_spp=args.direct_spp, pilot_spp=args.pilot_spp,
+                         integrator=args.integrator, seed=args.seed,
                          threads=args.threads, resolution=args.res, max_depth=args.max_depth,
                          sigma=args.sigma, large_step_probability=args.large_step_probability,
                          chains=args.chains, bootstrap_samples=args.bootstrap_samples,

@@ -22,6 +22,9 @@ large_step_probability    cmlt:largeStepProbability         0.3             [0, 
 chains                    cmlt:chains                       1000            >= 1
 bootstrap_samples         cmlt:bootstrapSamples             100000          >= 1
 inner                     cmlt:inner                        ``bundle``      seed, mtm, bundle
+importance                cmlt:importance                   ``pixel``       pixel, luminance
+direct_spp                cmlt:directSpp                    8               0 .. 1024
+pilot_spp                 cmlt:pilotSpp                     1               1 .. 64
 carry_states              cmlt:temporal:carryStates         true
 smooth_normalization      cmlt:temporal:smoothNormalization true
 seed_per_frame            cmlt:temporal:seedPerFrame        false
@@ -121,6 +124,12 @@ FIELDS: Tuple[SettingField, ...] = (
                  doc="large-step samples estimating the normalisation and seeding chains"),
     SettingField("inner", "cmlt:inner", "token", "bundle", tokens=("seed", "mtm", "bundle"),
                  doc="inner-chain rule: seminar 2k splats, multiple-try, multiple-proposal"),
+    SettingField("importance", "cmlt:importance", "token", "pixel", tokens=("pixel", "luminance"),
+                 doc="Metropolis importance: luminance over the pilot's pixel brightness, or luminance"),
+    SettingField("direct_spp", "cmlt:directSpp", "int", 8, 0, 1024,
+                 doc="path-traced samples per pixel of the MLT direct pass (0 = chains render all)"),
+    SettingField("pilot_spp", "cmlt:pilotSpp", "int", 1, 1, 64,
+                 doc="path-traced samples per pixel of the pixel importance's pilot image"),
     SettingField("carry_states", "cmlt:temporal:carryStates", "bool", True,
                  doc="start each frame's chains from the previous frame's states"),
     SettingField("smooth_normalization", "cmlt:temporal:smoothNormalization", "bool", True,
@@ -157,6 +166,9 @@ class RenderSettings:
     chains: int = 1000
     bootstrap_samples: int = 100_000
     inner: str = "bundle"
+    importance: str = "pixel"
+    direct_spp: int = 8
+    pilot_spp: int = 1
     carry_states: bool = True
     smooth_normalization: bool = True
     seed_per_frame: bool = False

@@ -37,13 +37,18 @@ def main(argv=None):
     ap.add_argument("--ref-spp", type=int, default=512)
     ap.add_argument("--chains", type=int, default=256)
     ap.add_argument("--out", default=os.path.join("bench_out", "flicker"))
+    ap.add_argument("--sequences", default=",".join(SEQUENCES))
+    ap.add_argument("--integrator", default="pssmlt", help="pssmlt or cmlt")
+    ap.add_argument("--ref-integrator", default="bdpt",
+                    help="per-frame references (bdpt: light through the door's slit is what "
+                    "the path tracer finds slowly)")
     a = ap.parse_args(argv)
     res = (a.res, a.res)
     rows = []
-    for seq in SEQUENCES:
+    for seq in [x for x in a.sequences.split(",") if x]:
         shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
         ref = render_sequence(shot, a.frames, os.path.join(a.out, seq, "ref", "r.####.exr"),
-                              RenderOptions(integrator="pt", resolution=res, spp=a.ref_spp),
+                              RenderOptions(integrator=a.ref_integrator, resolution=res, spp=a.ref_spp),
                               progress=False, quiet=True)
         refs = np.stack([load_image(p) for p in ref.written])
         for name, kw in CONFIGS.items():
@@ -51,7 +56,7 @@ def main(argv=None):
             r = render_sequence(shot, a.frames,
                                 os.path.join(a.out, seq, name.replace(" ", "_").replace("+", ""),
                                              "f.####.exr"),
-                                RenderOptions(integrator="pssmlt", resolution=res, spp=a.spp,
+                                RenderOptions(integrator=a.integrator, resolution=res, spp=a.spp,
                                               chains=a.chains, bootstrap_samples=16 * a.chains,
                                               **kw), progress=False, quiet=True)
             dt = (time.perf_counter() - t0) / len(r.written)

@@ -198,7 +198,7 @@ def test_05_bootstrap_b_is_the_mean_of_f_star(scene, reference):
     ref_se = math.sqrt(ref_var.reshape(-1, 3).sum(0) @ ACESCG_Y ** 2) / n
     for seed in range(4):
         st = dict(core.render(scene, _settings("pssmlt", MPP, seed, chains=128, bootstrap_samples=16384,
-                                               mlt_importance="luminance", mlt_direct_spp=0)).stats)
+                                               importance="luminance", direct_spp=0)).stats)
         # 4.5 combined standard errors: false-alarm rate ~7e-6 per check
         assert abs(st["b_bootstrap"] - ref_y) < 4.5 * math.hypot(st["b_bootstrap_stderr"], ref_se)
         assert abs(st["b"] - ref_y) < 4.5 * math.hypot(st["b_stderr"], ref_se)

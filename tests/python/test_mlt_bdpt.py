@@ -209,7 +209,7 @@ def test_06_chain_states_export_import(scenes):
     _, scene = scenes["cornell"]
     # luminance target: f* is the luminance of the chain's colour (pixel importance: times
     # the pixel's weight)
-    a = core.render(scene, _settings("pssmlt", 16, 3, mlt_importance="luminance"))
+    a = core.render(scene, _settings("pssmlt", 16, 3, importance="luminance"))
     states = a.mlt_states
     assert len(states) == 256 and states.path_sampler == "bdpt"
     c = states.chain(5)
@@ -241,10 +241,10 @@ def test_07_imported_states_reproduce_their_f_star(scenes):
     same scene have exactly the exported f* (u is the whole state)."""
     _, scene = scenes["caustic"]
     # one pilot for both renders (it is keyed by the seed, and f* depends on it)
-    pilot = core.mlt_pilot(scene, _settings("pssmlt", 16, 5))
-    a = core.render(scene, _settings("pssmlt", 16, 5, chains=64, mlt_pilot=pilot))
+    pilot = core.render_pilot(scene, _settings("pssmlt", 16, 5))
+    a = core.render(scene, _settings("pssmlt", 16, 5, chains=64, pilot=pilot))
     st = _settings("pssmlt", 16, 6, mlt_initial_states=a.mlt_states, large_step_probability=0.0,
-                   sigma=1e-9, mlt_pilot=pilot)
+                   sigma=1e-9, pilot=pilot)
     r = core.render(scene, st)
     # sigma ~ 0 small steps keep every path (up to 1e-9 moves): f* unchanged per chain
     for i in range(64):

@@ -53,6 +53,9 @@ def _temporal(res):
 # ---- static shot: flicker vs independent frames ----------------------------------
 
 def test_static_shot_flicker_quarter_of_independent_frames(tmp_path):
+    """Issue 5: with seeds + carried states + smoothing, TF and GF are at most a quarter
+    of independent per-frame MLT at the same mutation budget, and the mean relMSE
+    against the reference is not worse by more than 10%."""
     frames = "1:8"
     ref_res = render_sequence(STATIC, "1", os.path.join(str(tmp_path), "ref", "r.####.exr"),
                               RenderOptions(integrator="pt", resolution=(48, 48), spp=1024),
@@ -65,41 +68,31 @@ def test_static_shot_flicker_quarter_of_independent_frames(tmp_path):
     b = flicker(np.stack(_images(ours)), ref)
     print(f"independent: TF {a.tf:.4g} GF {a.gf:.4g} relMSE {a.mean_rel_mse:.4g}; "
           f"seeds+carry+smoothing: TF {b.tf:.4g} GF {b.gf:.4g} relMSE {b.mean_rel_mse:.4g}")
+    assert a.tf > 0 and a.gf > 0                                  # the baseline flickers
+    assert b.tf <= a.tf / 4
     assert b.gf <= a.gf / 4
-    # NOT MET YET (issue 5 asks TF <= 1/4 and relMSE <= 1.10x): measured at this size
-    # TF 0.2445 vs 0.7368 (ratio 0.33), relMSE 0.564 vs 0.509 (1.11x); the carried
-    # chains settle only slowly (frame differences 0.17 -> 0.06 over 8 frames).
-    # Asserted loosely here; the strict form is test_static_shot_tf_quarter (xfail).
-    assert b.tf <= a.tf / 2
+    assert b.mean_rel_mse <= 1.10 * a.mean_rel_mse
     t = _temporal(ours)
     assert all(r["seed"] == t[0]["seed"] for r in t)            # stored seeds
     assert all(r["carried_chains"] > 0 for r in t[1:])           # chains carried over
+    assert all(0 < r["replay_fraction"] < 1 for r in t[1:])      # replayed and rejuvenated
     assert not any(r["change_detected"] for r in t[1:])          # static: no change
     seeds = [r["seed"] for r in _temporal(ind)]
     assert len(set(seeds)) == len(seeds)                          # --seed-per-frame
-
-
-@pytest.mark.xfail(reason="issue 5 target not met yet: TF ratio 0.33 (needs <= 0.25) and "
-                          "relMSE 1.11x (needs <= 1.10x) at 48x48, 8 frames, 16 mutations/px",
-                   strict=True)
-def test_static_shot_tf_quarter(tmp_path):
-    ref_res = render_sequence(STATIC, "1", os.path.join(str(tmp_path), "ref", "r.####.exr"),
-                              RenderOptions(integrator="pt", resolution=(48, 48), spp=1024),
-                              progress=False, quiet=True)
-    ref = load_image(ref_res.written[0])
-    ind = _render(tmp_path, "ind", STATIC, "1:8", seed_per_frame=True, carry_states=False,
-                  smooth_normalization=False)
-    ours = _render(tmp_path, "ours", STATIC, "1:8")
-    a = flicker(np.stack(_images(ind)), ref)
-    b = flicker(np.stack(_images(ours)), ref)
-    assert b.tf <= a.tf / 4
-    assert b.mean_rel_mse <= 1.10 * a.mean_rel_mse
+    # the carried population is not just the stored seeds' (identical) start: frames
+    # differ where chains were rejuvenated from the previous frame's end states
+    imgs = _images(ours)
+    assert any(not np.array_equal(imgs[i], imgs[i + 1]) for i in range(len(imgs) - 1))
 
 
 # ---- moving light with a step at frame 13 ---------------------------------------
 
 def test_smoothed_b_follows_the_step_without_lag(tmp_path):
-    res = _render(tmp_path, "step", MOVING, "9:16", resolution=(32, 32), spp=16)
+    """Where b carries the light (luminance target, no direct pass: the chains render
+    every path), the light switched on at frame 13 is a step in b, and the smoothed b
+    follows it at once."""
+    res = _render(tmp_path, "step", MOVING, "9:16", resolution=(32, 32), spp=16,
+                  importance="luminance", direct_spp=0)
     t = {r["frame"] if "frame" in r else f: r for f, r in zip(res.frames, _temporal(res))}
     b = {f: t[f]["b_smoothed"] for f in res.frames}
     boot = {f: t[f]["b_boot"] for f in res.frames}
@@ -114,6 +107,24 @@ def test_smoothed_b_follows_the_step_without_lag(tmp_path):
     for f in (14.0, 15.0, 16.0):
         assert abs(b[f] - boot[f]) < 0.1 * boot[f]
         assert b[f] > 1.2 * b[12.0]
+
+
+def test_default_pipeline_follows_the_step_and_b_stays_near_its_fresh_estimate(tmp_path):
+    """Default settings (pixel importance, direct pass): the step at frame 13 is in the
+    image at once — each frame's mean brightness matches the same frame rendered without
+    smoothing (the fresh b) within a few percent — and the smoothed b never strays from
+    the fresh estimate by more than its own noise allows (no compounding bias of the
+    ratio estimator: the CUSUM drift detection bounds it)."""
+    smooth = _render(tmp_path, "s", MOVING, "9:16", resolution=(32, 32), spp=16)
+    fresh = _render(tmp_path, "f", MOVING, "9:16", resolution=(32, 32), spp=16,
+                    smooth_normalization=False)
+    a = {f: load_image(p).mean() for f, p in zip(smooth.frames, smooth.written)}
+    c = {f: load_image(p).mean() for f, p in zip(fresh.frames, fresh.written)}
+    assert a[13.0] > 1.2 * a[12.0] and c[13.0] > 1.2 * c[12.0]     # the step is in the image
+    for f in smooth.frames:
+        assert abs(a[f] / c[f] - 1.0) < 0.05, (f, a[f], c[f])
+    for r in _temporal(smooth)[1:]:
+        assert abs(r["b_used"] - r["b_boot"]) < 2.5 * r["b_boot_stderr"], r
 
 
 def test_normalization_unit():

@@ -16,6 +16,7 @@ Guarantees:
 """
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -60,6 +61,9 @@ class RenderOptions:
     (:mod:`cmlt.settings`; precedence flag > stage > default)."""
 
     spp: Optional[int] = None
+    #: seconds per frame (the frame runs this long; with spp also given, whichever
+    #: comes first); None = the stage's cmlt:timeBudget, else 0 (off)
+    time_budget: Optional[float] = None
     integrator: Optional[str] = None
     seed: Optional[int] = None
     max_depth: Optional[int] = None
@@ -72,6 +76,10 @@ class RenderOptions:
     tries: Optional[int] = None
     inner_length: Optional[int] = None
     inner: Optional[str] = None
+    #: Metropolis importance and the fixed passes (pssmlt, cmlt)
+    importance: Optional[str] = None
+    direct_spp: Optional[int] = None
+    pilot_spp: Optional[int] = None
     #: cmlt: trace a bundle's camera rays as Embree packets (machine, not shot: the
     #: image is bit-identical either way)
     packets: bool = True
@@ -112,6 +120,9 @@ class RenderOptions:
         """Flag-level checks that need neither the stage nor the core."""
         if self.spp is not None and int(self.spp) < 1:
             raise UsageError(f"--spp {self.spp}: must be at least 1")
+        if self.time_budget is not None and not (float(self.time_budget) >= 0.0
+                                                 and math.isfinite(float(self.time_budget))):
+            raise UsageError(f"--time {self.time_budget}: must be 0 (off) or more seconds")
         if self.max_depth is not None and int(self.max_depth) < 1:
             raise UsageError(f"--max-depth {self.max_depth}: must be at least 1")
         if int(self.threads) < 0:
@@ -143,6 +154,8 @@ class RenderOptions:
     def overrides(self) -> dict:
         """Flag values by setting name, for :func:`cmlt.settings.resolve_settings`."""
         return {"integrator": self.integrator, "spp": self.spp, "seed": self.seed,
+                "time_budget": self.time_budget, "importance": self.importance,
+                "direct_spp": self.direct_spp, "pilot_spp": self.pilot_spp,
                 "max_depth": self.max_depth, "resolution": self.resolution,
                 "camera": self.camera, "sigma": self.sigma,
                 "large_step_probability": self.large_step_probability,
@@ -180,15 +193,23 @@ def _resolve(stage, opts: RenderOptions):
         raise RenderError(msg) from None
 
 
+#: the sample budget of a frame rendered to a time budget (a cap it never reaches)
+TIME_BUDGET_SPP_CAP = 1 << 24
+
+
 def _core_settings(core, resolved, opts: RenderOptions, sources: Dict[str, str]):
     """core.RenderSettings from the resolved settings: every field the core
     knows is set (the MLT fields reach the core as soon as it has them)."""
     st = core.RenderSettings()
     values = dict(resolved.as_dict())
-    # A setting that would silently do nothing is an error (STYLE.md §5).
-    if float(values.get("time_budget", 0.0) or 0.0) > 0.0 and not hasattr(st, "time_budget"):
-        raise UsageError(f"{_where('time_budget', values['time_budget'], sources)}: "
-                         "time budgets are not implemented yet; set a sample budget (spp)")
+    # A time budget replaces the sample budget unless spp was given with the same or a
+    # higher precedence (both flags, or both in the stage): then whichever comes first.
+    def rank(name: str) -> int:
+        src = str(sources.get(name, "default"))
+        return 2 if src.startswith("flag") else (1 if src.startswith("stage") else 0)
+
+    if float(values.get("time_budget", 0.0) or 0.0) > 0.0 and rank("spp") < rank("time_budget"):
+        values["spp"] = TIME_BUDGET_SPP_CAP
     values["threads"] = int(opts.threads)
     values["packets"] = bool(opts.packets)
     for name, value in values.items():
@@ -205,7 +226,9 @@ _FLAGS = {"integrator": "--integrator", "spp": "--spp", "max_depth": "--max-dept
           "seed": "--seed", "threads": "--threads", "width": "--res", "height": "--res",
           "sigma": "--sigma", "large_step_probability": "--large-step-probability",
           "chains": "--chains", "bootstrap_samples": "--bootstrap-samples",
-          "tries": "--tries", "inner_length": "--inner-length", "inner": "--inner"}
+          "tries": "--tries", "inner_length": "--inner-length", "inner": "--inner",
+          "time_budget": "--time", "importance": "--importance", "direct_spp": "--direct-spp",
+          "pilot_spp": "--pilot-spp"}
 
 
 def _where(name: str, value, sources: Dict[str, str]) -> str:

@@ -25,7 +25,7 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from .normalization import NormRecord, update_normalization
+from .normalization import NormRecord, paired_difference, update_normalization
 from .state import (FrameState, StateError, check_compatible, decode_state, encode_state,
                     read_state, settings_hash, shot_hash, state_path)
 
@@ -35,8 +35,16 @@ __all__ = ["TemporalDriver", "frame_seed", "STATE_INTEGRATORS", "CHAIN_SETTINGS"
 STATE_INTEGRATORS = ("pssmlt",)
 #: settings that change the chains: a state written with others is refused
 CHAIN_SETTINGS = ("integrator", "spp", "max_depth", "sigma", "large_step_probability", "chains",
-                  "bootstrap_samples", "tries", "inner_length", "inner", "carry_states",
-                  "smooth_normalization", "seed_per_frame", "time_budget")
+                  "bootstrap_samples", "tries", "inner_length", "inner", "importance",
+                  "direct_spp", "pilot_spp", "carry_states", "smooth_normalization",
+                  "seed_per_frame", "time_budget")
+#: integrators with a normalisation b (and bootstrap values, a pilot image)
+MLT_INTEGRATORS = ("pssmlt", "cmlt")
+#: share of the carried population taken from the states the chains *started* the
+#: previous frame from (replayed with the same numbers: where the scene did not change
+#: the chain retraces the previous frame's trajectory); the rest from the states they
+#: *ended* in (rejuvenated by the previous frame's mutations). See plan_refresh.
+REPLAY_FRACTION = 0.5
 #: pool ids of gathered pool states start here (carried states keep theirs)
 _POOL_ID_BASE = 1 << 32
 
@@ -59,10 +67,16 @@ def frame_seed(seed: int, frame: float, per_frame: bool) -> int:
     return _splitmix64(_splitmix64(int(seed) & _M64) ^ key)
 
 
-def plan_refresh(core, f_old, f_new, pool_f, b_prev: float, n: int, u0: float) -> dict:
+def plan_refresh(core, f_old, f_new, pool_f, b_prev: float, n: int, u0: float,
+                 mix=None) -> dict:
     """Chain starts of frame f+1: ``n − r`` resampled from the carried states
-    ∝ w_i = f*_{f+1}(u_i)/f*_f(u_i) and ``r`` from the refresh pool ∝ f*_{f+1}
-    (both systematic, one keyed uniform).
+    ∝ w_i = m_i f*_{f+1}(u_i)/f*_f(u_i) and ``r`` from the refresh pool ∝ f*_{f+1}
+    (both systematic, one keyed uniform). ``mix`` (m_i, default 1): mixture
+    weights of the carried groups — carried states may be the union of two
+    populations that both target π_f (the previous frame's start and end
+    states); weighting each group by its share α, 1 − α keeps the union a
+    sample of π_f (a mixture of two π_f samples), so the reweighted,
+    resampled starts target π_{f+1} as before.
 
     Carried particles ~ π_f reweighted by w are an importance sample of
     π_{f+1} restricted to the support of f*_f; the pool (uniform points
@@ -88,8 +102,10 @@ def plan_refresh(core, f_old, f_new, pool_f, b_prev: float, n: int, u0: float) -
         if b_pool - b_ratio > 3.0 * se and b_pool > 0:
             missing = min(1.0, (b_pool - b_ratio) / b_pool)
     n_refresh = min(n, max(lost, int(round(missing * n))))
+    mix = [1.0] * len(f_old) if mix is None else list(mix)
     carried_picks = core.temporal_systematic_resample(
-        [b / a if a > 0 and b > 0 else 0.0 for a, b in zip(f_old, f_new)], n - n_refresh, u0)
+        [m * b / a if a > 0 and b > 0 else 0.0 for a, b, m in zip(f_old, f_new, mix)],
+        n - n_refresh, u0)
     if not carried_picks:
         n_refresh = n
     pool_picks = core.temporal_systematic_resample(list(pool_f), n_refresh, u0) \
@@ -100,8 +116,9 @@ def plan_refresh(core, f_old, f_new, pool_f, b_prev: float, n: int, u0: float) -
 
 
 def keep_chain_identity(picks: List[int], n_carried: int) -> List[int]:
-    """Assign the resampled starts to chain slots so that chain k continues
-    from its own final state (carried particle k) whenever that particle was
+    """Assign the resampled starts to chain slots so that chain k starts from
+    its own carried particle k (with the union of start and end states, the
+    state chain k started the previous frame from) whenever that particle was
     picked; the other picks fill the remaining slots in order.
 
     Only the assignment changes, not the set of starts: chain k's random
@@ -191,6 +208,12 @@ class TemporalDriver:
                "carry_states": self.carry, "smooth_normalization": self.smooth,
                "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
         self._pending = {"ratio": None, "pool_f": []}
+        if self.integrator in MLT_INTEGRATORS and hasattr(st, "pilot"):
+            # the pixel importance's pilot, rendered once for the render and for the
+            # carry-over evaluations below (f* must be the same function in all of them)
+            st.pilot = None
+            if str(getattr(st, "importance", "luminance")) == "pixel":
+                st.pilot = core.render_pilot(scene, st)
         if not self.carry:
             return rec
         n_pool = int(self.settings.chains)
@@ -199,23 +222,33 @@ class TemporalDriver:
         self._pending["pool_f"] = pool_f
         prev = self.prev
         if prev is not None and prev.chain_states and prev.last is not None:
-            carried = core.MltStates.from_bytes(prev.chain_states)
+            end = core.MltStates.from_bytes(prev.chain_states)
+            start = core.MltStates.from_bytes(prev.start_states) if prev.start_states else None
+            alpha = REPLAY_FRACTION if start is not None and len(start) == len(end) else 0.0
+            if alpha >= 1.0:
+                carried, mix = start, [1.0] * len(start)
+            elif alpha > 0.0:
+                # slots 0..n-1: the start states (chain k's own first: keep_chain_identity)
+                carried = core.temporal_concat_states(start, end)
+                mix = [alpha] * len(start) + [1.0 - alpha] * len(end)
+            else:
+                carried, mix = end, [1.0] * len(end)
             ev = core.temporal_evaluate_states(scene, st, carried)
             f_old = list(core.temporal_f_star(carried))
             f_new = list(core.temporal_f_star(ev))
-            pool_old = prev.pool_f if len(prev.pool_f) == len(pool_f) else []
             u0 = core.temporal_carry_uniform(int(st.seed), 0)
             plan = plan_refresh(core, f_old, f_new, pool_f, float(prev.last.b_used),
-                                int(self.settings.chains), u0)
+                                int(self.settings.chains), u0, mix=mix)
             if plan["picks"]:
-                picks = keep_chain_identity(list(plan["picks"]), len(f_old))
+                picks = keep_chain_identity(list(plan["picks"]), min(len(f_old), len(end)))
                 st.mlt_initial_states = core.temporal_gather_states(ev, pool, picks,
                                                                     _POOL_ID_BASE)
             self._pending["ratio"] = core.temporal_ratio_statistics(f_old, f_new)
             rec.update(state_in=self.prev_source, carried_chains=int(plan["from_carried"]),
                        refreshed_chains=int(plan["from_pool"]),
                        ratio_mean=float(self._pending["ratio"]["mean"]),
-                       carried_lost=int(self._pending["ratio"]["zero"]))
+                       carried_lost=int(self._pending["ratio"]["zero"]),
+                       replay_fraction=alpha)
         return rec
 
     def finish(self, result, stats: dict, image: np.ndarray, frame: float,
@@ -227,28 +260,42 @@ class TemporalDriver:
         last = prev.last if prev is not None else None
         b = stats.get("b")
         history: List[NormRecord] = list(prev.history) if prev is not None else []
+        boot = getattr(result, "bootstrap_f", None)
+        boot = np.asarray(boot, dtype=np.float32) if boot is not None else None
         if b is None:                           # no normalisation (pt, bdpt)
             norm = None
         else:
+            paired = None
+            if prev is not None and prev.boot_f and boot is not None and not self.per_frame:
+                paired = paired_difference(np.frombuffer(prev.boot_f, dtype="<f4"), boot)
             norm = update_normalization(frame, float(b), float(stats.get("b_stderr", 0.0)),
                                         prev=last, ratio=self._pending.get("ratio"),
-                                        smooth=self.smooth)
+                                        smooth=self.smooth, paired=paired)
             history.append(norm)
             if self.smooth and float(b) > 0 and norm.b_used != float(b):
-                image = (np.asarray(image, dtype=np.float64) * (norm.b_used / float(b))) \
-                    .astype(np.float32)
+                # only the chains' part scales with b (the direct pass is plain Monte Carlo)
+                img = np.asarray(image, dtype=np.float64)
+                direct = getattr(result, "direct", None)
+                base = np.asarray(direct, dtype=np.float64) if direct is not None else 0.0
+                image = (base + (img - base) * (norm.b_used / float(b))).astype(np.float32)
             rec.update(b_boot=norm.b_fresh, b_boot_stderr=norm.s_fresh,
                        b_bootstrap=stats.get("b_bootstrap"),
                        b_ratio=norm.b_ratio, b_ratio_stderr=norm.s_ratio,
                        b_combined=norm.b_combined, b_smoothed=norm.b_smoothed,
-                       b_used=norm.b_used, change_detected=bool(norm.change))
+                       b_used=norm.b_used, change_detected=bool(norm.change),
+                       b_delta=norm.delta, b_delta_stderr=norm.s_delta)
         states = getattr(result, "mlt_states", None)
+        starts = getattr(result, "mlt_start_states", None)
         chain_bytes = bytes(states.to_bytes()) if (self.carry and states is not None) else b""
+        start_bytes = bytes(starts.to_bytes()) if (self.carry and starts is not None) else b""
         fs = FrameState(shot_hash=self.shot_hash, width=self.size[0], height=self.size[1],
                         integrator=self.integrator, seed=self.base_seed, frame=float(frame),
                         settings_hash=self.settings_hash, chain_states=chain_bytes,
+                        start_states=start_bytes,
                         chain_count=len(states) if (chain_bytes and states is not None) else 0,
-                        pool_f=list(self._pending.get("pool_f", [])), history=history)
+                        pool_f=list(self._pending.get("pool_f", [])),
+                        boot_f=boot.astype("<f4").tobytes() if boot is not None else b"",
+                        history=history)
         data = encode_state(fs)
         return image, rec, data
 

@@ -14,13 +14,18 @@ reads ``state.0012.bin``). Little-endian::
              f64 frame              (the frame that wrote it)
              u64 settings hash      (sha256 of every setting that changes the chains)
              u64 payload length
-    payload  u64 n | n bytes        chain states (core MltStates.to_bytes; 0 bytes: none)
+    payload  u64 n | n bytes        chain states at the end of the frame (core
+                                    MltStates.to_bytes; 0 bytes: none)
+             u64 n | n bytes        chain states the frame started from (same format)
              u64 m | m × f64        f* of the refresh pool points in this frame
+             u64 q | q × f32        f* of the bootstrap samples in this frame, by index
+                                    (the next frame's paired change test)
              u32 k | k × record     normalisation history, oldest first (see below)
     trailer  u32 CRC-32 (zlib) of header + payload
 
-record = 11 × f64 (frame, b_fresh, s_fresh, b_ratio, s_ratio, b_combined,
-s_combined, b_smoothed, s_smoothed, b_used, s_used) + u8 change.
+record = 15 × f64 (frame, b_fresh, s_fresh, b_ratio, s_ratio, b_combined,
+s_combined, b_smoothed, s_smoothed, b_used, s_used, delta, s_delta, cusum_up,
+cusum_down) + u8 change.
 
 The frame loop always goes through these bytes, also when it keeps the state
 in memory between frames of one job, so a split sequence sees exactly the
@@ -44,14 +49,15 @@ __all__ = ["STATE_MAGIC", "STATE_VERSION", "StateError", "FrameState", "encode_s
            "settings_hash", "HISTORY_LIMIT"]
 
 STATE_MAGIC = b"CMLTSTAT"
-STATE_VERSION = 1
+STATE_VERSION = 2
 #: normalisation records kept (oldest dropped)
 HISTORY_LIMIT = 256
 
 _HEADER = struct.Struct("<8sIQII16sQQdQQ")
-_RECORD = struct.Struct("<11dB")
+_RECORD = struct.Struct("<15dB")
 _REC_FIELDS = ("frame", "b_fresh", "s_fresh", "b_ratio", "s_ratio", "b_combined", "s_combined",
-               "b_smoothed", "s_smoothed", "b_used", "s_used")
+               "b_smoothed", "s_smoothed", "b_used", "s_used", "delta", "s_delta",
+               "cusum_up", "cusum_down")
 
 
 class StateError(ValueError):
@@ -68,9 +74,12 @@ class FrameState:
     seed: int
     frame: float
     settings_hash: int
-    chain_states: bytes = b""                 # core MltStates.to_bytes()
+    chain_states: bytes = b""                 # core MltStates.to_bytes(), end of frame
+    start_states: bytes = b""                 # the states the frame's chains started from
     chain_count: int = 0
     pool_f: List[float] = field(default_factory=list)
+    #: f* of the frame's bootstrap samples by index (float32)
+    boot_f: bytes = b""
     history: List[NormRecord] = field(default_factory=list)
 
     @property
@@ -102,8 +111,12 @@ def encode_state(s: FrameState) -> bytes:
     hist = list(s.history)[-HISTORY_LIMIT:]
     payload = bytearray()
     payload += struct.pack("<Q", len(s.chain_states)) + bytes(s.chain_states)
+    payload += struct.pack("<Q", len(s.start_states)) + bytes(s.start_states)
     payload += struct.pack("<Q", len(s.pool_f))
     payload += struct.pack(f"<{len(s.pool_f)}d", *s.pool_f)
+    if len(s.boot_f) % 4:
+        raise ValueError("FrameState.boot_f: not a float32 array")
+    payload += struct.pack("<Q", len(s.boot_f) // 4) + bytes(s.boot_f)
     payload += struct.pack("<I", len(hist))
     for r in hist:
         payload += _RECORD.pack(*(float(getattr(r, k)) for k in _REC_FIELDS), 1 if r.change else 0)
@@ -141,12 +154,20 @@ def decode_state(data: bytes, path: str = "<state>") -> FrameState:
     try:
         (n,) = struct.unpack_from("<Q", data, p); p += 8
         out.chain_states = bytes(data[p:p + n]); p += n
+        (n,) = struct.unpack_from("<Q", data, p); p += 8
+        if p + n > len(data):
+            raise struct.error("start states run past the end")
+        out.start_states = bytes(data[p:p + n]); p += n
         (m,) = struct.unpack_from("<Q", data, p); p += 8
         out.pool_f = list(struct.unpack_from(f"<{m}d", data, p)); p += 8 * m
+        (q,) = struct.unpack_from("<Q", data, p); p += 8
+        if p + 4 * q > len(data):
+            raise struct.error("bootstrap values run past the end")
+        out.boot_f = bytes(data[p:p + 4 * q]); p += 4 * q
         (k,) = struct.unpack_from("<I", data, p); p += 4
         for _ in range(k):
             vals = _RECORD.unpack_from(data, p); p += _RECORD.size
-            rec = NormRecord(**dict(zip(_REC_FIELDS, vals[:11])), change=bool(vals[11]))
+            rec = NormRecord(**dict(zip(_REC_FIELDS, vals[:15])), change=bool(vals[15]))
             out.history.append(rec)
     except struct.error as exc:
         raise bad(f"malformed payload ({exc})") from None

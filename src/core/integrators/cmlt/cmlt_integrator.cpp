@@ -243,6 +243,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     res.height = H;
     mlt::develop_image(res, film, b.mean, steps, direct);
     res.cancelled = cancelled;
+    res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
 
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);

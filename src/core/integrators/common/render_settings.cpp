@@ -31,13 +31,13 @@ void RenderSettings::validate() const {
     if (mlt_path_sampler != "pt" && mlt_path_sampler != "bdpt")
         CMLT_THROW(SettingsError, "RenderSettings.mlt_path_sampler: unknown path sampler '"
                                       << mlt_path_sampler << "' (available: 'bdpt', 'pt')");
-    if (mlt_importance != "pixel" && mlt_importance != "luminance")
-        CMLT_THROW(SettingsError, "RenderSettings.mlt_importance: unknown importance '"
-                                      << mlt_importance << "' (available: 'pixel', 'luminance')");
-    if (mlt_pilot_spp < 1 || mlt_pilot_spp > 64)
-        CMLT_THROW(SettingsError, "RenderSettings.mlt_pilot_spp must be in [1, 64], got " << mlt_pilot_spp);
-    if (mlt_direct_spp < 0 || mlt_direct_spp > 1024)
-        CMLT_THROW(SettingsError, "RenderSettings.mlt_direct_spp must be in [0, 1024], got " << mlt_direct_spp);
+    if (importance != "pixel" && importance != "luminance")
+        CMLT_THROW(SettingsError, "RenderSettings.importance: unknown importance '"
+                                      << importance << "' (available: 'pixel', 'luminance')");
+    if (pilot_spp < 1 || pilot_spp > 64)
+        CMLT_THROW(SettingsError, "RenderSettings.pilot_spp must be in [1, 64], got " << pilot_spp);
+    if (direct_spp < 0 || direct_spp > 1024)
+        CMLT_THROW(SettingsError, "RenderSettings.direct_spp must be in [0, 1024], got " << direct_spp);
     if (!(sigma > 0.0 && sigma <= 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.sigma must be in (0, 1], got " << sigma);
     if (!(large_step_probability >= 0.0 && large_step_probability <= 1.0))

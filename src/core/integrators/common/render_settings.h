@@ -42,19 +42,19 @@ struct RenderSettings {
     /// Importance function of the chains (integrators/mlt/pixel_importance.h): "pixel"
     /// (f* = luminance / smoothed pilot brightness of the pixel: chains cover the image
     /// about uniformly) or "luminance" (f* = luminance, classic MLT).
-    std::string mlt_importance = "pixel";
+    std::string importance = "pixel";
     /// Path-traced samples per pixel of the pilot image of the "pixel" importance, [1, 64];
     /// they count against the budget of path evaluations.
-    int mlt_pilot_spp = 1;
+    int pilot_spp = 1;
     /// pssmlt/cmlt: path-traced samples per pixel of the direct pass, [0, 1024]. With
     /// n > 0 paths of 0 and 1 scattering events (emitters seen directly, direct lighting)
     /// are rendered by ordinary Monte Carlo (NEE + MIS, n samples per pixel, counted in
     /// the budget) and the chains render depth >= 2 only; 0 = the chains render all.
-    int mlt_direct_spp = 8;
+    int direct_spp = 8;
     /// The pilot image (H, W, 3) to use instead of rendering one (the temporal driver
     /// renders it once per frame for the render and its carry-over evaluations). Its
-    /// cost is counted as if rendered (mlt_pilot_spp · W·H evaluations).
-    std::shared_ptr<const std::vector<float>> mlt_pilot;
+    /// cost is counted as if rendered (pilot_spp · W·H evaluations).
+    std::shared_ptr<const std::vector<float>> pilot;
 
     // Coherent MLT (cmlt, DESIGN.md §3): after each outer large step, `inner_length`
     // inner steps of `tries` candidates each, drawn as one bundle by a lens / caustic
@@ -139,10 +139,16 @@ struct RenderResult {
     /// pssmlt / cmlt with a direct pass: its image (H, W, 3), already part of `image`
     /// (the rest is the chains', which the temporal driver rescales); else empty.
     std::vector<float> direct;
+    /// pssmlt / cmlt: f* of every bootstrap sample, by index (keyed by (seed, bootstrap,
+    /// i): with stored seeds the same points every frame, so two frames' values pair up
+    /// — the temporal driver's change detection). Empty for pt / bdpt.
+    std::vector<float> bootstrap_f;
     bool cancelled = false;
     RenderStats stats;
     /// pssmlt: the final state of every chain (integrators/mlt/chain_state.h).
     std::shared_ptr<mlt::ChainStates> mlt_states;
+    /// pssmlt: the state every chain started the frame from (after resampling or import).
+    std::shared_ptr<mlt::ChainStates> mlt_start_states;
 };
 
 /// Called from the calling thread between chunks with (done, total) samples per pixel;

@@ -17,7 +17,7 @@
 namespace cmlt::mlt {
 
 struct MltContext {
-    /// Renders the pilot of the "pixel" importance unless settings.mlt_pilot holds it;
+    /// Renders the pilot of the "pixel" importance unless settings.pilot holds it;
     /// its rays go to `counters`.
     MltContext(const Scene& scene, const RenderSettings& s, PathCounters& counters)
         : camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth, min_depth(s)),
@@ -30,14 +30,14 @@ struct MltContext {
     MltContext(const MltContext&) = delete;
     MltContext& operator=(const MltContext&) = delete;
 
-    /// Pilot samples per pixel: mlt_pilot_spp for the "pixel" importance (at most spp/8,
+    /// Pilot samples per pixel: pilot_spp for the "pixel" importance (at most spp/8,
     /// at least 1), else 0.
     static int pilot_spp(const RenderSettings& s) {
-        return s.mlt_importance == "pixel" ? std::max(1, std::min(s.mlt_pilot_spp, s.spp / 8)) : 0;
+        return s.importance == "pixel" ? std::max(1, std::min(s.pilot_spp, s.spp / 8)) : 0;
     }
-    /// Direct-pass samples per pixel: mlt_direct_spp, at most spp/4 (a small budget stays
+    /// Direct-pass samples per pixel: direct_spp, at most spp/4 (a small budget stays
     /// mostly the chains'); 0 = no direct pass.
-    static int direct_spp(const RenderSettings& s) { return std::min(s.mlt_direct_spp, s.spp / 4); }
+    static int direct_spp(const RenderSettings& s) { return std::min(s.direct_spp, s.spp / 4); }
     /// Path evaluations the pilot costs in the budget (whether rendered here or given).
     static uint64_t pilot_cost(const RenderSettings& s) {
         return uint64_t(pilot_spp(s)) * uint64_t(s.width) * uint64_t(s.height);

@@ -5,8 +5,8 @@
 ///
 /// Budget of a frame, spp·W·H path evaluations (a path evaluation is one traced
 /// path: a bootstrap sample, a proposal or a candidate, a pilot or direct sample):
-///   1. pilot of the pixel importance: mlt_pilot_spp·W·H (pixel_importance.h);
-///   2. direct pass: mlt_direct_spp·W·H path-traced samples of depth ≤ 1, added to the
+///   1. pilot of the pixel importance: pilot_spp·W·H (pixel_importance.h);
+///   2. direct pass: direct_spp·W·H path-traced samples of depth ≤ 1, added to the
 ///      image as they are (pt_pass.h); the chains then render depth ≥ 2 only;
 ///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples;
 ///   4. the chains: the rest, split evenly over the chains.
@@ -184,7 +184,7 @@ inline void fill_common_mlt_stats(MltStats& m, const RenderSettings& s, const Fr
     m.states_visited = streaks.occupancy.states();
     m.top_occupancy = streaks.occupancy.top_fraction(0.001);
     m.path_sampler = s.mlt_path_sampler;
-    m.importance = s.mlt_importance;
+    m.importance = s.importance;
     m.pilot_evaluations = budget.pilot;
     m.direct_evaluations = budget.direct;
     m.min_depth = MltContext::min_depth(s);

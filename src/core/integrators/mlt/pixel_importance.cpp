@@ -92,14 +92,14 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 std::shared_ptr<const PixelImportance> make_importance(const Scene& scene, const RenderSettings& settings,
                                                        PathCounters& counters, uint64_t* pilot_evaluations) {
     if (pilot_evaluations) *pilot_evaluations = 0;
-    if (settings.mlt_importance == "luminance") return std::make_shared<const PixelImportance>();
+    if (settings.importance == "luminance") return std::make_shared<const PixelImportance>();
     const size_t n = size_t(settings.width) * size_t(settings.height) * 3;
-    if (settings.mlt_pilot) {
-        if (settings.mlt_pilot->size() != n)
-            CMLT_THROW(SettingsError, "RenderSettings.mlt_pilot: " << settings.mlt_pilot->size()
+    if (settings.pilot) {
+        if (settings.pilot->size() != n)
+            CMLT_THROW(SettingsError, "RenderSettings.pilot: " << settings.pilot->size()
                                           << " values for a " << settings.width << "x" << settings.height
                                           << " image (expected " << n << ")");
-        return std::make_shared<const PixelImportance>(*settings.mlt_pilot, settings.width, settings.height);
+        return std::make_shared<const PixelImportance>(*settings.pilot, settings.width, settings.height);
     }
     const int spp = MltContext::pilot_spp(settings);
     const std::vector<float> pilot = render_pilot(scene, settings, spp, counters);

@@ -68,9 +68,9 @@ private:
 std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
                                 PathCounters& counters);
 
-/// The importance of a frame for its settings: `mlt_importance` "luminance" → uniform;
-/// "pixel" → from `settings.mlt_pilot` if given (it must be W×H×3), else from
-/// render_pilot at `mlt_pilot_spp`. `pilot_evaluations` (if given) receives the path
+/// The importance of a frame for its settings: `importance` "luminance" → uniform;
+/// "pixel" → from `settings.pilot` if given (it must be W×H×3), else from
+/// render_pilot at `pilot_spp`. `pilot_evaluations` (if given) receives the path
 /// samples the pilot cost (0 when it was given or not needed).
 std::shared_ptr<const PixelImportance> make_importance(const Scene& scene,
                                                        const RenderSettings& settings,

@@ -192,6 +192,10 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
         });
     }
 
+    auto start_states = std::make_shared<mlt::ChainStates>();
+    start_states->path_sampler = settings.mlt_path_sampler;
+    for (const auto& c : chains) start_states->chains.push_back(export_chain(*c));
+
     // 4. run the chains in rounds (frame_loop.h), expected-value splatting into the film
     const auto target = [](const PathSample& s) { return s.f; };
     bool cancelled = false;
@@ -266,7 +270,9 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     res.height = H;
     mlt::develop_image(res, film, b.mean, mutations, direct);
     res.cancelled = cancelled;
+    res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
     res.mlt_states = std::move(states);
+    res.mlt_start_states = std::move(start_states);
 
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
