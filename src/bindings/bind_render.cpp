@@ -28,7 +28,7 @@ struct PyRenderResult {
     nb::object bootstrap_f;  ///< float32 (N,) for pssmlt / cmlt, else None
     bool cancelled = false;
     nb::dict stats;
-    std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt only, else None
+    std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt / cmlt, else None
     std::shared_ptr<mlt::ChainStates> mlt_start_states;
 };
 
@@ -179,6 +179,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
         if (st.integrator == "cmlt") {
             d["path_sampler"] = m.path_sampler;
+            d["imported_chains"] = m.imported_chains;
             d["tries"] = m.tries;
             d["inner_length"] = m.inner_length;
             d["inner"] = m.inner;
@@ -323,9 +324,9 @@ void bind_render(nb::module_& m) {
         .def_ro("cancelled", &PyRenderResult::cancelled)
         .def_ro("stats", &PyRenderResult::stats)
         .def_ro("mlt_start_states", &PyRenderResult::mlt_start_states,
-                "pssmlt: MltStates every chain started the frame from; None otherwise")
+                "pssmlt/cmlt: MltStates every chain started the frame from; None otherwise")
         .def_ro("mlt_states", &PyRenderResult::mlt_states,
-                "pssmlt: MltStates, the final state of every chain; None otherwise");
+                "pssmlt/cmlt: MltStates, the final state of every chain; None otherwise");
 
     m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
           "Render one frame. progress(done, total) is called between chunks of samples per "

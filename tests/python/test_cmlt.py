@@ -191,6 +191,11 @@ def test_caustic_finite_and_caustic_perturbation_accepted(caustic_runs):
     moved = sum(st["kernel_stats"]["caustic"]["moved"] for _, st in runs)
     steps = sum(st["kernel_stats"]["caustic"]["steps"] for _, st in runs)
     print(f"\ncaustic perturbation: {steps} steps, acceptance {moved / steps:.3f}")
+    # no chain sticks (issue 4's measure; see test_mlt_bdpt.py test_04): the share of
+    # all steps spent in the most-occupied 0.1% of the states visited stays small
+    top = [st["top_occupancy"] for _, st in runs]
+    print(f"caustic: steps in the most-occupied 0.1% of states: max {max(top):.4f}")
+    assert max(top) < 0.05, top
 
 
 def test_caustic_mean_within_t_interval(caustic_runs):
@@ -230,6 +235,29 @@ def test_caustic_blocks_within_t_intervals(caustic_runs):
     t = t_critical(len(runs) - 1, 1e-2 / z.size)
     print(f"\ncaustic blocks: max z {z.max():.2f} (critical {t:.2f})")
     assert (z < t).all(), (z.max(), t, np.unravel_index(z.argmax(), z.shape))
+
+
+
+
+def test_chain_states_carry_over(caustic):
+    """cmlt exports its chains' start and end states, and a render started from them
+    (the temporal carry-over) re-evaluates them to the same f* (one pilot shared)."""
+    scene, settings = caustic
+    pilot = core.render_pilot(scene, settings("cmlt", 64, 3))
+    a = core.render(scene, settings("cmlt", 64, 3, pilot=pilot))
+    assert a.mlt_states is not None and a.mlt_start_states is not None
+    assert len(a.mlt_states) == a.stats["chains"] == len(a.mlt_start_states)
+    b = core.render(scene, settings("cmlt", 64, 3, pilot=pilot, mlt_initial_states=a.mlt_states))
+    assert b.stats["imported_chains"] == len(a.mlt_states)
+    # the imported states are the start states of the new render (to 1e-3: a chain's f*
+    # was computed from a packet-traced first hit, refined in double precision; the
+    # re-evaluation traces its camera ray alone)
+    for i in range(0, len(a.mlt_states), 7):
+        assert b.mlt_start_states.chain(i)["f_star"] == pytest.approx(a.mlt_states.chain(i)["f_star"], rel=1e-3)
+    assert np.isfinite(np.asarray(b.image)).all()
+    # a static scene with the same seed replays the starts exactly: the same image
+    c = core.render(scene, settings("cmlt", 64, 3, pilot=pilot, mlt_initial_states=a.mlt_start_states))
+    assert np.array_equal(np.asarray(c.image), np.asarray(a.image))
 
 
 @pytest.mark.parametrize("inner", ["bundle", "mtm"])

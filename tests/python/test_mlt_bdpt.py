@@ -194,6 +194,14 @@ def test_04_no_stuck_chain_on_the_caustic(runs):
     print(f"caustic: max rejection streak {streak}, fraction in runs > 1000: {frac:.2e}")
     assert streak < 2000, streak
     assert frac < 1e-2, frac
+    # issue 4's measure: the share of all steps spent in the most-occupied 0.1% of the
+    # states visited (a state is occupied for 1 + its rejections). Healthy chains give
+    # ~1-2% here (geometric run lengths); a tenth of the chains stuck for their whole
+    # budget would put ~9% of the steps there.
+    top = [st["top_occupancy"] for _, st in mlt]
+    print(f"caustic: steps in the most-occupied 0.1% of states: max {max(top):.4f}")
+    assert all(st["states_visited"] > 1000 for _, st in mlt)
+    assert max(top) < 0.05, top
 
 
 def test_05_deterministic_over_thread_counts(scenes):

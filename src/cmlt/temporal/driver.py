@@ -32,7 +32,7 @@ from .state import (FrameState, StateError, check_compatible, decode_state, enco
 __all__ = ["TemporalDriver", "frame_seed", "STATE_INTEGRATORS", "CHAIN_SETTINGS"]
 
 #: integrators whose chains export / import states (RenderResult.mlt_states)
-STATE_INTEGRATORS = ("pssmlt",)
+STATE_INTEGRATORS = ("pssmlt", "cmlt")
 #: settings that change the chains: a state written with others is refused
 CHAIN_SETTINGS = ("integrator", "spp", "max_depth", "sigma", "large_step_probability", "chains",
                   "bootstrap_samples", "tries", "inner_length", "inner", "importance",

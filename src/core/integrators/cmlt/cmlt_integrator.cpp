@@ -97,7 +97,15 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     // a chain's block (outer step + inner chain) costs about 1 + m·k evaluations: no more
     // chains than blocks fit in the budget
     const uint64_t block = 1 + uint64_t(m) * uint64_t(k);
-    const uint64_t n_chains = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(settings.chains), n_mut / block));
+    const mlt::ChainStates* initial = settings.mlt_initial_states.get();
+    if (initial && initial->chains.empty()) initial = nullptr;
+    if (initial && initial->path_sampler != settings.mlt_path_sampler)
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_initial_states: states of the '"
+                                      << initial->path_sampler << "' path sampler cannot start '"
+                                      << settings.mlt_path_sampler << "' chains");
+    const uint64_t max_chains = std::max<uint64_t>(1, n_mut / block);
+    const uint64_t n_chains = initial ? std::min<uint64_t>(initial->chains.size(), max_chains)
+                                      : std::min<uint64_t>(uint64_t(settings.chains), max_chains);
     mlt::SplatFilm film(W, H);
 
     auto make_target = [&](PathCounters* c, uint64_t* packet_queries) {
@@ -126,9 +134,32 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     for (double v : boot_f) boot_acc.add(v);
     const mlt::NormalisationEstimate b_boot = boot_acc.estimate();
 
-    // 3. chain starts: resample the pool ∝ f* (same numbers as pssmlt)
+    // 3. chain starts: resample the pool ∝ f* (same numbers as pssmlt), or the given
+    //    states (temporal carry-over), evaluated in this frame's scene
     std::vector<std::unique_ptr<ChainState>> chains;
-    if (b_boot.nonzero > 0 && n_mut > 0) {
+    std::vector<uint64_t> chain_ids;
+    if (initial && n_mut > 0) {
+        chains.resize(n_chains);
+        chain_ids.resize(n_chains);
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chains, 8), [&](const tbb::blocked_range<uint64_t>& r) {
+                ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
+                PathCounters c;
+                uint64_t bad = 0;
+                const coherent::Target f = make_target(&c, nullptr);
+                for (uint64_t ci = r.begin(); ci != r.end(); ++ci) {
+                    State x = coherent::import_state(initial->chains[ci], StateKey{RngDomain::chain, uint32_t(ci), 0});
+                    const double fx = f(x);
+                    bad += x.sample.invalid ? 1 : 0;
+                    chains[ci] = std::make_unique<ChainState>(seed, uint32_t(ci), k, std::move(x), fx);
+                    chains[ci]->budget = n_mut / n_chains + (ci < n_mut % n_chains ? 1 : 0);
+                    chain_ids[ci] = initial->chains[ci].chain_id;
+                }
+                counters.add(c, bad);
+            });
+        });
+    } else if (b_boot.nonzero > 0 && n_mut > 0) {
         mlt::CounterRng rng(seed, RngDomain::resample, 0);
         const std::vector<size_t> start = mlt::resample_start_indices(boot_f, size_t(n_chains), rng);
         chains.resize(n_chains);
@@ -139,18 +170,38 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                 PathCounters c;
                 const coherent::Target f = make_target(&c, nullptr);
                 for (uint64_t ci = r.begin(); ci != r.end(); ++ci) {
-                    State x;
-                    x.key = StateKey{RngDomain::bootstrap, uint32_t(start[ci]), 1};
-                    const double fx = f(x);
-                    CMLT_CHECK_MSG(fx == boot_f[start[ci]],
+                    State x0;
+                    x0.key = StateKey{RngDomain::bootstrap, uint32_t(start[ci]), 1};
+                    const double f0 = f(x0);
+                    CMLT_CHECK_MSG(f0 == boot_f[start[ci]],
                                    "cmlt: replaying bootstrap sample " << start[ci] << " gave a different path");
+                    // Re-key to the chain: the coordinates the path read become overrides
+                    // (as floats, as an exported state holds them), the rest come from key
+                    // (chain, ci, 0). A start carried into the next frame is then the same
+                    // point bit for bit, unread coordinates included, so with stored seeds
+                    // a static scene replays the chain exactly (temporal/carry.h).
+                    State x = coherent::import_state(coherent::export_state(x0, seed, ci),
+                                                     StateKey{RngDomain::chain, uint32_t(ci), 0});
+                    const double fx = f(x);
+                    CMLT_CHECK_MSG(fx == f0, "cmlt: re-keying bootstrap sample " << start[ci] << " changed its path");
                     chains[ci] = std::make_unique<ChainState>(seed, uint32_t(ci), k, std::move(x), fx);
                     chains[ci]->budget = n_mut / n_chains + (ci < n_mut % n_chains ? 1 : 0);
                 }
                 counters.add(c);
             });
         });
+        chain_ids.resize(n_chains);
+        for (uint64_t ci = 0; ci < n_chains; ++ci) chain_ids[ci] = ci;
     }
+    const auto export_states = [&] {
+        auto out = std::make_shared<mlt::ChainStates>();
+        out->path_sampler = settings.mlt_path_sampler;
+        out->chains.reserve(chains.size());
+        for (size_t ci = 0; ci < chains.size(); ++ci)
+            out->chains.push_back(coherent::export_state(chains[ci]->chain.x, seed, chain_ids[ci]));
+        return out;
+    };
+    std::shared_ptr<mlt::ChainStates> start_states = export_states();
 
     // 4. run the chains in rounds: outer large step, then m inner bundle steps
     bool cancelled = false;
@@ -244,6 +295,8 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     mlt::develop_image(res, film, b.mean, steps, direct);
     res.cancelled = cancelled;
     res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
+    res.mlt_states = export_states();
+    res.mlt_start_states = std::move(start_states);
 
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
@@ -272,6 +325,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     ms.packets = settings.packets;
     ms.packet_width = settings.packets ? max_width : 1;
     ms.packet_queries = counters.packets.load();
+    ms.imported_chains = initial ? chains.size() : 0;
     ms.path_evaluations = budget.pilot + budget.direct + budget.bootstrap + evaluations;
     // kernel stats by mutation name, then the perturbations (acceptance per type)
     std::ostringstream os;

@@ -54,11 +54,13 @@
 /// double-precision ray/triangle intersection (Embree's packet and single-ray kernels
 /// differ in the last ulp), so packets on and off give bit-identical images.
 #include "accel/accel.h"
+#include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "scene/scene.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -101,6 +103,8 @@ struct State {
     // camera-ray first hit, set by Target::prepare (scratch, not part of the point)
     mutable bool has_hit = false;
     mutable SceneHit hit;
+    /// Slots per stream the last evaluation read (1 + the highest slot), for export.
+    mutable std::array<uint32_t, MltSampler::k_stream_count> extent{};
 
     double value(uint64_t seed, size_t i) const {
         if (i < u.size() && !std::isnan(u[i])) return u[i];
@@ -131,7 +135,11 @@ public:
     }
 
 private:
-    double read(uint32_t slot) const { return m_state.value(m_seed, MltSampler::index(m_stream, slot)); }
+    double read(uint32_t slot) const {
+        uint32_t& e = m_state.extent[m_stream];
+        e = std::max(e, slot + 1);
+        return m_state.value(m_seed, MltSampler::index(m_stream, slot));
+    }
     static float to_float(double u) {  // as MltSampler
         const float f = float(u);
         return f < 1.f ? f : 0x1.fffffep-1f;
@@ -281,6 +289,7 @@ struct Target {
     uint64_t* packet_queries = nullptr;  ///< packets traced (stats)
 
     double operator()(const State& s) const {
+        s.extent.fill(0);
         PointSampler smp(s, seed);
         s.sample = tracer->evaluate(smp, *counters, s.has_hit ? &s.hit : nullptr);
         return s.sample.f;
@@ -329,5 +338,47 @@ struct Target {
         }
     }
 };
+
+/// A primary sample as the path routines read it (never 1: MltSampler's to_float).
+inline float state_float(double u) {
+    const float f = float(u);
+    return f < 1.f ? f : 0x1.fffffep-1f;
+}
+
+/// The point of `s` as an mlt::ChainState (the MltSampler layout the temporal carry-over
+/// and pssmlt read): every slot below the last evaluation's extent per stream, the
+/// overridden and the key's values alike (unread ones are uniform and independent under
+/// the target, so keeping them is exact). Requires `s` to have been evaluated.
+inline mlt::ChainState export_state(const State& s, uint64_t seed, uint64_t chain_id) {
+    mlt::ChainState out;
+    out.chain_id = chain_id;
+    for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k) {
+        out.u[k].resize(s.extent[k]);
+        for (uint32_t slot = 0; slot < s.extent[k]; ++slot)
+            out.u[k][slot] = state_float(s.value(seed, MltSampler::index(k, slot)));
+    }
+    if (s.sample.depth >= 0) {
+        out.depth = uint32_t(s.sample.depth);
+        out.s = uint32_t(s.sample.s);
+        out.t = uint32_t(s.sample.t);
+    }
+    out.f_star = s.sample.f;
+    out.colour = s.sample.L;
+    return out;
+}
+
+/// A State holding an imported ChainState's values as overrides over `key` (the key's
+/// values stand in for the NaN / missing slots: uniform and independent, as a fresh
+/// draw would be).
+inline State import_state(const mlt::ChainState& c, const StateKey& key) {
+    State s;
+    s.key = key;
+    for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k)
+        for (uint32_t slot = 0; slot < c.u[k].size(); ++slot) {
+            const float v = c.u[k][slot];
+            if (!std::isnan(v)) s.set(MltSampler::index(k, slot), double(v));
+        }
+    return s;
+}
 
 }  // namespace cmlt::coherent
