@@ -2,9 +2,9 @@
 """Accuracy against time: relMSE of each integrator at equal wall time.
 
 For one frame of a shot, renders a converged reference once (cached under
-``renders/bench/``), then, for each integrator and each time budget, picks the
-sample (or mutation) count that fills the budget — calibrated by a short run of
-the same integrator in the same process — renders, and measures the relative
+``renders/bench/``), then renders with each integrator under each time budget
+(the core's own time budget, RenderSettings.time_budget: every integrator stops
+when the wall time is used up, fixed passes included) and measures the relative
 MSE against the reference:
 
     relMSE = mean over pixels and channels of (I - R)^2 / (R^2 + 1e-2)
@@ -70,7 +70,6 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--reference-integrator", default="pt")
     ap.add_argument("--reference-spp", type=int, default=4096)
-    ap.add_argument("--calibrate-spp", type=int, default=4)
     ap.add_argument("--json", default=None)
     ap.add_argument("--plot", default=None)
     args = ap.parse_args(argv)
@@ -98,33 +97,32 @@ def main(argv=None) -> int:
 
     rows = []
     for integ in integrators:
-        # Calibrate seconds per sample per pixel for this integrator: a short run, then
-        # one long enough (about half a second) that start-up costs do not dominate.
-        cal_spp = args.calibrate_spp
-        _, dt = timed_render(core, scene, settings(core, integ, cal_spp, (w, h),
-                                                   args.seed, args.threads, {}))
-        if dt < 0.4:
-            cal_spp = max(cal_spp + 1, int(cal_spp * 0.5 / max(dt, 1e-3)))
-            _, dt = timed_render(core, scene, settings(core, integ, cal_spp, (w, h),
-                                                       args.seed, args.threads, {}))
-        per_spp = dt / cal_spp
+        name, _, opts = integ.partition(":")        # e.g. cmlt:tries=4:inner_length=2
+        extra = {}
+        for kv in [x for x in opts.split(":") if x]:
+            k, v = kv.split("=")
+            default = getattr(core.RenderSettings(), k)
+            extra[k] = (v == "1") if isinstance(default, bool) else type(default)(v)
         for budget in budgets:
-            spp = max(1, int(round(budget / per_spp)))
-            r, dt = timed_render(core, scene, settings(core, integ, spp, (w, h), args.seed,
-                                                       args.threads, {}))
+            st = settings(core, name, 1 << 24, (w, h), args.seed, args.threads, extra)
+            st.time_budget = budget
+            r, dt = timed_render(core, scene, st)
             img = np.asarray(r.image, dtype=np.float64)
             stats = dict(r.stats)
+            evals = stats.get("path_evaluations", stats.get("samples", 0))
             row = {
-                "integrator": integ, "budget_s": budget, "spp": spp, "time_s": dt,
-                "relmse": relmse(img, ref),
+                "integrator": integ, "budget_s": budget, "spp": float(evals) / (w * h),
+                "time_s": dt, "relmse": relmse(img, ref),
                 "mean_ratio": float(img.mean() / max(ref.mean(), 1e-12)),
-                "samples_per_s": float(stats.get("samples", 0)) / max(dt, 1e-9),
+                "samples_per_s": float(evals) / max(dt, 1e-9),
                 "rays_per_s": float(stats.get("rays", 0)) / max(dt, 1e-9),
+                "trace_fraction": float(stats.get("trace_s", 0.0)) / max(float(stats.get("busy_s", 0.0)), 1e-9),
             }
             rows.append(row)
-            print(f"{integ:>7} budget {budget:6.1f}s  spp {spp:6d}  time {dt:6.2f}s  "
+            print(f"{integ:>24} budget {budget:6.1f}s  per px {row['spp']:8.1f}  time {dt:6.2f}s  "
                   f"relMSE {row['relmse']:.5f}  mean/ref {row['mean_ratio']:.4f}  "
-                  f"samples/s {row['samples_per_s']:.3g}  rays/s {row['rays_per_s']:.3g}", flush=True)
+                  f"samples/s {row['samples_per_s']:.3g}  rays/s {row['rays_per_s']:.3g}  "
+                  f"tracing {100 * row['trace_fraction']:.0f}%", flush=True)
 
     result = {"shot": args.shot, "res": [w, h], "threads": args.threads,
               "reference": {"integrator": args.reference_integrator, "spp": args.reference_spp},

@@ -91,6 +91,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     const double sigma_pixels = settings.sigma * double(std::max(W, H));
     const double sigma_primary = settings.sigma;
     const int max_width = Accel::max_packet_width();
+    const double small_step_probability = coherent::k_small_step_probability;
 
     const mlt::FrameBudget budget = mlt::FrameBudget::plan(settings);
     const uint64_t n_mut = budget.chains;
@@ -239,8 +240,11 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                         // inner chain
                         for (int i = 0; i < m; ++i) {
                             Perturbation kind = Perturbation::lens;
-                            if (st.rng.uniform() < coherent::k_pixel_move_probability)
+                            const double u_kind = st.rng.uniform();
+                            if (u_kind < coherent::k_pixel_move_probability)
                                 kind = Perturbation::pixel_move;
+                            else if (u_kind < coherent::k_pixel_move_probability + small_step_probability)
+                                kind = Perturbation::small_step;
                             else if (coherent::light_traced(st.chain.x.sample))
                                 kind = Perturbation::caustic;
                             const PerturbationProposal prop =

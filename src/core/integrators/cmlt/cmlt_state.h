@@ -31,9 +31,16 @@
 ///   * pixel move: the film position redrawn uniformly (a large jump of the film
 ///     position only), so pixel coverage stays even (the seed's remedy against
 ///     stratification / blotches).
+///   * small step: PSSMLT's wrapped Gaussian on every coordinate (σ in primary units),
+///     the technique held. Lens and caustic perturbations move two coordinates only, so
+///     alone they never explore the rest of the path between large steps; measured on
+///     sequences/caustic_glass at 64x64, 256 evaluations per pixel, 3 seeds: relMSE
+///     0.0105 without small steps, 0.0084 with half the inner steps small steps, 0.0077
+///     with 90 % (pssmlt alone: 0.0085).
 /// Choice per inner step (by the kernel RNG, before the bundle is drawn): pixel move with
-/// probability k_pixel_move_probability; otherwise caustic if the current path's
-/// technique is light tracing (t = 1, the camera vertex connected directly), else lens.
+/// probability k_pixel_move_probability, small step with k_small_step_probability;
+/// otherwise caustic if the current path's technique is light tracing (t = 1, the camera
+/// vertex connected directly), else lens.
 /// The technique (s, t) is part of the state but read from dimensions the lens and
 /// caustic perturbations never touch, so every candidate has the same technique as x and
 /// the state-dependent choice keeps detailed balance. With the bdpt path sampler (the
@@ -150,14 +157,19 @@ private:
     uint32_t m_dimension = 0;
 };
 
+/// Probability that an inner step is a small step of every coordinate (PSSMLT's
+/// Gaussian mutation as a bundle) instead of a lens / caustic perturbation.
+inline constexpr double k_small_step_probability = 0.5;
+
 /// Perturbation kinds of the inner chain (stats keys).
-enum class Perturbation : uint8_t { lens = 0, caustic = 1, pixel_move = 2 };
-inline constexpr size_t k_perturbation_count = 3;
+enum class Perturbation : uint8_t { lens = 0, caustic = 1, pixel_move = 2, small_step = 3 };
+inline constexpr size_t k_perturbation_count = 4;
 inline const char* perturbation_name(Perturbation p) {
     switch (p) {
         case Perturbation::lens: return "lens";
         case Perturbation::caustic: return "caustic";
         case Perturbation::pixel_move: return "pixel_move";
+        case Perturbation::small_step: return "small_step";
     }
     return "unknown";
 }
@@ -183,7 +195,7 @@ struct PerturbationProposal {
         PerturbationProposal p;
         p.kind = kind;
         p.seed = seed;
-        if (kind == Perturbation::caustic) {
+        if (kind == Perturbation::caustic || kind == Perturbation::small_step) {
             p.i0 = caustic_index(0);
             p.i1 = caustic_index(1);
             p.s0 = p.s1 = sigma_primary;
@@ -201,6 +213,27 @@ struct PerturbationProposal {
         to.key = from.key;
         to.u = from.u;  // same-size assignment reuses capacity
         to.has_hit = false;
+        if (kind == Perturbation::small_step) {
+            // Every materialised coordinate (overridden, or read by the path of `from`)
+            // gets a wrapped Gaussian step; the technique slots stay (multiplexed MLT,
+            // mlt_sampler.h). A coordinate never materialised keeps its key value, a
+            // uniform independent of the chain's past — in law the value a perturbed
+            // fresh uniform would have (PSSMLT's lazy mutation, Kelemen et al. 2002), so
+            // the kernel is the symmetric all-coordinate step.
+            for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k)
+                for (uint32_t slot = 0; slot < from.extent[k]; ++slot) {
+                    const size_t i = MltSampler::index(k, slot);
+                    if (i >= to.u.size() || std::isnan(to.u[i])) to.set(i, key_value(seed, from.key, i));
+                }
+            to.extent = from.extent;
+            const size_t t0 = MltSampler::index(MltSampler::connection, 0);
+            const size_t t1 = MltSampler::index(MltSampler::connection, 1);
+            for (size_t i = 0; i < to.u.size(); ++i) {
+                if (std::isnan(to.u[i]) || i == t0 || i == t1) continue;
+                to.u[i] = mlt::detail::wrap01(to.u[i] + s0 * rng.normal());
+            }
+            return;
+        }
         if (kind == Perturbation::pixel_move) {
             const double a = rng.uniform();
             const double b = rng.uniform();
