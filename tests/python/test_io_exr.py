@@ -142,6 +142,8 @@ def test_sidecar_round_trip_and_strict_json(tmp_path):
     image = str(tmp_path / "c.0001.exr")
     rec = {"frame": 1.0, "stats": {"rays": np.int64(12), "time_s": np.float32(0.5),
                                    "odd": float("nan"), "per_thread": np.arange(3)},
+           "temporal": {"b_ratio": np.float64("nan"), "b_used": 0.5,
+                        "history": [float("inf"), -float("inf"), 1.0]},
            "warnings": ["w1"]}
     path = sidecar.write_sidecar(image, rec)
     assert path == image + ".json"
@@ -150,7 +152,11 @@ def test_sidecar_round_trip_and_strict_json(tmp_path):
     doc = sidecar.read_sidecar(image)
     assert doc["format"] == "cmlt-frame-stats" and doc["version"] == 1
     assert doc["stats"]["rays"] == 12 and doc["stats"]["per_thread"] == [0, 1, 2]
-    assert doc["stats"]["odd"] == "nan"
+    # a NaN (an estimate that does not exist for the frame) is JSON null, never "nan"
+    assert doc["stats"]["odd"] is None
+    assert doc["temporal"]["b_ratio"] is None and doc["temporal"]["b_used"] == 0.5
+    assert doc["temporal"]["history"] == [None, None, 1.0]
+    assert '"nan"' not in text and "Infinity" not in text and '"inf"' not in text
     assert _temps(tmp_path) == []
 
 

@@ -14,6 +14,10 @@ extension, and it sorts next to its image). The file is one JSON object:
 ``warnings``      loader warnings for this frame
 ``cmlt_version``
 
+A number that does not exist for the frame (NaN, e.g. ``temporal.b_ratio``
+of a frame without carried chain states) or is infinite is written as
+``null``, never as a string.
+
 Written atomically, like the image.
 """
 from __future__ import annotations
@@ -37,7 +41,9 @@ def sidecar_path(image_path: str) -> str:
 
 
 def _plain(value: Any) -> Any:
-    """JSON-safe copy: numpy scalars/arrays to Python, non-finite floats to str."""
+    """JSON-safe copy: numpy scalars/arrays to Python, non-finite floats
+    (NaN: an estimate that does not exist for the frame, such as ``b_ratio``
+    without carried states; ±Inf) to ``None``, i.e. JSON ``null``."""
     if isinstance(value, Mapping):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -47,7 +53,7 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return _plain(value.item())
     if isinstance(value, float) and not math.isfinite(value):
-        return str(value)   # strict JSON has no NaN/Infinity
+        return None         # strict JSON has no NaN/Infinity
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     return str(value)

@@ -9,8 +9,9 @@
 
 See :mod:`cmlt.metrics.flicker` for the exact definitions.
 """
-from .flicker import REL_MSE_EPS, FlickerReport, compare, flicker, rel_mse
+from .flicker import (REL_MSE_EPS, FlickerReport, FrameDifferenceFlicker, compare, flicker,
+                      rel_mse)
 from .sequence import MetricsError, find_frames, load_image, load_sequence
 
-__all__ = ["MetricsError", "FlickerReport", "load_sequence", "load_image", "find_frames",
+__all__ = ["MetricsError", "FlickerReport", "FrameDifferenceFlicker", "load_sequence", "load_image", "find_frames",
            "flicker", "compare", "rel_mse", "REL_MSE_EPS"]

@@ -33,7 +33,8 @@ import numpy as np
 
 from .sequence import MetricsError
 
-__all__ = ["FlickerReport", "flicker", "compare", "rel_mse", "REL_MSE_EPS"]
+__all__ = ["FlickerReport", "FrameDifferenceFlicker", "flicker", "compare", "rel_mse",
+           "REL_MSE_EPS"]
 
 #: the ε of relMSE's denominator, R² + ε
 REL_MSE_EPS = 1e-2
@@ -198,6 +199,72 @@ def flicker(images, reference=None, frames: Optional[Sequence[float]] = None) ->
                          reference_mean=ref_means.tolist(), rel_mse=rel,
                          mean_rel_mse=float(np.mean(rel)), static_reference=static,
                          size=size, warnings=warnings)
+
+
+class FrameDifferenceFlicker:
+    """The no-reference flicker of :func:`flicker` (frame-difference mode),
+    accumulated one frame at a time, so that a renderer can measure it
+    without keeping every frame: only the previous image is held.
+
+    ``add(image, follows=True)``: ``follows`` says the image is the frame
+    right after the previous one added (a pair ``|I_{f+1} − I_f|`` is
+    measured only then; a gap, e.g. frames skipped by ``--resume``, starts a
+    new run). ``tf`` is ``mean_pairs mean_px |I_{f+1} − I_f| / mean_px I``
+    (``mean_px I`` over every frame added), ``gf`` the population std of
+    ``mean_px I_f / mean_px I``: the same numbers :func:`flicker` gives for
+    an unbroken run. ``tf`` is ``None`` without a pair, and both are
+    ``None`` for a black sequence.
+    """
+
+    def __init__(self):
+        self._prev: Optional[np.ndarray] = None
+        self._means: List[float] = []
+        self._deltas: List[float] = []
+        self._shape = None
+
+    def add(self, image, follows: bool = True) -> None:
+        a = _as_image(image, "flicker: image")
+        if self._shape is not None and a.shape != self._shape:
+            follows = False                     # another resolution: not comparable
+        if follows and self._prev is not None:
+            self._deltas.append(float(np.mean(np.abs(a - self._prev))))
+        self._means.append(float(a.mean()))
+        self._prev = a
+        self._shape = a.shape
+
+    @property
+    def frames(self) -> int:
+        return len(self._means)
+
+    @property
+    def pairs(self) -> int:
+        return len(self._deltas)
+
+    @property
+    def normaliser(self) -> float:
+        return float(np.mean(self._means)) if self._means else 0.0
+
+    @property
+    def tf(self) -> Optional[float]:
+        norm = self.normaliser
+        if not self._deltas or not norm > 0:
+            return None
+        return float(np.mean(self._deltas)) / norm
+
+    @property
+    def gf(self) -> Optional[float]:
+        norm = self.normaliser
+        if not self._means or not norm > 0:
+            return None
+        return float(np.std(np.asarray(self._means) / norm))
+
+    def as_dict(self) -> Dict[str, Any]:
+        """``flicker`` (TF), ``global_flicker`` (GF), ``flicker_pairs``,
+        ``flicker_measure`` (what the numbers are)."""
+        return {"flicker": self.tf, "global_flicker": self.gf if self.pairs else None,
+                "flicker_pairs": self.pairs,
+                "flicker_measure": "frame-difference (no reference): "
+                                   "mean |I_f+1 - I_f| / mean I"}
 
 
 def compare(a, b) -> Dict[str, float]:

@@ -1,7 +1,7 @@
 """What the user sees while a sequence renders.
 
 :class:`Reporter` draws two rich progress bars on stderr — the sequence
-(frames) and the current frame (core progress units, rays/s, ETA) — and
+(frames) and the current frame (core progress units, a live rate, ETA) — and
 prints one line per finished frame above them. Without a terminal (CI, logs)
 the bars are off and only the per-frame lines are printed. ``quiet`` prints
 nothing (errors are the caller's, on stderr). Loader warnings are printed
@@ -14,7 +14,7 @@ The core's progress callback runs on a render thread; it only stores numbers
 JSON object per line per event on stdout, nothing else: ``sequence_start``,
 ``frame_start``, ``frame_done`` (time, rays, rays/s, path), ``warning``,
 ``info``, ``frame_aborted``, ``sequence_done`` (frames, time, mean time per
-frame, rays/s). Every object has ``event`` and ``t`` (Unix time).
+frame, rays/s, flicker: see :func:`sequence_summary`). Every object has ``event`` and ``t`` (Unix time).
 
 :func:`summary_table` is the table printed when a sequence completes.
 """
@@ -26,7 +26,8 @@ import sys
 import time
 from typing import Any, Dict, Iterable, Optional, Set
 
-__all__ = ["Reporter", "JsonReporter", "format_rate", "summary_table", "sequence_summary"]
+__all__ = ["Reporter", "JsonReporter", "format_rate", "format_flicker", "summary_table",
+           "sequence_summary"]
 
 
 def format_rate(rays_per_s: Optional[float]) -> str:
@@ -50,7 +51,8 @@ class Reporter:
         self._seq_task = None
         self._frame_task = None
         self._frame_t0 = 0.0
-        self._rays_per_unit: Optional[float] = None   # from the previous frame
+        self._rays_per_sample: Optional[float] = None  # from the last finished frame
+        self._frame_samples: Optional[float] = None   # samples of the frame in progress
 
     # -- lifecycle -------------------------------------------------------
     def __enter__(self):
@@ -99,25 +101,43 @@ class Reporter:
 
     def start_frame(self, frame: float) -> None:
         self._frame_t0 = time.perf_counter()
+        self._frame_samples = None
         if self._progress is not None:
             if self._frame_task is not None:
                 self._progress.remove_task(self._frame_task)
             self._frame_task = self._progress.add_task(f"frame {frame:g}", total=None, rate="")
 
+    def frame_budget(self, samples: Optional[float]) -> None:
+        """The frame about to render takes ``samples`` samples (pixels × spp,
+        path evaluations for pssmlt/cmlt) spread evenly over the core's
+        progress units; ``None`` when unknown (a time budget counts
+        milliseconds). Called before the render starts."""
+        self._frame_samples = float(samples) if samples else None
+
+    def live_rate(self, done: float, total: float, elapsed: float) -> str:
+        """The rate shown in the frame bar: ``~`` + rays/s, from the samples
+        done so far (``done / total`` of the frame's samples) times the rays
+        per sample of the last finished frame; before any frame has finished
+        (frame 1) the core has not counted rays yet, so samples/s. '' when
+        nothing is known yet."""
+        if not (elapsed > 0 and done > 0 and total and self._frame_samples):
+            return ""
+        samples_per_s = self._frame_samples * float(done) / float(total) / elapsed
+        if self._rays_per_sample:
+            return "~" + format_rate(self._rays_per_sample * samples_per_s)
+        return "~" + format_rate(samples_per_s).replace("rays/s", "samples/s")
+
     def frame_progress(self, done: float, total: float) -> None:
         """Called from the render thread: store numbers only."""
         if self._progress is None or self._frame_task is None:
             return
-        rate = ""
-        elapsed = time.perf_counter() - self._frame_t0
-        if self._rays_per_unit and elapsed > 0 and done > 0:
-            rate = "~" + format_rate(self._rays_per_unit * done / elapsed)
+        rate = self.live_rate(done, total, time.perf_counter() - self._frame_t0)
         self._progress.update(self._frame_task, completed=done, total=total, rate=rate)
 
     def end_frame(self, frame: float, path: str, stats: dict, units_total: Optional[float]) -> None:
-        rays = stats.get("rays")
-        if rays and units_total:
-            self._rays_per_unit = float(rays) / float(units_total)
+        rays, samples = stats.get("rays"), stats.get("samples")
+        if rays and samples:
+            self._rays_per_sample = float(rays) / float(samples)
         if self._progress is not None:
             if self._frame_task is not None:
                 self._progress.remove_task(self._frame_task)
@@ -141,33 +161,56 @@ class Reporter:
 def sequence_summary(result) -> Dict[str, Any]:
     """Numbers of a finished sequence (a :class:`~cmlt.shot.SequenceResult`):
     frames written and skipped, total time, mean render time per frame,
-    rays/s over the sequence."""
+    rays/s over the sequence, and the flicker measured while rendering:
+    ``flicker`` is the no-reference frame-to-frame measure of DESIGN.md §4,
+    ``mean_pairs mean_px |I_{f+1} − I_f| / mean_px I`` over consecutive
+    frames rendered now (None with fewer than 2), ``global_flicker`` the
+    std of the frames' brightness over its mean, ``flicker_pairs`` how many
+    frame pairs were measured (see :class:`cmlt.metrics.FrameDifferenceFlicker`;
+    on a moving shot it includes the motion: use ``cmlt flicker --reference``
+    for flicker proper)."""
     stats = list(result.stats.values())
     times = [float(st.get("wall_time_s", st.get("time_s", 0.0))) for st in stats]
     render_s = sum(float(st.get("time_s", 0.0)) for st in stats)
     rays = sum(int(st.get("rays", 0)) for st in stats)
+    flick = dict(getattr(result, "flicker", None) or {})
     return {
         "frames": len(result.written), "skipped": len(result.skipped),
         "total_time_s": float(getattr(result, "elapsed_s", 0.0) or sum(times)),
         "mean_frame_time_s": (sum(times) / len(times)) if times else 0.0,
         "rays": rays, "rays_per_s": (rays / render_s) if render_s > 0 else 0.0,
-        "flicker": None,            # not measured during rendering (see `cmlt flicker`)
+        "flicker": flick.get("flicker"),
+        "global_flicker": flick.get("global_flicker"),
+        "flicker_pairs": int(flick.get("flicker_pairs") or 0),
     }
 
 
+def format_flicker(value: Optional[float]) -> str:
+    """``0.0123`` as ``1.23 %``; ``-`` when not measured (fewer than 2 frames)."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    return f"{100.0 * value:.3g} %"
+
+
 def summary_table(result):
-    """A rich Table: frames, total time, mean time per frame, rays/s."""
+    """A rich Table: frames, total time, mean time per frame, rays/s, and
+    the frame-to-frame flicker (``-`` with fewer than 2 consecutive frames)."""
     from rich.table import Table
 
     s = sequence_summary(result)
-    table = Table(title="cmlt render summary", title_justify="left", show_header=True)
+    table = Table(title="cmlt render summary", title_justify="left", show_header=True,
+                  caption="flicker: mean |I(f+1) - I(f)| / mean I over consecutive frames "
+                          "(no reference)" if s["flicker"] is not None else None,
+                  caption_justify="left")
     table.add_column("frames", justify="right")
     table.add_column("skipped", justify="right")
     table.add_column("total time", justify="right")
     table.add_column("mean / frame", justify="right")
     table.add_column("rays/s", justify="right")
+    table.add_column("flicker", justify="right")
     table.add_row(str(s["frames"]), str(s["skipped"]), f"{s['total_time_s']:.2f} s",
-                  f"{s['mean_frame_time_s']:.2f} s", format_rate(s["rays_per_s"]))
+                  f"{s['mean_frame_time_s']:.2f} s", format_rate(s["rays_per_s"]),
+                  format_flicker(s["flicker"]))
     return table
 
 
@@ -231,6 +274,9 @@ class JsonReporter:
         self._frame_t0 = time.perf_counter()
         self._index += 1
         self.emit("frame_start", frame=float(frame), index=self._index, total=self._total)
+
+    def frame_budget(self, samples: Optional[float]) -> None:
+        pass
 
     def frame_progress(self, done: float, total: float) -> None:
         pass                          # no per-chunk events: one line per frame event

@@ -177,6 +177,9 @@ class SequenceResult:
     sources: Dict[str, str] = field(default_factory=dict)       # where each came from
     previews: List[str] = field(default_factory=list)     # preview paths written now
     elapsed_s: float = 0.0                                # wall time of the whole call
+    #: frame-to-frame flicker of the frames rendered now (no reference, DESIGN.md §4;
+    #: cmlt.metrics.FrameDifferenceFlicker.as_dict), None until a frame is rendered
+    flicker: Optional[Dict[str, object]] = None
 
 
 def _resolve(stage, opts: RenderOptions):
@@ -347,10 +350,27 @@ _MLT_STATS = {
 }
 
 
-def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict) -> Dict[str, object]:
+#: temporal normalisation record (TemporalDriver.finish) -> cmlt:* header attribute names
+_TEMPORAL_RECORD = {
+    "b_used": "bUsed", "b_boot": "bFresh", "b_ratio": "bRatio", "b_combined": "bCombined",
+    "b_smoothed": "bSmoothed", "change_detected": "changeDetected",
+}
+
+
+def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
+                     temporal: Optional[dict] = None) -> Dict[str, object]:
     """``cmlt:*`` EXR header attributes of one frame (issue 6): frame, time code,
     shot, camera, integrator and its parameters, seed, samples / mutations,
-    render time, b estimates (when the integrator reports them), version."""
+    render time, b estimates (when the integrator reports them), version.
+
+    ``temporal``: the frame's temporal record (:meth:`TemporalDriver.finish`).
+    When it holds a normalisation (MLT integrators), ``cmlt:b`` is the b the
+    image was normalised with (``b_used``: smoothed over frames unless
+    ``--no-smoothing``), the core's own estimate is ``cmlt:bCore``, and the
+    record goes in as ``cmlt:bUsed``, ``bFresh``, ``bRatio``, ``bCombined``,
+    ``bSmoothed``, ``changeDetected``; an estimate that does not exist for
+    the frame (NaN, e.g. ``b_ratio`` without carried states) is left out.
+    """
     params = {k: v for k, v in resolved.as_dict().items() if k not in ("camera", "resolution")}
     md: Dict[str, object] = {
         "frame": float(frame), "timeCode": float(fs.time), "shot": shot_abs,
@@ -367,6 +387,17 @@ def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict) ->
     for key, name in _MLT_STATS.items():
         if key in stats and stats[key] is not None:
             md[name] = stats[key]
+    rec = temporal or {}
+    if rec.get("b_used") is not None and "b" in md:
+        md["bCore"] = md["b"]                   # the core's b, before temporal smoothing
+        for key, name in _TEMPORAL_RECORD.items():
+            value = rec.get(key)
+            if isinstance(value, bool):
+                md[name] = int(value)
+            elif value is not None and math.isfinite(float(value)):
+                md[name] = float(value)
+        if "bUsed" in md:
+            md["b"] = md["bUsed"]               # the b the image was normalised with
     return md
 
 
@@ -446,6 +477,35 @@ def _load_previous_state(temporal, pred, frame, opts: RenderOptions, info, rep, 
     return note
 
 
+#: integrators whose frames depend on the frame before (chain states and/or the
+#: smoothed normalisation b, DESIGN.md §4)
+TEMPORAL_INTEGRATORS = ("pssmlt", "cmlt")
+
+
+def _cold_resume_warning(resolved, opts: RenderOptions, todo, predecessor, outputs,
+                         frame_list, resume: bool) -> str:
+    """--resume of an MLT sequence without --state-dir: the first frame left
+    to render follows a frame rendered by an earlier run, whose chain states
+    and normalisation history were not saved, so it starts cold ('' if not)."""
+    if not resume or opts.state_dir or not todo or \
+            str(resolved.integrator) not in TEMPORAL_INTEGRATORS:
+        return ""
+    if not (resolved.carry_states or resolved.smooth_normalization):
+        return ""                       # every frame starts fresh anyway
+    path_of = dict(zip(frame_list, outputs))
+    now = {f for f, _ in todo}
+    cold = [f for f, _ in todo if predecessor[f] not in now and predecessor[f] in path_of
+            and os.path.isfile(path_of[predecessor[f]])]
+    if not cold:
+        return ""
+    first = cold[0]
+    more = f" (and {len(cold) - 1} more frame(s) after a gap)" if len(cold) > 1 else ""
+    return (f"--resume without --state-dir: frame {first:g}{more} follows frame "
+            f"{predecessor[first]:g} of an earlier run, whose chain states and normalisation "
+            f"history were not saved; its {resolved.integrator} chains start fresh (render "
+            f"with --state-dir DIR to continue a sequence across runs)")
+
+
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
@@ -514,13 +574,20 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     predecessor = {f: (frame_list[i - 1] if i > 0 else f - step) for i, f in enumerate(frame_list)}
     temporal = None
     last_rendered = None
+    from ..metrics.flicker import FrameDifferenceFlicker    # (cmlt.metrics imports cmlt.shot)
+    flick = FrameDifferenceFlicker()        # frame-to-frame flicker (DESIGN.md §4)
 
     rep = reporter or Reporter(show_progress=progress, quiet=quiet)
     bridge = SceneBridge(core)
     shot_abs = os.path.abspath(shot)
+    stage_warnings = [w for w in info.warnings
+                      if not (opts.camera and w == info.settings_camera_warning)]  # moot
+    cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
+    if cold:
+        stage_warnings.append(cold)
     with rep:
-        rep.warnings(info.warnings)
-        result.warnings.extend(info.warnings)
+        rep.warnings(stage_warnings)
+        result.warnings.extend(stage_warnings)
         if result.skipped:
             rep.info(f"resume: {len(result.skipped)} frame(s) already rendered, "
                      f"{len(todo)} to go")
@@ -565,6 +632,10 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 except core.SettingsError as exc:
                     msg, usage = _settings_message(str(exc), resolved, sources)
                     raise (UsageError if usage else RenderError)(msg) from None
+                budget = getattr(rep, "frame_budget", None)
+                if budget is not None:          # the live rate of the frame bar
+                    timed = float(getattr(resolved, "time_budget", 0.0) or 0.0) > 0.0
+                    budget(None if timed else float(width) * float(height) * float(resolved.spp))
                 try:
                     r, interrupted, units = _render_interruptible(core, scene, st, rep)
                 except core.SettingsError as exc:
@@ -593,7 +664,12 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     "warnings": list(fs.warnings), "cmlt_version": __version__,
                     "temporal": trec,
                 }
-                metadata = _header_metadata(frame, fs, shot_abs, record["camera"], resolved, stats)
+                metadata = _header_metadata(frame, fs, shot_abs, record["camera"], resolved, stats,
+                                            temporal=trec)
+                out_image = _to_output(image, opts.output_colorspace)
+                # flicker of the full frames in the output colour space, as `cmlt flicker`
+                # measures the EXRs (only consecutive frames of the list are paired)
+                flick.add(out_image, follows=last_rendered is not None and last_rendered == pred)
                 try:
                     if opts.preview:
                         # before the EXR: a finished image always has its preview
@@ -608,7 +684,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                         state_file = write_state(state_path(opts.state_dir, frame), state_bytes)
                         trec["state_out"] = os.path.abspath(state_file)
                     write_sidecar(path, record)
-                    write_exr(path, _to_output(image, opts.output_colorspace), half=opts.half,
+                    write_exr(path, out_image, half=opts.half,
                               compression=opts.compression, colorspace=None,
                               metadata=metadata, attributes=color_attrs, aovs=aov_images,
                               crop=crop)
@@ -622,6 +698,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 last_rendered = frame
                 result.written.append(path)
                 result.stats[frame] = stats
+                result.flicker = flick.as_dict()
                 rep.end_frame(frame, path, stats, units)
             except KeyboardInterrupt:
                 rep.abort_frame()
