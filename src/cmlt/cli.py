@@ -280,10 +280,17 @@ def _error(message: str, code: int) -> int:
     return code
 
 
-def _resume_command(argv: Sequence[str]) -> str:
+def _resume_command(argv: Sequence[str], state_dir: Optional[str] = None) -> str:
+    """The command that continues an interrupted render: the same arguments
+    plus ``--resume``, and ``--state-dir DIR`` whenever a state directory was
+    used (spelt out in full even if the user abbreviated the flag), so that a
+    resumed pssmlt/cmlt sequence continues its chains and normalisation
+    history instead of starting them cold."""
     args = list(argv)
     if "--resume" not in args:
         args.append("--resume")
+    if state_dir and not any(a == "--state-dir" or a.startswith("--state-dir=") for a in args):
+        args += ["--state-dir", state_dir]
     return shlex.join(["cmlt", *args])
 
 
@@ -326,7 +333,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
     except RenderError as exc:
         return fail(str(exc), EXIT_RENDER)
     except RenderCancelled as exc:
-        resume = _resume_command(argv)
+        resume = _resume_command(argv, opts.state_dir)
         if log is not None:
             log.emit("interrupted", message=str(exc), written=list(exc.written),
                      resume=resume, exit_code=EXIT_INTERRUPTED)
@@ -401,7 +408,8 @@ def _cmd_inspect(args) -> int:
         return _error(f"{args.shot}: no such file", EXIT_USAGE)
     try:
         stage = open_stage(args.shot)
-        report = stage_info(stage).format()
+        info = stage_info(stage)
+        report = info.format()
     except UsdLoadError as exc:
         return _error(str(exc), EXIT_RENDER)
     sys.stdout.write(report.rstrip("\n") + "\n")
@@ -410,7 +418,21 @@ def _cmd_inspect(args) -> int:
     except SettingsError as exc:
         sys.stdout.flush()
         return _error(str(exc), EXIT_RENDER)
+    if settings.camera and info.settings_camera_warning:
+        # the relationship is authored but cannot be used (see the warning above)
+        why = info.settings_camera_warning.split(f"camera {settings.camera} ", 1)[-1]
+        sources = dict(sources, camera=f"{sources.get('camera', 'stage')} "
+                                       f"(NOT USED: {why.split(';')[0]})")
     sys.stdout.write(format_settings(settings, sources).rstrip("\n") + "\n")
+    # the OpenColorIO config a render of this shot would use, and where it came from
+    # (--ocio-config is a render flag: here $OCIO, the stage's, else the built-in one)
+    from .color import ColorError, load_config
+    try:
+        cfg = load_config(None, stage=stage)
+    except ColorError as exc:
+        sys.stdout.flush()
+        return _error(str(exc), EXIT_RENDER)
+    sys.stdout.write(f"colour: {cfg.describe()}\n")
     return EXIT_OK
 
 

@@ -153,6 +153,9 @@ def _bad(make_shot, tiny_shot, tmp_path):
         "tcps=0": (["render", make_shot("tcps.usda", {"timeCodesPerSecond = 24":
                                                        "timeCodesPerSecond = 0"}),
                     "--out", out], 1, "timeCodesPerSecond is 0"),
+        "tcps<0": (["render", make_shot("tcpsneg.usda", {"timeCodesPerSecond = 24":
+                                                          "timeCodesPerSecond = -24"}),
+                    "--out", out], 1, "timeCodesPerSecond is -24; it must be > 0"),
         "bad colorspace": (["render", tiny_shot, "--output-colorspace", "nope", "--out", out], 2,
                            "--output-colorspace 'nope': unknown colour space"),
         "bad ocio config": (["render", tiny_shot, "--ocio-config", str(tmp_path / "no.ocio"),
@@ -171,7 +174,7 @@ def _file_as_dir(tmp_path):
 
 BAD_CASES = ["bad ocio config", "unwritable out", "bad colorspace", "missing file", "bad frames", "garbage frames", "bad res", "zero res",
              "missing camera", "not a camera", "unknown integrator", "stage settings typo", "no frame token",
-             "bad spp", "tcps=0", "inspect missing", "no command"]
+             "bad spp", "tcps=0", "tcps<0", "inspect missing", "no command"]
 
 
 @pytest.mark.parametrize("case", BAD_CASES)

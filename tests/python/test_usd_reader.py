@@ -416,6 +416,7 @@ def test20_unreadable_layer(tmp_path):
 
 @pytest.mark.parametrize("meta, message", [
     ("timeCodesPerSecond = 0", "timeCodesPerSecond is 0; it must be > 0"),
+    ("timeCodesPerSecond = -24", "timeCodesPerSecond is -24; it must be > 0"),
     ("startTimeCode = 10\n endTimeCode = 1", "startTimeCode 10 is after endTimeCode 1"),
 ])
 def test21_bad_time_metadata(tmp_path, meta, message):

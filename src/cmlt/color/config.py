@@ -11,7 +11,8 @@ Which config (first match wins; ``ColorConfig.source`` says which one):
 1. an explicit path (``--ocio-config``),
 2. ``$OCIO``,
 3. the stage's ``colorConfiguration`` metadata (when its
-   ``colorManagementSystem`` is empty or ``OCIO``),
+   ``colorManagementSystem`` is empty, ``OCIO`` or ``OpenColorIO``; another
+   system is reported by :func:`stage_color_warnings`),
 4. the ACES studio config built into OpenColorIO, ``ocio://studio-config-latest``
    (with OCIO 2.6.0 that resolves to
    ``studio-config-v5.0.0_aces-v2.1_ocio-v2.6``).
@@ -36,7 +37,7 @@ from .spaces import (ACESCG_LUMINANCE, USD_TOKEN_ALIASES, Chromaticities,
 __all__ = [
     "ColorError", "ColorConfig", "load_config", "get_config", "set_config",
     "BUILTIN_CONFIG", "RENDERING_SPACE", "DEFAULT_USD_COLORSPACE", "DEFAULT_DISPLAY",
-    "OCIO_ENV",
+    "OCIO_ENV", "stage_color_warnings",
 ]
 
 #: the built-in config used when nothing else names one
@@ -417,13 +418,45 @@ def _prim_text(prim) -> str:
 
 # -- loading ----------------------------------------------------------------------
 
+#: ``colorManagementSystem`` values meaning OpenColorIO (compared case-insensitively)
+OCIO_CMS_NAMES = ("ocio", "opencolorio")
+
+
+def _stage_cms(stage) -> str:
+    try:
+        return str(stage.GetColorManagementSystem() or "").strip()
+    except Exception:                                   # pragma: no cover (old USD)
+        return ""
+
+
+def stage_color_warnings(stage) -> list:
+    """Warnings about the stage's colour-management metadata cmlt cannot
+    honour: a ``colorManagementSystem`` other than OpenColorIO (cmlt manages
+    colour only with OCIO, so the stage's ``colorConfiguration`` is not used).
+    One line each, naming the stage."""
+    if stage is None:
+        return []
+    cms = _stage_cms(stage)
+    if not cms or cms.lower() in OCIO_CMS_NAMES:
+        return []
+    layer = stage.GetRootLayer()
+    where = layer.realPath or layer.identifier
+    asset = stage.GetColorConfiguration()
+    cfg = (asset.path if asset else "") or ""
+    ignored = f"; its colorConfiguration {cfg} is not used" if cfg else ""
+    return [f"{where}: colorManagementSystem is '{cms}', not OpenColorIO{ignored}; cmlt "
+            f"manages colour with OpenColorIO ($OCIO or the built-in config; see "
+            f"`cmlt inspect`)"]
+
+
 def _stage_config(stage) -> Optional[str]:
     """The stage's ``colorConfiguration`` as a file path or URI, when the
-    stage says it is managed by OCIO (or does not say)."""
+    stage says it is managed by OCIO (or does not say); otherwise None, and
+    :func:`stage_color_warnings` says so."""
     if stage is None:
         return None
-    cms = (stage.GetColorManagementSystem() or "").strip()
-    if cms and cms.lower() != "ocio":
+    cms = _stage_cms(stage)
+    if cms and cms.lower() not in OCIO_CMS_NAMES:
         return None
     asset = stage.GetColorConfiguration()
     path = (asset.resolvedPath or asset.path) if asset else ""

@@ -10,6 +10,7 @@ from typing import Dict, List, Tuple
 
 from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux, UsdRender, UsdShade
 
+from .diagnostics import capture_usd_diagnostics
 from .errors import UsdLoadError
 
 # Gprim types the reader turns into triangles.
@@ -127,18 +128,38 @@ def open_stage(path) -> "Usd.Stage":
         raise
     except Exception:
         pass
-    try:
-        stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
-    except Tf.ErrorException as exc:
-        raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
-    except Exception as exc:                            # pragma: no cover
-        raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
-    if stage is None:
-        raise UsdLoadError(f"{path}: cannot open the stage")
+    # USD prints its own diagnostics (e.g. "Warning: in _ReportErrors at line ... of
+    # stage.cpp") straight to fd 2, past --quiet and --log-json: catch them here
+    with capture_usd_diagnostics() as diags:
+        try:
+            stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
+        except Tf.ErrorException as exc:
+            raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
+        except Exception as exc:                        # pragma: no cover
+            raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
+        if stage is None:
+            raise UsdLoadError(f"{path}: cannot open the stage")
+        composed = composition_warnings(stage)
     check_time_metadata(stage)
     state = stage_state(stage)
-    state.open_warnings = composition_warnings(stage)
+    state.open_warnings = composed + usd_diagnostic_warnings(stage, diags, composed)
     return stage
+
+
+def usd_diagnostic_warnings(stage, diagnostics: List[str], known: List[str]) -> List[str]:
+    """USD's diagnostics caught while composing ``stage`` as cmlt warnings
+    naming the stage's layer; those that only repeat a composition error
+    already in ``known`` (which names the layer that introduced it) are
+    dropped."""
+    out: List[str] = []
+    layer = _stage_file(stage)
+    for d in diagnostics:
+        if any(k.rstrip(".") in d for k in known):
+            continue
+        msg = f"{layer}: USD: {d}"
+        if msg not in out:
+            out.append(msg)
+    return out
 
 
 @dataclass
@@ -164,6 +185,8 @@ class StageInfo:
     notes: List[str] = field(default_factory=list)
     warnings: List[str] = field(default_factory=list)
     motion_blur: str = ""            # "on: ..." / "off: ..." at the first frame, and why
+    #: the render settings' camera cannot be used (also in ``warnings``; moot with --camera)
+    settings_camera_warning: str = ""
 
     @property
     def frame_count(self) -> int:
@@ -211,9 +234,29 @@ def _plural(type_name: str) -> str:
     return type_name + "s"                        # Volumes
 
 
+def unregistered_type(prim) -> bool:
+    """``prim`` names a type no loaded USD schema defines (``def FooBarType
+    "x"``: a typo, or a plugin that is not installed)."""
+    type_name = str(prim.GetTypeName())
+    if not type_name:
+        return False
+    try:
+        return bool(prim.GetPrimTypeInfo().GetSchemaType().isUnknown)
+    except Exception:                                   # pragma: no cover (old USD)
+        return bool(Usd.SchemaRegistry.GetTypeFromName(type_name).isUnknown)
+
+
+#: the reason given for a prim of an unregistered type
+UNREGISTERED_REASON = ("{type} is not a registered prim type (no loaded USD schema defines it; "
+                       "a typo or a missing plugin?); not rendered, and its own transform is "
+                       "not applied to its children")
+
+
 def ignored_reason(prim) -> str:
     """Why an (unsupported) prim is not rendered, or '' if it is not ignored."""
     type_name = str(prim.GetTypeName())
+    if unregistered_type(prim):
+        return UNREGISTERED_REASON.format(type=type_name)
     if prim.IsA(UsdGeom.Gprim):
         if type_name in MESH_TYPES or type_name in INTRINSIC_TYPES:
             return ""
@@ -237,6 +280,28 @@ def subdivision_note(prim) -> str:
     if scheme and scheme != UsdGeom.Tokens.none:
         return f"{prim.GetPath()}: subdivisionScheme is {scheme}; rendered as the control cage"
     return ""
+
+
+def settings_camera_problem(stage, settings) -> str:
+    """Why the ``camera`` relationship of a ``UsdRender.Settings`` cannot be
+    used ('' when it can, or when it is not authored): its target does not
+    exist, or is not a Camera. One line naming the settings prim and the
+    target; the frame loop then renders from another camera."""
+    if settings is None:
+        return ""
+    rs = settings if isinstance(settings, UsdRender.Settings) else UsdRender.Settings(settings)
+    targets = rs.GetCameraRel().GetForwardedTargets()
+    if not targets:
+        return ""
+    path = targets[0]
+    prim = stage.GetPrimAtPath(path)
+    if not prim:
+        why = "does not exist"
+    elif not prim.IsA(UsdGeom.Camera):
+        why = f"is a {prim.GetTypeName() or 'typeless prim'}, not a Camera"
+    else:
+        return ""
+    return f"{rs.GetPath()}: camera {path} {why}; rendering from another camera"
 
 
 def _motion_blur_summary(stage, info) -> str:
@@ -313,6 +378,16 @@ def stage_info(stage) -> StageInfo:
             info.ignored.append((path, t, reason))
     info.prim_counts = counts
     info.motion_blur = _motion_blur_summary(stage, info)
+    from .frame import _render_settings               # noqa: E402 (cycle)
+    try:
+        settings = _render_settings(stage, None)
+    except UsdLoadError:                               # pragma: no cover
+        settings = None
+    info.settings_camera_warning = settings_camera_problem(stage, settings)
+    if info.settings_camera_warning:
+        warnings.append(info.settings_camera_warning)
+    from ..color.config import stage_color_warnings     # noqa: E402 (PyOpenColorIO: lazily)
+    warnings.extend(w for w in stage_color_warnings(stage) if w not in warnings)
     if info.meters_per_unit <= 0 or not math.isfinite(info.meters_per_unit):
         warnings.append(f"{info.path}: metersPerUnit is {info.meters_per_unit:g}; using 0.01")
     info.warnings = warnings
