@@ -168,7 +168,10 @@ void set_materials(Scene& s, nb::handle diffuse, nb::handle emission, nb::handle
 }
 
 WrapMode wrap_mode(const std::string& w, const char* arg) {
-    if (w == "repeat" || w == "useMetadata" || w.empty()) return WrapMode::repeat;
+    if (w == "repeat" || w.empty()) return WrapMode::repeat;
+    // useMetadata without the file's metadata (the Python side reads it): black, as the
+    // UsdPreviewSurface spec says
+    if (w == "useMetadata") return WrapMode::black;
     if (w == "mirror") return WrapMode::mirror;
     if (w == "clamp") return WrapMode::clamp;
     if (w == "black") return WrapMode::black;
@@ -179,7 +182,8 @@ WrapMode wrap_mode(const std::string& w, const char* arg) {
 
 uint32_t add_texture(Scene& s, nb::handle image, const std::string& wrap_s,
                      const std::string& wrap_t, const std::array<float, 4>& scale,
-                     const std::array<float, 4>& bias, const std::string& name) {
+                     const std::array<float, 4>& bias, const std::string& name,
+                     const std::array<float, 6>& st_transform) {
     AnyArray a = as_array(image, "add_texture", "image");
     if (a.dtype() != nb::dtype<float>())
         throw nb::type_error(("add_texture: image must have dtype float32, got " +
@@ -199,6 +203,7 @@ uint32_t add_texture(Scene& s, nb::handle image, const std::string& wrap_s,
     d.wrap_t = wrap_mode(wrap_t, "wrap_t");
     d.scale = Vec4(scale[0], scale[1], scale[2], scale[3]);
     d.bias = Vec4(bias[0], bias[1], bias[2], bias[3]);
+    for (int i = 0; i < 6; ++i) d.st_transform[i] = st_transform[size_t(i)];
     d.owner = make_owner({nb::borrow(image)});
     return s.add_texture(std::move(d), name);
 }
@@ -309,9 +314,12 @@ void bind_scene(nb::module_& m) {
         .def("add_texture", &add_texture, "image"_a, "wrap_s"_a = "repeat", "wrap_t"_a = "repeat",
              "scale"_a = std::array<float, 4>{1.f, 1.f, 1.f, 1.f},
              "bias"_a = std::array<float, 4>{0.f, 0.f, 0.f, 0.f}, "name"_a = "texture",
+             "st_transform"_a = std::array<float, 6>{1.f, 0.f, 0.f, 0.f, 1.f, 0.f},
              "Register a float32 (H, W, C) image (C-contiguous, row 0 = top, already in the\n"
              "rendering space or raw) without copying, with the UsdUVTexture sampler state\n"
-             "(wrap repeat|mirror|clamp|black, per-channel scale and bias). Returns its id.")
+             "(wrap repeat|mirror|clamp|black, per-channel scale and bias) and the affine\n"
+             "st_transform (a, b, tx, c, d, ty): st' = (a s + b t + tx, c s + d t + ty),\n"
+             "applied before the lookup (UsdTransform2d). Returns its id.")
         .def_prop_ro("texture_count", &Scene::texture_count)
         .def("clear_lights", &Scene::clear_lights)
         .def("add_light", &add_light, "kind"_a, "transform"_a, "radiance"_a, "width"_a = 1.0f,

@@ -91,6 +91,31 @@ _TEXTURE_INPUTS = {
 }
 
 
+#: UsdTransform2d identity as the 2x3 matrix (row-major a, b, tx, c, d, ty) of
+#: ``core.Scene.add_texture(st_transform=...)``: st' = (a s + b t + tx, c s + d t + ty)
+IDENTITY_ST_TRANSFORM = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
+def resolve_wrap_modes(path: str, wrap_s, wrap_t):
+    """The wrap modes the core gets for a UsdUVTexture: ``black``, ``clamp``,
+    ``repeat`` or ``mirror`` as authored; ``useMetadata`` (the shader's
+    default, or anything unknown: the reader warned about it) -> the file's
+    own wrap metadata (:func:`cmlt.usd.color.texture_wrap_metadata`), else
+    ``black``, as the UsdPreviewSurface spec says (and Storm does: a
+    clamp-to-border sampler)."""
+    from ..usd.color import WRAP_TOKENS, texture_wrap_metadata
+
+    ws, wt = str(wrap_s or "useMetadata"), str(wrap_t or "useMetadata")
+    meta = (None, None)
+    if ws not in WRAP_TOKENS or wt not in WRAP_TOKENS:
+        meta = texture_wrap_metadata(path)
+    if ws not in WRAP_TOKENS:
+        ws = meta[0] or "black"
+    if wt not in WRAP_TOKENS:
+        wt = meta[1] or "black"
+    return ws, wt
+
+
 class BridgeError(ValueError):
     """A FrameScene the core cannot take (message names the prim)."""
 
@@ -206,8 +231,8 @@ class SceneBridge:
 
     def _texture_ids(self, m) -> dict:
         """{input name: (core texture id, channel)} for the material's texture
-        inputs; each (file, colour space, wrap, scale, bias) is loaded once per
-        core scene. A file that cannot be read gives a warning naming the
+        inputs; each (file, colour space, wrap, scale, bias, st transform) is
+        loaded once per core scene. A file that cannot be read gives a warning naming the
         material and the file, and the input keeps its fallback constant."""
         out = {}
         for name, rec in (m.inputs or {}).items():
@@ -216,7 +241,8 @@ class SceneBridge:
             path = rec.get("texture")
             cs = "raw" if name == "normal" else (rec.get("sourceColorSpace") or "auto")
             key = (path, cs, str(rec.get("wrapS")), str(rec.get("wrapT")),
-                   tuple(rec.get("scale") or (1, 1, 1, 1)), tuple(rec.get("bias") or (0, 0, 0, 0)))
+                   tuple(rec.get("scale") or (1, 1, 1, 1)), tuple(rec.get("bias") or (0, 0, 0, 0)),
+                   tuple(rec.get("st_transform") or IDENTITY_ST_TRANSFORM))
             if key not in self._textures:
                 self._textures[key] = self._load_texture(m.name, name, path, cs, rec)
             tid = self._textures[key]
@@ -255,16 +281,18 @@ class SceneBridge:
         if img.ndim == 2:
             img = img[..., None]
         self._texture_arrays.append(img)
-        def wrap(v):
-            v = str(v or "repeat")
-            return v if v in ("repeat", "mirror", "clamp", "black") else "repeat"
+        wrap_s, wrap_t = resolve_wrap_modes(str(path), rec.get("wrapS"), rec.get("wrapT"))
         def four(v, d):
             v = tuple(float(x) for x in (v if v is not None else d))
             return (v + d[len(v):])[:4]
-        return self.scene.add_texture(img, wrap(rec.get("wrapS")), wrap(rec.get("wrapT")),
+        kwargs = {}
+        st_xf = rec.get("st_transform")
+        if st_xf is not None and tuple(st_xf) != IDENTITY_ST_TRANSFORM:
+            kwargs["st_transform"] = tuple(float(v) for v in st_xf)
+        return self.scene.add_texture(img, wrap_s, wrap_t,
                                       four(rec.get("scale"), (1.0, 1.0, 1.0, 1.0)),
                                       four(rec.get("bias"), (0.0, 0.0, 0.0, 0.0)),
-                                      name=f"{material}:{input_name}")
+                                      name=f"{material}:{input_name}", **kwargs)
 
     def _structure_change(self, fs: FrameScene) -> str:
         """Why the scene must be rebuilt, or '' if updates suffice."""

@@ -21,7 +21,8 @@ from typing import Any, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["to_rendering_space", "source_colorspace", "load_texture"]
+__all__ = ["to_rendering_space", "source_colorspace", "load_texture", "texture_wrap_metadata",
+           "WRAP_TOKENS"]
 
 
 def source_colorspace(attr: Any, cache: Any = None) -> str:
@@ -67,12 +68,21 @@ def _source_of(obj: Any) -> str:
 def load_texture(path: str, source_colorspace: Optional[str] = "auto", *,
                  prim: Any = None) -> np.ndarray:
     """Read a texture file with OpenImageIO and convert its colour channels to
-    the rendering space: float32 (H, W, C), row 0 at the top; alpha (a 4th
-    channel) and single-channel (scalar) textures are not converted.
+    the rendering space: float32 (H, W, C), row 0 at the top; alpha (the 4th
+    channel of RGBA, the 2nd of luminance + alpha) is never converted.
 
     ``source_colorspace`` is ``UsdUVTexture.inputs:sourceColorSpace`` (or a
-    colour-space name): ``auto`` resolves by the file's bit depth (8 bits or
-    fewer: sRGB; more: linear Rec.709), ``raw`` leaves the values alone.
+    colour-space name); ``raw`` leaves the values alone. ``auto`` follows the
+    UsdPreviewSurface spec: sRGB for 8-bit (or fewer) files with 3 or 4
+    channels, otherwise the values as read (so an 8-bit 1-channel roughness
+    map stays linear; a 16-bit/half/float RGB file is linear Rec.709).
+
+    1- and 2-channel (luminance) textures with a colour space (``sRGB`` or
+    any named one) are converted too: the luminance L stands for the grey
+    (L, L, L) (UsdUVTexture repeats it into r, g, b), which is converted to
+    ACEScg and stored back as one channel, its ACEScg luminance (a grey stays
+    grey under the conversion, so nothing is lost; the sRGB curve is
+    undone).
     """
     import OpenImageIO as oiio
     from ..color import get_config
@@ -89,13 +99,66 @@ def load_texture(path: str, source_colorspace: Optional[str] = "auto", *,
     finally:
         inp.close()
     img = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    if spec.nchannels < 3:
-        return np.ascontiguousarray(img)
+    token = (source_colorspace or "auto").strip() if isinstance(source_colorspace, str) \
+        else source_colorspace
+    if spec.nchannels < 3 and str(token or "auto").lower() == "auto":
+        return np.ascontiguousarray(img)           # spec: auto is sRGB only for 3/4 channels
     cfg = get_config()
     src = cfg.resolve(source_colorspace, bit_depth=bits, prim=prim if prim is not None else path)
-    rgb = np.ascontiguousarray(img[..., :3])
-    rgb = np.asarray(cfg.convert(rgb, src, cfg.rendering_space if src is not None else None),
-                     dtype=np.float32)
+    if src is None:
+        return np.ascontiguousarray(img)           # raw / data
+    dst = cfg.rendering_space
     out = img.copy()
-    out[..., :3] = rgb
+    if spec.nchannels < 3:
+        grey = np.repeat(np.ascontiguousarray(img[..., :1]), 3, axis=2)
+        acescg = np.asarray(cfg.convert(grey, src, dst), dtype=np.float32)
+        out[..., 0] = (acescg.astype(np.float64) @ np.asarray(_acescg_luminance())) \
+            .astype(np.float32)
+        return out
+    rgb = np.ascontiguousarray(img[..., :3])
+    out[..., :3] = np.asarray(cfg.convert(rgb, src, dst), dtype=np.float32)
     return out
+
+
+def _acescg_luminance():
+    from ..color import ACESCG_LUMINANCE
+    return ACESCG_LUMINANCE
+
+
+#: OpenImageIO's ``wrapmodes`` names -> UsdUVTexture wrap tokens
+_OIIO_WRAP = {"black": "black", "clamp": "clamp", "periodic": "repeat", "repeat": "repeat",
+              "mirror": "mirror"}
+WRAP_TOKENS = ("black", "clamp", "repeat", "mirror")
+
+
+def texture_wrap_metadata(path: str) -> Tuple[Optional[str], Optional[str]]:
+    """The wrap modes a texture file declares, as UsdUVTexture tokens
+    (``black``, ``clamp``, ``repeat``, ``mirror``), for ``wrapS``/``wrapT``
+    = ``useMetadata``: string attributes ``wrapS`` / ``wrapT`` (the
+    UsdPreviewSurface spec's names), else OpenImageIO's ``wrapmodes``
+    (``"periodic,clamp"``: TIFF/.tx and OpenEXR files made by maketx or
+    txmake). (None, None) when the file says nothing or cannot be read; a
+    value that is not a wrap mode is None too."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        oiio.geterror()
+        return None, None
+    try:
+        spec = inp.spec()
+    finally:
+        inp.close()
+
+    def token(value) -> Optional[str]:
+        return _OIIO_WRAP.get(str(value).strip().lower()) if value else None
+
+    s = token(spec.getattribute("wrapS") or spec.getattribute("oiio:wrapS"))
+    t = token(spec.getattribute("wrapT") or spec.getattribute("oiio:wrapT"))
+    modes = spec.getattribute("wrapmodes")
+    if modes and (s is None or t is None):
+        parts = [p for p in str(modes).split(",") if p.strip()]
+        if parts:
+            s = s or token(parts[0])
+            t = t or token(parts[1] if len(parts) > 1 else parts[0])
+    return s, t

@@ -32,8 +32,9 @@ from .lights import default_dome, read_light
 from .materials import MaterialTable, subset_bindings
 from .mesh import MeshReader, SkipPrim
 from .skel import SkelBindings
-from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, _stage_file,
-                    check_time_metadata, composition_warnings, ignored_reason, stage_state)
+from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, UNREGISTERED_REASON,
+                    _stage_file, check_time_metadata, composition_warnings, ignored_reason,
+                    settings_camera_problem, stage_state, unregistered_type)
 
 DEFAULT_RESOLUTION = (640, 480)
 _PROTO_PREDICATE = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded)
@@ -85,11 +86,22 @@ class _Frame:
         # (Instance, prim whose world transform places it): animated top-level
         # instances, the candidates for transform motion blur
         self.motion_src: List[Tuple[Instance, object]] = []
+        # prims of types no loaded schema defines, by type name (warned once per type)
+        self.unregistered: Dict[str, Dict[str, None]] = {}
 
     def warn(self, msg: str):
         if msg not in self._warned:
             self._warned.add(msg)
             self.warnings.append(msg)
+
+    def warn_unregistered(self, shown: int = 8):
+        """One warning per unregistered prim type, naming its prims."""
+        for type_name, found in self.unregistered.items():
+            paths = list(found)
+            names = ", ".join(paths[:shown])
+            more = f" and {len(paths) - shown} more" if len(paths) > shown else ""
+            self.warn(f"{_stage_file(self.stage)}: {len(paths)} prim(s) of type {type_name}: "
+                      f"{names}{more}: " + UNREGISTERED_REASON.format(type=type_name))
 
     # ---------------------------------------------------------- visibility
     def _hidden(self, prim) -> bool:
@@ -206,6 +218,10 @@ class _Frame:
                         self.warn(f"{prim.GetPath()}: lights inside point-instancer prototypes "
                                   f"are not supported and are not rendered")
                     continue
+                if unregistered_type(prim):
+                    # one warning per type after the traversal (there may be many)
+                    self.unregistered.setdefault(t, {})[str(prim.GetPath())] = None
+                    continue
                 reason = ignored_reason(prim)
                 if reason:
                     self.warn(f"{prim.GetPath()}: {reason}")
@@ -238,8 +254,8 @@ class _Frame:
         if type_name == "Mesh":
             reader = self.state.mesh_cache.get(key)
             if reader is None or not isinstance(reader, MeshReader):
-                uv_name = self.materials.uv_primvar_name(prim)
-                reader = MeshReader(src, uv_name)
+                uv_name, uv_fallback, uv_reader = self.materials.uv_primvar(prim)
+                reader = MeshReader(src, uv_name, uv_fallback=uv_fallback, uv_reader=uv_reader)
                 self.state.mesh_cache[key] = reader
             skin = self._skinning(prim) if outer is None else None
             posed = self._skinned_points(prim, skin, self.tc) if skin is not None else None
@@ -568,16 +584,16 @@ def _load_frame(stage, time, camera=None, resolution=None, render_settings=None)
                                f"{prim.GetTypeName() or 'typeless prim'}, not a Camera")
         cam_prim = prim
     elif cam_path is not None:
-        prim = stage.GetPrimAtPath(cam_path)
-        if prim and prim.IsA(UsdGeom.Camera):
-            cam_prim = prim
+        problem = settings_camera_problem(stage, settings)
+        if problem:
+            warnings.append(problem)            # does not exist / is not a Camera
         else:
-            warnings.append(f"{settings.GetPath()}: camera {cam_path} is not a Camera; "
-                            f"choosing another camera")
+            cam_prim = stage.GetPrimAtPath(cam_path)
 
     # geometry, lights, materials
     proto_roots = _collect_prototype_roots(stage)
     fr.traverse(stage.GetPseudoRoot(), None)
+    fr.warn_unregistered()
     if proto_roots:
         _drop_prototype_placements(fr, proto_roots)
 

@@ -85,23 +85,94 @@ def _asset_path(shader: UsdShade.Shader, name: str) -> Optional[str]:
     return str(value) if value else None
 
 
-def _texture_record(tex: UsdShade.Shader, output: str) -> dict:
-    def val(name, default):
-        inp = tex.GetInput(name)
-        if not inp:
-            return default
-        v, _, _ = _value_source(inp)
-        return default if v is None else _plain(v)
+#: UsdUVTexture wrap tokens (``useMetadata``: the file's metadata, else black)
+WRAP_MODES = ("black", "clamp", "repeat", "mirror", "useMetadata")
+#: identity of the st transform (2x3, row-major a, b, tx, c, d, ty)
+IDENTITY_ST = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 
-    st_primvar = None
-    st = tex.GetInput("st")
-    if st:
-        v, src, _ = _value_source(st)
-        if src is not None and _shader_id(src).startswith("UsdPrimvarReader"):
+
+def _input_value(shader: UsdShade.Shader, name: str, default):
+    inp = shader.GetInput(name)
+    if not inp:
+        return default
+    v, _, _ = _value_source(inp)
+    return default if v is None else _plain(v)
+
+
+def _transform2d_matrix(node: UsdShade.Shader) -> Tuple[float, ...]:
+    """A UsdTransform2d as a 2x3 matrix: ``result = in * scale * rotate +
+    translation`` (scale about the origin, then a counter-clockwise rotation
+    in degrees, then the translation; the UsdPreviewSurface spec)."""
+    sx, sy = (tuple(_input_value(node, "scale", (1.0, 1.0))) + (1.0, 1.0))[:2]
+    rot = _input_value(node, "rotation", 0.0)
+    rot = float(rot[0] if isinstance(rot, tuple) else rot)
+    tx, ty = (tuple(_input_value(node, "translation", (0.0, 0.0))) + (0.0, 0.0))[:2]
+    c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+    return (c * sx, -s * sy, float(tx), s * sx, c * sy, float(ty))
+
+
+def _compose(outer: Tuple[float, ...], inner: Tuple[float, ...]) -> Tuple[float, ...]:
+    """outer(inner(st)) for 2x3 affine matrices."""
+    a, b, tx, c, d, ty = outer
+    e, f, ux, g, h, uy = inner
+    return (a * e + b * g, a * f + b * h, a * ux + b * uy + tx,
+            c * e + d * g, c * f + d * h, c * ux + d * uy + ty)
+
+
+def _st_network(tex: UsdShade.Shader, warnings: Optional[List[str]] = None) -> dict:
+    """What feeds a UsdUVTexture's ``st``: the primvar (``st_primvar``, the
+    UsdPrimvarReader_float2's ``varname``) and its ``fallback`` (used where a
+    mesh lacks that primvar; the reader's default is (0, 0)), through any
+    chain of UsdTransform2d nodes folded into ``st_transform``. An unconnected
+    ``st`` reads the mesh's texture coordinates (``st``, else a texCoord2f
+    primvar); another kind of node in the chain is warned about and ignored."""
+    out = {"st_primvar": None, "st_fallback": None, "st_transform": IDENTITY_ST}
+    inp = tex.GetInput("st")
+    xf = IDENTITY_ST
+    seen = set()
+    while inp:
+        _, src, _ = _value_source(inp)
+        if src is None or str(src.GetPath()) in seen:
+            break
+        seen.add(str(src.GetPath()))
+        sid = _shader_id(src)
+        if sid == "UsdTransform2d":
+            xf = _compose(xf, _transform2d_matrix(src))     # st' = xf(node(in))
+            inp = src.GetInput("in")
+            continue
+        if sid.startswith("UsdPrimvarReader"):
             vn = src.GetInput("varname")
             if vn:
                 name, _, _ = _value_source(vn)
-                st_primvar = str(name) if name else None
+                out["st_primvar"] = str(name) if name else None
+            fb = _input_value(src, "fallback", (0.0, 0.0))
+            fb = tuple(fb) if isinstance(fb, tuple) else (float(fb), float(fb))
+            out["st_fallback"] = (tuple(float(x) for x in fb) + (0.0, 0.0))[:2]
+            break
+        if warnings is not None:
+            warnings.append(f"{tex.GetPath()}: inputs:st is driven by unsupported shader "
+                            f"{src.GetPath()} ({sid or 'no id'}); reading the mesh's st "
+                            f"instead")
+        break
+    out["st_transform"] = tuple(float(v) for v in xf)
+    return out
+
+
+def _texture_record(tex: UsdShade.Shader, output: str,
+                    warnings: Optional[List[str]] = None) -> dict:
+    def val(name, default):
+        return _input_value(tex, name, default)
+
+    st_info = _st_network(tex, warnings)
+    wraps = {}
+    for name in ("wrapS", "wrapT"):
+        w = str(val(name, "useMetadata"))
+        if w not in WRAP_MODES:
+            if warnings is not None:
+                warnings.append(f"{tex.GetPath()}: inputs:{name} = '{w}' is not one of "
+                                f"{', '.join(WRAP_MODES)}; using useMetadata")
+            w = "useMetadata"
+        wraps[name] = w
     file_attr = tex.GetInput("file")
     unresolved = None
     if file_attr:
@@ -112,12 +183,14 @@ def _texture_record(tex: UsdShade.Shader, output: str) -> dict:
         "texture": _asset_path(tex, "file"),
         "shader": str(tex.GetPath()),
         "output": output,
-        "wrapS": val("wrapS", "useMetadata"),
-        "wrapT": val("wrapT", "useMetadata"),
+        "wrapS": wraps["wrapS"],
+        "wrapT": wraps["wrapT"],
         "scale": val("scale", (1.0, 1.0, 1.0, 1.0)),
         "bias": val("bias", (0.0, 0.0, 0.0, 0.0)),
         "sourceColorSpace": val("sourceColorSpace", "auto"),
-        "st_primvar": st_primvar,
+        "st_primvar": st_info["st_primvar"],
+        "st_fallback": st_info["st_fallback"],
+        "st_transform": st_info["st_transform"],
         "fallback": val("fallback", None),
         "unresolved": unresolved,
     }
@@ -174,7 +247,7 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
         if src is not None:
             sid = _shader_id(src)
             if sid == "UsdUVTexture":
-                rec = _texture_record(src, output or "rgb")
+                rec = _texture_record(src, output or "rgb", warnings)
                 if rec.get("unresolved"):
                     warnings.append(f"{path}: texture {rec['unresolved']} for {name} "
                                     f"(shader {rec['shader']}) cannot be resolved")
@@ -321,6 +394,12 @@ class MaterialTable:
 
     def uv_primvar_name(self, prim) -> Optional[str]:
         """The st primvar name the bound material's textures read, if any."""
+        return self.uv_primvar(prim)[0]
+
+    def uv_primvar(self, prim) -> Tuple[Optional[str], Optional[Tuple[float, float]], str]:
+        """(primvar name, the UsdPrimvarReader_float2's fallback, reader shader
+        path) that the bound material's textures read their st from, or
+        (None, None, '') when no texture names a primvar."""
         mats = [bound_material(prim)] + [m for _, m in subset_bindings(prim, self.time)]
         for mat in mats:
             if mat is None:
@@ -328,8 +407,8 @@ class MaterialTable:
             i = self.material(mat)
             for v in self.materials[i].inputs.values():
                 if isinstance(v, dict) and v.get("st_primvar"):
-                    return v["st_primvar"]
-        return None
+                    return v["st_primvar"], v.get("st_fallback"), str(v.get("shader", ""))
+        return None, None, ""
 
     def has_emission(self) -> bool:
         for m in self.materials:

@@ -374,9 +374,18 @@ class MeshReader:
 
     TOPO_ATTRS = ("faceVertexCounts", "faceVertexIndices", "holeIndices", "orientation")
 
-    def __init__(self, prim, uv_name: Optional[str] = None):
+    def __init__(self, prim, uv_name: Optional[str] = None,
+                 uv_fallback: Optional[Tuple[float, float]] = None, uv_reader: str = ""):
+        """``uv_name``: the primvar the material's UsdPrimvarReader_float2
+        reads (for the texture shader ``uv_reader``); where the mesh lacks it, every vertex gets the
+        reader's ``uv_fallback`` (the spec's "fetch failed" value), with a
+        warning. Without ``uv_fallback``, a missing ``uv_name`` falls back to
+        ``st`` or another texCoord2f primvar (see :func:`find_uv_primvar`)."""
         self.path = str(prim.GetPath())
         self.uv_name = uv_name
+        self.uv_fallback = None if uv_fallback is None else \
+            tuple(float(v) for v in uv_fallback)
+        self.uv_reader = uv_reader
         self.topo: Optional[_Topo] = None
         self.topo_key = None
         self.static_geom: Optional[MeshGeom] = None
@@ -417,7 +426,11 @@ class MeshReader:
         had_normals = npv is not None
         if npv is not None and not skinned:
             primvars.append(npv)
-        uvpv = find_uv_primvar(api, self.uv_name)
+        uv_missing = False
+        if self.uv_name and self.uv_fallback is not None:
+            named = api.GetPrimvar(self.uv_name)
+            uv_missing = not (named and named.HasAuthoredValue())
+        uvpv = None if uv_missing else find_uv_primvar(api, self.uv_name)
         uv = self._pv_cache.get("st")
         if uv is None:
             uv = _read_primvar(uvpv, time, 2) if uvpv is not None else None
@@ -468,6 +481,12 @@ class MeshReader:
                                     f"(time {tstr}); replaced by 0")
                     vals = np.where(np.isfinite(vals), vals, 0.0)
                 uvs = vals
+        if uv_missing:
+            uvs = np.tile(np.asarray(self.uv_fallback, dtype=np.float64), (len(out_pts), 1))
+            by = f"texture {self.uv_reader}" if self.uv_reader else "its material"
+            warnings.append(f"{path}: has no primvar {self.uv_name}, which {by} reads through "
+                            f"a UsdPrimvarReader_float2; textures use the reader's fallback st "
+                            f"({self.uv_fallback[0]:g}, {self.uv_fallback[1]:g})")
         if len(out_pts) != len(points) and topo.out_pt is None:   # pragma: no cover
             raise SkipPrim(f"{path}: point count changed (time {tstr}); not rendered")
 

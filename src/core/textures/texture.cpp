@@ -27,6 +27,11 @@ Texture::Texture(TextureDesc desc, const char* name) : m_d(std::move(desc)) {
                           &m_d.bias.x,  &m_d.bias.y,  &m_d.bias.z,  &m_d.bias.w};
     for (const float* v : sb)
         if (!std::isfinite(*v)) CMLT_THROW(SceneError, name << ": scale and bias must be finite");
+    for (float v : m_d.st_transform)
+        if (!std::isfinite(v)) CMLT_THROW(SceneError, name << ": st_transform must be finite");
+    const float* m = m_d.st_transform;
+    m_st_identity = m[0] == 1.f && m[1] == 0.f && m[2] == 0.f && m[3] == 0.f && m[4] == 1.f &&
+                    m[5] == 0.f;
 }
 
 bool Texture::wrap(int* i, int n, WrapMode mode) {
@@ -62,8 +67,13 @@ Vec4 Texture::texel(int x, int y) const {
     }
 }
 
-Vec4 Texture::eval(const Vec2& st) const {
+Vec4 Texture::eval(const Vec2& st_in) const {
     if (!valid()) return scale_bias(Vec4());
+    Vec2 st = st_in;
+    if (!m_st_identity) {
+        const float* m = m_d.st_transform;
+        st = Vec2(m[0] * st_in.x + m[1] * st_in.y + m[2], m[3] * st_in.x + m[4] * st_in.y + m[5]);
+    }
     if (!std::isfinite(st.x) || !std::isfinite(st.y)) return scale_bias(Vec4());
     // Continuous texel coordinates, texel centres at integer + 1/2; row 0 at t = 1.
     float fx = st.x * float(m_d.width) - 0.5f;

@@ -14,6 +14,9 @@
 ///    and bias).
 ///  - Wrap modes follow UsdUVTexture: repeat, mirror, clamp, black (outside [0, 1] -> 0,
 ///    then scale and bias are applied to 0 like any texel).
+///  - `st_transform`: an affine map applied to st before the lookup, the texture's
+///    UsdTransform2d (st' = in * scale * rotate + translation, folded into a 2x3 matrix
+///    by the Python reader); identity by default.
 #include "math/vec.h"
 
 #include <cstdint>
@@ -29,6 +32,8 @@ struct TextureDesc {
     WrapMode wrap_s = WrapMode::repeat, wrap_t = WrapMode::repeat;
     Vec4 scale{1.f, 1.f, 1.f, 1.f};
     Vec4 bias{0.f, 0.f, 0.f, 0.f};
+    /// st' = (m[0] s + m[1] t + m[2], m[3] s + m[4] t + m[5]) before the lookup.
+    float st_transform[6] = {1.f, 0.f, 0.f, 0.f, 1.f, 0.f};
     std::shared_ptr<void> owner;  ///< keeps `data` alive
 };
 
@@ -43,7 +48,8 @@ public:
     int height() const { return m_d.height; }
     int channels() const { return m_d.channels; }
 
-    /// Bilinear lookup at st (UsdUVTexture convention), scale and bias applied.
+    /// Bilinear lookup at st (UsdUVTexture convention) after `st_transform`, scale and
+    /// bias applied.
     Vec4 eval(const Vec2& st) const;
     /// Raw texel (x right, y down from the top row), rgba as described above, no scale/bias.
     Vec4 texel(int x, int y) const;
@@ -61,6 +67,7 @@ private:
 
     TextureDesc m_d;
     Vec4 m_mean;
+    bool m_st_identity = true;
 };
 
 /// Component `channel` (0..3) of an rgba value.
