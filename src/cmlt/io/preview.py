@@ -16,7 +16,8 @@ import OpenImageIO as oiio
 from ..color import ColorConfig, get_config
 from .atomic import atomic_path
 
-__all__ = ["write_preview", "write_display_image", "PREVIEW_EXTENSIONS"]
+__all__ = ["write_preview", "write_display_image", "display_attributes", "display_colorspace",
+           "display_colorspace_tag", "PREVIEW_EXTENSIONS"]
 
 PREVIEW_EXTENSIONS = (".png", ".jpg", ".jpeg")
 
@@ -72,19 +73,56 @@ def write_display_image(pixels: np.ndarray, path: str,
     return path
 
 
+#: OCIO's placeholder in a (shared) view: the view's colour space is the one named
+#: like the display
+USE_DISPLAY_NAME = "<USE_DISPLAY_NAME>"
+
+
+def display_colorspace(config: ColorConfig, display: str, view: str):
+    """The OCIO colour space a display/view writes (the display's colour
+    space, e.g. ``sRGB - Display``), or ``None`` if the config does not
+    name one. ACES configs define their views once, shared by every
+    display, with the colour space ``<USE_DISPLAY_NAME>``: that is the
+    colour space named like the display."""
+    name = config.ocio.getDisplayViewColorSpaceName(display, view) or ""
+    if name == USE_DISPLAY_NAME:
+        name = display
+    return config.ocio.getColorSpace(name) if name else None
+
+
+def display_colorspace_tag(config: ColorConfig, display: str, view: str) -> str:
+    """``oiio:ColorSpace`` of a preview: the Color Interop ID of the display's
+    colour space (``srgb_rec709_display`` for ``sRGB - Display``), else one of
+    its aliases that is an interop ID (``*_display``), else its OCIO name;
+    '' if the display has no colour space."""
+    cs = display_colorspace(config, display, view)
+    if cs is None:
+        return ""
+    interop = cs.getInteropID() if hasattr(cs, "getInteropID") else ""
+    if interop:
+        return interop
+    for alias in cs.getAliases():
+        if alias.lower().endswith("_display"):
+            return alias
+    return cs.getName()
+
+
 def display_attributes(config: ColorConfig, display: str, view: str) -> Dict[str, Any]:
-    """Header attributes saying how a preview was made."""
+    """Header attributes saying how a preview was made, and that it is
+    display-referred: ``oiio:ColorSpace`` is the display's colour space
+    (:func:`display_colorspace_tag`). OpenImageIO 3 stores it in the file as
+    PNG ``sRGB``/``gAMA``/``cICP`` chunks or the JPEG Exif colour space, and
+    reads it back as the same encoding and primaries (it names sRGB-encoded
+    files ``srgb_rec709_scene`` on input: its own convention for 8-bit
+    sRGB, whatever the file says)."""
     attrs: Dict[str, Any] = {
         "ImageDescription": f"cmlt preview: OCIO display '{display}', view '{view}', "
                             f"config '{config.name}'",
         "Software": "cmlt",
     }
-    cs_name = config.ocio.getDisplayViewColorSpaceName(display, view)
-    cs = config.ocio.getColorSpace(cs_name) if cs_name else None
-    interop = cs.getInteropID() if cs is not None and hasattr(cs, "getInteropID") else ""
-    # the display colour space, e.g. srgb_rec709_display; OIIO ignores names it does not know
-    if interop:
-        attrs["oiio:ColorSpace"] = interop
+    tag = display_colorspace_tag(config, display, view)
+    if tag:
+        attrs["oiio:ColorSpace"] = tag
     return attrs
 
 
