@@ -129,7 +129,7 @@ def test06_live_rate_from_the_first_frame_then_rays_per_second():
         rep.frame_progress(8, 16)                     # half the samples: 500 in 2 s
         rate, _ = _rate(rep)
         assert rate.startswith("~") and rate.endswith("samples/s"), rate
-        assert float(rate[1:].split()[0]) == pytest.approx(250, rel=0.01)
+        assert float(rate[1:].split()[0]) == pytest.approx(250, rel=0.02)
         rep.end_frame(1, "out.0001.exr", {"rays": 5000, "samples": 1000, "time_s": 1.0,
                                           "rays_per_s": 5000.0}, 16)
         rep.start_frame(2)
@@ -137,7 +137,8 @@ def test06_live_rate_from_the_first_frame_then_rays_per_second():
         rep._frame_t0 -= 2.0
         rep.frame_progress(8, 16)
         rate, _ = _rate(rep)
-        assert rate == "~1.25 krays/s", rate          # 5 rays/sample x 250 samples/s
+        assert rate.startswith("~") and rate.endswith(" krays/s"), rate
+        assert float(rate[1:].split()[0]) == pytest.approx(1.25, rel=0.02)  # 5 rays x 250/s
     out = buf.getvalue()
     assert "frame 1: 1.00 s, 5.00 krays/s -> out.0001.exr" in out
 

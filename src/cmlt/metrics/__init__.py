@@ -13,5 +13,6 @@ from .flicker import (REL_MSE_EPS, FlickerReport, FrameDifferenceFlicker, compar
                       rel_mse)
 from .sequence import MetricsError, find_frames, load_image, load_sequence
 
-__all__ = ["MetricsError", "FlickerReport", "FrameDifferenceFlicker", "load_sequence", "load_image", "find_frames",
+__all__ = ["MetricsError", "FlickerReport", "FrameDifferenceFlicker", "load_sequence",
+           "load_image", "find_frames",
            "flicker", "compare", "rel_mse", "REL_MSE_EPS"]

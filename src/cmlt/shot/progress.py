@@ -14,7 +14,8 @@ The core's progress callback runs on a render thread; it only stores numbers
 JSON object per line per event on stdout, nothing else: ``sequence_start``,
 ``frame_start``, ``frame_done`` (time, rays, rays/s, path), ``warning``,
 ``info``, ``frame_aborted``, ``sequence_done`` (frames, time, mean time per
-frame, rays/s, flicker: see :func:`sequence_summary`). Every object has ``event`` and ``t`` (Unix time).
+frame, rays/s, flicker: see :func:`sequence_summary`). Every object has
+``event`` and ``t`` (Unix time).
 
 :func:`summary_table` is the table printed when a sequence completes.
 """
