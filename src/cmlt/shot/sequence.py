@@ -484,9 +484,10 @@ TEMPORAL_INTEGRATORS = ("pssmlt", "cmlt")
 
 def _cold_resume_warning(resolved, opts: RenderOptions, todo, predecessor, outputs,
                          frame_list, resume: bool) -> str:
-    """--resume of an MLT sequence without --state-dir: the first frame left
-    to render follows a frame rendered by an earlier run, whose chain states
-    and normalisation history were not saved, so it starts cold ('' if not)."""
+    """--resume of a pssmlt/cmlt sequence without --state-dir: a frame left to
+    render follows one rendered by an earlier run (skipped now), whose chain
+    states and normalisation history were not saved, so it starts cold. The
+    warning names the first such frame ('' if there is none)."""
     if not resume or opts.state_dir or not todo or \
             str(resolved.integrator) not in TEMPORAL_INTEGRATORS:
         return ""
