@@ -200,8 +200,8 @@ def summary_table(result):
 
     s = sequence_summary(result)
     table = Table(title="cmlt render summary", title_justify="left", show_header=True,
-                  caption="flicker: mean |I(f+1) - I(f)| / mean I over consecutive frames "
-                          "(no reference)" if s["flicker"] is not None else None,
+                  caption="flicker = mean |I(f+1) - I(f)| / mean I, consecutive frames"
+                  if s["flicker"] is not None else None,
                   caption_justify="left")
     table.add_column("frames", justify="right")
     table.add_column("skipped", justify="right")
