@@ -366,7 +366,8 @@ def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
     ``temporal``: the frame's temporal record (:meth:`TemporalDriver.finish`).
     When it holds a normalisation (MLT integrators), ``cmlt:b`` is the b the
     image was normalised with (``b_used``: smoothed over frames unless
-    ``--no-smoothing``), the core's own estimate is ``cmlt:bCore``, and the
+    ``--no-smoothing``; it scales the chains' part, the direct pass being plain
+    Monte Carlo), the core's own estimate is ``cmlt:bCore``, and the
     record goes in as ``cmlt:bUsed``, ``bFresh``, ``bRatio``, ``bCombined``,
     ``bSmoothed``, ``changeDetected``; an estimate that does not exist for
     the frame (NaN, e.g. ``b_ratio`` without carried states) is left out.
