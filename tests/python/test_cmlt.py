@@ -16,7 +16,7 @@ import pytest
 import cmlt._core as core
 from cmlt.shot.bridge import SceneBridge
 
-from test_mlt import ACESCG_Y, RES, cornell_scene, t_critical
+from test_mlt import ACESCG_Y, RES, _lum_se, cornell_scene, t_critical
 
 pytestmark = pytest.mark.statistical
 SEEDS = 8
@@ -61,7 +61,9 @@ def _runs(scene, inner, seeds=SEEDS):
 
 def _check(runs, reference, assert_exact):
     ref, ref_var = reference
-    ref_l, ref_lv = _lum(ref), ref_var @ (ACESCG_Y ** 2)
+    ref_l = _lum(ref)
+    # per-pixel luminance variance, Cauchy-Schwarz bound (channels are correlated)
+    ref_lv = (np.sqrt(ref_var) @ ACESCG_Y) ** 2
     K = len(runs)
     means = np.array([_lum(img).mean() for img, _, _ in runs])
     ratio = means.mean() / ref_l.mean()
@@ -78,7 +80,7 @@ def _check(runs, reference, assert_exact):
     for img, _, st in runs:
         assert np.isfinite(img).all() and st["nan_samples"] == 0
     if assert_exact:
-        m_se = np.sqrt(means.var(ddof=1) / K + (ref_l.std() / ref_l.size ** 0.5) ** 2)
+        m_se = np.sqrt(means.var(ddof=1) / K + ref_lv.sum() / ref_l.size ** 2)
         assert abs(ratio - 1) < 0.01 + 3 * m_se / ref_l.mean(), ratio
         assert abs(ratio - 1) < 0.01
         assert np.all(np.abs(t) < crit), t
@@ -205,7 +207,9 @@ def test_caustic_mean_within_t_interval(caustic_runs):
     (ref, ref_var), runs = caustic_runs
     n = ref.shape[0] * ref.shape[1]
     ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
-    ref_se = np.sqrt(ref_var.reshape(-1, 3).sum(0) @ ACESCG_Y ** 2) / n
+    # SE of the luminance mean: R, G, B are correlated, so the channels-independent
+    # sum underestimates it; Cauchy-Schwarz bound sum_c Y_c se_c (see _lum_se)
+    ref_se = _lum_se(ref_var)
     means = np.array([img.reshape(-1, 3).mean(0) @ ACESCG_Y for img, _ in runs])
     m, se = means.mean(), means.std(ddof=1) / np.sqrt(len(runs))
     print(f"\ncaustic cmlt: mean Y {m:.5f} +- {se:.5f}, BDPT {ref_y:.5f} +- {ref_se:.5f}, "

@@ -650,6 +650,19 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
         lv.error_scale = x[0].error_scale;
         x[0] = lv;
     }
+    // The connection vertices scatter through the connection (a non-Dirac evaluation): their
+    // `delta` flags tell how their own subpath continued beyond this path, which is not part
+    // of it (a smooth-clearcoat vertex whose subpath went on through the Dirac coat lobe is
+    // a rough scattering here). Every other vertex's flag describes its scattering in the
+    // path.
+    if (s > 0) x[size_t(s - 1)].delta = false;
+    x[size_t(s)].delta = false;
+    // Density of `v` generated through `mid`: 0 where the path scatters at `mid` through a
+    // Dirac lobe, as the random walk stores it (a mixed Dirac / rough vertex would
+    // otherwise give its rough lobe's density at the mirror direction).
+    auto pdf_through = [&](const PathVertex* prev, const PathVertex& mid, const PathVertex& v) {
+        return mid.delta ? 0.f : pdf(prev, mid, v);
+    };
     std::vector<float> weights(static_cast<size_t>(n), 0.f);
     std::vector<PathVertex> L(static_cast<size_t>(n)), C(static_cast<size_t>(n));
     for (int sp = 0; sp < n; ++sp) {
@@ -668,8 +681,8 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
             PathVertex v = x[size_t(i)];
             if (i == 0) v.pdf_fwd = pdf_light_origin(v, x[1]);
             else if (i == 1) v.pdf_fwd = pdf_light(x[0], v);
-            else v.pdf_fwd = pdf(&x[size_t(i - 2)], x[size_t(i - 1)], v);
-            v.pdf_rev = (i + 2 < n) ? pdf(&x[size_t(i + 2)], x[size_t(i + 1)], v)
+            else v.pdf_fwd = pdf_through(&x[size_t(i - 2)], x[size_t(i - 1)], v);
+            v.pdf_rev = (i + 2 < n) ? pdf_through(&x[size_t(i + 2)], x[size_t(i + 1)], v)
                         : (i + 1 < n ? pdf(nullptr, x[size_t(i + 1)], v) : 0.f);
             L[size_t(i)] = v;
         }
@@ -679,10 +692,10 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
             PathVertex v = x[size_t(i)];
             if (j == 0) v.pdf_fwd = 1.f;
             else if (j == 1) v.pdf_fwd = pdf(nullptr, x[size_t(n - 1)], v);
-            else v.pdf_fwd = pdf(&x[size_t(i + 2)], x[size_t(i + 1)], v);
+            else v.pdf_fwd = pdf_through(&x[size_t(i + 2)], x[size_t(i + 1)], v);
             if (i == 0) v.pdf_rev = 0.f;
             else if (i == 1) v.pdf_rev = pdf_light(x[0], v);
-            else v.pdf_rev = pdf(&x[size_t(i - 2)], x[size_t(i - 1)], v);
+            else v.pdf_rev = pdf_through(&x[size_t(i - 2)], x[size_t(i - 1)], v);
             C[size_t(j)] = v;
         }
         const PathVertex& samp = sp == 1 ? L[0] : (tp == 1 ? C[0] : sampled);
