@@ -11,9 +11,12 @@
 //     chi-square-tested against pdf_le's direction density in the frame of the emitting
 //     normal; positions are chi-square-tested against the uniform area density in the
 //     light's own parametrisation; and the flux the emission samples estimate equals
-//     power().
+//     power();
+//  3. light selection: Scene::build_lights' pmf is proportional to the powers of a rect,
+//     disk, sphere, cylinder, black light (the floor), dome, distant lights and an emissive
+//     triangle, computed here independently, and sample_light draws by it.
 //
-// False alarms: 18 chi-square tests in this file at alpha = 1e-3 / 18 each (Bonferroni:
+// False alarms: 19 chi-square tests in this file at alpha = 1e-3 / 19 each (Bonferroni:
 // 1e-3 for the file); the other checks are exact up to float rounding.
 #include "chi2.h"
 #include "materials/chi2.h"
@@ -36,7 +39,7 @@ using namespace cmlt::test;
 
 namespace {
 
-constexpr int k_num_chi2 = 18;
+constexpr int k_num_chi2 = 19;
 constexpr double k_alpha = 1e-3 / k_num_chi2;
 
 LightDesc desc(LightDesc::Kind kind, const Mat4& xf) {
@@ -326,4 +329,90 @@ TEST(LightSampling, EmissionCylinder) {
                   },
                   128};
     expect_emission(c, 540);
+}
+
+// ---- light selection by power --------------------------------------------------------------
+
+TEST(LightSelection, PmfProportionalToPower) {
+    // Scene::build_lights: pmf_i = max(power_i, floor) / sum, floor = 1e-3 x the mean
+    // power. Powers written out here independently (Rec.709 luminance Y of the radiance):
+    // one-sided planar pi A Y, sphere pi (4 pi r^2) Y, cylinder pi (2 pi r l) Y, emissive
+    // triangle (two-sided) 2 pi A Y, dome pi R^2 (4 pi) Y and distant pi R^2 E (R: the
+    // scene's bounding radius; E = Y for a delta light, 2 pi (1 - cos(angle / 2)) Y
+    // otherwise); a black light gets the floor.
+    Scene s;
+    s.set_materials({Material{Spectrum(0.5f), Spectrum(0.f)}, Material{Spectrum(0.f), Spectrum(3.f, 2.f, 1.f)}});
+    s.add_instance(s.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(2, 0, 0), Vec3(0, 0, -2), 0)), Mat4());
+    // One emissive triangle (material 1): (0,1,0) (1,1,0) (0,1,-0.5), area 0.25.
+    s.add_instance(s.add_mesh("/tri", make_mesh_data({Vec3(0, 1, 0), Vec3(1, 1, 0), Vec3(0, 1, -0.5f)},
+                                                     {0, 1, 2}, {1})),
+                   Mat4());
+    auto Y = [](const Spectrum& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; };
+    std::vector<double> want;
+    LightDesc rect = desc(LightDesc::Kind::rect, Mat4::translate(0, 2, 0) * Mat4::rotate(90, 1, 0, 0));
+    rect.width = 0.5f;
+    rect.height = 0.4f;
+    s.add_light(rect);
+    want.push_back(M_PI * 0.2 * Y(rect.radiance));
+    LightDesc disk = desc(LightDesc::Kind::disk, Mat4::translate(1, 2, 0));
+    disk.radius = 0.3f;
+    disk.radiance = Spectrum(10.f, 5.f, 1.f);
+    s.add_light(disk);
+    want.push_back(M_PI * M_PI * 0.09 * Y(disk.radiance));
+    LightDesc sph = desc(LightDesc::Kind::sphere, Mat4::translate(-1, 1, 0));
+    sph.radius = 0.1f;
+    sph.radiance = Spectrum(50.f);
+    s.add_light(sph);
+    want.push_back(M_PI * 4 * M_PI * 0.01 * 50.0);
+    LightDesc cyl = desc(LightDesc::Kind::cylinder, Mat4::translate(0, 1.5, -1));
+    cyl.radius = 0.05f;
+    cyl.length = 1.5f;
+    s.add_light(cyl);
+    want.push_back(M_PI * 2 * M_PI * 0.05 * 1.5 * Y(cyl.radiance));
+    LightDesc black = desc(LightDesc::Kind::sphere, Mat4::translate(1, 1, 1));
+    black.radiance = Spectrum(0.f);
+    s.add_light(black);
+    want.push_back(0.0);  // floor
+    LightDesc dome = desc(LightDesc::Kind::dome, Mat4());
+    dome.radiance = Spectrum(0.2f, 0.3f, 0.4f);
+    s.add_light(dome);
+    LightDesc sun = desc(LightDesc::Kind::distant, Mat4::rotate(-50, 1, 0, 0));
+    sun.angle = 2.f;
+    sun.radiance = Spectrum(1000.f);
+    s.add_light(sun);
+    LightDesc dsun = desc(LightDesc::Kind::distant, Mat4::rotate(-30, 0, 0, 1));
+    dsun.angle = 0.f;
+    dsun.radiance = Spectrum(0.5f);
+    s.add_light(dsun);
+    s.set_camera(camera_at(Mat4::translate(0, 1, 3)));
+    s.commit();
+    const double R = s.bounds_radius();
+    want.push_back(M_PI * R * R * 4 * M_PI * Y(dome.radiance));
+    double half = 1.0 * M_PI / 180;  // angle / 2
+    want.push_back(M_PI * R * R * 2 * M_PI * (1 - std::cos(half)) * 1000.0);
+    want.push_back(M_PI * R * R * 0.5);
+    want.push_back(2 * M_PI * 0.25 * Y(Spectrum(3.f, 2.f, 1.f)));  // the triangle, listed last
+    ASSERT_EQ(s.light_count(), want.size());
+    double total = 0;
+    for (double w : want) total += w;
+    const double floor = 1e-3 * total / double(want.size());
+    double norm = 0;
+    for (double& w : want) norm += (w = std::max(w, floor));
+    for (size_t i = 0; i < want.size(); ++i) {
+        EXPECT_NEAR(s.light(i).power(), i == 4 ? 0.0 : want[i], 2e-4 * want[i]) << "light " << i;
+        EXPECT_NEAR(s.light_pmf(i), want[i] / norm, 2e-4 * want[i] / norm + 1e-9) << "light " << i;
+    }
+    // sample_light draws by that pmf (chi-square; one of the 19 tests of this file).
+    const uint32_t n = 200000;
+    std::vector<double> obs(want.size(), 0.0), exp(want.size(), 0.0);
+    for (size_t i = 0; i < want.size(); ++i) exp[i] = n * double(s.light_pmf(i));
+    for (uint32_t k = 0; k < n; ++k) {
+        float pmf = 0.f;
+        size_t li = s.sample_light(uniform2(600, k).x, &pmf);
+        ASSERT_LT(li, want.size());
+        ASSERT_EQ(pmf, s.light_pmf(li));
+        obs[li] += 1;
+    }
+    Chi2Result r = chi2_test(obs, exp);
+    EXPECT_TRUE(r.passed(k_alpha)) << r.message << "\n" << dump_table(obs, exp, 9);
 }
