@@ -93,8 +93,10 @@ void cylinder_box(Scene& s) {
 void shaped_box(Scene& s) {
     box(s);
     // Disk on the ceiling pointing down with a soft 35 degree cone and focus; a shaped
-    // sphere. (A cylinder with a cone is left out: PT and BDPT disagree by ~4.5% there,
-    // an open issue -- see the report / issue 3.)
+    // sphere. (A cylinder with a cone is left out: PT and BDPT disagree by ~4.5-9% there.
+    // Cause: analytic lights stop camera / BSDF rays but not shadow rays or BDPT
+    // connections, so light tracing sees surfaces behind the light that PT cannot; strict
+    // xfail in tests/python/test_analytic_light_occlusion.py.)
     LightDesc disk;
     disk.kind = LightDesc::Kind::disk;
     disk.transform = Mat4::translate(0, 0.99, -0.2) * Mat4::rotate(-90, 1, 0, 0);
