@@ -203,3 +203,76 @@ def test07_unknown_aov_is_a_one_line_error_naming_the_flag(plane_shot, tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--aov" in err[0] and err[0].startswith("cmlt: error:")
     assert not (tmp_path / "x.exr").exists()
+
+
+# ---- textured materials (issue 3: the AOVs use the integrators' textured material) ----
+
+def _write_exr(path, texels):
+    out = oiio.ImageOutput.create(path)
+    h, w, c = texels.shape
+    out.open(path, oiio.ImageSpec(w, h, c, oiio.FLOAT))
+    out.write_image(np.ascontiguousarray(texels, dtype=np.float32))
+    out.close()
+
+
+def _textured_plane(tmp_path, inputs):
+    """The plane of PLANE_SHOT (3 x 2 m at distance D, facing the camera), with uvs
+    (0, 0) .. (1, 1) over it (dp/du = +X) and the given UsdPreviewSurface inputs."""
+    from cmlt.scene import Camera, FrameScene, Instance, Material, Mesh, padded_points
+    pts = padded_points([(-1.5, -1, -D), (1.5, -1, -D), (1.5, 1, -D), (-1.5, 1, -D)])
+    uv = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], np.float32)
+    quad = Mesh("/quad", pts, np.array([[0, 1, 2], [0, 2, 3]], np.uint32), uvs=uv,
+                material_ids=np.zeros(2, np.uint32))
+    cam = Camera("/cam", np.eye(4), focal_length=24, horizontal_aperture=36,
+                 vertical_aperture=24)
+    mat = Material("/M", diffuse=(0.5, 0.5, 0.5), inputs=inputs)
+    fs = FrameScene(time=1.0, meshes=[quad], instances=[Instance("/quad", 0, np.eye(4))],
+                    materials=[mat], camera=cam, resolution=(W, H), meters_per_unit=1.0)
+    scene = SceneBridge(core).update(fs)
+    st = core.RenderSettings()
+    st.width, st.height, st.threads, st.seed = W, H, 2, 0
+    return core.render_aovs(scene, st, samples=4)
+
+
+def _raw_texture(path, output="rgb", scale=(1, 1, 1, 1), bias=(0, 0, 0, 0)):
+    return {"texture": str(path), "output": output, "wrapS": "clamp", "wrapT": "clamp",
+            "scale": scale, "bias": bias, "sourceColorSpace": "raw"}
+
+
+def test08_albedo_reads_the_diffuse_texture(tmp_path):
+    """Left half of the texture red, right half blue (raw values, no conversion): the
+    albedo AOV is the texel colour on each side, not the constant grey fallback (which
+    it was when the AOV read the material's constant diffuse)."""
+    red, blue = (0.9, 0.05, 0.02), (0.03, 0.1, 0.8)
+    tex = np.zeros((2, 4, 3), np.float32)
+    tex[:, :2] = red
+    tex[:, 2:] = blue
+    _write_exr(str(tmp_path / "d.exr"), tex)
+    a = _textured_plane(tmp_path, {"diffuseColor": _raw_texture(tmp_path / "d.exr")})
+    inside = np.array([[_inside(x, y) for x in range(W)] for y in range(H)])
+    xs = np.arange(W)[None, :].repeat(H, 0)
+    # 1 px = 0.156 m on the plane; a texel is 0.75 m wide, and the bilinear blend of the
+    # two colours covers x in [-0.375, 0.375] m (pixels 21..26): stay outside it
+    left = inside & (xs <= W // 2 - 4)
+    right = inside & (xs >= W // 2 + 3)
+    assert left.sum() > 20 and right.sum() > 20
+    np.testing.assert_allclose(a["albedo"][left], np.broadcast_to(red, (left.sum(), 3)), rtol=1e-5)
+    np.testing.assert_allclose(a["albedo"][right], np.broadcast_to(blue, (right.sum(), 3)),
+                               rtol=1e-5)
+
+
+def test09_normal_reads_the_normal_map(tmp_path):
+    """A constant tangent-space normal map (0.6, 0, 0.8) after scale 2 / bias -1 tilts
+    the shading normal toward +X (dp/du): the normal AOV is that normal in world space
+    (it was the plane's (0, 0, 1) when the AOV ignored normal maps)."""
+    n_tangent = np.array([0.6, 0.0, 0.8])
+    tex = np.broadcast_to((n_tangent + 1) / 2, (2, 2, 3)).astype(np.float32)
+    _write_exr(str(tmp_path / "n.exr"), tex)
+    a = _textured_plane(tmp_path, {"normal": _raw_texture(tmp_path / "n.exr", scale=(2, 2, 2, 1),
+                                                          bias=(-1, -1, -1, 0))})
+    inside = np.array([[_inside(x, y) for x in range(W)] for y in range(H)])
+    assert inside.sum() > 50
+    np.testing.assert_allclose(a["N"][inside], np.broadcast_to(n_tangent, (inside.sum(), 3)),
+                               atol=1e-5)
+    # the albedo stays the constant fallback without a diffuse texture
+    np.testing.assert_allclose(a["albedo"][inside], 0.5, rtol=1e-6)

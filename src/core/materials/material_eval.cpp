@@ -102,6 +102,10 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
     return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures)), ns, si.ng);
 }
 
+Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures) {
+    return colour_input(mat.diffuse, mat.tex_diffuse, st, textures);
+}
+
 Spectrum emitted_radiance(const Material& mat, const Vec2& st,
                           const std::vector<Texture>& textures) {
     Spectrum e = colour_input(mat.emission, mat.tex_emission, st, textures);

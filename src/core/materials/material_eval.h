@@ -20,6 +20,10 @@ PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
 Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
                const std::vector<Texture>& textures);
 
+/// The diffuse colour (UsdPreviewSurface diffuseColor, or the Lambert colour) at texture
+/// coordinate `st`, textured as make_bsdf textures it: what the albedo AOV reports.
+Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures);
+
 /// Emitted radiance (two-sided) at texture coordinate `st`.
 Spectrum emitted_radiance(const Material& mat, const Vec2& st,
                           const std::vector<Texture>& textures);

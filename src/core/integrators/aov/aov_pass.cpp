@@ -1,6 +1,7 @@
 #include "integrators/aov/aov_pass.h"
 
 #include "cameras/camera.h"
+#include "materials/material_eval.h"
 #include "math/safe_math.h"
 #include "sampling/rng.h"
 #include "util/error.h"
@@ -90,9 +91,13 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                                 Vec3 n;
                                 Vec3 p;
                                 if (hit.kind == SceneHit::Kind::surface) {
+                                    // The integrators' textured material at the hit (make_bsdf):
+                                    // the diffuse texture at st, the normal map's shading normal.
                                     const SurfaceInteraction& si = hit.si;
-                                    albedo += scene.material(si.material_id).diffuse;
-                                    n = face_forward(si.ns, si.wo);
+                                    const Material& mat = scene.material(si.material_id);
+                                    const Bsdf bsdf = make_bsdf(mat, si, scene.textures());
+                                    albedo += diffuse_colour(mat, si.uv, scene.textures());
+                                    n = face_forward(bsdf.shading_normal(), si.wo);
                                     p = si.p;
                                 } else {
                                     albedo += Spectrum(clamp01(hit.le.x), clamp01(hit.le.y),

@@ -8,10 +8,11 @@
 ///
 /// Conventions (per pixel, over its samples):
 ///  * albedo: mean over all samples of the first hit's diffuse colour (rendering-space RGB,
-///    ACEScg). A ray that escapes contributes 0. A ray that hits an analytic light's
+///    ACEScg), its texture looked up at the hit's st (materials/material_eval.h). A ray that escapes contributes 0. A ray that hits an analytic light's
 ///    emitting side contributes the light's radiance clamped to [0, 1] (the denoiser
 ///    convention for emitters); an emissive mesh contributes its material's diffuse.
-///  * normal: world-space unit shading normal, turned to face the camera (toward the ray
+///  * normal: world-space unit shading normal (the normal map applied, as the integrators'
+///    BSDF sees it), turned to face the camera (toward the ray
 ///    origin); the normalised mean of the hitting samples' normals. Analytic lights give
 ///    the direction back to the camera. No hit: (0, 0, 0).
 ///  * depth (Z): distance of the hit point along the camera's viewing axis (local -Z),
