@@ -74,6 +74,51 @@ void cornell_lens(Scene& s) {
     s.commit();
 }
 
+/// The Cornell box with two pass-through surfaces in the light's way (issue 3): a
+/// fully cut-out quad under the lamp (opacity 0 below opacityThreshold 0.5) and a
+/// partly transparent ior-1 quad across the box (opacity 0.4, diffuse 0.5: pass-through
+/// lobe probability < 1, weight 0.6); a point light behind the latter.
+void pass_through_box(Scene& s) {
+    box_scene(s, 12.f, true);
+    std::vector<Material> mats = {Material{Spectrum(0.7f), Spectrum(0.f)},
+                                  Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
+                                  Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
+                                  Material{Spectrum(0.5f), Spectrum(12.f)}};
+    Material cut;
+    cut.preview = true;
+    cut.diffuse = Spectrum(0.6f);
+    cut.opacity = 0.f;
+    cut.opacity_threshold = 0.5f;
+    Material veil;
+    veil.preview = true;
+    veil.diffuse = Spectrum(0.5f);
+    veil.opacity = 0.4f;
+    veil.ior = 1.f;
+    mats.push_back(cut);   // 4
+    mats.push_back(veil);  // 5
+    s.set_materials(mats);
+    uint32_t c = s.add_mesh("/cutout", quad_mesh(Vec3(0, 0.7f, 0), Vec3(0.6f, 0, 0), Vec3(0, 0, 0.6f), 4));
+    s.add_instance(c, Mat4());
+    uint32_t v = s.add_mesh("/veil", quad_mesh(Vec3(0, 0, -0.2f), Vec3(0.95f, 0, 0), Vec3(0, 0.95f, 0), 5));
+    s.add_instance(v, Mat4());
+    LightDesc pt;
+    pt.kind = LightDesc::Kind::sphere;
+    pt.treat_as_point = true;
+    pt.radius = 0.05f;
+    pt.radiance = Spectrum(300.f);
+    pt.transform = Mat4::translate(-0.4, 0.3, -0.7);
+    s.add_light(pt);
+    s.commit();
+}
+
+/// The Cornell box whose block slides 0.9 m along x while the shutter is open.
+void moving_block_box(Scene& s) {
+    box_scene(s, 12.f, true);
+    const Mat4 r = Mat4::rotate(25, 0, 1, 0);
+    s.set_instance_motion(2, {Mat4::translate(-0.5, -0.7, -0.3) * r, Mat4::translate(0.4, -0.7, -0.3) * r});
+    s.commit();
+}
+
 void sphere_light_box(Scene& s) {
     box_scene(s, 0.f, false);
     LightDesc sph;
@@ -176,7 +221,7 @@ void expect_pt_bdpt_agree(void (*make)(Scene&), int w, int h, int spp_pt, int sp
     RenderResult bd = render(s, settings("bdpt", w, h, spp_bdpt));
     EXPECT_EQ(pt.stats.nan_samples, 0u) << what;
     EXPECT_EQ(bd.stats.nan_samples, 0u) << what;
-    if (!(s.camera_desc().f_stop > 0.f)) EXPECT_GT(bd.stats.splats, 0u) << what;  // lens: no t = 1
+    EXPECT_GT(bd.stats.splats, 0u) << what;  // light tracing (t = 1), through a thin lens too
     AgreementOptions o;
     o.require_resolution = require_resolution;
     o.tol_mean = tol;
@@ -191,11 +236,16 @@ TEST(Bdpt, MisWeightsSumToOne) {
     // Sample camera and light subpaths; for every connection with a contribution, the
     // production weight function evaluated on the path as every strategy would have
     // made it sums to 1, and the weight from the subpaths as sampled is the same.
-    for (int scene_kind = 0; scene_kind < 4; ++scene_kind) {
+    // Scenes 3-5 (issue 3): light tracing (t = 1) through a thin lens; cut-out and
+    // ior-1 pass-through surfaces crossed by subpaths and connections (their crossing
+    // probabilities enter the densities); motion blur (one shutter time per sample).
+    for (int scene_kind = 0; scene_kind < 6; ++scene_kind) {
         Scene s;
         if (scene_kind == 0) cornell(s);
         else if (scene_kind == 1) sphere_light_box(s);
-        else if (scene_kind == 3) cornell_lens(s);  // thin lens: no t = 1, weights still sum to 1
+        else if (scene_kind == 3) cornell_lens(s);
+        else if (scene_kind == 4) pass_through_box(s);
+        else if (scene_kind == 5) moving_block_box(s);
         else {
             box_scene(s, 5.f, true);
             LightDesc pt;  // a point light too: Dirac position (no s = 0)
@@ -213,7 +263,7 @@ TEST(Bdpt, MisWeightsSumToOne) {
         ws.camera.resize(8);
         ws.light.resize(7);
         BdptCounters c;
-        int checked = 0;
+        int checked = 0, checked_t1 = 0, crossed = 0;
         for (uint32_t i = 0; i < 400; ++i) {
             PixelStreamSampler sampler(99, i, uint32_t(scene_kind));
             sampler.start_stream(0);
@@ -221,7 +271,10 @@ TEST(Bdpt, MisWeightsSumToOne) {
             int nc = tr.generate_camera_subpath(Vec2(u.x * 16, u.y * 16), sampler, 8, false,
                                                 ws.camera.data(), c);
             sampler.start_stream(1);
-            int nl = tr.generate_light_subpath(sampler, 7, false, ws.light.data(), c);
+            int nl = tr.generate_light_subpath(sampler, 7, false, ws.light.data(), c,
+                                               ws.camera[0].time);
+            for (int k = 0; k < nc; ++k) crossed += ws.camera[size_t(k)].pass_pdf < 1.f;
+            for (int k = 0; k < nl; ++k) crossed += ws.light[size_t(k)].pass_pdf < 1.f;
             sampler.start_stream(2);
             for (int t = 1; t <= nc; ++t)
                 for (int sl = 0; sl <= nl; ++sl) {
@@ -245,9 +298,16 @@ TEST(Bdpt, MisWeightsSumToOne) {
                     EXPECT_NEAR(here, w[size_t(sl)], 1e-3 * std::max(1.f, w[size_t(sl)]))
                         << "scene " << scene_kind << " s " << sl << " t " << t;
                     ++checked;
+                    checked_t1 += t == 1;
                 }
         }
         EXPECT_GT(checked, 200) << "scene " << scene_kind;
+        // Light tracing reaches the camera, through the lens too.
+        EXPECT_GT(checked_t1, 20) << "scene " << scene_kind;
+        // The walks did cross the pass-through surfaces with probability < 1.
+        if (scene_kind == 4) EXPECT_GT(crossed, 20);
+        std::printf("scene %d: %d connections checked, %d of them t = 1, %d vertices after crossings\n",
+                    scene_kind, checked, checked_t1, crossed);
     }
 }
 
@@ -535,9 +595,21 @@ TEST(Bdpt, AgreesWithPtDomeAndSun) {
 }
 
 TEST(Bdpt, AgreesWithPtThinLens) {
-    // Depth of field: PT and BDPT (without t = 1 through the lens) see the same image.
+    // Depth of field: PT and BDPT (with t = 1 through the lens) see the same image.
     // Means to 2% (resolved to ~1.3%).
     expect_pt_bdpt_agree(cornell_lens, 32, 32, 384, 128, "cornell thin lens", true, 0.02);
+}
+
+TEST(Bdpt, AgreesWithPtPassThrough) {
+    // Issue 3: shadow rays and connections cross the cut-out and the ior-1 veil as
+    // camera and BSDF rays do, with the crossings in the MIS densities.
+    expect_pt_bdpt_agree(pass_through_box, 32, 32, 256, 64, "pass-through");
+}
+
+TEST(Bdpt, AgreesWithPtMotionBlur) {
+    // Issue 3: every ray of a BDPT sample carries the sample's shutter time; with time
+    // 0 the block would sit at its start position in the BDPT image.
+    expect_pt_bdpt_agree(moving_block_box, 32, 32, 256, 64, "motion blur");
 }
 
 TEST(Bdpt, AgreesWithPtGlassCaustic) {

@@ -80,6 +80,33 @@ Ray Camera::generate_ray(const Vec2& p_raster) const {
     return Ray(o, d, m_desc.near * len, m_desc.far * len);
 }
 
+Vec3 Camera::lens_point(const Vec2& u_lens) const {
+    if (!has_lens()) return m_xf.m.transform_point(Vec3(0.f));
+    // As generate_ray: concentric disk of radius r in the camera's z = 0 plane.
+    Vec2 d = square_to_uniform_disk_concentric(u_lens);
+    return m_xf.m.transform_point(Vec3(d.x * m_lens_radius, d.y * m_lens_radius, 0.f));
+}
+
+bool Camera::lens_ray_to_raster(const Vec3& p_lens, const Vec3& d, Vec2* p_raster) const {
+    if (!has_lens()) return world_to_raster(p_lens + d, p_raster);
+    Vec3 pc = m_xf.inv.transform_point(p_lens);
+    Vec3 dc = m_xf.inv.transform_vector(d);
+    if (!(dc.z < 0.f)) return false;
+    // Where the ray meets the plane of focus z = -focus; the pinhole ray through the
+    // raster position sought passes through that point too (see generate_ray).
+    float t = (m_desc.focus_distance + pc.z) / -dc.z;
+    Vec3 pf = pc + dc * t;
+    Vec2 w(m_desc.focal_length * pf.x / m_desc.focus_distance,
+           m_desc.focal_length * pf.y / m_desc.focus_distance);
+    *p_raster = window_to_raster(w);
+    return std::isfinite(p_raster->x) && std::isfinite(p_raster->y);
+}
+
+Vec2 Camera::window_to_raster(const Vec2& w) const {
+    return {((w.x - m_desc.horizontal_aperture_offset) / m_win_w + 0.5f) * float(m_width),
+            (0.5f - (w.y - m_desc.vertical_aperture_offset) / m_win_h) * float(m_height)};
+}
+
 bool Camera::world_to_raster(const Vec3& p_world, Vec2* p_raster) const {
     Vec3 pc = m_xf.inv.transform_point(p_world);
     Vec2 w;

@@ -75,6 +75,16 @@ public:
     float lens_radius() const { return m_lens_radius; }
     /// Project a world point to raster coordinates; false if behind the camera.
     bool world_to_raster(const Vec3& p_world, Vec2* p_raster) const;
+    /// World position of lens sample `u_lens` in [0,1)^2: the origin of
+    /// generate_ray(p, u_lens) for every p (thin lens; the camera position otherwise).
+    Vec3 lens_point(const Vec2& u_lens) const;
+    /// Raster position of the camera ray leaving the lens at world point `p_lens` in
+    /// direction `d` (world, toward the scene): the film position whose rays pass through
+    /// the point where this ray meets the plane of focus (thin lens), or the projection
+    /// of p_lens + d (pinhole, p_lens the camera position). Inverse of generate_ray in
+    /// the sense generate_ray(p, u) passes through (lens_point(u), p). False if the ray
+    /// does not go forward. Perspective cameras only.
+    bool lens_ray_to_raster(const Vec3& p_lens, const Vec3& d, Vec2* p_raster) const;
 
     const CameraDesc& desc() const { return m_desc; }
     Vec3 position() const { return m_xf.m.transform_point(Vec3(0.f)); }
@@ -82,6 +92,8 @@ public:
 private:
     /// Image-plane window position (aperture units) of a raster position.
     Vec2 raster_to_window(const Vec2& p) const;
+    /// Raster position of an image-plane window position (aperture units).
+    Vec2 window_to_raster(const Vec2& w) const;
 
     CameraDesc m_desc;
     Transform m_xf;

@@ -21,6 +21,7 @@
 #include "materials/preview_surface.h"
 #include "math/frame.h"
 
+#include <cmath>
 #include <type_traits>
 #include <variant>
 
@@ -71,6 +72,7 @@ public:
                     out.is_delta = ps->is_delta;
                     out.is_transmission = ps->is_transmission;
                     out.eta = ps->eta;
+                    out.pass_through = ps->pass_through;
                     return out;
                 } else {
                     return m.sample(lo, u2, u1);
@@ -95,6 +97,22 @@ public:
                     return !m.is_pure_delta();
                 else
                     return !m.is_delta();
+            },
+            m_model);
+    }
+    /// The pass-through lobe seen from direction wo (world): its weight T and, in *prob,
+    /// the probability that `sample` takes it (PreviewSurfaceBsdf::pass_through; 0 for
+    /// models without one). A shadow ray crossing the surface is attenuated by T.
+    float pass_through(const Vec3& wo, float* prob) const {
+        *prob = 0.f;
+        if (dot(wo, m_ng) == 0.f) return 0.f;  // as sample(): no side, no crossing
+        const float abs_cos = std::fabs(m_frame.to_local(wo).z);
+        return std::visit(
+            [&](const auto& m) -> float {
+                if constexpr (std::is_same_v<std::decay_t<decltype(m)>, PreviewSurfaceBsdf>)
+                    return m.pass_through(abs_cos, prob);
+                else
+                    return 0.f;
             },
             m_model);
     }

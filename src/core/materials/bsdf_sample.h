@@ -15,6 +15,10 @@ struct BsdfSample {
     bool is_delta = false;
     bool is_transmission = false;
     float eta = 1.f;
+    /// Straight through an ior-1 interface (a cut-out or pass-through surface): not a
+    /// scattering event for the integrators (they walk on as if the surface were not
+    /// there, and shadow rays cross it through Scene::transmittance).
+    bool pass_through = false;
     bool valid() const { return pdf > 0.f; }
 };
 

@@ -102,6 +102,17 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
     return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures)), ns, si.ng);
 }
 
+bool may_pass_rays(const Material& mat) {
+    if (!mat.preview) return false;  // Lambert: opaque
+    if (mat.opacity_threshold > 0.f)  // a cut-out wherever opacity < threshold (apply_cutout)
+        return mat.tex_opacity >= 0 || mat.opacity < mat.opacity_threshold;
+    if (mat.tex_opacity < 0 && !(mat.opacity < 1.f)) return false;  // opaque everywhere
+    // Transmission somewhere: a pass-through if the (sanitised) ior is 1.
+    PreviewSurfaceParams p = constant_params(mat);
+    p.opacity = 0.f;
+    return PreviewSurfaceBsdf(p).has_pass_through();
+}
+
 Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures) {
     return colour_input(mat.diffuse, mat.tex_diffuse, st, textures);
 }

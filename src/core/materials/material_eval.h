@@ -24,6 +24,11 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
 /// coordinate `st`, textured as make_bsdf textures it: what the albedo AOV reports.
 Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures);
 
+/// Can a hit on `mat` let a ray through without scattering (a pass-through lobe:
+/// opacityThreshold cut-out, or an ior-1 interface with opacity < 1, constant or
+/// textured)? Conservative per material; Scene::transmittance evaluates the hit itself.
+bool may_pass_rays(const Material& mat);
+
 /// Emitted radiance (two-sided) at texture coordinate `st`.
 Spectrum emitted_radiance(const Material& mat, const Vec2& st,
                           const std::vector<Texture>& textures);

@@ -362,6 +362,7 @@ std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample(const Vec3& wo, f
                 s.is_delta = true;
                 s.is_transmission = true;
                 s.eta = 1.f;
+                s.pass_through = true;
                 return s;
             }
             if (m_dielectric == DielectricKind::Smooth) {
@@ -416,6 +417,14 @@ std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample(const Vec3& wo, f
 bool PreviewSurfaceBsdf::has_delta() const {
     return (m_has_specular && m_specular_delta) || (m_has_clearcoat && m_clearcoat_delta) ||
            m_dielectric == DielectricKind::Smooth || m_dielectric == DielectricKind::PassThrough;
+}
+
+float PreviewSurfaceBsdf::pass_through(float abs_cos, float* prob) const {
+    *prob = 0.f;
+    if (m_dielectric != DielectricKind::PassThrough || abs_cos < k_preview_min_cos) return 0.f;
+    // As sample()'s pass-through branch: f = (1 - opacity) A(co)^2 / co at wi = -wo.
+    *prob = lobe_probabilities(abs_cos).dielectric;
+    return (1.f - m_params.opacity) * sqr(clearcoat_attenuation(abs_cos));
 }
 
 bool PreviewSurfaceBsdf::is_pure_delta() const {

@@ -68,6 +68,7 @@ struct PreviewSurfaceSample {
     bool is_delta = false;         ///< wi came from a Dirac lobe
     bool is_transmission = false;  ///< wi is on the other side of the surface
     float eta = 1.f;               ///< relative IOR crossed (eta_t / eta_i); 1 for reflection
+    bool pass_through = false;     ///< the pass-through lobe: wi = -wo, no interface
 };
 
 /// Cosines smaller than this are treated as exactly on the horizon (nothing scatters).
@@ -96,6 +97,15 @@ public:
     /// True if every active lobe is a Dirac delta (smooth glass, mirror, pass-through);
     /// eval/pdf are then 0 everywhere and light sampling is pointless.
     bool is_pure_delta() const;
+    /// The dielectric lobe is a pass-through (|ior - 1| < 1e-3 with opacity < 1, e.g. an
+    /// opacityThreshold cut-out): light goes straight through without an interface.
+    bool has_pass_through() const { return m_dielectric == DielectricKind::PassThrough; }
+    /// For |cos wo| = abs_cos: the pass-through lobe's weight T (f |cos wi| of its Dirac
+    /// direction wi = -wo, as `sample` returns it: (1 - opacity) times the clearcoat
+    /// attenuation at both ends) and, in *prob, the probability with which `sample`
+    /// picks it. 0 (and *prob = 0) without a pass-through lobe or on the horizon. The
+    /// same at -wo, so a shadow ray can evaluate a crossing in either direction.
+    float pass_through(float abs_cos, float* prob) const;
     /// Rough hemispherical albedo for AOVs and Russian roulette: normal incidence, Schlick
     /// averaged over the cosine-weighted hemisphere, microfacet shadowing ignored.
     Spectrum albedo_estimate() const;

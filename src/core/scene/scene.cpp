@@ -4,6 +4,7 @@
 #include "lights/cylinder_light.h"
 #include "lights/infinite_lights.h"
 #include "lights/sphere_light.h"
+#include "materials/material_eval.h"
 #include "util/error.h"
 
 #include <algorithm>
@@ -328,6 +329,14 @@ void Scene::commit() {
                                                    << " but there are " << m_textures.size()
                                                    << " textures");
     }
+    // Which materials can let rays pass (visibility queries step through them only then).
+    m_material_passes.assign(m_materials.size(), 0);
+    m_pass_through = false;
+    for (size_t i = 0; i < m_materials.size(); ++i) {
+        if (!may_pass_rays(m_materials[i])) continue;
+        m_material_passes[i] = 1;
+        m_pass_through = true;
+    }
     m_accel->commit();
     compute_bounds();
     build_lights();
@@ -402,6 +411,39 @@ bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
     if (!h.valid()) return false;
     fill_interaction(ray, h, si);
     return true;
+}
+
+float Scene::transmittance(const Ray& shadow, float* pass_pdf) const {
+    *pass_pdf = 1.f;
+    if (!m_accel->occluded(shadow)) return 1.f;
+    if (!m_pass_through) return 0.f;
+    // Something is in the way: walk the hits in order, crossing pass-through ones.
+    Ray ray = shadow;
+    float T = 1.f, P = 1.f;
+    for (int k = 0; k < k_max_pass_through_crossings; ++k) {
+        const Hit h = m_accel->intersect(ray);
+        if (!h.valid()) {
+            *pass_pdf = P;
+            return T;
+        }
+        const Instance& inst = m_instances[h.instance_id];
+        const uint32_t mid = m_meshes[inst.mesh_id].material_id(h.prim_id);
+        if (!m_material_passes[mid]) return 0.f;
+        SurfaceInteraction si;
+        fill_interaction(ray, h, &si);
+        const Bsdf bsdf = make_bsdf(m_materials[mid], si, m_textures);
+        float p = 0.f;
+        const float t = bsdf.pass_through(si.wo, &p);
+        if (!(t > 0.f) || !(p > 0.f)) return 0.f;  // opaque here (e.g. above the cut-out threshold)
+        T *= t;
+        P *= p;
+        // On from the far side of the surface, to the same end point.
+        Ray next(offset_ray_origin(si.p, si.ng, si.error_scale, ray.d), ray.d, 0.f,
+                 ray.tfar - h.t);
+        next.time = ray.time;
+        ray = next;
+    }
+    return 0.f;
 }
 
 SceneHit Scene::intersect(const Ray& ray) const { return resolve_hit(ray, m_accel->intersect(ray)); }

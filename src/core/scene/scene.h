@@ -48,6 +48,10 @@ struct SceneHit {
 /// Fraction of the mean light power given to every light at least (so none has pmf 0).
 constexpr double k_light_power_floor = 1e-3;
 
+/// Scene::transmittance steps through at most this many pass-through surfaces; a shadow
+/// ray crossing more counts as blocked (a bias only for > 256 stacked cut-outs).
+constexpr int k_max_pass_through_crossings = 256;
+
 class Scene {
 public:
     Scene();
@@ -115,6 +119,25 @@ public:
     SceneHit resolve_hit(const Ray& ray, const Hit& h) const;
     bool intersect_surface(const Ray& ray, SurfaceInteraction* si) const;
     bool occluded(const Ray& ray) const { return m_accel->occluded(ray); }
+    /// Some material can let a ray through without scattering (materials/material_eval.h
+    /// may_pass_rays: cut-outs, ior-1 interfaces with opacity < 1), after commit().
+    bool has_pass_through() const { return m_pass_through; }
+    /// Can a hit on material `material_id` be a pass-through crossing?
+    bool material_passes(uint32_t material_id) const {
+        return m_pass_through && m_material_passes[material_id] != 0;
+    }
+    /// Visibility of a shadow ray (ray.tnear .. ray.tfar), what integrators use instead of
+    /// occluded() (issue 3: cut-outs and pass-through surfaces let camera and BSDF rays
+    /// through, so they must let shadow rays through too). Returns 0 if an opaque surface
+    /// blocks the ray, otherwise the product T of the pass-through weights of the
+    /// surfaces it crosses, each evaluated at the hit as a camera path's BSDF is there
+    /// (make_bsdf: textured opacity and cut-out at the hit's uv, normal map;
+    /// Bsdf::pass_through). *pass_pdf gets the product of the probabilities with which
+    /// BSDF sampling takes those crossings: a random walk makes the same segment with
+    /// that extra density factor, which MIS weights need. Without pass-through
+    /// materials it is !occluded(ray) with *pass_pdf = 1 and costs nothing more; with
+    /// them an unblocked ray still costs one occlusion query.
+    float transmittance(const Ray& ray, float* pass_pdf) const;
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
 
 private:
@@ -127,6 +150,8 @@ private:
     std::vector<std::shared_ptr<void>> m_point_owners;  ///< per mesh, latest update_mesh_points
     std::vector<Instance> m_instances;
     std::vector<Material> m_materials;
+    std::vector<uint8_t> m_material_passes;  ///< per material: may_pass_rays (at commit)
+    bool m_pass_through = false;             ///< some entry of m_material_passes is set
     std::vector<Texture> m_textures;
     std::vector<std::unique_ptr<Light>> m_analytic;  ///< as added
     std::vector<std::unique_ptr<TriangleLight>> m_triangle_lights;

@@ -56,39 +56,43 @@ Vec3 leave_point(const PathVertex& v, const Vec3& w) {
 CameraImportance::CameraImportance(const Camera& camera, int width, int height)
     : m_camera(camera), m_width(width), m_height(height) {
     const CameraDesc& d = camera.desc();
-    // A thin lens is not connected to (no t = 1): the camera vertex then counts as a
-    // Dirac vertex in the MIS ratio walk, which drops the t = 1 strategy and leaves the
-    // other weights summing to 1 (see bdpt_tracer.h).
-    m_perspective = d.projection == CameraDesc::Projection::perspective && !camera.has_lens();
-    m_pos = camera.position();
+    m_perspective = d.projection == CameraDesc::Projection::perspective;
+    m_lens = m_perspective && camera.has_lens();
     m_fwd = normalize(d.transform.transform_vector(Vec3(0.f, 0.f, -1.f)));
     // Image window at distance 1 (see cameras/camera.h for the framing).
     float fl = d.focal_length;
     float ww = d.horizontal_aperture / fl;
     float wh = d.horizontal_aperture * float(height) / float(width) / fl;
     m_area = ww * wh;
+    if (m_lens) {
+        const float r = camera.lens_radius();
+        m_pdf_lens = 1.f / (k_pi * r * r);
+    }
 }
 
-float CameraImportance::pdf_dir(const Vec3& w) const {
+bool CameraImportance::raster_of(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const {
+    if (!(dot(w, m_fwd) > 0.f)) return false;
+    if (!m_camera.lens_ray_to_raster(p_lens, w, p_raster)) return false;
+    return p_raster->x >= 0.f && p_raster->x < float(m_width) && p_raster->y >= 0.f &&
+           p_raster->y < float(m_height);
+}
+
+float CameraImportance::pdf_dir(const Vec3& p_lens, const Vec3& w) const {
     if (!m_perspective) return 1.f;  // Dirac direction: cancels in every weight (no t = 1)
-    float c = dot(w, m_fwd);
-    if (!(c > 0.f)) return 0.f;
     Vec2 pr;
-    if (!m_camera.world_to_raster(m_pos + w, &pr)) return 0.f;
-    if (!(pr.x >= 0.f && pr.x < float(m_width) && pr.y >= 0.f && pr.y < float(m_height))) return 0.f;
+    if (!raster_of(p_lens, w, &pr)) return 0.f;
+    float c = dot(w, m_fwd);
     return 1.f / (m_area * c * c * c);
 }
 
-float CameraImportance::we(const Vec3& w, Vec2* p_raster) const {
+float CameraImportance::we(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const {
     if (!m_perspective) return 0.f;
+    if (!raster_of(p_lens, w, p_raster)) return 0.f;
     float c = dot(w, m_fwd);
-    if (!(c > 0.f)) return 0.f;
-    if (!m_camera.world_to_raster(m_pos + w, p_raster)) return 0.f;
-    if (!(p_raster->x >= 0.f && p_raster->x < float(m_width) && p_raster->y >= 0.f &&
-          p_raster->y < float(m_height)))
-        return 0.f;
     float c2 = c * c;
-    return 1.f / (m_area * c2 * c2);
+    // Per unit lens area with a lens (times the lens density 1 / A_lens); the pinhole's
+    // Dirac position has pdf_lens() = 1.
+    return m_pdf_lens / (m_area * c2 * c2);
 }
 
 // ---- tracer ---------------------------------------------------------------------------------
@@ -96,7 +100,7 @@ float CameraImportance::we(const Vec3& w, Vec2* p_raster) const {
 BdptTracer::BdptTracer(const Scene& scene, const Camera& camera, int width, int height,
                        int max_depth)
     : m_scene(scene), m_importance(camera, width, height), m_width(width), m_height(height),
-      m_max_depth(max_depth) {}
+      m_max_depth(max_depth), m_motion_blur(scene.motion_blur()) {}
 
 float BdptTracer::choose_strategy(int depth, float u, int* s, int* t) {
     if (depth == 0) {
@@ -176,7 +180,7 @@ float BdptTracer::pdf(const PathVertex* prev, const PathVertex& v, const PathVer
     wn = wn / ln;
     float pdf_sa = 0.f;
     if (v.type == VertexType::camera) {
-        pdf_sa = m_importance.pdf_dir(wn);
+        pdf_sa = m_importance.pdf_dir(v.p, wn);  // v.p: the lens point of this path
     } else {
         if (!prev || !v.bsdf) return 0.f;
         Vec3 wp = prev->infinite ? -prev->w_inf : prev->p - v.p;
@@ -185,6 +189,17 @@ float BdptTracer::pdf(const PathVertex* prev, const PathVertex& v, const PathVer
         pdf_sa = v.bsdf->pdf(wp / lp, wn);
     }
     return convert_density(pdf_sa, v, next);
+}
+
+float BdptTracer::scatter_probability(const PathVertex& v, const PathVertex& toward) const {
+    if (v.type != VertexType::surface || !v.bsdf || !m_scene.material_passes(v.si.material_id))
+        return 1.f;
+    Vec3 w = toward.infinite ? -toward.w_inf : toward.p - v.p;
+    float l2 = length_squared(w);
+    if (!(l2 > 0.f)) return 1.f;
+    float p_pass = 0.f;
+    v.bsdf->pass_through(w / std::sqrt(l2), &p_pass);
+    return 1.f - p_pass;
 }
 
 Spectrum BdptTracer::scatter(const PathVertex& v, const Vec3& w, bool importance) const {
@@ -199,17 +214,25 @@ Spectrum BdptTracer::scatter(const PathVertex& v, const Vec3& w, bool importance
     return f * (std::fabs(dot(v.wo, v.ns)) * std::fabs(dot(w, v.si.ng)) / den);
 }
 
-bool BdptTracer::visible(const PathVertex& a, const PathVertex& b, BdptCounters& c) const {
-    c.shadow_rays += 1;
-    c.rays += 1;
+Ray BdptTracer::connection_ray(const PathVertex& a, const PathVertex& b) const {
+    Ray r;
     if (b.infinite) {
         Vec3 w = -b.w_inf;
-        return !m_scene.occluded(Ray(leave_point(a, w), w, 0.f, k_infinity));
+        r = Ray(leave_point(a, w), w, 0.f, k_infinity);
+    } else {
+        Vec3 pa = leave_point(a, b.p - a.p);
+        Vec3 pb = leave_point(b, a.p - b.p);
+        r = Ray(pa, pb - pa, 0.f, 1.f - k_shadow_epsilon);
     }
-    Vec3 pa = leave_point(a, b.p - a.p);
-    Vec3 pb = leave_point(b, a.p - b.p);
-    Vec3 d = pb - pa;
-    return !m_scene.occluded(Ray(pa, d, 0.f, 1.f - k_shadow_epsilon));
+    r.time = a.time;  // both subpaths share the sample's time
+    return r;
+}
+
+float BdptTracer::transmittance(const PathVertex& a, const PathVertex& b, float* pass_pdf,
+                                BdptCounters& c) const {
+    c.shadow_rays += 1;
+    c.rays += 1;
+    return m_scene.transmittance(connection_ray(a, b), pass_pdf);
 }
 
 // ---- subpaths -------------------------------------------------------------------------------
@@ -220,6 +243,11 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
     const Scene& scene = m_scene;
     int n = start;  // vertices so far (path[n - 1] is the previous one)
     float pdf_fwd_sa = pdf_dir;
+    // Pass-through crossings since path[n - 1] (cut-outs, ior-1 interfaces): not
+    // vertices, but the walk reaches the next vertex only with the product of their
+    // lobe probabilities, a factor of its density (and of the reverse density along the
+    // same segment), as Scene::transmittance reports it for a connection.
+    float pass_pdf = 1.f;
     Spectrum rr_beta(1.f);  // scattering throughput alone (roulette without light units)
     // MIS densities are recomputed from the vertex positions (not the offset ray
     // directions), so that they are the same functions of the path whichever strategy
@@ -228,10 +256,13 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         PathVertex& prev = path[n - 1];
         if (n - 1 < start || prev.type != VertexType::surface || prev.delta || !prev.bsdf) return;
         pdf_fwd_sa = prev.bsdf->pdf(prev.wo, w);
-        path[n - 2].pdf_rev = convert_density(prev.bsdf->pdf(w, prev.wo), prev, path[n - 2]);
+        path[n - 2].pdf_rev =
+            convert_density(prev.bsdf->pdf(w, prev.wo), prev, path[n - 2]) * prev.pass_pdf;
     };
+    const SceneHit* pending_hit = first_hit;  // the camera ray's, used once
     while (n < max_vertices) {
-        SceneHit hit = (n == start && first_hit) ? *first_hit : scene.intersect(ray);
+        SceneHit hit = pending_hit ? *pending_hit : scene.intersect(ray);
+        pending_hit = nullptr;
         c.rays += 1;
         PathVertex& prev = path[n - 1];
         if (hit.kind == SceneHit::Kind::miss) {
@@ -241,10 +272,12 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
                 PathVertex& v = path[n];
                 v = PathVertex();
                 v.type = VertexType::light;
+                v.time = ray.time;
                 v.infinite = true;
                 v.w_inf = -normalize(ray.d);
                 v.beta = beta;
-                v.pdf_fwd = pdf_fwd_sa;
+                v.pdf_fwd = pdf_fwd_sa * pass_pdf;
+                v.pass_pdf = pass_pdf;
                 ++n;
             }
             break;
@@ -258,6 +291,7 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
                 PathVertex& v = path[n];
                 v = PathVertex();
                 v.type = VertexType::light;
+                v.time = ray.time;
                 v.light_index = int32_t(hit.light_index);
                 v.p = p_hit;
                 v.ng = v.ns = scene.light(hit.light_index).emitter_normal(v.p);
@@ -265,7 +299,8 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
                 v.error_scale = point_error_scale(v.p);
                 v.le = hit.le;
                 v.beta = beta;
-                v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v);
+                v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
+                v.pass_pdf = pass_pdf;
                 ++n;
             }
             break;
@@ -273,22 +308,48 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         Vec3 w_in = hit.si.p - prev.p;
         if (prev.infinite || !(length_squared(w_in) > 0.f)) w_in = ray.d;
         w_in = normalize(w_in);
+        const Material& mat = scene.material(hit.si.material_id);
+        // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
+        Bsdf bsdf = make_bsdf(mat, hit.si, scene.textures());
+        // A surface that may pass rays: sample it first (with the numbers the vertex
+        // would use); the pass-through lobe crosses it without making a vertex.
+        bool sampled = false;
+        BsdfSample bs;
+        float u_rr = 0.f;
+        if (scene.material_passes(hit.si.material_id)) {
+            Vec2 u2 = sampler.next2d();
+            float u1 = sampler.next1d();
+            u_rr = sampler.next1d();
+            bs = bsdf_sample(bsdf, -w_in, u2, u1, mode_of(importance), 0);
+            sampled = true;
+            if (bs.valid() && bs.pass_through) {
+                // T / p; for wi = -wo the importance correction of the shading normal is 1.
+                Spectrum factor = bs.f * (std::fabs(dot(bs.wi, bsdf.shading_normal())) / bs.pdf);
+                beta *= factor;
+                rr_beta *= factor;
+                if (is_black(beta) || !is_finite(beta)) break;
+                pass_pdf *= bs.pdf;
+                ray = hit.si.spawn_ray(bs.wi);
+                continue;
+            }
+        }
         edge(w_in);
         PathVertex& v = path[n];
         v = PathVertex();
         v.type = VertexType::surface;
+        v.time = ray.time;
         v.si = hit.si;
         v.p = hit.si.p;
         v.ng = hit.si.ng;
         v.wo = -w_in;
         v.si.wo = v.wo;
         v.error_scale = hit.si.error_scale;
-        const Material& mat = scene.material(hit.si.material_id);
-        // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
-        v.bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
+        v.bsdf.emplace(bsdf);
         v.ns = v.bsdf->shading_normal();
         v.beta = beta;
-        v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v);
+        v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
+        v.pass_pdf = pass_pdf;
+        pass_pdf = 1.f;
         if (!importance && mat.is_emissive()) {
             v.le = emitted_radiance(mat, hit.si.uv, scene.textures());
             v.light_index = scene.triangle_light_index(hit.si.instance_id, hit.si.prim_id);
@@ -296,11 +357,13 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         ++n;
         if (n >= max_vertices) break;
 
-        // Sample the next direction.
-        Vec2 u2 = sampler.next2d();
-        float u1 = sampler.next1d();
-        float u_rr = sampler.next1d();
-        BsdfSample bs = bsdf_sample(*v.bsdf, v.wo, u2, u1, mode_of(importance), 0);
+        // Sample the next direction (already done above on a surface that may pass rays).
+        if (!sampled) {
+            Vec2 u2 = sampler.next2d();
+            float u1 = sampler.next1d();
+            u_rr = sampler.next1d();
+            bs = bsdf_sample(*v.bsdf, v.wo, u2, u1, mode_of(importance), 0);
+        }
         if (!bs.valid()) break;
         pdf_fwd_sa = bs.pdf;  // replaced by edge() from positions unless Dirac
         if (bs.is_delta) {
@@ -337,26 +400,32 @@ int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampl
                                         BdptCounters& c, const SceneHit* first_hit) const {
     if (max_vertices < 1) return 0;
     const Camera& cam = m_importance.camera();
+    // Motion blur: the sample's shutter time is the camera stream's next 1D, right after
+    // the film position (drawn only when something moves, so a still scene keeps every
+    // other number); the light subpath and the connections use it too.
+    const float time = m_motion_blur ? sampler.next1d() : 0.f;
     // Thin lens: the lens position is the camera stream's next 2D (drawn only with a lens).
     Ray ray = cam.has_lens() ? cam.generate_ray(p_raster, sampler.next2d())
                              : cam.generate_ray(p_raster);
+    ray.time = time;
     PathVertex& v = path[0];
     v = PathVertex();
     v.type = VertexType::camera;
+    v.time = time;
     v.p = ray.o;
     v.beta = Spectrum(1.f);
     v.pdf_fwd = 1.f;
     v.delta = !m_importance.connectable();
     if (max_vertices == 1) return 1;
     c.camera_rays += 1;
-    float pdf_dir = m_importance.pdf_dir(ray.d);
+    float pdf_dir = m_importance.pdf_dir(ray.o, ray.d);
     if (!(pdf_dir > 0.f)) pdf_dir = 1.f;  // edge of the image (float rounding)
     return random_walk(ray, Spectrum(1.f), pdf_dir, sampler, max_vertices, false, roulette, path,
                        1, c, cam.has_lens() ? nullptr : first_hit);
 }
 
 int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
-                                       PathVertex* path, BdptCounters& c) const {
+                                       PathVertex* path, BdptCounters& c, float time) const {
     const Scene& scene = m_scene;
     if (max_vertices < 1 || scene.light_count() == 0) return 0;
     float u_light = sampler.next1d();
@@ -369,6 +438,7 @@ int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, b
     PathVertex& v = path[0];
     v = PathVertex();
     v.type = VertexType::light;
+    v.time = time;
     v.light_index = int32_t(li);
     Ray ray;
     Spectrum beta;
@@ -404,14 +474,17 @@ int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, b
         pdf_dir = les.pdf_dir;
         ray = Ray(leave_point(v, les.d), les.d);
     }
+    ray.time = time;
     if (max_vertices == 1) return 1;
     if (is_black(beta) || !is_finite(beta)) return 1;
     int n = random_walk(ray, beta, pdf_dir, sampler, max_vertices, true, roulette, path, 1, c);
-    if (!v.infinite && n > 1) path[1].pdf_fwd = pdf_light(v, path[1]);  // from positions
+    // From positions, times the crossings' probabilities on the way (pass_pdf).
+    if (!v.infinite && n > 1) path[1].pdf_fwd = pdf_light(v, path[1]) * path[1].pass_pdf;
     if (v.infinite && n > 1) {
         // The first surface vertex's density is the disk's (parallel rays).
         path[1].pdf_fwd = disk_pdf;
         if (path[1].on_surface()) path[1].pdf_fwd *= std::fabs(dot(path[1].ng, v.w_inf));
+        path[1].pdf_fwd *= path[1].pass_pdf;
     }
     return n;
 }
@@ -419,7 +492,8 @@ int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, b
 // ---- connections and MIS -------------------------------------------------------------------
 
 float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,
-                             const PathVertex& sampled, const PathVertex* pt_override) const {
+                             const PathVertex& sampled, float conn_pass_pdf,
+                             const PathVertex* pt_override) const {
     const int n = s + t;
     if (n == 2) return 1.f;
     // Path vertices x_0 (light end) .. x_{n-1} (camera), with their light-side (pl) and
@@ -448,26 +522,51 @@ float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* c
     const PathVertex* qs_minus = s > 1 ? x[s - 2] : nullptr;
     const PathVertex* pt = x[s];
     const PathVertex* pt_minus = t > 1 ? x[s + 1] : nullptr;
-    // pt: light-side density
-    pl[s] = s > 0 ? pdf(qs_minus, *qs, *pt) : pdf_light_origin(*pt, *pt_minus);
-    if (pt_minus) pl[s + 1] = s > 0 ? pdf(qs, *pt, *pt_minus) : pdf_light(*pt, *pt_minus);
-    if (qs) pe[s - 1] = pdf(pt_minus, *pt, *qs);
-    if (qs_minus) pe[s - 2] = pdf(pt, *qs, *qs_minus);
+    // pt: light-side density. A density across a segment includes the probabilities of
+    // the pass-through crossings on it: conn_pass_pdf for the connection segment,
+    // pt->pass_pdf for pt - pt_minus and qs->pass_pdf for qs_minus - qs (1 without
+    // pass-through surfaces).
+    pl[s] = s > 0 ? pdf(qs_minus, *qs, *pt) * conn_pass_pdf : pdf_light_origin(*pt, *pt_minus);
+    if (pt_minus)
+        pl[s + 1] = (s > 0 ? pdf(qs, *pt, *pt_minus) : pdf_light(*pt, *pt_minus)) * pt->pass_pdf;
+    if (qs) pe[s - 1] = pdf(pt_minus, *pt, *qs) * conn_pass_pdf;
+    if (qs_minus) pe[s - 2] = pdf(pt, *qs, *qs_minus) * qs->pass_pdf;
     delta[s] = false;
     if (s > 0) delta[s - 1] = false;
+
+    // Subpath ends on a surface that may pass rays exist only with the probability that
+    // the walk reaching them scattered there rather than crossed (interior vertices
+    // too, but there it cancels against the next direction's conditional density):
+    // strategy s' has the extra factor ends(s') = e_l(x_{s'-1}) e_c(x_{s'}), e_l / e_c
+    // the scattering probability of a walk arriving from the light / camera side.
+    float el[k_max], ec[k_max];
+    const bool passing = m_scene.has_pass_through();
+    if (passing) {
+        for (int i = 0; i < n; ++i) {
+            el[i] = i > 0 ? scatter_probability(*x[i], *x[i - 1]) : 1.f;
+            ec[i] = i + 1 < n ? scatter_probability(*x[i], *x[i + 1]) : 1.f;
+        }
+    }
+    auto ends = [&](int sp) { return double(sp > 0 ? el[sp - 1] : 1.f) * double(ec[sp]); };
+    const double ends_here = passing ? ends(s) : 1.0;
+    if (!(ends_here > 0.0)) return 0.f;
 
     double sum = 0.0, ri = 1.0;
     // Move the connection toward the camera: strategies s' = s+1 .. n-1.
     for (int i = s; i <= n - 2; ++i) {
         ri *= double(remap0(pl[i])) / double(remap0(pe[i]));
-        if (!delta[i] && !delta[i + 1]) sum += ri * ri;
+        if (delta[i] || delta[i + 1]) continue;
+        const double r = passing ? ri * ends(i + 1) / ends_here : ri;
+        sum += r * r;
     }
     // Toward the light: s' = s-1 .. 0.
     ri = 1.0;
     for (int i = s - 1; i >= 0; --i) {
         ri *= double(remap0(pe[i])) / double(remap0(pl[i]));
         bool delta_prev = i > 0 ? delta[i - 1] : is_delta_light(*x[0]);
-        if (!delta[i] && !delta_prev) sum += ri * ri;
+        if (delta[i] || delta_prev) continue;
+        const double r = passing ? ri * ends(i) / ends_here : ri;
+        sum += r * r;
     }
     double w = 1.0 / (1.0 + sum);
     return std::isfinite(w) ? float(w) : 0.f;
@@ -479,6 +578,7 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
     const Scene& scene = m_scene;
     Spectrum L(0.f);
     PathVertex sampled;
+    float conn_pass_pdf = 1.f;  // crossings of the connection segment (Scene::transmittance)
     if (t > 1 && s != 0 && camera[t - 1].type == VertexType::light) return L;
 
     if (s == 0) {
@@ -493,7 +593,7 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
                 if (is_black(le)) continue;
                 tmp.light_index = int32_t(li);
                 Spectrum Ll = pt.beta * le;
-                float w = mis ? mis_weight(light, 0, camera, t, sampled, &tmp) : 1.f;
+                float w = mis ? mis_weight(light, 0, camera, t, sampled, 1.f, &tmp) : 1.f;
                 sum += Ll * w;
             }
             return sum;
@@ -503,22 +603,30 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
     } else if (t == 1) {
         const PathVertex& qs = light[s - 1];
         if (!connectible(qs) || !m_importance.connectable()) return L;
-        Vec3 w = m_importance.position() - qs.p;
+        // The camera end: a lens point (connection stream, drawn only with a thin lens:
+        // pbrt-v4's SampleWi) or the pinhole.
+        const Vec3 p_lens = m_importance.sample_lens(m_importance.has_lens() ? sampler.next2d()
+                                                                             : Vec2(0.f, 0.f));
+        Vec3 w = p_lens - qs.p;
         float d2 = length_squared(w);
         if (!(d2 > 0.f)) return L;
         w = w / std::sqrt(d2);
         Vec2 pr;
-        float we = m_importance.we(-w, &pr);
+        float we = m_importance.we(p_lens, -w, &pr);
         if (!(we > 0.f)) return L;
         sampled = PathVertex();
         sampled.type = VertexType::camera;
-        sampled.p = m_importance.position();
+        sampled.time = qs.time;
+        sampled.p = p_lens;
         sampled.beta = Spectrum(1.f);
-        float cos_cam = dot(-w, normalize(m_importance.camera().desc().transform.transform_vector(
-                                    Vec3(0.f, 0.f, -1.f))));
-        L = qs.beta * scatter(qs, w, true) * (we * cos_cam / d2);
+        // We G / p_lens, G = cos_cam / d2 (the lens point has no cosine at qs's end
+        // beyond scatter's): the lens density cancels We's 1 / A_lens.
+        const float cos_cam = m_importance.cos_axis(-w);
+        L = qs.beta * scatter(qs, w, true) * (we * cos_cam / (d2 * m_importance.pdf_lens()));
         if (is_black(L)) return Spectrum(0.f);
-        if (!visible(qs, sampled, c)) return Spectrum(0.f);
+        const float tr = transmittance(qs, sampled, &conn_pass_pdf, c);
+        if (!(tr > 0.f)) return Spectrum(0.f);
+        L *= tr;
         *p_raster = pr;
     } else if (s == 1) {
         const PathVertex& pt = camera[t - 1];
@@ -532,6 +640,7 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
         if (!ls.valid() || !(pmf > 0.f)) return L;
         sampled = PathVertex();
         sampled.type = VertexType::light;
+        sampled.time = pt.time;
         sampled.light_index = int32_t(li);
         if (std::isinf(ls.dist)) {
             sampled.infinite = true;
@@ -547,7 +656,9 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
         sampled.pdf_fwd = pdf_light_origin(sampled, pt);
         L = pt.beta * scatter(pt, ls.wi, false) * sampled.beta;
         if (is_black(L)) return Spectrum(0.f);
-        if (!visible(pt, sampled, c)) return Spectrum(0.f);
+        const float tr = transmittance(pt, sampled, &conn_pass_pdf, c);
+        if (!(tr > 0.f)) return Spectrum(0.f);
+        L *= tr;
     } else {
         const PathVertex& qs = light[s - 1];
         const PathVertex& pt = camera[t - 1];
@@ -558,11 +669,22 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
         w = w / std::sqrt(d2);
         L = qs.beta * scatter(qs, w, true) * scatter(pt, -w, false) * pt.beta * (1.f / d2);
         if (is_black(L)) return Spectrum(0.f);
-        if (!visible(qs, pt, c)) return Spectrum(0.f);
+        const float tr = transmittance(qs, pt, &conn_pass_pdf, c);
+        if (!(tr > 0.f)) return Spectrum(0.f);
+        L *= tr;
     }
     if (sampled_out) *sampled_out = sampled;
     if (is_black(L)) return L;
-    float w = mis ? mis_weight(light, s, camera, t, sampled) : 1.f;
+    if (scene.has_pass_through()) {
+        // The subpath ends used here exist only with their walks' scattering probability
+        // (a walk may cross such a surface instead): divide it out (see mis_weight).
+        float e = 1.f;
+        if (s > 1) e *= scatter_probability(light[s - 1], light[s - 2]);
+        if (t > 1) e *= scatter_probability(camera[t - 1], camera[t - 2]);
+        if (!(e > 0.f)) return Spectrum(0.f);
+        L /= e;
+    }
+    float w = mis ? mis_weight(light, s, camera, t, sampled, conn_pass_pdf) : 1.f;
     return L * w;
 }
 
@@ -577,7 +699,8 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     sampler.start_stream(BdptSampler::k_camera);
     int nc = generate_camera_subpath(p_raster, sampler, max_cam, true, ws.camera.data(), c);
     sampler.start_stream(BdptSampler::k_light);
-    int nl = generate_light_subpath(sampler, max_light, true, ws.light.data(), c);
+    const float time = nc > 0 ? ws.camera[0].time : 0.f;  // the sample's shutter time
+    int nl = generate_light_subpath(sampler, max_light, true, ws.light.data(), c, time);
     sampler.start_stream(BdptSampler::k_connection);
     Spectrum L(0.f);
     for (int t = 1; t <= nc; ++t) {
@@ -611,7 +734,8 @@ static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int de
     if (tr.generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c, first_hit) != t)
         return Spectrum(0.f);
     sampler.start_stream(BdptSampler::k_light);
-    if (s > 0 && tr.generate_light_subpath(sampler, s, false, ws.light.data(), c) != s)
+    if (s > 0 && tr.generate_light_subpath(sampler, s, false, ws.light.data(), c,
+                                           ws.camera[0].time) != s)
         return Spectrum(0.f);
     sampler.start_stream(BdptSampler::k_connection);
     return tr.connect(ws.light.data(), s, ws.camera.data(), t, sampler, p_raster, mis, c);
@@ -635,11 +759,17 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
                                                 const PathVertex& sampled,
                                                 float* weight_here) const {
     const int n = s + t;
-    if (weight_here) *weight_here = mis_weight(light, s, camera, t, sampled);
     // The whole path, light end first.
     std::vector<PathVertex> x(static_cast<size_t>(n));
     for (int i = 0; i < s; ++i) x[size_t(i)] = (s == 1) ? sampled : light[i];
     for (int j = 0; j < t; ++j) x[size_t(n - 1 - j)] = (t == 1 && j == 0) ? sampled : camera[j];
+    // Pass-through crossings of each segment x_i - x_{i+1}: their probability product, as
+    // a connection over that segment would find it (x_{i+1} is never an infinite light).
+    std::vector<float> seg(static_cast<size_t>(std::max(n - 1, 0)), 1.f);
+    for (int i = 0; i + 1 < n; ++i)
+        m_scene.transmittance(connection_ray(x[size_t(i + 1)], x[size_t(i)]), &seg[size_t(i)]);
+    if (weight_here)
+        *weight_here = mis_weight(light, s, camera, t, sampled, s > 0 ? seg[size_t(s - 1)] : 1.f);
     // x_0 as a light vertex (a camera subpath may have reached it as an emissive surface).
     if (x[0].type == VertexType::surface && x[0].light_index >= 0) {
         PathVertex lv;
@@ -680,10 +810,12 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
         for (int i = 0; i < sp; ++i) {
             PathVertex v = x[size_t(i)];
             if (i == 0) v.pdf_fwd = pdf_light_origin(v, x[1]);
-            else if (i == 1) v.pdf_fwd = pdf_light(x[0], v);
-            else v.pdf_fwd = pdf_through(&x[size_t(i - 2)], x[size_t(i - 1)], v);
+            else if (i == 1) v.pdf_fwd = pdf_light(x[0], v) * seg[0];
+            else v.pdf_fwd = pdf_through(&x[size_t(i - 2)], x[size_t(i - 1)], v) * seg[size_t(i - 1)];
             v.pdf_rev = (i + 2 < n) ? pdf_through(&x[size_t(i + 2)], x[size_t(i + 1)], v)
                         : (i + 1 < n ? pdf(nullptr, x[size_t(i + 1)], v) : 0.f);
+            if (i + 1 < n) v.pdf_rev *= seg[size_t(i)];
+            v.pass_pdf = i > 0 ? seg[size_t(i - 1)] : 1.f;
             L[size_t(i)] = v;
         }
         // Camera subpath x_{n-1} .. x_{sp}.
@@ -691,15 +823,17 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
             int i = n - 1 - j;
             PathVertex v = x[size_t(i)];
             if (j == 0) v.pdf_fwd = 1.f;
-            else if (j == 1) v.pdf_fwd = pdf(nullptr, x[size_t(n - 1)], v);
-            else v.pdf_fwd = pdf_through(&x[size_t(i + 2)], x[size_t(i + 1)], v);
+            else if (j == 1) v.pdf_fwd = pdf(nullptr, x[size_t(n - 1)], v) * seg[size_t(i)];
+            else v.pdf_fwd = pdf_through(&x[size_t(i + 2)], x[size_t(i + 1)], v) * seg[size_t(i)];
             if (i == 0) v.pdf_rev = 0.f;
-            else if (i == 1) v.pdf_rev = pdf_light(x[0], v);
-            else v.pdf_rev = pdf_through(&x[size_t(i - 2)], x[size_t(i - 1)], v);
+            else if (i == 1) v.pdf_rev = pdf_light(x[0], v) * seg[0];
+            else v.pdf_rev = pdf_through(&x[size_t(i - 2)], x[size_t(i - 1)], v) * seg[size_t(i - 1)];
+            v.pass_pdf = j > 0 ? seg[size_t(i)] : 1.f;
             C[size_t(j)] = v;
         }
         const PathVertex& samp = sp == 1 ? L[0] : (tp == 1 ? C[0] : sampled);
-        weights[size_t(sp)] = mis_weight(L.data(), sp, C.data(), tp, samp);
+        weights[size_t(sp)] =
+            mis_weight(L.data(), sp, C.data(), tp, samp, sp > 0 ? seg[size_t(sp - 1)] : 1.f);
     }
     return weights;
 }

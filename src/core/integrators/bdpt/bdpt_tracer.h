@@ -6,16 +6,19 @@
 /// (`max_depth` as in the path tracer: 1 = direct lighting). Strategies:
 ///  * s = 0: the camera subpath hits an emitter (area / mesh / infinite lights);
 ///  * s = 1: the last camera vertex samples a light (as next-event estimation);
-///  * t = 1: a light-subpath vertex connects to the pinhole camera and is splatted at
-///    its raster position (light tracing), with the camera importance
-///    We = 1 / (A cos^4) (A: image-plane area at distance 1);
+///  * t = 1: a light-subpath vertex connects to the camera and is splatted at its raster
+///    position (light tracing), with the camera importance of CameraImportance: the
+///    pinhole's We = 1 / (A cos^4) (A: image-plane area at distance 1), or, with a thin
+///    lens (Camera::has_lens), a point sampled uniformly on the lens (connection
+///    stream) and We = 1 / (A A_lens cos^4), the raster position being where the ray
+///    from the lens point through the vertex meets the plane of focus;
 ///  * otherwise: connect the two subpath ends by a shadow ray.
 /// (s, t) = (1, 1) is not used (lights seen directly come from (0, 2) with weight 1).
-/// With a thin lens (Camera::has_lens) or an orthographic camera the camera cannot be
-/// connected to: t = 1 is disabled and the camera vertex is treated as a Dirac vertex
-/// in the MIS weights, so the remaining strategies' weights still sum to 1 (the
-/// light-tracing share of caustics seen directly through the lens is then carried by
-/// the other strategies; correct but noisier).
+/// An orthographic camera cannot be connected to: t = 1 is disabled and the camera
+/// vertex is treated as a Dirac vertex in the MIS weights, so the remaining strategies'
+/// weights still sum to 1. A lens camera vertex is not Dirac: its lens-position density
+/// is the same for t = 1 and t >= 2 and cancels in the ratio walk, which never moves
+/// the connection past the camera vertex (there is no t = 0).
 ///
 /// MIS: power heuristic over all strategies that can sample the path, computed with the
 /// ratio walk over per-vertex forward / reverse area densities (pbrt-v4 MISWeight).
@@ -33,10 +36,16 @@
 /// way, only the weights differ from the optimal. Infinite lights emit from a disk of
 /// the scene's bounding radius, perpendicular to a direction from sample_li.
 ///
-/// Random numbers: stream 0 (camera): film position (2D), then per camera vertex BSDF
+/// Motion blur (Scene::motion_blur()): each sample has one shutter time, drawn from the
+/// camera stream, that every ray of both subpaths and of the connections carries
+/// (PathVertex::time), as PT gives every ray of a path its camera ray's time.
+///
+/// Random numbers: stream 0 (camera): film position (2D), shutter time (1D, only with
+/// motion blur), lens position (2D, only with a thin lens), then per camera vertex BSDF
 /// direction (2D), lobe, roulette. Stream 1 (light): light choice, emission position
 /// (2D), emission direction (2D), then per vertex as the camera. Stream 2
-/// (connections): per s = 1 strategy, light choice and position (2D).
+/// (connections): per s = 1 strategy, light choice and position (2D); per t = 1
+/// strategy with a thin lens, the lens position (2D).
 #include "cameras/camera.h"
 #include "integrators/bdpt/path_sampler.h"
 #include "integrators/bdpt/path_vertex.h"
@@ -71,25 +80,50 @@ struct BdptWorkspace {
     std::vector<BdptSplat> splats;
 };
 
-/// Pinhole camera importance (perspective cameras); orthographic cameras have a Dirac
+/// Camera importance of a perspective camera, pinhole or thin lens (pbrt-v4's
+/// PerspectiveCamera::We / PDF_We / SampleWi explain the same quantities). A camera ray
+/// starts at a lens point (a Dirac position for the pinhole; uniform on the lens disk,
+/// area density 1 / A_lens, for a thin lens) and takes the direction of a uniform film
+/// position: per solid angle 1 / (A cos^3) whatever the lens point (A: image-window
+/// area at distance 1; for a thin lens the window on the plane of focus, seen from any
+/// lens point, subtends the same solid-angle density). The importance that makes every
+/// camera ray's throughput 1 is We = 1 / (A cos^4) (pinhole, times the Dirac of the
+/// position) or 1 / (A A_lens cos^4) (thin lens). Orthographic cameras have a Dirac
 /// direction and cannot be connected to (no t = 1).
+///
+/// The camera is assumed rigid (no scale in its transform), as everywhere in cameras/.
 class CameraImportance {
 public:
     CameraImportance(const Camera& camera, int width, int height);
+    /// t = 1 is possible (perspective, with or without a lens).
     bool connectable() const { return m_perspective; }
-    Vec3 position() const { return m_pos; }
-    /// Solid-angle density of the camera generating direction w (0 outside the image).
-    float pdf_dir(const Vec3& w) const;
-    /// Importance We along w leaving the camera, and its raster position.
-    float we(const Vec3& w, Vec2* p_raster) const;
+    bool has_lens() const { return m_lens; }
+    /// A point on the lens for u in [0,1)^2 (the camera position for a pinhole).
+    Vec3 sample_lens(const Vec2& u) const { return m_camera.lens_point(u); }
+    /// Area density of sample_lens's point: 1 / A_lens (1 for the pinhole's Dirac
+    /// position, which cancels between strategies).
+    float pdf_lens() const { return m_pdf_lens; }
+    /// Solid-angle density of the camera generating direction w from lens point p_lens
+    /// (0 outside the image).
+    float pdf_dir(const Vec3& p_lens, const Vec3& w) const;
+    /// Importance We of the ray leaving lens point p_lens along w (per unit lens area
+    /// with a thin lens), and its raster position; 0 outside the image.
+    float we(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const;
+    /// Cosine of w with the viewing axis.
+    float cos_axis(const Vec3& w) const { return dot(w, m_fwd); }
     const Camera& camera() const { return m_camera; }
 
 private:
+    /// Raster position of the ray (p_lens, w) if it is forward and inside the image.
+    bool raster_of(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const;
+
     const Camera& m_camera;
     int m_width, m_height;
-    Vec3 m_pos, m_fwd;
+    Vec3 m_fwd;
     float m_area = 1.f;
+    float m_pdf_lens = 1.f;
     bool m_perspective = true;
+    bool m_lens = false;
 };
 
 class BdptTracer {
@@ -111,8 +145,9 @@ public:
     /// roulette). Returns the MIS-weighted contribution and its raster position:
     /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
     /// `first_hit`, if given, is what the camera ray for the film position hits first
-    /// (Scene::intersect's answer for Camera::generate_ray(p_raster); coherent MLT traces
-    /// the camera rays of a bundle as one packet): that ray is then not traced again.
+    /// (Scene::intersect's answer for Camera::generate_ray(p_raster), with motion blur at
+    /// the sample's time, PssmltTracer::camera_ray; coherent MLT traces the camera rays
+    /// of a bundle as one packet): that ray is then not traced again.
     /// Ignored with a thin lens (the lens sample moves the ray) and for t = 1.
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
                                BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c,
@@ -142,8 +177,9 @@ public:
     int generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler, int max_vertices,
                                 bool roulette, PathVertex* path, BdptCounters& c,
                                 const SceneHit* first_hit = nullptr) const;
+    /// `time`: the sample's shutter time (the camera subpath's, camera[0].time).
     int generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
-                               PathVertex* path, BdptCounters& c) const;
+                               PathVertex* path, BdptCounters& c, float time = 0.f) const;
     /// Connect; unweighted if `mis` is false. For t = 1 sets *p_raster; `sampled` gets
     /// the new endpoint for s = 1 / t = 1.
     Spectrum connect(const PathVertex* light, int s, const PathVertex* camera, int t,
@@ -151,31 +187,46 @@ public:
                      PathVertex* sampled = nullptr) const;
 
     int max_depth() const { return m_max_depth; }
+    /// The scene has motion blur (Scene::motion_blur() at construction): each sample
+    /// draws a shutter time (see the random-number layout in the file comment).
+    bool motion_blur() const { return m_motion_blur; }
 
 private:
     int random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
                     int max_vertices, bool importance, bool roulette, PathVertex* path, int start,
                     BdptCounters& c, const SceneHit* first_hit = nullptr) const;
-    /// MIS weight of strategy (s, t); `pt_override` replaces camera[t - 1] (s = 0 on an
-    /// escaped vertex: one infinite light at a time).
+    /// MIS weight of strategy (s, t); `conn_pass_pdf`: the pass-through crossings of the
+    /// connection segment (Scene::transmittance; 1 for s = 0); `pt_override` replaces
+    /// camera[t - 1] (s = 0 on an escaped vertex: one infinite light at a time).
     float mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,
-                     const PathVertex& sampled, const PathVertex* pt_override = nullptr) const;
+                     const PathVertex& sampled, float conn_pass_pdf = 1.f,
+                     const PathVertex* pt_override = nullptr) const;
     // Densities (area measure unless `to` is an infinite light).
     float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
     float pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const;
     float pdf_light(const PathVertex& v, const PathVertex& next) const;
     float pdf_light_origin(const PathVertex& v, const PathVertex& next) const;
     bool is_delta_light(const PathVertex& v) const;
+    /// Probability that a walk arriving at v from neighbour `toward` scatters there
+    /// (makes a vertex) instead of crossing a pass-through surface: 1 - the pass-through
+    /// lobe's probability; 1 for vertices that cannot pass rays.
+    float scatter_probability(const PathVertex& v, const PathVertex& toward) const;
     bool connectible(const PathVertex& v) const;
     /// BSDF value times the cosine at v toward direction w (unit), for radiance
     /// (camera-subpath) or importance (light-subpath, with the shading-normal correction).
     Spectrum scatter(const PathVertex& v, const Vec3& w, bool importance) const;
-    bool visible(const PathVertex& a, const PathVertex& b, BdptCounters& c) const;
+    /// The shadow ray of a connection a - b (offset ends, the sample's time).
+    Ray connection_ray(const PathVertex& a, const PathVertex& b) const;
+    /// Visibility of a - b: 0 if blocked, else the transmittance through pass-through
+    /// surfaces, their crossing probabilities' product in *pass_pdf (Scene::transmittance).
+    float transmittance(const PathVertex& a, const PathVertex& b, float* pass_pdf,
+                        BdptCounters& c) const;
 
     const Scene& m_scene;
     CameraImportance m_importance;
     int m_width, m_height;
     int m_max_depth;
+    bool m_motion_blur;
 };
 
 }  // namespace cmlt

@@ -7,7 +7,8 @@
 /// other direction would (filled in when the next vertex is sampled, or overridden by
 /// the MIS weight for the connection vertices). A vertex sampled through a Dirac lobe
 /// has `delta` set and the densities of its two neighbours' edges set to 0 (they are
-/// remapped to 1 in the ratios and strategies through it get no weight).
+/// remapped to 1 in the ratios and strategies through it get no weight). Pass-through
+/// crossings make no vertex; densities across them include `pass_pdf`.
 #include "materials/bsdf.h"
 #include "math/vec.h"
 #include "scene/interaction.h"
@@ -29,9 +30,14 @@ struct PathVertex {
     Vec3 wo;                 ///< surfaces and hit lights: unit direction to the previous vertex
     Vec3 w_inf;              ///< infinite light: unit direction in which the light travels
     float error_scale = 0.f;
+    float time = 0.f;        ///< shutter time of the sample (Ray::time of every ray it traces)
     Spectrum beta{0.f};      ///< subpath throughput up to (not including) this vertex's scattering
     Spectrum le{0.f};        ///< camera subpaths: radiance emitted toward `wo` (emitter hits)
     float pdf_fwd = 0.f, pdf_rev = 0.f;
+    /// Product of the lobe probabilities of the pass-through surfaces (cut-outs, ior-1
+    /// interfaces) crossed between the previous vertex of this subpath and this one:
+    /// the walk's density factor for that segment in either direction (1: none).
+    float pass_pdf = 1.f;
     int32_t light_index = -1;  ///< light vertex, or emissive surface's triangle light; -1 if none
     SurfaceInteraction si;     ///< surfaces
     std::optional<Bsdf> bsdf;  ///< surfaces

@@ -72,8 +72,11 @@ public:
     const TechniqueSampler& technique() const { return m_technique; }
 
     /// The camera ray of the sampler's current proposal (camera stream, dimension 0 =
-    /// film position) and its pixel. Leaves the sampler on the camera stream after the
-    /// film position, where evaluate's path sampling continues.
+    /// film position) and its pixel. With the bdpt sampler and motion blur the ray
+    /// carries the sample's shutter time, BDPT's camera-stream dimension 1, so that a
+    /// first hit traced from this ray is the one BdptTracer's camera ray would find.
+    /// (The pt sampler keeps time 0.) Leaves the sampler on the camera stream after the
+    /// numbers read here, where evaluate's path sampling continues.
     template <class Sampler>
     Ray camera_ray(Sampler& sampler, uint32_t* pixel) const {
         sampler.start_stream(MltSampler::camera);
@@ -83,7 +86,9 @@ public:
         const int x = std::min(int(p_raster.x), m_width - 1);
         const int y = std::min(int(p_raster.y), m_height - 1);
         *pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
-        return m_camera.generate_ray(p_raster);
+        Ray ray = m_camera.generate_ray(p_raster);
+        if (m_bdpt && m_bdpt->motion_blur()) ray.time = sampler.get1d();
+        return ray;
     }
 
     /// Evaluate the sampler's current proposal. `Sampler`: MltSampler (or any sampler

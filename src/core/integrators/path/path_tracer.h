@@ -13,7 +13,12 @@
 ///    min(0.95, max(beta)), its random number at a fixed dimension.
 ///
 /// Random dimensions: 0 = film position; bounce b uses [1 + 5b, 1 + 5b + 5):
-/// light choice, light position (2D), BSDF direction (2D), BSDF lobe, roulette.
+/// light choice, light position (2D), BSDF direction (2D), BSDF lobe, roulette. Bounces
+/// count hits: a pass-through crossing (cut-out, ior-1 interface; not a scattering event,
+/// so not counted in max_depth) has its own bounce, whose lobe number decides it.
+///
+/// Shadow rays use Scene::transmittance: they cross pass-through surfaces as BSDF-sampled
+/// rays do, and the MIS weights include the crossings' selection probabilities.
 ///
 /// `li` is generic over its random source (Tungsten's PathSampleGenerator idea), so the
 /// same sampling routine runs on independent numbers (PixelSampler) or on a Markov

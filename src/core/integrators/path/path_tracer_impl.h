@@ -27,9 +27,16 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
     c.samples += 1;
     c.camera_rays += 1;
 
-    for (int depth = 0;; ++depth) {
+    // `depth` counts scattering events; `bounce` counts hits, pass-through crossings
+    // included, and keys the random dimensions (the two are equal in a scene without
+    // pass-through surfaces). A crossing (a cut-out, an ior-1 interface) is no
+    // scattering event: the path goes on in the same direction from the same previous
+    // vertex, so next-event estimation through it (Scene::transmittance) and BSDF
+    // sampling through it are two strategies for the same path, weighted by MIS.
+    int depth = 0;
+    for (uint32_t bounce = 0;; ++bounce) {
         // Find the next vertex.
-        SceneHit hit = (depth == 0 && first_hit) ? *first_hit : scene.intersect(ray);
+        SceneHit hit = (bounce == 0 && first_hit) ? *first_hit : scene.intersect(ray);
         c.rays += 1;
 
         // Emission seen by this ray, MIS-weighted against light sampling.
@@ -74,13 +81,15 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
             add_emitted(emitted_radiance(mat, si.uv, scene.textures()), pl);
         }
 
-        // Stop after max_depth scattering events.
-        if (depth == m_max_depth) break;
+        // Stop after max_depth scattering events (a pass-through surface may still be
+        // crossed: that adds none).
+        const bool last = depth == m_max_depth;
+        if (last && !scene.material_passes(si.material_id)) break;
 
         Bsdf bsdf = make_bsdf(mat, si, scene.textures());
         const Vec3 wo = si.wo;
         const Vec3& ns = bsdf.shading_normal();
-        sampler.set_dimension(1 + uint32_t(depth) * k_dims_per_bounce);
+        sampler.set_dimension(1 + bounce * k_dims_per_bounce);
         float u_light = sampler.get1d();
         Vec2 u_light_pos = sampler.get2d();
         Vec2 u_bsdf = sampler.get2d();
@@ -88,7 +97,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
         float u_rr = sampler.get1d();
 
         // Next-event estimation: one light chosen by power.
-        if (bsdf.has_non_delta() && scene.light_count() > 0 && depth + 1 >= m_min_depth) {
+        if (!last && bsdf.has_non_delta() && scene.light_count() > 0 && depth + 1 >= m_min_depth) {
             float pmf = 0.f;
             size_t li = scene.sample_light(u_light, &pmf);
             const Light& light = scene.light(li);
@@ -108,11 +117,16 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
                     }
                     c.shadow_rays += 1;
                     c.rays += 1;
-                    if (!scene.occluded(shadow)) {
+                    // Through pass-through surfaces: attenuated by tr; BSDF sampling
+                    // would make this path with density bsdf.pdf * pass_pdf.
+                    float pass_pdf = 1.f;
+                    const float tr = scene.transmittance(shadow, &pass_pdf);
+                    if (tr > 0.f) {
                         float light_pdf = pmf * ls.pdf;
                         float w = ls.is_delta ? 1.f
-                                              : power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi));
-                        L += beta * f * ls.li * (w / light_pdf);
+                                              : power_heuristic(light_pdf,
+                                                                bsdf.pdf(wo, ls.wi) * pass_pdf);
+                        L += beta * f * ls.li * (tr * w / light_pdf);
                     }
                 }
             }
@@ -121,6 +135,17 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
         // Continue the path by sampling the BSDF.
         BsdfSample bs = bsdf.sample(wo, u_bsdf, u_lobe);
         if (!bs.valid()) break;
+        if (bs.pass_through) {
+            // Cross: throughput T / p, and the density with which BSDF sampling reaches
+            // the next vertex gains the factor p (MIS against NEE's pass_pdf);
+            // specular_bounce, prev_p and depth stay as they are.
+            beta *= bs.f * (std::fabs(dot(bs.wi, ns)) / bs.pdf);
+            if (is_black(beta) || !is_finite(beta)) break;
+            prev_bsdf_pdf *= bs.pdf;
+            ray = si.spawn_ray(bs.wi);
+            continue;
+        }
+        if (last) break;
         beta *= bs.f * (std::fabs(dot(bs.wi, ns)) / bs.pdf);
         if (is_black(beta) || !is_finite(beta)) break;
         specular_bounce = bs.is_delta;
@@ -135,6 +160,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
             if (!(u_rr < q)) break;
             beta /= q;
         }
+        ++depth;
     }
     return L;
 }
