@@ -300,6 +300,10 @@ void bind_scene(nb::module_& m) {
             "spaced over the shutter (ray time 0..1); one step = set_instance_transform.")
         .def_prop_ro("motion_blur", &Scene::motion_blur,
                      "Some instance carries shutter time steps (a ray time is then sampled).")
+        .def_prop_ro("has_pass_through", &Scene::has_pass_through,
+                     "Some material can let rays through without scattering (opacityThreshold\n"
+                     "cut-outs, ior-1 surfaces with opacity < 1); shadow rays then step through\n"
+                     "such surfaces (known after commit()).")
         .def("set_materials", &set_materials, "diffuse"_a, "emission"_a, "params"_a = nb::none(),
              "Material table: diffuse and emission (K,3); material_ids index the rows.\n\n"
              "params=None: Lambert materials (diffuse + emission only). Otherwise every row is a\n"
