@@ -77,7 +77,9 @@ void cornell_lens(Scene& s) {
 /// The Cornell box with two pass-through surfaces in the light's way (issue 3): a
 /// fully cut-out quad under the lamp (opacity 0 below opacityThreshold 0.5) and a
 /// partly transparent ior-1 quad across the box (opacity 0.4, diffuse 0.5: pass-through
-/// lobe probability < 1, weight 0.6); a point light behind the latter.
+/// lobe probability < 1, weight 0.6); a point light behind the latter; and an emissive
+/// half-transparent ior-1 panel, which stays an ordinary Dirac transmission (emissive
+/// materials do not pass rays, so that s = 0 sees their emission).
 void pass_through_box(Scene& s) {
     box_scene(s, 12.f, true);
     std::vector<Material> mats = {Material{Spectrum(0.7f), Spectrum(0.f)},
@@ -94,9 +96,15 @@ void pass_through_box(Scene& s) {
     veil.diffuse = Spectrum(0.5f);
     veil.opacity = 0.4f;
     veil.ior = 1.f;
+    Material glow = veil;
+    glow.opacity = 0.5f;
+    glow.emission = Spectrum(2.f, 1.5f, 1.f);
     mats.push_back(cut);   // 4
     mats.push_back(veil);  // 5
+    mats.push_back(glow);  // 6
     s.set_materials(mats);
+    uint32_t g = s.add_mesh("/glow", quad_mesh(Vec3(0.7f, -0.5f, 0.3f), Vec3(0, 0, 0.2f), Vec3(0, 0.2f, 0), 6));
+    s.add_instance(g, Mat4());
     uint32_t c = s.add_mesh("/cutout", quad_mesh(Vec3(0, 0.7f, 0), Vec3(0.6f, 0, 0), Vec3(0, 0, 0.6f), 4));
     s.add_instance(c, Mat4());
     uint32_t v = s.add_mesh("/veil", quad_mesh(Vec3(0, 0, -0.2f), Vec3(0.95f, 0, 0), Vec3(0, 0.95f, 0), 5));

@@ -104,6 +104,9 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
 
 bool may_pass_rays(const Material& mat) {
     if (!mat.preview) return false;  // Lambert: opaque
+    // An emissive surface keeps crossing as a Dirac vertex: BDPT's s = 0 strategy needs
+    // a vertex to see its emission (a crossed surface makes none).
+    if (mat.is_emissive()) return false;
     if (mat.opacity_threshold > 0.f)  // a cut-out wherever opacity < threshold (apply_cutout)
         return mat.tex_opacity >= 0 || mat.opacity < mat.opacity_threshold;
     if (mat.tex_opacity < 0 && !(mat.opacity < 1.f)) return false;  // opaque everywhere

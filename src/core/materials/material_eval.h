@@ -27,6 +27,8 @@ Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<T
 /// Can a hit on `mat` let a ray through without scattering (a pass-through lobe:
 /// opacityThreshold cut-out, or an ior-1 interface with opacity < 1, constant or
 /// textured)? Conservative per material; Scene::transmittance evaluates the hit itself.
+/// Emissive materials answer no: their pass-through lobe stays an ordinary Dirac
+/// transmission (a vertex), so that BDPT's s = 0 strategy sees their emission.
 bool may_pass_rays(const Material& mat);
 
 /// Emitted radiance (two-sided) at texture coordinate `st`.

@@ -27,6 +27,17 @@
 /// direction density is that of the whole image, 1 / (A cos^3), which with one light
 /// path per pixel sample gives the right sample-count ratio between t = 1 and t >= 2.
 ///
+/// Pass-through surfaces (opacityThreshold cut-outs, ior-1 interfaces with opacity < 1;
+/// Scene::has_pass_through): a walk that samples the pass-through lobe crosses the
+/// surface without making a vertex (throughput T / p, p the lobe's probability), and a
+/// connection crosses it with weight T (Scene::transmittance), so both describe the
+/// same paths. A segment's densities include the product of its crossings' p
+/// (PathVertex::pass_pdf; the connection's from Scene::transmittance). A subpath end on
+/// such a surface exists only with its walk's scattering probability 1 - p: connect
+/// divides it out and mis_weight gives each strategy its ends' factor (interior vertices
+/// need none: it cancels against the conditional density of the next direction).
+/// Emissive materials are not pass-through surfaces (materials/material_eval.h).
+///
 /// Light subpaths carry importance: at each light-subpath vertex the adjoint BSDF gets
 /// the shading-normal correction |wo.ns| |wi.ng| / (|wo.ng| |wi.ns|) (Veach 1997 §5.3).
 ///

@@ -135,7 +135,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
         // Continue the path by sampling the BSDF.
         BsdfSample bs = bsdf.sample(wo, u_bsdf, u_lobe);
         if (!bs.valid()) break;
-        if (bs.pass_through) {
+        if (bs.pass_through && scene.material_passes(si.material_id)) {
             // Cross: throughput T / p, and the density with which BSDF sampling reaches
             // the next vertex gains the factor p (MIS against NEE's pass_pdf);
             // specular_bounce, prev_p and depth stay as they are.
