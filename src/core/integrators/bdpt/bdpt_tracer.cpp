@@ -309,22 +309,23 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         if (prev.infinite || !(length_squared(w_in) > 0.f)) w_in = ray.d;
         w_in = normalize(w_in);
         const Material& mat = scene.material(hit.si.material_id);
-        // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
-        Bsdf bsdf = make_bsdf(mat, hit.si, scene.textures());
-        // A surface that may pass rays: sample it first (with the numbers the vertex
+        // A surface that may pass rays: sample its BSDF first (with the numbers the vertex
         // would use); the pass-through lobe crosses it without making a vertex.
+        std::optional<Bsdf> pass_bsdf;
         bool sampled = false;
         BsdfSample bs;
         float u_rr = 0.f;
         if (scene.material_passes(hit.si.material_id)) {
+            pass_bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
             Vec2 u2 = sampler.next2d();
             float u1 = sampler.next1d();
             u_rr = sampler.next1d();
-            bs = bsdf_sample(bsdf, -w_in, u2, u1, mode_of(importance), 0);
+            bs = bsdf_sample(*pass_bsdf, -w_in, u2, u1, mode_of(importance), 0);
             sampled = true;
             if (bs.valid() && bs.pass_through) {
                 // T / p; for wi = -wo the importance correction of the shading normal is 1.
-                Spectrum factor = bs.f * (std::fabs(dot(bs.wi, bsdf.shading_normal())) / bs.pdf);
+                Spectrum factor =
+                    bs.f * (std::fabs(dot(bs.wi, pass_bsdf->shading_normal())) / bs.pdf);
                 beta *= factor;
                 rr_beta *= factor;
                 if (is_black(beta) || !is_finite(beta)) break;
@@ -344,7 +345,9 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         v.wo = -w_in;
         v.si.wo = v.wo;
         v.error_scale = hit.si.error_scale;
-        v.bsdf.emplace(bsdf);
+        // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
+        if (pass_bsdf) v.bsdf = std::move(pass_bsdf);
+        else v.bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
         v.ns = v.bsdf->shading_normal();
         v.beta = beta;
         v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
