@@ -766,10 +766,6 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
     std::vector<PathVertex> x(static_cast<size_t>(n));
     for (int i = 0; i < s; ++i) x[size_t(i)] = (s == 1) ? sampled : light[i];
     for (int j = 0; j < t; ++j) x[size_t(n - 1 - j)] = (t == 1 && j == 0) ? sampled : camera[j];
-    // In this path the connection vertices scatter through their non-Dirac lobes (connect
-    // evaluates those), whichever lobe their walks left them by: as in mis_weight.
-    x[size_t(s)].delta = false;
-    if (s > 0) x[size_t(s - 1)].delta = false;
     // Pass-through crossings of each segment x_i - x_{i+1}: their probability product, as
     // a connection over that segment would find it (x_{i+1} is never an infinite light).
     std::vector<float> seg(static_cast<size_t>(std::max(n - 1, 0)), 1.f);
