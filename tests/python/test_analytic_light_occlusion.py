@@ -1,8 +1,9 @@
-"""Known bug (issue 3, found by the strategy-by-strategy checks): analytic lights (rect,
-disk, sphere, cylinder) stop camera and BSDF rays (Scene::intersect returns the light as
-the nearest hit and the path ends there) but do not block shadow rays or BDPT connections
-(they are not in the BVH; src/core/lights/light.h). The two integrators then estimate
-different images: a surface point hidden from the camera behind a light is invisible to
+"""Analytic lights (rect, disk, sphere, cylinder) stop camera and BSDF rays
+(Scene::intersect returns the light as the nearest hit and the path ends there), so they
+must also block shadow rays and BDPT connections (Scene::blocked_by_light, used by
+Scene::transmittance). This was a bug found by the strategy-by-strategy checks, when
+lights were not in any visibility query (they are not in the BVH): the two integrators
+then estimated different images: a surface point hidden from the camera behind a light is invisible to
 PT but BDPT's light tracing (t = 1) connects it to the camera through the light and
 splats it onto the light's pixels; likewise a shadow ray toward one light passes through
 another, which a BSDF ray in that direction would hit instead.
@@ -15,11 +16,10 @@ cylinder light, depth-1 strategies differ by 3%, and a coned cylinder by 7-9% (t
 "cylinder with a cone" left out of test_cylinder_shaping.cpp's shaped_box).
 
 This test renders a floor under a small sphere light seen from above, max_depth 1, and
-asks PT and BDPT to agree per 8x8 block (z-tests with the variance AOV, Bonferroni 1e-3):
-strict xfail until the light semantics are made consistent (lights occlude every ray, or
-none), so that the fix is noticed. Measured: BDPT +4.4% on the image mean; in the block
-holding the light PT 4.006, BDPT 4.236 (z = 11.4; the floor radiance behind the light,
-~0.7 x the light's pixel coverage, is what BDPT adds).
+asks PT and BDPT to agree per 8x8 block (z-tests with the variance AOV, Bonferroni 1e-3).
+Measured before the fix: BDPT +4.4% on the image mean; in the block holding the light PT
+4.006, BDPT 4.236 (z = 11.4; the floor radiance behind the light, ~0.7 x the light's
+pixel coverage, is what BDPT added).
 """
 import math
 
@@ -63,9 +63,6 @@ def _blocks(a):
     return a.reshape(RES // B, B, RES // B, B, 3)
 
 
-@pytest.mark.xfail(strict=True, reason="analytic lights stop camera/BSDF rays but not shadow "
-                   "rays or BDPT connections: BDPT's light tracing sees the floor behind the "
-                   "light (see the module docstring)")
 def test_pt_bdpt_agree_with_a_light_in_view():
     scene = SceneBridge(core).update(_scene())
     (a, va), (b, vb) = _render(scene, "pt", 256), _render(scene, "bdpt", 128)

@@ -413,8 +413,21 @@ bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
     return true;
 }
 
+bool Scene::blocked_by_light(const Ray& ray) const {
+    for (uint32_t li : m_analytic_area) {
+        float t;
+        Spectrum le;
+        if (m_lights[li]->intersect(ray, &t, &le)) return true;
+    }
+    return false;
+}
+
 float Scene::transmittance(const Ray& shadow, float* pass_pdf) const {
     *pass_pdf = 1.f;
+    // An analytic emitter stops camera and BSDF rays (resolve_hit), so it stops shadow
+    // rays and BDPT connections too: otherwise light tracing sees surfaces behind a lamp
+    // that the camera cannot, and PT and BDPT disagree where a lamp is in view.
+    if (!m_analytic_area.empty() && blocked_by_light(shadow)) return 0.f;
     if (!m_accel->occluded(shadow)) return 1.f;
     if (!m_pass_through) return 0.f;
     // Something is in the way: walk the hits in order, crossing pass-through ones.

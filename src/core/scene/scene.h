@@ -129,7 +129,7 @@ public:
     /// Visibility of a shadow ray (ray.tnear .. ray.tfar), what integrators use instead of
     /// occluded() (issue 3: cut-outs and pass-through surfaces let camera and BSDF rays
     /// through, so they must let shadow rays through too). Returns 0 if an opaque surface
-    /// blocks the ray, otherwise the product T of the pass-through weights of the
+    /// or an analytic light (blocked_by_light) blocks the ray, otherwise the product T of the pass-through weights of the
     /// surfaces it crosses, each evaluated at the hit as a camera path's BSDF is there
     /// (make_bsdf: textured opacity and cut-out at the hit's uv, normal map;
     /// Bsdf::pass_through). *pass_pdf gets the product of the probabilities with which
@@ -138,6 +138,9 @@ public:
     /// materials it is !occluded(ray) with *pass_pdf = 1 and costs nothing more; with
     /// them an unblocked ray still costs one occlusion query.
     float transmittance(const Ray& ray, float* pass_pdf) const;
+    /// Does an analytic area light (rect, disk, sphere, cylinder: not in the BVH) lie on
+    /// `ray` within (tnear, tfar), seen from a side it stops rays on (Light::intersect)?
+    bool blocked_by_light(const Ray& ray) const;
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
 
 private:
