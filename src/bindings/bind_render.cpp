@@ -262,9 +262,9 @@ void bind_render(nb::module_& m) {
                 "pssmlt/cmlt importance: 'pixel' (default; f* = luminance / smoothed pilot "
                 "brightness of the pixel, chains cover the image about uniformly) or "
                 "'luminance' (f* = luminance)")
-        .def_rw("direct_spp", &RenderSettings::direct_spp,
-                "pssmlt/cmlt: path-traced samples per pixel of the direct pass (depths 0 and 1), "
-                "0..1024 (default 8; 0 = the chains render every depth); counted in the budget")
+        .def_rw("direct_fraction", &RenderSettings::direct_fraction,
+                "pssmlt/cmlt: share of the path evaluations spent on the direct pass (depths 0 "
+                "and 1, path traced), 0..0.9 (default 0.3; 0 = the chains render every depth)")
         .def_rw("pilot_spp", &RenderSettings::pilot_spp,
                 "path-traced samples per pixel of the 'pixel' importance's pilot, 1..64 "
                 "(default 1; counted in the budget)")

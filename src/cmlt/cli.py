@@ -168,10 +168,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pssmlt/cmlt importance: pixel (luminance over a pilot image's pixel "
                    "brightness: even coverage of the image) or luminance (classic MLT); "
                    "default: " + stage_note.format("importance", _Defaults.importance))
-    r.add_argument("--direct-spp", type=_int_at_least(0), metavar="N", dest="direct_spp",
-                   help="pssmlt/cmlt: path-traced samples per pixel of the direct pass "
-                   "(emitters seen directly, direct light; at most spp/4), 0 = the chains "
-                   "render everything; default: " + stage_note.format("directSpp", _Defaults.direct_spp))
+    r.add_argument("--direct-fraction", type=float, metavar="F", dest="direct_fraction",
+                   help="pssmlt/cmlt: share of the path evaluations for the path-traced direct "
+                   "pass (emitters seen directly, direct light), 0..0.9; 0 = the chains render "
+                   "everything; default: " + stage_note.format("directFraction", _Defaults.direct_fraction))
     r.add_argument("--pilot-spp", type=_int_at_least(1), metavar="N", dest="pilot_spp",
                    help="pssmlt/cmlt: path-traced samples per pixel of the pilot image of "
                    "the pixel importance (at most spp/8); default: "
@@ -298,7 +298,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
     from .shot import RenderCancelled, RenderError, RenderOptions, UsageError, render_sequence
 
     opts = RenderOptions(spp=args.spp, time_budget=args.time_budget, importance=args.importance,
-                         direct_spp=args.direct_spp, pilot_spp=args.pilot_spp,
+                         direct_fraction=args.direct_fraction, pilot_spp=args.pilot_spp,
                          integrator=args.integrator, seed=args.seed,
                          threads=args.threads, resolution=args.res, max_depth=args.max_depth,
                          sigma=args.sigma, large_step_probability=args.large_step_probability,

@@ -23,7 +23,7 @@ chains                    cmlt:chains                       1000            >= 1
 bootstrap_samples         cmlt:bootstrapSamples             100000          >= 1
 inner                     cmlt:inner                        ``bundle``      seed, mtm, bundle
 importance                cmlt:importance                   ``pixel``       pixel, luminance
-direct_spp                cmlt:directSpp                    8               0 .. 1024
+direct_fraction           cmlt:directFraction               0.3             [0, 0.9]
 pilot_spp                 cmlt:pilotSpp                     1               1 .. 64
 carry_states              cmlt:temporal:carryStates         true
 smooth_normalization      cmlt:temporal:smoothNormalization true
@@ -126,8 +126,8 @@ FIELDS: Tuple[SettingField, ...] = (
                  doc="inner-chain rule: seminar 2k splats, multiple-try, multiple-proposal"),
     SettingField("importance", "cmlt:importance", "token", "pixel", tokens=("pixel", "luminance"),
                  doc="Metropolis importance: luminance over the pilot's pixel brightness, or luminance"),
-    SettingField("direct_spp", "cmlt:directSpp", "int", 8, 0, 1024,
-                 doc="path-traced samples per pixel of the MLT direct pass (0 = chains render all)"),
+    SettingField("direct_fraction", "cmlt:directFraction", "float", 0.3, 0.0, 0.9,
+                 doc="share of MLT path evaluations for the path-traced direct pass (0 = chains render all)"),
     SettingField("pilot_spp", "cmlt:pilotSpp", "int", 1, 1, 64,
                  doc="path-traced samples per pixel of the pixel importance's pilot image"),
     SettingField("carry_states", "cmlt:temporal:carryStates", "bool", True,
@@ -167,7 +167,7 @@ class RenderSettings:
     bootstrap_samples: int = 100_000
     inner: str = "bundle"
     importance: str = "pixel"
-    direct_spp: int = 8
+    direct_fraction: float = 0.3
     pilot_spp: int = 1
     carry_states: bool = True
     smooth_normalization: bool = True

@@ -31,7 +31,7 @@ CONFIGS = [
     "cmlt:tries=2:inner_length=8", "cmlt:tries=16:inner_length=4", "cmlt:tries=8:inner_length=1",
     "cmlt:tries=4:inner_length=4:sigma=0.003", "cmlt:tries=4:inner_length=4:sigma=0.03",
     "cmlt:tries=4:inner_length=4:inner=mtm", "cmlt:tries=4:inner_length=4:inner=seed",
-    "cmlt:tries=4:inner_length=4:direct_spp=0", "cmlt:tries=4:inner_length=4:importance=luminance",
+    "cmlt:tries=4:inner_length=4:direct_fraction=0", "cmlt:tries=4:inner_length=4:importance=luminance",
 ]
 
 

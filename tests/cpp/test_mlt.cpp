@@ -121,7 +121,7 @@ TEST(Pssmlt, BudgetAndStats) {
     mixed_scene(s);
     RenderSettings st = mlt_settings(32, 24, 16);
     st.large_step_probability = 0.25;
-    st.direct_spp = 3;  // pilot 1 spp + direct 3 spp of the 16
+    st.direct_fraction = 0.1875;  // pilot 1 spp + direct 3 spp (0.1875 x 16) of the 16
     RenderResult r = render(s, st);
     const MltStats& m = r.stats.mlt;
     ASSERT_TRUE(m.enabled);
@@ -150,16 +150,16 @@ TEST(Pssmlt, BudgetAndStats) {
     EXPECT_EQ(r2.stats.mlt.bootstrap_samples, budget / 2);
     EXPECT_EQ(r2.stats.mlt.mutations, budget - budget / 2);
     EXPECT_NE(m.kernel_stats_json.find("\"small_step\""), std::string::npos);
-    // the direct pass is at most spp/4, the pilot at most spp/8 (a small budget stays the
-    // chains'); the luminance target needs no pilot; no direct pass: chains do every depth
+    // the direct pass is its share of spp, the pilot at most spp/8 (a small budget stays
+    // the chains'); the luminance target needs no pilot; no direct pass: chains do all
     st.bootstrap_samples = 4096;
     st.spp = 8;
-    st.direct_spp = 16;
+    st.direct_fraction = 0.5;
     RenderResult r3 = render(s, st);
-    EXPECT_EQ(r3.stats.mlt.direct_evaluations, 2 * pixels);
+    EXPECT_EQ(r3.stats.mlt.direct_evaluations, 4 * pixels);
     EXPECT_EQ(r3.stats.mlt.pilot_evaluations, pixels);
     st.importance = "luminance";
-    st.direct_spp = 0;
+    st.direct_fraction = 0;
     RenderResult r4 = render(s, st);
     EXPECT_EQ(r4.stats.mlt.pilot_evaluations, 0u);
     EXPECT_EQ(r4.stats.mlt.direct_evaluations, 0u);
@@ -177,7 +177,7 @@ TEST(Pssmlt, FurnaceMeanIsBWithinItsStandardError) {
     RenderSettings st = mlt_settings(16, 16, 64);
     st.bootstrap_samples = 8192;
     st.importance = "luminance";  // the image mean is b only for f* = luminance and
-    st.direct_spp = 0;            // chains that render every depth
+    st.direct_fraction = 0;       // chains that render every depth
     RenderResult r = render(s, st);
     const MltStats& m = r.stats.mlt;
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(channel_mean(r, c), m.b, 1e-4 * m.b);
@@ -194,7 +194,7 @@ TEST(Pssmlt, MostlyBlackSceneHasNoStuckChainAndNoNaN) {
     slit_scene(s);
     RenderSettings st = mlt_settings(32, 32, 64, 3);
     st.chains = 32;  // ~1900 mutations per chain
-    st.direct_spp = 0;  // the chains render the directly lit strip too
+    st.direct_fraction = 0;  // the chains render the directly lit strip too
     RenderResult r = render(s, st);
     const MltStats& m = r.stats.mlt;
     EXPECT_TRUE(all_finite(r));

@@ -137,7 +137,7 @@ TEST(Temporal, EvaluateStatesReproducesTheRendersTargetAndRestartsChains) {
         st.chains = 32;
         st.bootstrap_samples = 512;
         st.mlt_path_sampler = sampler;
-        st.direct_spp = 0;  // the slit scene is all direct light: the chains render it
+        st.direct_fraction = 0;  // the slit scene is all direct light: the chains render it
         RenderResult a = render(s, st);
         ASSERT_TRUE(a.mlt_states);
         const mlt::ChainStates& end = *a.mlt_states;

@@ -149,14 +149,20 @@ def test_02_stats_and_finite(mlt_runs):
         assert np.isfinite(img).all() and (img >= 0).all()
         assert st["integrator"] == "pssmlt" and st["nan_samples"] == 0
         assert st["chains"] == 128 and st["bootstrap_samples"] == 16384
-        # budget: pilot 1 spp + direct pass 8 spp (depths 0, 1) + bootstrap + chains
+        # budget: pilot 1 spp + direct pass round(0.3 MPP) = 38 spp (depths 0, 1) +
+        # bootstrap + chains
         assert st["importance"] == "pixel" and st["min_depth"] == 2
-        assert st["pilot_evaluations"] == RES * RES and st["direct_evaluations"] == 8 * RES * RES
-        assert st["mutations"] == RES * RES * (MPP - 9) - 16384
+        assert st["pilot_evaluations"] == RES * RES and st["direct_evaluations"] == 38 * RES * RES
+        assert st["mutations"] == RES * RES * (MPP - 39) - 16384
         assert st["path_evaluations"] == RES * RES * MPP
         assert 0 < st["acceptance"]["large_step"] < st["acceptance"]["small_step"] < 1
         assert st["max_rejection_streak"] < 500
-        assert st["b_stderr"] < st["b_bootstrap_stderr"]
+    # every large step refines b: with ~1.4x the bootstrap's samples among the large steps
+    # the merged standard error is ~0.65x the bootstrap's. Per run the sample standard
+    # deviation of a heavy-tailed f* is itself noisy (one run measured 1.05x), so the
+    # check is on the median over the seeds.
+    ratios = [st["b_stderr"] / st["b_bootstrap_stderr"] for _, st in mlt_runs]
+    assert np.median(ratios) < 0.85, ratios
 
 
 def test_03_mean_brightness_within_1_percent(mlt_runs, reference):
@@ -213,7 +219,7 @@ def test_05_bootstrap_b_is_the_mean_of_f_star(scene, reference):
     ref_se = _lum_se(ref_var)
     for seed in range(4):
         st = dict(core.render(scene, _settings("pssmlt", MPP, seed, chains=128, bootstrap_samples=16384,
-                                               importance="luminance", direct_spp=0)).stats)
+                                               importance="luminance", direct_fraction=0)).stats)
         # 4.5 combined standard errors: false-alarm rate ~7e-6 per check
         assert abs(st["b_bootstrap"] - ref_y) < 4.5 * math.hypot(st["b_bootstrap_stderr"], ref_se)
         assert abs(st["b"] - ref_y) < 4.5 * math.hypot(st["b_stderr"], ref_se)
@@ -256,7 +262,7 @@ def test_08_cli_render_pssmlt(tmp_path):
     st = doc["stats"]
     assert st["integrator"] == "pssmlt" and st["chains"] == 16 and st["bootstrap_samples"] == 256
     assert st["large_step_probability"] == 0.4 and st["sigma"] == 0.02
-    # 8 evaluations per pixel: pilot 1, direct pass min(8, 8 / 4) = 2, bootstrap 256
+    # 8 evaluations per pixel: pilot 1, direct pass round(0.3 x 8) = 2, bootstrap 256
     assert st["mutations"] == 16 * 12 * (8 - 1 - 2) - 256
     assert set(st["acceptance"]) == {"small_step", "large_step"}
     assert "max_rejection_streak" in st and st["b"] > 0

@@ -93,7 +93,7 @@ def test_smoothed_b_follows_the_step_without_lag(tmp_path):
     every path), the light switched on at frame 13 is a step in b, and the smoothed b
     follows it at once."""
     res = _render(tmp_path, "step", MOVING, "9:16", resolution=(32, 32), spp=16,
-                  importance="luminance", direct_spp=0)
+                  importance="luminance", direct_fraction=0)
     t = {r["frame"] if "frame" in r else f: r for f, r in zip(res.frames, _temporal(res))}
     b = {f: t[f]["b_smoothed"] for f in res.frames}
     boot = {f: t[f]["b_boot"] for f in res.frames}

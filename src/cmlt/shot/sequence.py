@@ -78,7 +78,7 @@ class RenderOptions:
     inner: Optional[str] = None
     #: Metropolis importance and the fixed passes (pssmlt, cmlt)
     importance: Optional[str] = None
-    direct_spp: Optional[int] = None
+    direct_fraction: Optional[float] = None
     pilot_spp: Optional[int] = None
     #: cmlt: trace a bundle's camera rays as Embree packets (machine, not shot: the
     #: image is bit-identical either way)
@@ -155,7 +155,7 @@ class RenderOptions:
         """Flag values by setting name, for :func:`cmlt.settings.resolve_settings`."""
         return {"integrator": self.integrator, "spp": self.spp, "seed": self.seed,
                 "time_budget": self.time_budget, "importance": self.importance,
-                "direct_spp": self.direct_spp, "pilot_spp": self.pilot_spp,
+                "direct_fraction": self.direct_fraction, "pilot_spp": self.pilot_spp,
                 "max_depth": self.max_depth, "resolution": self.resolution,
                 "camera": self.camera, "sigma": self.sigma,
                 "large_step_probability": self.large_step_probability,
@@ -230,7 +230,7 @@ _FLAGS = {"integrator": "--integrator", "spp": "--spp", "max_depth": "--max-dept
           "sigma": "--sigma", "large_step_probability": "--large-step-probability",
           "chains": "--chains", "bootstrap_samples": "--bootstrap-samples",
           "tries": "--tries", "inner_length": "--inner-length", "inner": "--inner",
-          "time_budget": "--time", "importance": "--importance", "direct_spp": "--direct-spp",
+          "time_budget": "--time", "importance": "--importance", "direct_fraction": "--direct-fraction",
           "pilot_spp": "--pilot-spp"}
 
 

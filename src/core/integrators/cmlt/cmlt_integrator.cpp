@@ -82,7 +82,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     // path sampler: multiplexed BDPT (default; t = 1 paths take the caustic perturbation)
     // or the path tracer (every path takes the lens perturbation)
     const mlt::PssmltTracer& tracer = ctx.tracer;
-    const PtPassImage direct = mlt::render_direct(scene, settings, counters);
+    mlt::DirectPass direct_pass(scene, settings);
 
     const uint64_t seed = settings.seed;
     const size_t k = size_t(settings.tries);
@@ -108,6 +108,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     const uint64_t n_chains = initial ? std::min<uint64_t>(initial->chains.size(), max_chains)
                                       : std::min<uint64_t>(uint64_t(settings.chains), max_chains);
     mlt::SplatFilm film(W, H);
+    mlt::DirectSchedule direct{direct_pass, settings, arena, counters};
 
     auto make_target = [&](PathCounters* c, uint64_t* packet_queries) {
         coherent::Target f;
@@ -209,6 +210,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     ChainSchedule schedule(settings, t0, chains.size());
     uint64_t evaluations = 0;
     while (!chains.empty() && schedule.begin_round(evaluations)) {
+        direct.before_round(schedule, evaluations);
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
                 ScopedFtzDaz ftz;
@@ -272,6 +274,8 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
             break;
         }
     }
+    direct.finish(cancelled, !chains.empty(), t0);
+    const PtPassImage direct_image = direct_pass.develop();
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     // 5. normalisation and stats, merged in chain order
@@ -296,7 +300,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     RenderResult res;
     res.width = W;
     res.height = H;
-    mlt::develop_image(res, film, b.mean, steps, direct);
+    mlt::develop_image(res, film, b.mean, steps, direct_image);
     res.cancelled = cancelled;
     res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
     res.mlt_states = export_states();
@@ -304,13 +308,13 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
 
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
-    st.nan_samples = counters.invalid.load() + invalid;
+    st.nan_samples = counters.invalid.load() + invalid + direct_image.nan_samples;
     st.threads = threads;
     st.integrator = settings.integrator;
     st.spp = settings.spp;
     st.seed = settings.seed;
     MltStats& ms = st.mlt;
-    mlt::fill_common_mlt_stats(ms, settings, budget, b, b_boot, streaks);
+    mlt::fill_common_mlt_stats(ms, settings, budget, b, b_boot, streaks, direct_pass.evaluations());
     ms.chains = chains.size();
     ms.mutations = steps;
     ms.mutations_per_pixel = double(steps) / double(pixels);
@@ -330,7 +334,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     ms.packet_width = settings.packets ? max_width : 1;
     ms.packet_queries = counters.packets.load();
     ms.imported_chains = initial ? chains.size() : 0;
-    ms.path_evaluations = budget.pilot + budget.direct + budget.bootstrap + evaluations;
+    ms.path_evaluations = budget.pilot + direct_pass.evaluations() + budget.bootstrap + evaluations;
     // kernel stats by mutation name, then the perturbations (acceptance per type)
     std::ostringstream os;
     kstats.write_json(os);

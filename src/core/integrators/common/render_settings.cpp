@@ -36,8 +36,8 @@ void RenderSettings::validate() const {
                                       << importance << "' (available: 'pixel', 'luminance')");
     if (pilot_spp < 1 || pilot_spp > 64)
         CMLT_THROW(SettingsError, "RenderSettings.pilot_spp must be in [1, 64], got " << pilot_spp);
-    if (direct_spp < 0 || direct_spp > 1024)
-        CMLT_THROW(SettingsError, "RenderSettings.direct_spp must be in [0, 1024], got " << direct_spp);
+    if (!(direct_fraction >= 0.0 && direct_fraction <= 0.9))
+        CMLT_THROW(SettingsError, "RenderSettings.direct_fraction must be in [0, 0.9], got " << direct_fraction);
     if (!(sigma > 0.0 && sigma <= 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.sigma must be in (0, 1], got " << sigma);
     if (!(large_step_probability >= 0.0 && large_step_probability <= 1.0))

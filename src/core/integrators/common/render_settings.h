@@ -46,11 +46,12 @@ struct RenderSettings {
     /// Path-traced samples per pixel of the pilot image of the "pixel" importance, [1, 64];
     /// they count against the budget of path evaluations.
     int pilot_spp = 1;
-    /// pssmlt/cmlt: path-traced samples per pixel of the direct pass, [0, 1024]. With
-    /// n > 0 paths of 0 and 1 scattering events (emitters seen directly, direct lighting)
-    /// are rendered by ordinary Monte Carlo (NEE + MIS, n samples per pixel, counted in
-    /// the budget) and the chains render depth >= 2 only; 0 = the chains render all.
-    int direct_spp = 8;
+    /// pssmlt/cmlt: share of the frame's path evaluations spent on the direct pass,
+    /// [0, 0.9]. With f > 0, paths of 0 and 1 scattering events (emitters seen directly,
+    /// direct lighting) are rendered by ordinary Monte Carlo (NEE + MIS, keyed samples,
+    /// interleaved with the chains so it scales with a sample or a time budget) and the
+    /// chains render depth >= 2 only; 0 = the chains render all.
+    double direct_fraction = 0.3;
     /// The pilot image (H, W, 3) to use instead of rendering one (the temporal driver
     /// renders it once per frame for the render and its carry-over evaluations). Its
     /// cost is counted as if rendered (pilot_spp · W·H evaluations).

@@ -12,6 +12,7 @@
 #include "scene/scene.h"
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 
 namespace cmlt::mlt {
@@ -35,9 +36,13 @@ struct MltContext {
     static int pilot_spp(const RenderSettings& s) {
         return s.importance == "pixel" ? std::max(1, std::min(s.pilot_spp, s.spp / 8)) : 0;
     }
-    /// Direct-pass samples per pixel: direct_spp, at most spp/4 (a small budget stays
-    /// mostly the chains'); 0 = no direct pass.
-    static int direct_spp(const RenderSettings& s) { return std::min(s.direct_spp, s.spp / 4); }
+    /// Direct-pass samples per pixel of a sample budget: round(direct_fraction · spp),
+    /// at least 1 when the share is > 0; 0 = no direct pass. (With a time budget the pass
+    /// runs alongside the chains at the same share of evaluations: mlt_frame.h.)
+    static int direct_spp(const RenderSettings& s) {
+        if (!(s.direct_fraction > 0.0)) return 0;
+        return std::max(1, int(std::lround(s.direct_fraction * double(s.spp))));
+    }
     /// Path evaluations the pilot costs in the budget (whether rendered here or given).
     static uint64_t pilot_cost(const RenderSettings& s) {
         return uint64_t(pilot_spp(s)) * uint64_t(s.width) * uint64_t(s.height);
@@ -47,7 +52,7 @@ struct MltContext {
         return uint64_t(direct_spp(s)) * uint64_t(s.width) * uint64_t(s.height);
     }
     /// Shortest path the chains render: 2 with a direct pass, else 0.
-    static int min_depth(const RenderSettings& s) { return direct_spp(s) > 0 ? 2 : 0; }
+    static int min_depth(const RenderSettings& s) { return s.direct_fraction > 0.0 ? 2 : 0; }
     /// Do the chains have any paths to render (not with a direct pass and max_depth 1)?
     static bool chains_needed(const RenderSettings& s) { return s.max_depth >= min_depth(s); }
     /// Path evaluations left for bootstrap and chains: spp·W·H minus the pilot and the

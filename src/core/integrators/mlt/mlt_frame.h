@@ -6,11 +6,15 @@
 /// Budget of a frame, spp·W·H path evaluations (a path evaluation is one traced
 /// path: a bootstrap sample, a proposal or a candidate, a pilot or direct sample):
 ///   1. pilot of the pixel importance: pilot_spp·W·H (pixel_importance.h);
-///   2. direct pass: direct_spp·W·H path-traced samples of depth ≤ 1, added to the
-///      image as they are (pt_pass.h); the chains then render depth ≥ 2 only;
+///   2. direct pass: round(direct_fraction · spp)·W·H path-traced samples of depth ≤ 1,
+///      added to the image as they are (DirectPass); the chains then render depth ≥ 2
+///      only. It runs in slices between the chain rounds, so with a time budget it keeps
+///      its share of the evaluations whatever the time allows;
 ///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples;
 ///   4. the chains: the rest, split evenly over the chains.
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
+#include "cameras/camera.h"
+#include "film/film.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/mlt/mlt_context.h"
 #include "integrators/mlt/splat_film.h"
@@ -23,6 +27,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <vector>
@@ -35,7 +41,7 @@ struct FrameBudget {
     static FrameBudget plan(const RenderSettings& s) {
         FrameBudget b;
         b.pilot = MltContext::pilot_cost(s);
-        b.direct = MltContext::direct_cost(s);
+        b.direct = MltContext::direct_cost(s);  // a sample budget's; timed: as it runs
         if (!MltContext::chains_needed(s)) return b;  // max_depth 1 with a direct pass
         const uint64_t left = MltContext::evaluation_budget(s);
         b.bootstrap = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(s.bootstrap_samples), left / 2));
@@ -44,16 +50,100 @@ struct FrameBudget {
     }
 };
 
-/// The direct pass (depths 0 and 1) of a frame, empty without one.
-inline PtPassImage render_direct(const Scene& scene, const RenderSettings& s, FrameCounters& counters) {
-    const int spp = MltContext::direct_spp(s);
-    if (spp <= 0) return PtPassImage{};
-    PathCounters c;
-    PtPassImage img = render_pt_pass(scene, s, spp, k_direct_sample_base, std::min(1, s.max_depth), c);
-    counters.add(c, img.nan_samples);
-    return img;
-}
+/// The direct pass (depths 0 and 1) of a Metropolis frame: independent path-traced
+/// samples keyed (seed, pixel, k_direct_sample_base + s), accumulated over slices.
+class DirectPass {
+public:
+    DirectPass(const Scene& scene, const RenderSettings& s)
+        : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height),
+          m_tracer(scene, std::min(1, s.max_depth)), m_motion_blur(scene.motion_blur()),
+          m_film(s.width, s.height), m_enabled(s.direct_fraction > 0.0) {}
 
+    bool enabled() const { return m_enabled; }
+    int passes() const { return m_passes; }
+    uint64_t evaluations() const { return uint64_t(m_passes) * uint64_t(m_settings.width) * uint64_t(m_settings.height); }
+
+    /// Render passes up to `total` (no-op if already there).
+    void render_to(tbb::task_arena& arena, int total, FrameCounters& counters) {
+        if (!m_enabled || total <= m_passes) return;
+        const int s0 = m_passes, s1 = total, W = m_settings.width;
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<int>(0, m_settings.height, 2), [&](const tbb::blocked_range<int>& r) {
+                ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
+                PathCounters c;
+                for (int y = r.begin(); y != r.end(); ++y)
+                    for (int x = 0; x < W; ++x)
+                        for (int k = s0; k < s1; ++k) {
+                            const uint32_t index = k_direct_sample_base + uint32_t(k);
+                            m_film.add_sample(x, y, index,
+                                              m_tracer.pixel_sample(m_camera, m_motion_blur, m_settings.seed, x, y, W,
+                                                                    index, c));
+                        }
+                counters.add(c);
+            });
+        });
+        m_passes = total;
+    }
+
+    /// Passes a time-budgeted frame should have after `chain_evaluations`: the share
+    /// direct_fraction of all evaluations (at least one).
+    int passes_for(uint64_t chain_evaluations) const {
+        const double f = m_settings.direct_fraction;
+        const double pixels = double(m_settings.width) * double(m_settings.height);
+        return std::max(1, int(std::ceil(f / (1.0 - f) * double(chain_evaluations) / pixels)));
+    }
+
+    /// Mean and variance of the mean (H, W, 3); empty without a direct pass.
+    PtPassImage develop() const {
+        PtPassImage out;
+        if (!m_enabled || m_passes == 0) return out;
+        const size_t n = size_t(m_settings.width) * size_t(m_settings.height) * 3;
+        out.mean.resize(n);
+        out.variance.resize(n);
+        m_film.develop(out.mean.data(), out.variance.data());
+        out.nan_samples = m_film.nan_samples();
+        return out;
+    }
+
+private:
+    const RenderSettings& m_settings;
+    Camera m_camera;
+    PathTracer m_tracer;
+    bool m_motion_blur;
+    Film m_film;
+    bool m_enabled;
+    int m_passes = 0;
+};
+
+/// The direct pass's slices around the chain rounds: before round r of a sample budget
+/// its share D·(r+1)/k_rounds of the D passes, with a time budget the passes that keep
+/// its share of the evaluations so far; `finish` completes a sample budget's D passes
+/// (also when the chains were done early or there were none) or, timed and chainless,
+/// renders passes until the time is used.
+struct DirectSchedule {
+    DirectPass& pass;
+    const RenderSettings& settings;
+    tbb::task_arena& arena;
+    FrameCounters& counters;
+
+    void before_round(const ChainSchedule& rounds, uint64_t chain_evaluations) {
+        if (!pass.enabled()) return;
+        if (rounds.timed()) pass.render_to(arena, pass.passes_for(chain_evaluations), counters);
+        else pass.render_to(arena, MltContext::direct_spp(settings) * (rounds.round() + 1) / ChainSchedule::k_rounds,
+                            counters);
+    }
+    void finish(bool cancelled, bool chains_ran, std::chrono::steady_clock::time_point t0) {
+        if (!pass.enabled() || cancelled) return;
+        if (settings.time_budget <= 0.0) {
+            pass.render_to(arena, MltContext::direct_spp(settings), counters);
+            return;
+        }
+        if (chains_ran) return;
+        const PassSchedule time(settings, t0);
+        while (const int n = time.next(pass.passes())) pass.render_to(arena, pass.passes() + n, counters);
+    }
+};
 /// f* of bootstrap samples 0..n−1, evaluated in parallel by `eval(i, PathCounters&,
 /// bool& invalid) -> double`; then b from them in index order (deterministic).
 template <class Eval>
@@ -170,7 +260,7 @@ inline void develop_image(RenderResult& res, const SplatFilm& film, double b, ui
 /// MltStats fields both Metropolis integrators fill the same way.
 inline void fill_common_mlt_stats(MltStats& m, const RenderSettings& s, const FrameBudget& budget,
                                   const NormalisationEstimate& b, const NormalisationEstimate& b_boot,
-                                  const StreakTracker& streaks) {
+                                  const StreakTracker& streaks, uint64_t direct_evaluations) {
     m.enabled = true;
     m.b = b.mean;
     m.b_stderr = b.std_error;
@@ -186,7 +276,7 @@ inline void fill_common_mlt_stats(MltStats& m, const RenderSettings& s, const Fr
     m.path_sampler = s.mlt_path_sampler;
     m.importance = s.importance;
     m.pilot_evaluations = budget.pilot;
-    m.direct_evaluations = budget.direct;
+    m.direct_evaluations = direct_evaluations;
     m.min_depth = MltContext::min_depth(s);
     m.time_budget = s.time_budget;
 }

@@ -103,7 +103,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     const mlt::MltContext ctx(scene, settings, pilot_counters);
     counters.add(pilot_counters);
     const mlt::PssmltTracer& tracer = ctx.tracer;
-    const PtPassImage direct = mlt::render_direct(scene, settings, counters);
+    mlt::DirectPass direct_pass(scene, settings);
 
     // multiplexed MLT: the technique samples change at large steps only (mlt_sampler.h)
     const auto make_sampler = [&](RngDomain domain, uint32_t id) {
@@ -125,6 +125,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     const uint64_t n_chains = initial ? std::min<uint64_t>(initial->chains.size(), n_mut)
                                       : std::min<uint64_t>(uint64_t(settings.chains), n_mut);
     mlt::SplatFilm film(W, H);
+    mlt::DirectSchedule direct{direct_pass, settings, arena, counters};
 
     // 2. bootstrap: N independent large-step samples, keyed (seed, bootstrap, i)
     const std::vector<double> boot_f =
@@ -202,6 +203,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     ChainSchedule schedule(settings, t0, chains.size());
     uint64_t evaluations = 0;
     while (!chains.empty() && schedule.begin_round(evaluations)) {
+        direct.before_round(schedule, evaluations);
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
                 ScopedFtzDaz ftz;
@@ -244,6 +246,8 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
             break;
         }
     }
+    direct.finish(cancelled, !chains.empty(), t0);
+    const PtPassImage direct_image = direct_pass.develop();
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     // 5. normalisation: bootstrap + every large step, merged in chain order
@@ -268,7 +272,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     RenderResult res;
     res.width = W;
     res.height = H;
-    mlt::develop_image(res, film, b.mean, mutations, direct);
+    mlt::develop_image(res, film, b.mean, mutations, direct_image);
     res.cancelled = cancelled;
     res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
     res.mlt_states = std::move(states);
@@ -276,13 +280,13 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
 
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
-    st.nan_samples = counters.invalid.load() + invalid;
+    st.nan_samples = counters.invalid.load() + invalid + direct_image.nan_samples;
     st.threads = threads;
     st.integrator = settings.integrator;
     st.spp = settings.spp;
     st.seed = settings.seed;
     MltStats& m = st.mlt;
-    mlt::fill_common_mlt_stats(m, settings, budget, b, b_boot, streaks);
+    mlt::fill_common_mlt_stats(m, settings, budget, b, b_boot, streaks, direct_pass.evaluations());
     m.chains = chains.size();
     m.mutations = mutations;
     m.mutations_per_pixel = double(mutations) / double(pixels);
@@ -295,7 +299,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     m.acceptance_large = large.acceptance_rate();
     m.imported_chains = initial ? chains.size() : 0;
     m.clamped_splats = film.clamped();
-    m.path_evaluations = budget.pilot + budget.direct + budget.bootstrap + mutations;
+    m.path_evaluations = budget.pilot + direct_pass.evaluations() + budget.bootstrap + mutations;
     std::ostringstream os;
     kstats.write_json(os);
     m.kernel_stats_json = os.str();
