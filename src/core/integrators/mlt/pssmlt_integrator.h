@@ -14,17 +14,23 @@
 ///
 /// Chain states: RenderSettings::mlt_initial_states replaces step 2 (chains start from
 /// the given states, re-evaluated in this frame's scene; the bootstrap still gives b);
-/// RenderResult::mlt_states returns every chain's final state (chain_state.h).
+/// RenderResult::mlt_states returns every chain's final state, mlt_start_states the states
+/// they started from (chain_state.h; the temporal driver carries a mix of both).
 ///
-/// Estimator (Veach 1997 §11.3; DESIGN.md §2). With f*(u) = luminance(L(u)) over primary
-/// samples u ∈ [0,1)^∞ and b = ∫ f*(u) du:
+/// Estimator (Veach 1997 §11.3; DESIGN.md §2). With f*(u) = luminance(L(u)) / P(pixel)
+/// over primary samples u ∈ [0,1)^∞ (P: the pixel importance, pixel_importance.h; 1 for
+/// the luminance target) and b = ∫ f*(u) du:
 ///   pixel_j = W·H · ∫ h_j(u) L(u) du ≈ b · H_j / (M / (W·H)),
 ///   H_j = Σ over the M mutations of the expected-value splats (L/f*)·w in pixel j
 /// (proposal weight a, current state 1−a: mlt_kernels' metropolis_step).
+///   0. the pilot of the pixel importance and, interleaved with the chain rounds, the
+///      direct pass (depths 0 and 1 path traced, added to the image; the chains then
+///      render depth >= 2): mlt_frame.h;
 ///   1. bootstrap: N independent large-step samples (parallel, deterministic), b̂ = mean f*;
 ///   2. chains start by resampling the bootstrap pool ∝ f* (no start-up bias,
 ///      mlt_kernels/normalisation.h), replaying the chosen sample from its key;
-///   3. each chain takes its share of the M = spp·W·H − N mutations: a large step with
+///   3. each chain takes its share of the M mutations left of spp·W·H (or runs to the
+///      time budget, frame_loop.h): a large step with
 ///      probability `large_step_probability`, else a small wrapped-Gaussian step σ;
 ///   4. the f* of every large-step proposal is an independent sample of b too: b is the
 ///      mean over the bootstrap and all large steps (NormalisationAccumulator, merged in
