@@ -73,6 +73,9 @@ public:
     /// the previous call; resets the thread's count. For the trace / shade split of
     /// the render stats.
     static uint64_t take_trace_ticks();
+    /// The calling thread's query ticks since its last take_trace_ticks(), without
+    /// resetting them (to time a part of a task, as coherent MLT's bundles).
+    static uint64_t trace_ticks();
 
     /// Largest packet width with native support in this Embree build on this CPU (4, 8 or 16).
     static int max_packet_width();
