@@ -4,7 +4,8 @@ Run it after editing: ``.venv/bin/python sequences/door_ajar/make_shot.py``.
 Helpers come from ``sequences/static_flicker/make_shot.py``.
 
 The room (interior 500 x 270 x 500 cm) is six closed 10 cm slabs that
-overlap at the edges, so no light leaks through a seam. The right wall
+overlap at the edges, so no light leaks through a seam, and no two faces a ray can
+reach are coplanar (no z-fighting). The right wall
 (x = 250..260) has a 90 x 210 cm door opening, made of three slabs around
 the hole. The door is a 94 x 212 x 4 cm slab just outside the wall, which
 overlaps the opening by 2 cm on each side and at the top, hinged at its
@@ -49,15 +50,21 @@ def main():
     g = f"/{root}/Geometry"
     W, H, T = 250.0, 270.0, 10.0             # half width, height, wall thickness
     D0, D1, DH = -45.0, 45.0, 210.0          # door opening: z from D0 to D1, height DH
-    kit.box(stage, f"{g}/Floor", (-W - T, -T, -W - T), (W + T, 0, W + T), looks["floor"])
-    kit.box(stage, f"{g}/Ceiling", (-W - T, H, -W - T), (W + T, H + T, W + T), looks["wall"])
-    kit.box(stage, f"{g}/BackWall", (-W - T, -T, -W - T), (W + T, H + T, -W), looks["wall"])
-    kit.box(stage, f"{g}/FrontWall", (-W - T, -T, W), (W + T, H + T, W + T), looks["wall"])
-    kit.box(stage, f"{g}/LeftWall", (-W - T, -T, -W - T), (-W, H + T, W + T), looks["wall"])
+    # No two faces that a ray can reach lie in one plane (coincident faces z-fight:
+    # which one a ray hits is then up to the BVH kernel). The slabs still overlap,
+    # but each ends inside its neighbour: floor, ceiling and the back and front walls
+    # reach half-way into the side walls, the walls stand 1 cm proud of the floor's
+    # and ceiling's outer faces, and the lintel fills the gap over the door exactly.
+    E = T / 2
+    kit.box(stage, f"{g}/Floor", (-W - E, -T, -W - E), (W + E, 0, W + E), looks["floor"])
+    kit.box(stage, f"{g}/Ceiling", (-W - E, H, -W - E), (W + E, H + T, W + E), looks["wall"])
+    kit.box(stage, f"{g}/BackWall", (-W - E, -T - 1, -W - T), (W + E, H + T + 1, -W), looks["wall"])
+    kit.box(stage, f"{g}/FrontWall", (-W - E, -T - 1, W), (W + E, H + T + 1, W + T), looks["wall"])
+    kit.box(stage, f"{g}/LeftWall", (-W - T, -T - 1, -W - T), (-W, H + T + 1, W + T), looks["wall"])
     # right wall with the door hole: three slabs
-    kit.box(stage, f"{g}/RightWallA", (W, -T, -W - T), (W + T, H + T, D0), looks["wall"])
-    kit.box(stage, f"{g}/RightWallB", (W, -T, D1), (W + T, H + T, W + T), looks["wall"])
-    kit.box(stage, f"{g}/RightWallLintel", (W, DH, D0 - 1), (W + T, H + T, D1 + 1), looks["wall"])
+    kit.box(stage, f"{g}/RightWallA", (W, -T - 1, -W - T), (W + T, H + T + 1, D0), looks["wall"])
+    kit.box(stage, f"{g}/RightWallB", (W, -T - 1, D1), (W + T, H + T + 1, W + T), looks["wall"])
+    kit.box(stage, f"{g}/RightWallLintel", (W, DH, D0), (W + T, H + T + 1, D1), looks["wall"])
     # something in the room to catch the light
     kit.box(stage, f"{g}/Crate", (-40, 0, -40), (40, 70, 40), looks["blue"])
     UsdGeom.Xformable(stage.GetPrimAtPath(f"{g}/Crate")).AddTranslateOp().Set(

@@ -186,6 +186,12 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
             d["packets"] = m.packets;
             d["packet_width"] = m.packet_width;
             d["packet_queries"] = m.packet_queries;
+            d["packet_rays"] = m.packet_rays;
+            d["packet_shadow_rays"] = m.packet_shadow_rays;
+            d["packet_ray_share"] = st.rays > 0 ? double(m.packet_rays) / double(st.rays) : 0.0;
+            d["bundle_rays"] = m.bundle_rays;
+            d["bundle_busy_s"] = m.bundle_busy_s;
+            d["bundle_trace_s"] = m.bundle_trace_s;
         }
     }
     out.stats = d;
@@ -295,8 +301,8 @@ void bind_render(nb::module_& m) {
         .def_rw("inner", &RenderSettings::inner,
                 "cmlt inner rule: 'bundle' (default, exact), 'mtm' (exact), 'seed' (biased)")
         .def_rw("packets", &RenderSettings::packets,
-                "cmlt: trace a bundle's camera rays as Embree packets (default True); the "
-                "image is bit-identical either way")
+                "cmlt: trace a bundle's rays (camera rays, subpath bounces, shadow rays) as "
+                "Embree packets (default True); the image is bit-identical either way")
         .def("__repr__", [](const RenderSettings& s) {
             return "RenderSettings(width=" + std::to_string(s.width) +
                    ", height=" + std::to_string(s.height) + ", spp=" + std::to_string(s.spp) +

@@ -177,7 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the pixel importance (at most spp/8); default: "
                    + stage_note.format("pilotSpp", _Defaults.pilot_spp))
     r.add_argument("--no-packets", action="store_false", dest="packets",
-                   help="cmlt: trace a bundle's camera rays one by one instead of as Embree "
+                   help="cmlt: trace a bundle's rays one by one instead of as Embree "
                    "packets (same image, bit for bit; for timing comparisons)")
     r.add_argument("--seed", type=_int_at_least(0),
                    help="shot seed, the same for every frame; default: "

@@ -108,6 +108,10 @@ def test_packets_bit_identical_to_scalar(scene, inner):
                        packets=False)
     assert sa["packet_queries"] > 0 and sb["packet_queries"] == 0
     assert sa["packet_width"] >= 4 and sb["packet_width"] == 1
+    # camera rays, bounces and shadow rays all go through packets
+    assert sa["packet_shadow_rays"] > 0 and sb["packet_rays"] == 0
+    assert sa["packet_rays"] > sa["packet_shadow_rays"]
+    assert sa["bundle_rays"] == sb["bundle_rays"] > 0
     assert np.array_equal(a, b)
     assert sa["rays"] == sb["rays"]
 

@@ -387,13 +387,40 @@ def test09_pssmlt_bdpt_sampler_draws_the_time_from_its_primary_samples(moving_bo
 
 
 def test10_coherent_mlt_packets_match_scalar_with_motion_blur(moving_box):
-    """Coherent MLT traces its camera rays as packets, at the shutter time BDPT's camera
-    subpath draws (PssmltTracer::camera_ray): the packet first hits are the scalar ones,
+    """Coherent MLT traces its bundles' rays as packets, at the shutter time BDPT's
+    camera subpath draws (PssmltTracer::camera_ray): the packet hits are the scalar ones,
     bit for bit (with another time they would differ)."""
     kw = dict(chains=64, bootstrap_samples=4096)
     a, _, _ = _render(moving_box, "cmlt", (32, 32), 32, seed=3, packets=True, **kw)
     b, _, _ = _render(moving_box, "cmlt", (32, 32), 32, seed=3, packets=False, **kw)
     assert np.array_equal(a, b)
+
+
+def test10b_coherent_mlt_packets_match_scalar_through_pass_through_surfaces():
+    """Packets for camera rays, walk bounces and shadow rays in the hardest case for
+    them: a veil crossed stochastically (pass-through, ior 1), a cut-out quad under the
+    lamp (occluded shadow rays step through it one by one), a thin lens and a moving
+    block. Packets on and off give the same image and the same ray count, and packets
+    answered shadow rays and closest hits beyond the camera rays."""
+    veil = Material("/veil", diffuse=(0.5,) * 3, opacity=0.4, ior=1.0)
+    cut = Material("/cut", diffuse=(0.8,) * 3, opacity=0.0, opacity_threshold=0.5)
+    fs = _cornell_with([("/veil", (0, 1, -0.2), (0.95, 0, 0), (0, 0.95, 0), veil),
+                        ("/under_lamp", (0, 1.6, 0), (0.7, 0, 0), (0, 0, 0.7), cut)],
+                       lens=(1.0, 3.0), moving_block=True)
+    fs.camera.lens_unit = 0.01
+    scene = SceneBridge(core).update(fs)
+    assert scene.has_pass_through
+    kw = dict(chains=64, bootstrap_samples=4096, threads=2)
+    on = core.render(scene, _settings("cmlt", (24, 16), 64, 7, packets=True, **kw))
+    off = core.render(scene, _settings("cmlt", (24, 16), 64, 7, packets=False, **kw))
+    assert np.array_equal(np.asarray(on.image), np.asarray(off.image))
+    assert on.stats["rays"] == off.stats["rays"]
+    st = on.stats
+    assert st["packet_queries"] > 0 and off.stats["packet_queries"] == 0
+    assert st["packet_shadow_rays"] > 0
+    assert st["packet_rays"] - st["packet_shadow_rays"] > 0
+    assert 0 < st["packet_ray_share"] <= 1
+    assert np.isfinite(np.asarray(on.image)).all()
 
 
 def test11_deterministic_over_thread_counts_with_the_new_features():

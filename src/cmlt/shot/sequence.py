@@ -80,7 +80,7 @@ class RenderOptions:
     importance: Optional[str] = None
     direct_fraction: Optional[float] = None
     pilot_spp: Optional[int] = None
-    #: cmlt: trace a bundle's camera rays as Embree packets (machine, not shot: the
+    #: cmlt: trace a bundle's rays as Embree packets (machine, not shot: the
     #: image is bit-identical either way)
     packets: bool = True
     resolution: Optional[Tuple[int, int]] = None  # (w, h)

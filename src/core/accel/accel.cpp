@@ -196,6 +196,8 @@ uint64_t Accel::take_trace_ticks() {
     return t;
 }
 
+uint64_t Accel::trace_ticks() { return t_trace_ticks; }
+
 static void fill_ray(RTCRay& r, const Ray& ray) {
     r.org_x = ray.o.x; r.org_y = ray.o.y; r.org_z = ray.o.z;
     r.dir_x = ray.d.x; r.dir_y = ray.d.y; r.dir_z = ray.d.z;

@@ -63,16 +63,23 @@ public:
 
     /// Packet queries (rtcIntersect4/8/16, rtcOccluded4/8/16). `width` is 4, 8 or 16;
     /// `valid[i]` != 0 marks active lanes; inactive lanes get an invalid Hit / false.
-    /// `coherent` sets RTC_INTERSECT_CONTEXT_FLAG_COHERENT (ray bundles).
+    /// `coherent` sets RTC_INTERSECT_CONTEXT_FLAG_COHERENT. Off by default: with it,
+    /// Embree 3.13 (Debian 12) missed hits on flat instances (an emitter quad, a cut-out
+    /// quad) for packets whose lanes start at different points — light-subpath bounces
+    /// of one bundle — where rtcIntersect1 found them (test10b in
+    /// test_light_transport.py caught it). Without it packets and single rays agree.
     void intersect_packet(int width, const int* valid, const Ray* rays, Hit* hits,
-                          bool coherent = true) const;
+                          bool coherent = false) const;
     void occluded_packet(int width, const int* valid, const Ray* rays, bool* occluded,
-                         bool coherent = true) const;
+                         bool coherent = false) const;
 
     /// Ticks (util/cycle_clock.h) the calling thread spent in the queries above since
     /// the previous call; resets the thread's count. For the trace / shade split of
     /// the render stats.
     static uint64_t take_trace_ticks();
+    /// The calling thread's query ticks since its last take_trace_ticks(), without
+    /// resetting them (to time a part of a task, as coherent MLT's bundles).
+    static uint64_t trace_ticks();
 
     /// Largest packet width with native support in this Embree build on this CPU (4, 8 or 16).
     static int max_packet_width();

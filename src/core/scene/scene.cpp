@@ -429,6 +429,10 @@ float Scene::transmittance(const Ray& shadow, float* pass_pdf) const {
     // that the camera cannot, and PT and BDPT disagree where a lamp is in view.
     if (!m_analytic_area.empty() && blocked_by_light(shadow)) return 0.f;
     if (!m_accel->occluded(shadow)) return 1.f;
+    return transmittance_through(shadow, pass_pdf);
+}
+
+float Scene::transmittance_through(const Ray& shadow, float* pass_pdf) const {
     if (!m_pass_through) return 0.f;
     // Something is in the way: walk the hits in order, crossing pass-through ones.
     Ray ray = shadow;

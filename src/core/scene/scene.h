@@ -138,12 +138,23 @@ public:
     /// materials it is !occluded(ray) with *pass_pdf = 1 and costs nothing more; with
     /// them an unblocked ray still costs one occlusion query.
     float transmittance(const Ray& ray, float* pass_pdf) const;
+    /// transmittance() for a ray that blocked_by_light() let pass, given whether the BVH
+    /// reports it occluded (Accel::occluded, or a lane of an occlusion packet): 1 if not,
+    /// else the stepping through pass-through surfaces (0 without them). The same value
+    /// and *pass_pdf as transmittance(); for visibility queries answered in packets.
+    float transmittance_given(const Ray& ray, bool occluded, float* pass_pdf) const {
+        *pass_pdf = 1.f;
+        if (!occluded) return 1.f;
+        return transmittance_through(ray, pass_pdf);
+    }
     /// Does an analytic area light (rect, disk, sphere, cylinder: not in the BVH) lie on
     /// `ray` within (tnear, tfar), seen from a side it stops rays on (Light::intersect)?
     bool blocked_by_light(const Ray& ray) const;
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
 
 private:
+    /// transmittance() past a BVH occlusion: step through the hits in order.
+    float transmittance_through(const Ray& ray, float* pass_pdf) const;
     void require_committed(const char* what) const;
     void build_lights();
     void compute_bounds();

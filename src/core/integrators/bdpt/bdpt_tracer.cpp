@@ -7,6 +7,7 @@
 #include "math/safe_math.h"
 #include "sampling/warp.h"
 #include "scene/scene.h"
+#include "util/error.h"
 
 #include <algorithm>
 #include <cmath>
@@ -228,27 +229,56 @@ Ray BdptTracer::connection_ray(const PathVertex& a, const PathVertex& b) const {
     return r;
 }
 
-float BdptTracer::transmittance(const PathVertex& a, const PathVertex& b, float* pass_pdf,
-                                BdptCounters& c) const {
-    c.shadow_rays += 1;
-    c.rays += 1;
-    return m_scene.transmittance(connection_ray(a, b), pass_pdf);
-}
-
 // ---- subpaths -------------------------------------------------------------------------------
 
-int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
+bool BdptTracer::begin_walk(BdptWalk& wk, const Ray& ray, const Spectrum& beta, float pdf_dir,
                             int max_vertices, bool importance, bool roulette, PathVertex* path,
-                            int start, BdptCounters& c, const SceneHit* first_hit) const {
+                            int start) const {
+    wk.ray = ray;
+    wk.beta = beta;
+    wk.rr_beta = Spectrum(1.f);
+    wk.pdf_fwd_sa = pdf_dir;
+    wk.pass_pdf = 1.f;
+    wk.path = path;
+    wk.n = start;
+    wk.start = start;
+    wk.max_vertices = max_vertices;
+    wk.importance = importance;
+    wk.roulette = roulette;
+    return wk.n < max_vertices;
+}
+
+void BdptTracer::run_walk(BdptWalk& wk, BdptSampler& sampler, BdptCounters& c,
+                          const SceneHit* first_hit) const {
+    const SceneHit* pending = first_hit;  // the camera ray's, used once
+    SceneHit traced;
+    for (;;) {
+        const SceneHit* hit = pending;
+        pending = nullptr;
+        if (!hit) {
+            traced = m_scene.intersect(wk.ray);
+            hit = &traced;
+        }
+        if (!walk_step(wk, *hit, sampler, c)) return;
+    }
+}
+
+bool BdptTracer::walk_step(BdptWalk& wk, const SceneHit& hit, BdptSampler& sampler,
+                           BdptCounters& c) const {
     const Scene& scene = m_scene;
-    int n = start;  // vertices so far (path[n - 1] is the previous one)
-    float pdf_fwd_sa = pdf_dir;
+    PathVertex* path = wk.path;
+    int& n = wk.n;  // vertices so far (path[n - 1] is the previous one)
+    const int start = wk.start, max_vertices = wk.max_vertices;
+    const bool importance = wk.importance;
+    Ray& ray = wk.ray;
+    Spectrum& beta = wk.beta;
+    Spectrum& rr_beta = wk.rr_beta;
+    float& pdf_fwd_sa = wk.pdf_fwd_sa;
     // Pass-through crossings since path[n - 1] (cut-outs, ior-1 interfaces): not
     // vertices, but the walk reaches the next vertex only with the product of their
     // lobe probabilities, a factor of its density (and of the reverse density along the
     // same segment), as Scene::transmittance reports it for a connection.
-    float pass_pdf = 1.f;
-    Spectrum rr_beta(1.f);  // scattering throughput alone (roulette without light units)
+    float& pass_pdf = wk.pass_pdf;
     // MIS densities are recomputed from the vertex positions (not the offset ray
     // directions), so that they are the same functions of the path whichever strategy
     // sampled it: `edge` is called once the next vertex along direction w is known.
@@ -259,149 +289,145 @@ int BdptTracer::random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& 
         path[n - 2].pdf_rev =
             convert_density(prev.bsdf->pdf(w, prev.wo), prev, path[n - 2]) * prev.pass_pdf;
     };
-    const SceneHit* pending_hit = first_hit;  // the camera ray's, used once
-    while (n < max_vertices) {
-        SceneHit hit = pending_hit ? *pending_hit : scene.intersect(ray);
-        pending_hit = nullptr;
-        c.rays += 1;
-        PathVertex& prev = path[n - 1];
-        if (hit.kind == SceneHit::Kind::miss) {
-            // Escaped: a direction vertex on the infinite lights (camera subpaths only).
-            if (!importance && !scene.infinite_lights().empty()) {
-                edge(normalize(ray.d));
-                PathVertex& v = path[n];
-                v = PathVertex();
-                v.type = VertexType::light;
-                v.time = ray.time;
-                v.infinite = true;
-                v.w_inf = -normalize(ray.d);
-                v.beta = beta;
-                v.pdf_fwd = pdf_fwd_sa * pass_pdf;
-                v.pass_pdf = pass_pdf;
-                ++n;
-            }
-            break;
+    c.rays += 1;
+    PathVertex& prev = path[n - 1];
+    if (hit.kind == SceneHit::Kind::miss) {
+        // Escaped: a direction vertex on the infinite lights (camera subpaths only).
+        if (!importance && !scene.infinite_lights().empty()) {
+            edge(normalize(ray.d));
+            PathVertex& v = path[n];
+            v = PathVertex();
+            v.type = VertexType::light;
+            v.time = ray.time;
+            v.infinite = true;
+            v.w_inf = -normalize(ray.d);
+            v.beta = beta;
+            v.pdf_fwd = pdf_fwd_sa * pass_pdf;
+            v.pass_pdf = pass_pdf;
+            ++n;
         }
-        if (hit.kind == SceneHit::Kind::light) {
-            // Analytic emitters do not scatter; light subpaths end here.
-            if (!importance) {
-                Vec3 p_hit = ray.at(hit.t);
-                Vec3 w = p_hit - prev.p;
-                edge(length_squared(w) > 0.f ? normalize(w) : normalize(ray.d));
-                PathVertex& v = path[n];
-                v = PathVertex();
-                v.type = VertexType::light;
-                v.time = ray.time;
-                v.light_index = int32_t(hit.light_index);
-                v.p = p_hit;
-                v.ng = v.ns = scene.light(hit.light_index).emitter_normal(v.p);
-                v.wo = -normalize(ray.d);
-                v.error_scale = point_error_scale(v.p);
-                v.le = hit.le;
-                v.beta = beta;
-                v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
-                v.pass_pdf = pass_pdf;
-                ++n;
-            }
-            break;
-        }
-        Vec3 w_in = hit.si.p - prev.p;
-        if (prev.infinite || !(length_squared(w_in) > 0.f)) w_in = ray.d;
-        w_in = normalize(w_in);
-        const Material& mat = scene.material(hit.si.material_id);
-        // A surface that may pass rays: sample its BSDF first (with the numbers the vertex
-        // would use); the pass-through lobe crosses it without making a vertex.
-        std::optional<Bsdf> pass_bsdf;
-        bool sampled = false;
-        BsdfSample bs;
-        float u_rr = 0.f;
-        if (scene.material_passes(hit.si.material_id)) {
-            pass_bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
-            Vec2 u2 = sampler.next2d();
-            float u1 = sampler.next1d();
-            u_rr = sampler.next1d();
-            bs = bsdf_sample(*pass_bsdf, -w_in, u2, u1, mode_of(importance), 0);
-            sampled = true;
-            if (bs.valid() && bs.pass_through) {
-                // T / p; for wi = -wo the importance correction of the shading normal is 1.
-                Spectrum factor =
-                    bs.f * (std::fabs(dot(bs.wi, pass_bsdf->shading_normal())) / bs.pdf);
-                beta *= factor;
-                rr_beta *= factor;
-                if (is_black(beta) || !is_finite(beta)) break;
-                pass_pdf *= bs.pdf;
-                ray = hit.si.spawn_ray(bs.wi);
-                continue;
-            }
-        }
-        edge(w_in);
-        PathVertex& v = path[n];
-        v = PathVertex();
-        v.type = VertexType::surface;
-        v.time = ray.time;
-        v.si = hit.si;
-        v.p = hit.si.p;
-        v.ng = hit.si.ng;
-        v.wo = -w_in;
-        v.si.wo = v.wo;
-        v.error_scale = hit.si.error_scale;
-        // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
-        if (pass_bsdf) v.bsdf = std::move(pass_bsdf);
-        else v.bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
-        v.ns = v.bsdf->shading_normal();
-        v.beta = beta;
-        v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
-        v.pass_pdf = pass_pdf;
-        pass_pdf = 1.f;
-        if (!importance && mat.is_emissive()) {
-            v.le = emitted_radiance(mat, hit.si.uv, scene.textures());
-            v.light_index = scene.triangle_light_index(hit.si.instance_id, hit.si.prim_id);
-        }
-        ++n;
-        if (n >= max_vertices) break;
-
-        // Sample the next direction (already done above on a surface that may pass rays).
-        if (!sampled) {
-            Vec2 u2 = sampler.next2d();
-            float u1 = sampler.next1d();
-            u_rr = sampler.next1d();
-            bs = bsdf_sample(*v.bsdf, v.wo, u2, u1, mode_of(importance), 0);
-        }
-        if (!bs.valid()) break;
-        pdf_fwd_sa = bs.pdf;  // replaced by edge() from positions unless Dirac
-        if (bs.is_delta) {
-            v.delta = true;
-            pdf_fwd_sa = 0.f;
-            prev.pdf_rev = 0.f;
-        }
-        Spectrum factor;
-        if (!importance) {
-            factor = bs.f * (std::fabs(dot(bs.wi, v.ns)) / bs.pdf);
-        } else {
-            float den = std::fabs(dot(v.wo, v.si.ng)) * bs.pdf;
-            if (!(den > 0.f)) break;
-            factor = bs.f * (std::fabs(dot(v.wo, v.ns)) * std::fabs(dot(bs.wi, v.si.ng)) / den);
-        }
-        beta *= factor;
-        rr_beta *= factor;
-        if (is_black(beta) || !is_finite(beta)) break;
-
-        // Russian roulette on the scattering throughput.
-        if (roulette && n - start >= k_rr_start_depth) {
-            float q = std::min(0.95f, max_component(rr_beta));
-            if (!(u_rr < q)) break;
-            beta /= q;
-            rr_beta /= q;
-        }
-        ray = v.si.spawn_ray(bs.wi);
+        return false;
     }
-    return n;
+    if (hit.kind == SceneHit::Kind::light) {
+        // Analytic emitters do not scatter; light subpaths end here.
+        if (!importance) {
+            Vec3 p_hit = ray.at(hit.t);
+            Vec3 w = p_hit - prev.p;
+            edge(length_squared(w) > 0.f ? normalize(w) : normalize(ray.d));
+            PathVertex& v = path[n];
+            v = PathVertex();
+            v.type = VertexType::light;
+            v.time = ray.time;
+            v.light_index = int32_t(hit.light_index);
+            v.p = p_hit;
+            v.ng = v.ns = scene.light(hit.light_index).emitter_normal(v.p);
+            v.wo = -normalize(ray.d);
+            v.error_scale = point_error_scale(v.p);
+            v.le = hit.le;
+            v.beta = beta;
+            v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
+            v.pass_pdf = pass_pdf;
+            ++n;
+        }
+        return false;
+    }
+    Vec3 w_in = hit.si.p - prev.p;
+    if (prev.infinite || !(length_squared(w_in) > 0.f)) w_in = ray.d;
+    w_in = normalize(w_in);
+    const Material& mat = scene.material(hit.si.material_id);
+    // A surface that may pass rays: sample its BSDF first (with the numbers the vertex
+    // would use); the pass-through lobe crosses it without making a vertex.
+    std::optional<Bsdf> pass_bsdf;
+    bool sampled = false;
+    BsdfSample bs;
+    float u_rr = 0.f;
+    if (scene.material_passes(hit.si.material_id)) {
+        pass_bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
+        Vec2 u2 = sampler.next2d();
+        float u1 = sampler.next1d();
+        u_rr = sampler.next1d();
+        bs = bsdf_sample(*pass_bsdf, -w_in, u2, u1, mode_of(importance), 0);
+        sampled = true;
+        if (bs.valid() && bs.pass_through) {
+            // T / p; for wi = -wo the importance correction of the shading normal is 1.
+            Spectrum factor =
+                bs.f * (std::fabs(dot(bs.wi, pass_bsdf->shading_normal())) / bs.pdf);
+            beta *= factor;
+            rr_beta *= factor;
+            if (is_black(beta) || !is_finite(beta)) return false;
+            pass_pdf *= bs.pdf;
+            ray = hit.si.spawn_ray(bs.wi);
+            return true;  // n < max_vertices still: no vertex was made
+        }
+    }
+    edge(w_in);
+    PathVertex& v = path[n];
+    v = PathVertex();
+    v.type = VertexType::surface;
+    v.time = ray.time;
+    v.si = hit.si;
+    v.p = hit.si.p;
+    v.ng = hit.si.ng;
+    v.wo = -w_in;
+    v.si.wo = v.wo;
+    v.error_scale = hit.si.error_scale;
+    // The same textured BSDF as the path tracer (normal maps, cutouts, textures).
+    if (pass_bsdf) v.bsdf = std::move(pass_bsdf);
+    else v.bsdf.emplace(make_bsdf(mat, hit.si, scene.textures()));
+    v.ns = v.bsdf->shading_normal();
+    v.beta = beta;
+    v.pdf_fwd = convert_density(pdf_fwd_sa, prev, v) * pass_pdf;
+    v.pass_pdf = pass_pdf;
+    pass_pdf = 1.f;
+    if (!importance && mat.is_emissive()) {
+        v.le = emitted_radiance(mat, hit.si.uv, scene.textures());
+        v.light_index = scene.triangle_light_index(hit.si.instance_id, hit.si.prim_id);
+    }
+    ++n;
+    if (n >= max_vertices) return false;
+
+    // Sample the next direction (already done above on a surface that may pass rays).
+    if (!sampled) {
+        Vec2 u2 = sampler.next2d();
+        float u1 = sampler.next1d();
+        u_rr = sampler.next1d();
+        bs = bsdf_sample(*v.bsdf, v.wo, u2, u1, mode_of(importance), 0);
+    }
+    if (!bs.valid()) return false;
+    pdf_fwd_sa = bs.pdf;  // replaced by edge() from positions unless Dirac
+    if (bs.is_delta) {
+        v.delta = true;
+        pdf_fwd_sa = 0.f;
+        prev.pdf_rev = 0.f;
+    }
+    Spectrum factor;
+    if (!importance) {
+        factor = bs.f * (std::fabs(dot(bs.wi, v.ns)) / bs.pdf);
+    } else {
+        float den = std::fabs(dot(v.wo, v.si.ng)) * bs.pdf;
+        if (!(den > 0.f)) return false;
+        factor = bs.f * (std::fabs(dot(v.wo, v.ns)) * std::fabs(dot(bs.wi, v.si.ng)) / den);
+    }
+    beta *= factor;
+    rr_beta *= factor;
+    if (is_black(beta) || !is_finite(beta)) return false;
+
+    // Russian roulette on the scattering throughput.
+    if (wk.roulette && n - start >= k_rr_start_depth) {
+        float q = std::min(0.95f, max_component(rr_beta));
+        if (!(u_rr < q)) return false;
+        beta /= q;
+        rr_beta /= q;
+    }
+    ray = v.si.spawn_ray(bs.wi);
+    return true;
 }
 
-int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler,
-                                        int max_vertices, bool roulette, PathVertex* path,
-                                        BdptCounters& c, const SceneHit* first_hit) const {
-    if (max_vertices < 1) return 0;
+bool BdptTracer::begin_camera_subpath(const Vec2& p_raster, BdptSampler& sampler,
+                                      int max_vertices, bool roulette, PathVertex* path,
+                                      BdptCounters& c, BdptWalk& walk) const {
+    walk.n = 0;
+    if (max_vertices < 1) return false;
     const Camera& cam = m_importance.camera();
     // Motion blur: the sample's shutter time is the camera stream's next 1D, right after
     // the film position (drawn only when something moves, so a still scene keeps every
@@ -419,24 +445,36 @@ int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampl
     v.beta = Spectrum(1.f);
     v.pdf_fwd = 1.f;
     v.delta = !m_importance.connectable();
-    if (max_vertices == 1) return 1;
+    walk.n = 1;
+    if (max_vertices == 1) return false;
     c.camera_rays += 1;
     float pdf_dir = m_importance.pdf_dir(ray.o, ray.d);
     if (!(pdf_dir > 0.f)) pdf_dir = 1.f;  // edge of the image (float rounding)
-    return random_walk(ray, Spectrum(1.f), pdf_dir, sampler, max_vertices, false, roulette, path,
-                       1, c, cam.has_lens() ? nullptr : first_hit);
+    return begin_walk(walk, ray, Spectrum(1.f), pdf_dir, max_vertices, false, roulette, path, 1);
 }
 
-int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
-                                       PathVertex* path, BdptCounters& c, float time) const {
+int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler,
+                                        int max_vertices, bool roulette, PathVertex* path,
+                                        BdptCounters& c, const SceneHit* first_hit) const {
+    BdptWalk walk;
+    if (begin_camera_subpath(p_raster, sampler, max_vertices, roulette, path, c, walk))
+        run_walk(walk, sampler, c, m_importance.camera().has_lens() ? nullptr : first_hit);
+    return walk.n;
+}
+
+bool BdptTracer::begin_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
+                                     PathVertex* path, float time, BdptWalk& walk,
+                                     float* disk_pdf_out) const {
     const Scene& scene = m_scene;
-    if (max_vertices < 1 || scene.light_count() == 0) return 0;
+    walk.n = 0;
+    *disk_pdf_out = 0.f;
+    if (max_vertices < 1 || scene.light_count() == 0) return false;
     float u_light = sampler.next1d();
     Vec2 u_pos = sampler.next2d();
     Vec2 u_dir = sampler.next2d();
     float pmf = 0.f;
     size_t li = scene.sample_light(u_light, &pmf);
-    if (!(pmf > 0.f)) return 0;
+    if (!(pmf > 0.f)) return false;
     const Light& light = scene.light(li);
     PathVertex& v = path[0];
     v = PathVertex();
@@ -451,7 +489,7 @@ int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, b
         Vec3 center = scene.bounds_center();
         float r = scene.bounds_radius();
         LightSample ls = light.sample_li(center, u_dir);
-        if (!ls.valid()) return 0;
+        if (!ls.valid()) return false;
         Vec3 d = -ls.wi;
         Frame f(d);
         Vec2 dk = square_to_uniform_disk_concentric(u_pos);
@@ -466,7 +504,7 @@ int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, b
         ray = Ray(o, d);
     } else {
         LightLeSample les = light.sample_le(u_pos, u_dir);
-        if (!les.valid()) return 0;
+        if (!les.valid()) return false;
         v.p = les.p;
         v.ng = v.ns = les.n;
         v.error_scale = les.error_scale;
@@ -478,18 +516,35 @@ int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, b
         ray = Ray(leave_point(v, les.d), les.d);
     }
     ray.time = time;
-    if (max_vertices == 1) return 1;
-    if (is_black(beta) || !is_finite(beta)) return 1;
-    int n = random_walk(ray, beta, pdf_dir, sampler, max_vertices, true, roulette, path, 1, c);
+    *disk_pdf_out = disk_pdf;
+    walk.n = 1;
+    if (max_vertices == 1) return false;
+    if (is_black(beta) || !is_finite(beta)) return false;
+    return begin_walk(walk, ray, beta, pdf_dir, max_vertices, true, roulette, path, 1);
+}
+
+void BdptTracer::end_light_subpath(PathVertex* path, int n, float disk_pdf) const {
+    if (n < 2) return;
+    const PathVertex& v = path[0];
     // From positions, times the crossings' probabilities on the way (pass_pdf).
-    if (!v.infinite && n > 1) path[1].pdf_fwd = pdf_light(v, path[1]) * path[1].pass_pdf;
-    if (v.infinite && n > 1) {
+    if (!v.infinite) {
+        path[1].pdf_fwd = pdf_light(v, path[1]) * path[1].pass_pdf;
+    } else {
         // The first surface vertex's density is the disk's (parallel rays).
         path[1].pdf_fwd = disk_pdf;
         if (path[1].on_surface()) path[1].pdf_fwd *= std::fabs(dot(path[1].ng, v.w_inf));
         path[1].pdf_fwd *= path[1].pass_pdf;
     }
-    return n;
+}
+
+int BdptTracer::generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
+                                       PathVertex* path, BdptCounters& c, float time) const {
+    BdptWalk walk;
+    float disk_pdf = 0.f;
+    if (begin_light_subpath(sampler, max_vertices, roulette, path, time, walk, &disk_pdf))
+        run_walk(walk, sampler, c);
+    end_light_subpath(path, walk.n, disk_pdf);
+    return walk.n;
 }
 
 // ---- connections and MIS -------------------------------------------------------------------
@@ -575,15 +630,29 @@ float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* c
     return std::isfinite(w) ? float(w) : 0.f;
 }
 
-Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* camera, int t,
-                             BdptSampler& sampler, Vec2* p_raster, bool mis, BdptCounters& c,
-                             PathVertex* sampled_out) const {
+bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex* camera, int t,
+                               BdptSampler& sampler, bool mis, BdptCounters& c,
+                               BdptConnection& k) const {
     const Scene& scene = m_scene;
-    Spectrum L(0.f);
-    PathVertex sampled;
-    float conn_pass_pdf = 1.f;  // crossings of the connection segment (Scene::transmittance)
-    if (t > 1 && s != 0 && camera[t - 1].type == VertexType::light) return L;
+    k.light = light;
+    k.camera = camera;
+    k.s = s;
+    k.t = t;
+    k.mis = mis;
+    k.tail = false;
+    k.L = Spectrum(0.f);
+    k.result = Spectrum(0.f);
+    Spectrum& L = k.L;
+    PathVertex& sampled = k.sampled;
+    if (t > 1 && s != 0 && camera[t - 1].type == VertexType::light) return false;
 
+    // A shadow ray a - b to be answered before finish_connect (as a visibility query).
+    auto visibility = [&](const PathVertex& a, const PathVertex& b) {
+        c.shadow_rays += 1;
+        c.rays += 1;
+        k.shadow = connection_ray(a, b);
+        return true;
+    };
     if (s == 0) {
         const PathVertex& pt = camera[t - 1];
         if (pt.infinite) {
@@ -599,24 +668,28 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
                 float w = mis ? mis_weight(light, 0, camera, t, sampled, 1.f, &tmp) : 1.f;
                 sum += Ll * w;
             }
-            return sum;
+            k.result = sum;
+            return false;
         }
-        if (pt.light_index < 0 || is_black(pt.le)) return L;
+        if (pt.light_index < 0 || is_black(pt.le)) return false;
         L = pt.beta * pt.le;
-    } else if (t == 1) {
+        k.result = connect_tail(k, 1.f);
+        return false;
+    }
+    if (t == 1) {
         const PathVertex& qs = light[s - 1];
-        if (!connectible(qs) || !m_importance.connectable()) return L;
+        if (!connectible(qs) || !m_importance.connectable()) return false;
         // The camera end: a lens point (connection stream, drawn only with a thin lens:
         // pbrt-v4's SampleWi) or the pinhole.
         const Vec3 p_lens = m_importance.sample_lens(m_importance.has_lens() ? sampler.next2d()
                                                                              : Vec2(0.f, 0.f));
         Vec3 w = p_lens - qs.p;
         float d2 = length_squared(w);
-        if (!(d2 > 0.f)) return L;
+        if (!(d2 > 0.f)) return false;
         w = w / std::sqrt(d2);
         Vec2 pr;
         float we = m_importance.we(p_lens, -w, &pr);
-        if (!(we > 0.f)) return L;
+        if (!(we > 0.f)) return false;
         sampled = PathVertex();
         sampled.type = VertexType::camera;
         sampled.time = qs.time;
@@ -626,21 +699,20 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
         // beyond scatter's): the lens density cancels We's 1 / A_lens.
         const float cos_cam = m_importance.cos_axis(-w);
         L = qs.beta * scatter(qs, w, true) * (we * cos_cam / (d2 * m_importance.pdf_lens()));
-        if (is_black(L)) return Spectrum(0.f);
-        const float tr = transmittance(qs, sampled, &conn_pass_pdf, c);
-        if (!(tr > 0.f)) return Spectrum(0.f);
-        L *= tr;
-        *p_raster = pr;
-    } else if (s == 1) {
+        if (is_black(L)) return false;
+        k.p_raster = pr;
+        return visibility(qs, sampled);
+    }
+    if (s == 1) {
         const PathVertex& pt = camera[t - 1];
-        if (!connectible(pt) || scene.light_count() == 0) return L;
+        if (!connectible(pt) || scene.light_count() == 0) return false;
         float u_light = sampler.next1d();
         Vec2 u_pos = sampler.next2d();
         float pmf = 0.f;
         size_t li = scene.sample_light(u_light, &pmf);
         const Light& l = scene.light(li);
         LightSample ls = l.sample_li(pt.p, u_pos);
-        if (!ls.valid() || !(pmf > 0.f)) return L;
+        if (!ls.valid() || !(pmf > 0.f)) return false;
         sampled = PathVertex();
         sampled.type = VertexType::light;
         sampled.time = pt.time;
@@ -658,37 +730,61 @@ Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* c
         sampled.beta = ls.li / (pmf * ls.pdf);
         sampled.pdf_fwd = pdf_light_origin(sampled, pt);
         L = pt.beta * scatter(pt, ls.wi, false) * sampled.beta;
-        if (is_black(L)) return Spectrum(0.f);
-        const float tr = transmittance(pt, sampled, &conn_pass_pdf, c);
-        if (!(tr > 0.f)) return Spectrum(0.f);
-        L *= tr;
-    } else {
-        const PathVertex& qs = light[s - 1];
-        const PathVertex& pt = camera[t - 1];
-        if (!connectible(qs) || !connectible(pt)) return L;
-        Vec3 w = pt.p - qs.p;
-        float d2 = length_squared(w);
-        if (!(d2 > 0.f)) return L;
-        w = w / std::sqrt(d2);
-        L = qs.beta * scatter(qs, w, true) * scatter(pt, -w, false) * pt.beta * (1.f / d2);
-        if (is_black(L)) return Spectrum(0.f);
-        const float tr = transmittance(qs, pt, &conn_pass_pdf, c);
-        if (!(tr > 0.f)) return Spectrum(0.f);
-        L *= tr;
+        if (is_black(L)) return false;
+        return visibility(pt, sampled);
     }
-    if (sampled_out) *sampled_out = sampled;
+    const PathVertex& qs = light[s - 1];
+    const PathVertex& pt = camera[t - 1];
+    if (!connectible(qs) || !connectible(pt)) return false;
+    Vec3 w = pt.p - qs.p;
+    float d2 = length_squared(w);
+    if (!(d2 > 0.f)) return false;
+    w = w / std::sqrt(d2);
+    L = qs.beta * scatter(qs, w, true) * scatter(pt, -w, false) * pt.beta * (1.f / d2);
+    if (is_black(L)) return false;
+    return visibility(qs, pt);
+}
+
+Spectrum BdptTracer::finish_connect(BdptConnection& k, float tr, float pass_pdf,
+                                    Vec2* p_raster) const {
+    if (!(tr > 0.f)) return k.result = Spectrum(0.f);
+    k.L *= tr;
+    if (k.t == 1) *p_raster = k.p_raster;
+    return k.result = connect_tail(k, pass_pdf);
+}
+
+Spectrum BdptTracer::connect_tail(BdptConnection& k, float conn_pass_pdf) const {
+    k.tail = true;
+    Spectrum L = k.L;
     if (is_black(L)) return L;
-    if (scene.has_pass_through()) {
+    const int s = k.s, t = k.t;
+    if (m_scene.has_pass_through()) {
         // The subpath ends used here exist only with their walks' scattering probability
         // (a walk may cross such a surface instead): divide it out (see mis_weight).
         float e = 1.f;
-        if (s > 1) e *= scatter_probability(light[s - 1], light[s - 2]);
-        if (t > 1) e *= scatter_probability(camera[t - 1], camera[t - 2]);
+        if (s > 1) e *= scatter_probability(k.light[s - 1], k.light[s - 2]);
+        if (t > 1) e *= scatter_probability(k.camera[t - 1], k.camera[t - 2]);
         if (!(e > 0.f)) return Spectrum(0.f);
         L /= e;
     }
-    float w = mis ? mis_weight(light, s, camera, t, sampled, conn_pass_pdf) : 1.f;
+    float w = k.mis ? mis_weight(k.light, s, k.camera, t, k.sampled, conn_pass_pdf) : 1.f;
     return L * w;
+}
+
+Spectrum BdptTracer::connect(const PathVertex* light, int s, const PathVertex* camera, int t,
+                             BdptSampler& sampler, Vec2* p_raster, bool mis, BdptCounters& c,
+                             PathVertex* sampled_out) const {
+    BdptConnection k;
+    Spectrum L(0.f);
+    if (begin_connect(light, s, camera, t, sampler, mis, c, k)) {
+        float pass_pdf = 1.f;  // crossings of the connection segment (Scene::transmittance)
+        const float tr = m_scene.transmittance(k.shadow, &pass_pdf);
+        L = finish_connect(k, tr, pass_pdf, p_raster);
+    } else {
+        L = k.result;
+    }
+    if (sampled_out && k.tail) *sampled_out = k.sampled;
+    return L;
 }
 
 // ---- estimators -----------------------------------------------------------------------------
@@ -755,6 +851,86 @@ Spectrum BdptTracer::evaluate_strategy_unweighted(int depth, int s, int t, BdptS
                                                   BdptWorkspace& ws, Vec2* p_raster,
                                                   BdptCounters& c) const {
     return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, false, c);
+}
+
+// ---- the resumable strategy (BdptStrategyLane): evaluate_one, one query at a time ----------
+
+BdptQuery BdptTracer::begin_strategy(BdptStrategyLane& lane, int depth, int s, int t,
+                                     BdptSampler& sampler, BdptWorkspace& ws) const {
+    lane.depth = depth;
+    lane.s = s;
+    lane.t = t;
+    lane.sampler = &sampler;
+    lane.ws = &ws;
+    lane.result = Spectrum(0.f);
+    lane.p_raster = Vec2();  // as evaluate_strategy's caller's, for a technique it rejects
+    lane.counters = BdptCounters();
+    lane.stage = BdptStrategyLane::Stage::done;
+    if (t < 1 || s < 0 || s + t != depth + 2 || (s == 1 && t == 1)) return BdptQuery::none;
+    if (int(ws.camera.size()) < t) ws.camera.resize(size_t(t));
+    if (int(ws.light.size()) < std::max(s, 1)) ws.light.resize(size_t(std::max(s, 1)));
+    lane.counters.samples += 1;
+    sampler.start_stream(BdptSampler::k_camera);
+    const Vec2 u = sampler.next2d();
+    lane.p_raster = Vec2(u.x * float(m_width), u.y * float(m_height));
+    if (begin_camera_subpath(lane.p_raster, sampler, t, false, ws.camera.data(), lane.counters,
+                             lane.walk)) {
+        lane.stage = BdptStrategyLane::Stage::camera_walk;
+        return BdptQuery::intersect;
+    }
+    return strategy_after_camera(lane);
+}
+
+BdptQuery BdptTracer::strategy_after_camera(BdptStrategyLane& lane) const {
+    lane.stage = BdptStrategyLane::Stage::done;
+    if (lane.walk.n != lane.t) return BdptQuery::none;
+    BdptWorkspace& ws = *lane.ws;
+    lane.sampler->start_stream(BdptSampler::k_light);
+    if (lane.s > 0) {
+        if (begin_light_subpath(*lane.sampler, lane.s, false, ws.light.data(), ws.camera[0].time,
+                                lane.walk, &lane.light_disk_pdf)) {
+            lane.stage = BdptStrategyLane::Stage::light_walk;
+            return BdptQuery::intersect;
+        }
+        return strategy_after_light(lane);
+    }
+    return strategy_connect(lane);
+}
+
+BdptQuery BdptTracer::strategy_after_light(BdptStrategyLane& lane) const {
+    lane.stage = BdptStrategyLane::Stage::done;
+    end_light_subpath(lane.ws->light.data(), lane.walk.n, lane.light_disk_pdf);
+    if (lane.walk.n != lane.s) return BdptQuery::none;
+    return strategy_connect(lane);
+}
+
+BdptQuery BdptTracer::strategy_connect(BdptStrategyLane& lane) const {
+    BdptWorkspace& ws = *lane.ws;
+    lane.sampler->start_stream(BdptSampler::k_connection);
+    if (begin_connect(ws.light.data(), lane.s, ws.camera.data(), lane.t, *lane.sampler, true,
+                      lane.counters, lane.conn)) {
+        lane.stage = BdptStrategyLane::Stage::connection;
+        return BdptQuery::visibility;
+    }
+    lane.result = lane.conn.result;
+    lane.stage = BdptStrategyLane::Stage::done;
+    return BdptQuery::none;
+}
+
+BdptQuery BdptTracer::resume_strategy(BdptStrategyLane& lane, const SceneHit& hit) const {
+    CMLT_DCHECK(lane.stage == BdptStrategyLane::Stage::camera_walk ||
+                lane.stage == BdptStrategyLane::Stage::light_walk);
+    if (walk_step(lane.walk, hit, *lane.sampler, lane.counters)) return BdptQuery::intersect;
+    return lane.stage == BdptStrategyLane::Stage::camera_walk ? strategy_after_camera(lane)
+                                                             : strategy_after_light(lane);
+}
+
+BdptQuery BdptTracer::resume_strategy(BdptStrategyLane& lane, float transmittance,
+                                      float pass_pdf) const {
+    CMLT_DCHECK(lane.stage == BdptStrategyLane::Stage::connection);
+    lane.result = finish_connect(lane.conn, transmittance, pass_pdf, &lane.p_raster);
+    lane.stage = BdptStrategyLane::Stage::done;
+    return BdptQuery::none;
 }
 
 std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,

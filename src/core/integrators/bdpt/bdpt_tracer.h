@@ -91,6 +91,68 @@ struct BdptWorkspace {
     std::vector<BdptSplat> splats;
 };
 
+/// A subpath's random walk between two ray queries: everything BdptTracer's walk step
+/// needs to consume the hit of `ray` and produce the next ray. The scalar walk
+/// (generate_camera_subpath, generate_light_subpath) is a loop over that step; coherent
+/// MLT keeps one walk per candidate of a bundle and traces the candidates' rays
+/// together (BdptStrategyLane), so both run the same arithmetic.
+struct BdptWalk {
+    Ray ray;                 ///< the ray whose hit the next step consumes
+    Spectrum beta{0.f};      ///< throughput
+    Spectrum rr_beta{1.f};   ///< scattering throughput alone (roulette without light units)
+    float pdf_fwd_sa = 0.f;  ///< solid-angle density of `ray`'s direction
+    /// Product of the pass-through crossings' probabilities since path[n - 1].
+    float pass_pdf = 1.f;
+    PathVertex* path = nullptr;
+    int n = 0;               ///< vertices made so far (path[n - 1] is the last)
+    int start = 0, max_vertices = 0;
+    bool importance = false, roulette = false;
+};
+
+/// A connection (BdptTracer::connect) split at its visibility query: the unoccluded
+/// contribution and the shadow ray, finished once the ray's transmittance is known.
+struct BdptConnection {
+    const PathVertex* light = nullptr;
+    const PathVertex* camera = nullptr;
+    int s = 0, t = 0;
+    bool mis = true;
+    bool tail = false;       ///< reached the MIS tail (sets connect's `sampled` output)
+    Spectrum L{0.f};         ///< contribution without the visibility
+    Spectrum result{0.f};    ///< the finished contribution
+    PathVertex sampled;      ///< the new endpoint of s = 1 / t = 1
+    Vec2 p_raster;           ///< t = 1: raster position of the connection
+    Ray shadow;              ///< the visibility query (Scene::transmittance semantics)
+};
+
+/// The query a resumable BDPT evaluation (BdptStrategyLane) waits for.
+enum class BdptQuery : uint8_t {
+    none,        ///< finished: the lane's `result` and `p_raster` are set
+    intersect,   ///< Scene::intersect of `walk.ray`, then BdptTracer::resume_strategy(hit)
+    visibility,  ///< Scene::transmittance of `conn.shadow`, then resume_strategy(tr, pass_pdf)
+};
+
+/// BdptTracer::evaluate_strategy as a resumable computation: begin_strategy runs it to
+/// its first ray query, each resume_strategy consumes one answer and runs to the next.
+/// The numbers come from `sampler` in the same order as evaluate_strategy reads them
+/// (camera stream, then light, then connection), and every step is the scalar code's,
+/// so the result is evaluate_strategy's for the same answers.
+struct BdptStrategyLane {
+    enum class Stage : uint8_t { camera_walk, light_walk, connection, done };
+    int depth = 0, s = 0, t = 0;
+    BdptSampler* sampler = nullptr;
+    BdptWorkspace* ws = nullptr;
+    Stage stage = Stage::done;
+    BdptWalk walk;
+    BdptConnection conn;
+    float light_disk_pdf = 0.f;
+    Vec2 p_raster;           ///< film position, or the light-tracing splat's (t = 1)
+    Spectrum result{0.f};    ///< MIS-weighted contribution (when finished)
+    BdptCounters counters;   ///< this evaluation's rays
+
+    /// The ray of a pending query.
+    const Ray& query_ray(BdptQuery q) const { return q == BdptQuery::intersect ? walk.ray : conn.shadow; }
+};
+
 /// Camera importance of a perspective camera, pinhole or thin lens (pbrt-v4's
 /// PerspectiveCamera::We / PDF_We / SampleWi explain the same quantities). A camera ray
 /// starts at a lens point (a Dirac position for the pinhole; uniform on the lens disk,
@@ -163,6 +225,15 @@ public:
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
                                BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c,
                                const SceneHit* first_hit = nullptr) const;
+    /// Resumable evaluate_strategy (BdptStrategyLane; no `first_hit`: the camera ray is
+    /// the lane's first intersect query). Returns the first query, or none when done.
+    BdptQuery begin_strategy(BdptStrategyLane& lane, int depth, int s, int t, BdptSampler& sampler,
+                             BdptWorkspace& ws) const;
+    /// Consume the answer to an intersect query (Scene::intersect's for lane.walk.ray).
+    BdptQuery resume_strategy(BdptStrategyLane& lane, const SceneHit& hit) const;
+    /// Consume the answer to a visibility query: Scene::transmittance(lane.conn.shadow).
+    BdptQuery resume_strategy(BdptStrategyLane& lane, float transmittance, float pass_pdf) const;
+
     /// Number of strategies for a depth (depth + 2, except depth 0: only (0, 2)).
     static int strategy_count(int depth) { return depth == 0 ? 1 : depth + 2; }
     /// Pick (s, t) uniformly for `depth` with u in [0, 1); returns its probability.
@@ -203,9 +274,40 @@ public:
     bool motion_blur() const { return m_motion_blur; }
 
 private:
-    int random_walk(Ray ray, Spectrum beta, float pdf_dir, BdptSampler& sampler,
-                    int max_vertices, bool importance, bool roulette, PathVertex* path, int start,
-                    BdptCounters& c, const SceneHit* first_hit = nullptr) const;
+    // Random walks (BdptWalk): begin_walk sets one up and says whether it has a ray to
+    // trace; walk_step consumes that ray's hit and says whether there is a next one;
+    // run_walk is the scalar loop (the camera ray's hit `first_hit` used once if given).
+    bool begin_walk(BdptWalk& walk, const Ray& ray, const Spectrum& beta, float pdf_dir,
+                    int max_vertices, bool importance, bool roulette, PathVertex* path,
+                    int start) const;
+    bool walk_step(BdptWalk& walk, const SceneHit& hit, BdptSampler& sampler, BdptCounters& c) const;
+    void run_walk(BdptWalk& walk, BdptSampler& sampler, BdptCounters& c,
+                  const SceneHit* first_hit = nullptr) const;
+    /// generate_camera_subpath up to its walk: the camera vertex, and the walk if one is
+    /// needed (returns true; walk.n is the vertex count either way).
+    bool begin_camera_subpath(const Vec2& p_raster, BdptSampler& sampler, int max_vertices,
+                              bool roulette, PathVertex* path, BdptCounters& c,
+                              BdptWalk& walk) const;
+    /// generate_light_subpath up to its walk (as begin_camera_subpath); `disk_pdf` for
+    /// end_light_subpath.
+    bool begin_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette, PathVertex* path,
+                             float time, BdptWalk& walk, float* disk_pdf) const;
+    /// The light subpath's first surface density, from positions, once its walk is done.
+    void end_light_subpath(PathVertex* path, int n, float disk_pdf) const;
+    /// connect up to the visibility query: true if `conn.shadow` must be answered by
+    /// finish_connect, false if the connection is finished (conn.result).
+    bool begin_connect(const PathVertex* light, int s, const PathVertex* camera, int t,
+                       BdptSampler& sampler, bool mis, BdptCounters& c, BdptConnection& conn) const;
+    /// The rest of connect given Scene::transmittance's answer for conn.shadow; sets
+    /// *p_raster for t = 1.
+    Spectrum finish_connect(BdptConnection& conn, float tr, float pass_pdf, Vec2* p_raster) const;
+    /// The end of connect shared by every strategy: the pass-through scattering
+    /// probabilities of the subpath ends and the MIS weight.
+    Spectrum connect_tail(BdptConnection& conn, float conn_pass_pdf) const;
+    /// Stages of the resumable strategy (BdptStrategyLane) after a walk ends.
+    BdptQuery strategy_after_camera(BdptStrategyLane& lane) const;
+    BdptQuery strategy_after_light(BdptStrategyLane& lane) const;
+    BdptQuery strategy_connect(BdptStrategyLane& lane) const;
     /// MIS weight of strategy (s, t); `conn_pass_pdf`: the pass-through crossings of the
     /// connection segment (Scene::transmittance; 1 for s = 0); `pt_override` replaces
     /// camera[t - 1] (s = 0 on an escaped vertex: one infinite light at a time).
@@ -228,10 +330,6 @@ private:
     Spectrum scatter(const PathVertex& v, const Vec3& w, bool importance) const;
     /// The shadow ray of a connection a - b (offset ends, the sample's time).
     Ray connection_ray(const PathVertex& a, const PathVertex& b) const;
-    /// Visibility of a - b: 0 if blocked, else the transmittance through pass-through
-    /// surfaces, their crossing probabilities' product in *pass_pdf (Scene::transmittance).
-    float transmittance(const PathVertex& a, const PathVertex& b, float* pass_pdf,
-                        BdptCounters& c) const;
 
     const Scene& m_scene;
     CameraImportance m_importance;

@@ -26,6 +26,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <mutex>
 #include <sstream>
 
 namespace cmlt {
@@ -110,7 +111,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     mlt::SplatFilm film(W, H);
     mlt::DirectSchedule direct{direct_pass, settings, arena, counters};
 
-    auto make_target = [&](PathCounters* c, uint64_t* packet_queries) {
+    auto make_target = [&](PathCounters* c, coherent::BundleCounters* bundle) {
         coherent::Target f;
         f.tracer = &tracer;
         f.scene = &scene;
@@ -118,9 +119,12 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
         f.counters = c;
         f.packets = settings.packets;
         f.max_width = max_width;
-        f.packet_queries = packet_queries;
+        f.bundle = bundle;
         return f;
     };
+    // bundle tracing stats of the chain rounds, merged per task
+    coherent::BundleCounters bundle_stats;
+    std::mutex bundle_mutex;
 
     // 2. bootstrap: the points of PSSMLT's bootstrap, keys (bootstrap, i, 1)
     const std::vector<double> boot_f =
@@ -216,8 +220,8 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                 ScopedFtzDaz ftz;
                 const TaskTimer timer(counters);
                 PathCounters c;
-                uint64_t packet_queries = 0;
-                const coherent::Target f = make_target(&c, &packet_queries);
+                coherent::BundleCounters bc;
+                const coherent::Target f = make_target(&c, &bc);
                 for (size_t ci = r.begin(); ci != r.end(); ++ci) {
                     ChainState& st = *chains[ci];
                     const uint64_t end = schedule.round_end(st.budget, st.evaluations);
@@ -258,7 +262,9 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                         }
                     }
                 }
-                counters.add(c, 0, packet_queries);
+                counters.add(c, 0, bc.packets);
+                const std::lock_guard<std::mutex> lock(bundle_mutex);
+                bundle_stats.merge(bc);
             });
         });
         schedule.end_round();
@@ -333,6 +339,11 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     ms.packets = settings.packets;
     ms.packet_width = settings.packets ? max_width : 1;
     ms.packet_queries = counters.packets.load();
+    ms.packet_rays = bundle_stats.packet_rays;
+    ms.packet_shadow_rays = bundle_stats.packet_shadow_rays;
+    ms.bundle_rays = bundle_stats.bundle_rays;
+    ms.bundle_busy_s = double(bundle_stats.busy_ticks) / rate.per_second();
+    ms.bundle_trace_s = std::min(ms.bundle_busy_s, double(bundle_stats.trace_ticks) / rate.per_second());
     ms.imported_chains = initial ? chains.size() : 0;
     ms.path_evaluations = budget.pilot + direct_pass.evaluations() + budget.bootstrap + evaluations;
     // kernel stats by mutation name, then the perturbations (acceptance per type)

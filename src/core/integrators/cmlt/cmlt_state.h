@@ -61,10 +61,12 @@
 /// double-precision ray/triangle intersection (Embree's packet and single-ray kernels
 /// differ in the last ulp), so packets on and off give bit-identical images.
 #include "accel/accel.h"
+#include "integrators/cmlt/bundle_tracer.h"
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "scene/scene.h"
+#include "util/cycle_clock.h"
 
 #include <algorithm>
 #include <array>
@@ -107,9 +109,9 @@ struct State {
     StateKey key;
     std::vector<double> u;  ///< overrides by global index; NaN = the key's value
     mutable PathSample sample;  ///< set by the target when the point is evaluated
-    // camera-ray first hit, set by Target::prepare (scratch, not part of the point)
-    mutable bool has_hit = false;
-    mutable SceneHit hit;
+    /// `sample` is this point's (set by the target; a proposal that writes the point
+    /// clears it, so the target evaluates each new point once)
+    mutable bool evaluated = false;
     /// Slots per stream the last evaluation read (1 + the highest slot), for export.
     mutable std::array<uint32_t, MltSampler::k_stream_count> extent{};
 
@@ -212,7 +214,7 @@ struct PerturbationProposal {
     void sample(const State& from, State& to, Rng& rng) const {
         to.key = from.key;
         to.u = from.u;  // same-size assignment reuses capacity
-        to.has_hit = false;
+        to.evaluated = false;
         if (kind == Perturbation::small_step) {
             // Every materialised coordinate (overridden, or read by the path of `from`)
             // gets a wrapped Gaussian step; the technique slots stay (multiplexed MLT,
@@ -256,7 +258,7 @@ struct LargeStepProposal {
     void sample(const State& /*from*/, State& to, Rng& /*rng*/) const {
         to.key = next;
         to.u.clear();
-        to.has_hit = false;
+        to.evaluated = false;
     }
 };
 
@@ -273,45 +275,9 @@ inline bool light_traced(const S& s) {
     else return false;
 }
 
-/// Refine a mesh hit of `ray` by a double-precision Möller–Trumbore intersection with
-/// the hit triangle (as placed by Scene::fill_interaction): Embree's packet and
-/// single-ray kernels may differ in the last ulp of t, u, v; the refined values depend
-/// only on (ray, instance, triangle). A degenerate or grazing case keeps Embree's values.
-inline void refine_hit(const Scene& scene, const Ray& ray, Hit& h) {
-    if (!h.valid()) return;
-    const Instance& inst = scene.instance(h.instance_id);
-    const Mesh& mesh = scene.mesh(inst.mesh_id);
-    uint32_t v[3];
-    mesh.triangle(h.prim_id, v);
-    const Mat4 m = inst.motion.size() > 1 ? inst.matrix_at(ray.time) : inst.xf.m;
-    const Vec3 p0 = m.transform_point(mesh.point(v[0]));
-    const Vec3 p1 = m.transform_point(mesh.point(v[1]));
-    const Vec3 p2 = m.transform_point(mesh.point(v[2]));
-    const double e1[3] = {double(p1.x) - p0.x, double(p1.y) - p0.y, double(p1.z) - p0.z};
-    const double e2[3] = {double(p2.x) - p0.x, double(p2.y) - p0.y, double(p2.z) - p0.z};
-    const double d[3] = {ray.d.x, ray.d.y, ray.d.z};
-    const double o[3] = {double(ray.o.x) - p0.x, double(ray.o.y) - p0.y, double(ray.o.z) - p0.z};
-    auto cross3 = [](const double* a, const double* b, double* c) {
-        c[0] = a[1] * b[2] - a[2] * b[1];
-        c[1] = a[2] * b[0] - a[0] * b[2];
-        c[2] = a[0] * b[1] - a[1] * b[0];
-    };
-    auto dot3 = [](const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
-    double pv[3], qv[3];
-    cross3(d, e2, pv);
-    const double det = dot3(e1, pv);
-    if (!(std::fabs(det) > 1e-300) || !std::isfinite(det)) return;
-    const double inv = 1.0 / det;
-    cross3(o, e1, qv);
-    const double u = dot3(o, pv) * inv, w = dot3(d, qv) * inv, t = dot3(e2, qv) * inv;
-    if (!std::isfinite(u) || !std::isfinite(w) || !std::isfinite(t)) return;
-    h.t = float(t);
-    h.u = float(std::min(std::max(u, 0.0), 1.0));
-    h.v = float(std::min(std::max(w, 0.0), 1.0));
-}
-
-/// The target f* of the chains: evaluates a point with PssmltTracer (cached in the
-/// state), using the camera ray's first hit when prepare() found it.
+/// The target f* of the chains: evaluates points with PssmltTracer, a bundle's
+/// candidates together (prepare, the kernels' batch hook), and caches the result in the
+/// state (see the file comment).
 struct Target {
     const mlt::PssmltTracer* tracer = nullptr;
     const Scene* scene = nullptr;
@@ -319,55 +285,63 @@ struct Target {
     PathCounters* counters = nullptr;
     bool packets = true;
     int max_width = 4;  ///< Accel::max_packet_width()
-    uint64_t* packet_queries = nullptr;  ///< packets traced (stats)
+    BundleCounters* bundle = nullptr;  ///< packet and bundle stats (optional)
 
+    /// f* of one point: its cached value after prepare(), else evaluated alone (scalar
+    /// queries; the same code and refined hits as a bundle's lanes).
     double operator()(const State& s) const {
-        s.extent.fill(0);
-        PointSampler smp(s, seed);
-        s.sample = tracer->evaluate(smp, *counters, s.has_hit ? &s.hit : nullptr);
+        if (!s.evaluated) evaluate(&s, 1, false);
         return s.sample.f;
     }
 
-    /// Trace the camera rays of n points together (see the file comment).
+    /// The kernels' batch hook: evaluate a bundle's n points together (see the file
+    /// comment), timed for the stats.
     void prepare(State* states, size_t n) const {
-        constexpr size_t k_max = 16;
-        Ray rays[k_max];
-        Hit hits[k_max];
-        alignas(64) int valid[k_max];
-        const Accel& accel = scene->accel();
-        for (size_t begin = 0; begin < n; begin += k_max) {
-            const size_t count = std::min(k_max, n - begin);
-            for (size_t i = 0; i < count; ++i) {
-                PointSampler smp(states[begin + i], seed);
-                uint32_t pixel;
-                rays[i] = tracer->camera_ray(smp, &pixel);
-            }
-            if (packets && max_width >= 4) {
-                for (size_t p = 0; p < count;) {
-                    const size_t left = count - p;
-                    int width = left <= 4 ? 4 : (left <= 8 ? 8 : 16);
-                    width = std::min(width, max_width);
-                    const size_t lanes = std::min(left, size_t(width));
-                    Ray lane_rays[k_max];
-                    Hit lane_hits[k_max];
-                    for (int i = 0; i < width; ++i) {
-                        valid[i] = size_t(i) < lanes ? -1 : 0;
-                        lane_rays[i] = rays[p + (size_t(i) < lanes ? size_t(i) : 0)];
-                    }
-                    accel.intersect_packet(width, valid, lane_rays, lane_hits);
-                    for (size_t i = 0; i < lanes; ++i) hits[p + i] = lane_hits[i];
-                    if (packet_queries) ++*packet_queries;
-                    p += lanes;
-                }
-            } else {
-                for (size_t i = 0; i < count; ++i) hits[i] = accel.intersect(rays[i]);
-            }
-            for (size_t i = 0; i < count; ++i) {
-                refine_hit(*scene, rays[i], hits[i]);
-                const State& s = states[begin + i];
-                s.hit = scene->resolve_hit(rays[i], hits[i]);
-                s.has_hit = true;
-            }
+        BundleCounters local;
+        BundleCounters& bc = bundle ? *bundle : local;
+        const uint64_t t0 = cycle_now(), trace0 = Accel::trace_ticks(), rays0 = counters->rays;
+        evaluate(states, n, packets);
+        bc.busy_ticks += cycle_now() - t0;
+        bc.trace_ticks += Accel::trace_ticks() - trace0;
+        bc.bundle_rays += counters->rays - rays0;
+    }
+
+    /// Evaluate states[0..n), their rays in packets if `use_packets`.
+    void evaluate(const State* states, size_t n, bool use_packets) const {
+        BundleCounters local;
+        const RayQueries queries(scene->accel(), use_packets, max_width, bundle ? *bundle : local);
+        if (tracer->bdpt()) {
+            thread_local BundleEvaluator<State, PointSampler> evaluator;
+            evaluator.evaluate(*tracer, *scene, seed, states, n, queries, *counters);
+        } else {
+            evaluate_pt(states, n, queries);
+        }
+        for (size_t i = 0; i < n; ++i) states[i].evaluated = true;
+    }
+
+private:
+    /// The pt path sampler: the camera rays traced together (refined first hits), the
+    /// rest of each path by the path tracer alone.
+    void evaluate_pt(const State* states, size_t n, const RayQueries& queries) const {
+        thread_local std::vector<Ray> rays;
+        thread_local std::vector<Hit> hits;
+        if (rays.size() < n) {
+            rays.resize(n);
+            hits.resize(n);
+        }
+        for (size_t i = 0; i < n; ++i) {
+            PointSampler smp(states[i], seed);
+            uint32_t pixel;
+            rays[i] = tracer->camera_ray(smp, &pixel);
+        }
+        queries.intersect(rays.data(), n, hits.data());
+        for (size_t i = 0; i < n; ++i) {
+            refine_hit(*scene, rays[i], hits[i]);
+            const SceneHit hit = scene->resolve_hit(rays[i], hits[i]);
+            const State& s = states[i];
+            s.extent.fill(0);
+            PointSampler smp(s, seed);
+            s.sample = tracer->evaluate(smp, *counters, &hit);
         }
     }
 };

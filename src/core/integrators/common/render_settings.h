@@ -67,8 +67,9 @@ struct RenderSettings {
     std::string inner = "bundle";  ///< inner rule: "bundle" (multiple-proposal MH, exact),
                                    ///< "mtm" (Liu et al., exact), "seed" (the seminar's
                                    ///< 2k splats; biased, comparison only)
-    bool packets = true;           ///< trace a bundle's camera rays as Embree packets; off:
-                                   ///< one by one (bit-identical image, for comparison)
+    bool packets = true;           ///< trace a bundle's rays (camera, walk bounces, shadow
+                                   ///< rays) as Embree packets; off: one by one
+                                   ///< (bit-identical image, for comparison)
 
     /// Throws SettingsError naming the bad field.
     void validate() const;
@@ -105,9 +106,14 @@ struct MltStats {
     // cmlt only
     int tries = 0, inner_length = 0;                 ///< k, m
     std::string inner;                               ///< inner rule
-    bool packets = false;                            ///< camera rays traced as packets
+    bool packets = false;                            ///< bundles traced as packets
     int packet_width = 0;                            ///< widest packet used (1 = scalar)
-    uint64_t packet_queries = 0;                     ///< packet intersect calls
+    uint64_t packet_queries = 0;                     ///< packet calls (rtcIntersectN + rtcOccludedN)
+    uint64_t packet_rays = 0;                        ///< rays answered by packets (active lanes)
+    uint64_t packet_shadow_rays = 0;                 ///< of them, visibility rays (rtcOccludedN)
+    uint64_t bundle_rays = 0;                        ///< rays of the inner chains' bundles
+    double bundle_busy_s = 0;                        ///< CPU time evaluating bundles
+    double bundle_trace_s = 0;                       ///< of it, inside BVH queries
     uint64_t path_evaluations = 0;                   ///< paths traced, bootstrap included
 };
 

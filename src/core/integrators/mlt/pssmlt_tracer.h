@@ -121,6 +121,36 @@ public:
 
     int width() const { return m_width; }
     int height() const { return m_height; }
+    const BdptTracer* bdpt_tracer() const { return m_bdpt; }
+
+    /// evaluate() of the bdpt sampler as a resumable computation (BdptStrategyLane), so
+    /// that coherent MLT can run a bundle's candidates in lockstep and trace their rays
+    /// together (integrators/cmlt/bundle_tracer.h).
+    struct BdptLane {
+        PathSample sample;  ///< technique until finish_bdpt, then the evaluated sample
+        double pmf = 1.0;   ///< probability of the technique
+        BdptStrategyLane strategy;
+    };
+    /// Read the technique from `sampler` and begin its strategy with `adapter` (a
+    /// BdptStreamAdapter over `sampler`, outliving the lane). Returns the first query;
+    /// answer each with bdpt_tracer()->resume_strategy until none, then finish_bdpt.
+    template <class Sampler>
+    BdptQuery begin_bdpt(Sampler& sampler, BdptSampler& adapter, BdptWorkspace& ws, BdptLane& lane) const {
+        lane.sample = PathSample();
+        sampler.start_stream(MltSampler::connection);
+        sampler.set_dimension(0);
+        const Vec2 ut = sampler.get2d();
+        lane.pmf = m_technique.choose(ut.x, ut.y, &lane.sample.depth, &lane.sample.s, &lane.sample.t);
+        return m_bdpt->begin_strategy(lane.strategy, lane.sample.depth, lane.sample.s, lane.sample.t,
+                                      adapter, ws);
+    }
+    /// The path sample of a finished lane (its rays added to `counters`).
+    PathSample finish_bdpt(const BdptLane& lane, PathCounters& counters) const {
+        PathSample s = lane.sample;
+        finish_sample(s, lane.pmf, lane.strategy.result, lane.strategy.p_raster, lane.strategy.counters,
+                      counters);
+        return s;
+    }
 
 private:
     template <class Sampler>
@@ -137,18 +167,25 @@ private:
         Vec2 p_raster;
         const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c,
                                                        first_hit);
+        finish_sample(s, pmf, C, p_raster, c, counters);
+        return s;
+    }
+
+    /// Pixel, L = C / p(technique) and f* of an evaluated strategy C at p_raster.
+    void finish_sample(PathSample& s, double pmf, const Spectrum& C, const Vec2& p_raster,
+                       const BdptCounters& c, PathCounters& counters) const {
         counters.camera_rays += c.camera_rays;
         counters.shadow_rays += c.shadow_rays;
         counters.rays += c.rays;
         counters.samples += c.samples;
         if (!is_finite(C)) {
             s.invalid = true;
-            return s;
+            return;
         }
         // film position: the camera stream's (t ≥ 2) or the light-tracing splat's (t = 1)
         if (!(p_raster.x >= 0.f && p_raster.y >= 0.f && p_raster.x < float(m_width) &&
               p_raster.y < float(m_height)))
-            return s;  // off the image: contributes nothing (f* = 0)
+            return;  // off the image: contributes nothing (f* = 0)
         const int x = std::min(int(p_raster.x), m_width - 1);
         const int y = std::min(int(p_raster.y), m_height - 1);
         s.pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
@@ -156,10 +193,9 @@ private:
         if (!is_finite(s.L)) {
             s.invalid = true;
             s.L = Spectrum(0.f);
-            return s;
+            return;
         }
         s.f = target(s.L, s.pixel);
-        return s;
     }
 
     const PathTracer* m_tracer = nullptr;
