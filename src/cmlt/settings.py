@@ -16,8 +16,8 @@ time_budget               cmlt:timeBudget                   0 (off)         >= 0
 seed                      cmlt:seed                         0               0 .. 2^31-1
 max_depth                 cmlt:maxDepth                     64              1 .. 1024
 sigma                     cmlt:sigma                        0.01            (0, 1]
-tries                     cmlt:tries                        8               1 .. 64
-inner_length              cmlt:innerLength                  8               1 .. 1000000
+tries                     cmlt:tries                        2               1 .. 64
+inner_length              cmlt:innerLength                  4               1 .. 1000000
 large_step_probability    cmlt:largeStepProbability         0.3             [0, 1]
 chains                    cmlt:chains                       1000            >= 1
 bootstrap_samples         cmlt:bootstrapSamples             100000          >= 1
@@ -112,9 +112,9 @@ FIELDS: Tuple[SettingField, ...] = (
                  doc="scattering events per path, 1 = direct light only"),
     SettingField("sigma", "cmlt:sigma", "float", 0.01, 0.0, 1.0, lo_open=True,
                  doc="small-step Gaussian perturbation size in primary sample space"),
-    SettingField("tries", "cmlt:tries", "int", 8, 1, 64,
+    SettingField("tries", "cmlt:tries", "int", 2, 1, 64,
                  doc="k, candidates per multiple-try / bundle step"),
-    SettingField("inner_length", "cmlt:innerLength", "int", 8, 1, 1_000_000,
+    SettingField("inner_length", "cmlt:innerLength", "int", 4, 1, 1_000_000,
                  doc="m, inner-chain steps per outer step"),
     SettingField("large_step_probability", "cmlt:largeStepProbability", "float", 0.3, 0.0, 1.0,
                  doc="probability of an independent (large) step"),
@@ -160,8 +160,8 @@ class RenderSettings:
     seed: int = 0
     max_depth: int = 64
     sigma: float = 0.01
-    tries: int = 8
-    inner_length: int = 8
+    tries: int = 2
+    inner_length: int = 4
     large_step_probability: float = 0.3
     chains: int = 1000
     bootstrap_samples: int = 100_000

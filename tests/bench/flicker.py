@@ -45,7 +45,8 @@ def main(argv=None):
     a = ap.parse_args(argv)
     res = (a.res, a.res)
     rows = []
-    for seq in [x for x in a.sequences.split(",") if x]:
+    seqs = [x for x in a.sequences.split(",") if x]
+    for seq in seqs:
         shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
         ref = render_sequence(shot, a.frames, os.path.join(a.out, seq, "ref", "r.####.exr"),
                               RenderOptions(integrator=a.ref_integrator, resolution=res, spp=a.ref_spp),
@@ -78,14 +79,15 @@ def main(argv=None):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-        x = np.arange(len(SEQUENCES))
+        x = np.arange(len(seqs))
         for k, name in enumerate(CONFIGS):
             vals = [r for r in rows if r[1] == name]
             ax[0].bar(x + 0.2 * k, [v[2] for v in vals], 0.2, label=name)
             ax[1].bar(x + 0.2 * k, [v[3] for v in vals], 0.2, label=name)
         for i, t in enumerate(("TF", "GF")):
-            ax[i].set_xticks(x + 0.3, SEQUENCES)
-            ax[i].set_title(t)
+            ax[i].set_xticks(x + 0.3, seqs)
+            ax[i].set_yscale("log")
+            ax[i].set_title(f"{t} ({a.integrator}, {a.spp} mutations/px, lower is better)")
         ax[0].legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(os.path.join(a.out, "flicker.png"), dpi=100)

@@ -390,7 +390,7 @@ def test10_coherent_mlt_packets_match_scalar_with_motion_blur(moving_box):
     """Coherent MLT traces its bundles' rays as packets, at the shutter time BDPT's
     camera subpath draws (PssmltTracer::camera_ray): the packet hits are the scalar ones,
     bit for bit (with another time they would differ)."""
-    kw = dict(chains=64, bootstrap_samples=4096)
+    kw = dict(chains=64, bootstrap_samples=4096, tries=8)
     a, _, _ = _render(moving_box, "cmlt", (32, 32), 32, seed=3, packets=True, **kw)
     b, _, _ = _render(moving_box, "cmlt", (32, 32), 32, seed=3, packets=False, **kw)
     assert np.array_equal(a, b)
@@ -410,7 +410,7 @@ def test10b_coherent_mlt_packets_match_scalar_through_pass_through_surfaces():
     fs.camera.lens_unit = 0.01
     scene = SceneBridge(core).update(fs)
     assert scene.has_pass_through
-    kw = dict(chains=64, bootstrap_samples=4096, threads=2)
+    kw = dict(chains=64, bootstrap_samples=4096, threads=2, tries=8)
     on = core.render(scene, _settings("cmlt", (24, 16), 64, 7, packets=True, **kw))
     off = core.render(scene, _settings("cmlt", (24, 16), 64, 7, packets=False, **kw))
     assert np.array_equal(np.asarray(on.image), np.asarray(off.image))

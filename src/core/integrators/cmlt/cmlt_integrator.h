@@ -21,21 +21,27 @@
 /// Budget: `spp`·W·H path evaluations, bootstrap included (at most half); a bundle step
 /// costs k evaluations, an mtm/seed step 2k − 1, the outer step 1.
 ///
-/// Parameters (σ, k, m): study on sequences/cornell, 96x96, 2 s per render, 3 seeds,
-/// relMSE against the 2048-spp BDPT reference (tests/bench/cmlt_params.py, 2 threads on
-/// a shared, loaded machine):
-///     σ      k   m   evals/px  relMSE        σ      k   m   evals/px  relMSE
-///     0.01   8   8   154       0.0147        0.01   4   8   108       0.0167
-///     0.003  8   8   175       0.0536        0.01  16   8   138       0.0239
-///     0.03   8   8   121       0.0116        0.01   8   2   286       0.0076
-///     0.1    8   8   121       0.0125        0.01   8  32   139       0.0159
-///     0.03   8   2   101       0.0182        0.01   8   1   161       0.0141
-///     0.01   4   2    92       0.0188
-/// σ = 0.003 (0.3 px) is clearly too small; σ ∈ [0.01, 0.1] and m are within the noise of
-/// the time calibration (the evaluations that fit 2 s varied 2–3× between runs of the same
-/// configuration under the machine's load: compare m = 2 at 286 vs 101 evals/px), k = 16
-/// is worse than k = 8. Inconclusive beyond that, so the defaults stay σ = 0.01, k = 8,
-/// m = 8 (render_settings.h, cmlt/settings.py); redo at equal evaluations on an idle machine.
+/// Parameters (k, m, σ): study at equal time (tests/bench/cmlt_params.py, 96x96, 2 s per
+/// render, 4 seeds interleaved, 2 threads, packets on; relMSE against BDPT 2048 spp,
+/// ± its standard error over the seeds; direct pass and pixel importance on):
+///     k   m   σ      caustic_glass       cornell
+///     2   4   0.01   0.0087 ± 0.0009     0.0075 ± 0.0006
+///     2   8   0.01   0.0087 ± 0.0008     0.0077 ± 0.0006
+///     4   4   0.01   0.0086 ± 0.0011     0.0097 ± 0.0015
+///     4   8   0.01   0.0115 ± 0.0021     0.0081 ± 0.0004
+///     8   4   0.01   0.0098 ± 0.0008     0.0139 ± 0.0011
+///     8   8   0.01   0.0101 ± 0.0006     0.0092 ± 0.0012
+///    16   4   0.01   0.0124 ± 0.0016     0.0165 ± 0.0025
+///     4   4   0.03   0.0107 ± 0.0021     0.0067 ± 0.0004
+///     4   4   mtm    0.0162 ± 0.0021     0.0233 ± 0.0024   (inner rule mtm)
+///   pssmlt           0.0080 ± 0.0007     0.0072 ± 0.0004
+///   bdpt             0.0120 ± 0.0029     0.0025 ± 0.0001
+/// k = 2, m = 4 is best or tied on both scenes (an earlier caustic run agreed: 0.0082
+/// against 0.0100 for k = 8, m = 8), so it is the default (render_settings.h,
+/// cmlt/settings.py, the schema). Larger bundles lose at equal time: a step costs k
+/// evaluations, and packet tracing saves too little to pay for them (the BVH queries
+/// are ~15 % of a bundle's time; tests/bench/packets.py). σ = 0.03 against 0.01 is
+/// within the noise (better on cornell, worse on the caustic); σ stays 0.01.
 #include "integrators/common/render_settings.h"
 
 namespace cmlt {

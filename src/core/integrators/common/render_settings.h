@@ -62,8 +62,8 @@ struct RenderSettings {
     // perturbation (σ_lens = sigma · max(W, H) pixels) or a pixel move.
     // Defaults: parameter study on sequences/cornell at equal time (see
     // integrators/cmlt/cmlt_integrator.h).
-    int tries = 8;                 ///< k, candidates per inner step, [1, 64]
-    int inner_length = 8;          ///< m, inner steps per outer step, >= 1
+    int tries = 2;                 ///< k, candidates per inner step, [1, 64]
+    int inner_length = 4;          ///< m, inner steps per outer step, >= 1
     std::string inner = "bundle";  ///< inner rule: "bundle" (multiple-proposal MH, exact),
                                    ///< "mtm" (Liu et al., exact), "seed" (the seminar's
                                    ///< 2k splats; biased, comparison only)
