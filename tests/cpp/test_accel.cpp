@@ -1,5 +1,6 @@
 // Embree queries: known distances, instance transforms, misses, updates, and packet
-// queries (4/8/16 with valid masks) agreeing with scalar queries.
+// queries (4/8/16 with valid masks) agreeing with scalar queries, including a recorded
+// packet that Embree's coherent mode got wrong.
 #include "test_util.h"
 
 #include "accel/accel.h"
@@ -117,4 +118,65 @@ TEST(Accel, PacketsMatchScalar) {
     int v[4] = {1, 1, 1, 1};
     Hit h[4];
     EXPECT_THROW(accel.intersect_packet(5, v, r, h), std::invalid_argument);
+}
+
+namespace {
+
+/// test_mlt.py's Cornell box (2 m, open at +z, each quad its own instance), a lamp just
+/// under the ceiling, and a large quad across the box at y = 1.6 (a cut-out in the
+/// Python test that found the problem below).
+void add_box_with_lamp(Accel& accel) {
+    const std::vector<MeshData> quads = {
+        quad_mesh(Vec3(0, 0, 0), Vec3(0, 0, 1), Vec3(1, 0, 0)),              // floor
+        quad_mesh(Vec3(0, 2, 0), Vec3(1, 0, 0), Vec3(0, 0, 1)),              // ceiling
+        quad_mesh(Vec3(0, 1, -1), Vec3(1, 0, 0), Vec3(0, 1, 0)),             // back
+        quad_mesh(Vec3(-1, 1, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)),             // left
+        quad_mesh(Vec3(1, 1, 0), Vec3(0, 0, 1), Vec3(0, 1, 0)),              // right
+        quad_mesh(Vec3(0, 1.98f, 0), Vec3(0.3f, 0, 0), Vec3(0, 0, 0.3f)),    // lamp
+        quad_mesh(Vec3(0, 1.6f, 0), Vec3(0.7f, 0, 0), Vec3(0, 0, 0.7f)),     // large quad
+    };
+    for (const MeshData& q : quads)
+        accel.add_instance(accel.add_mesh(q.points, q.n_points, q.indices, q.n_tris), Mat4());
+    accel.commit();
+}
+
+}  // namespace
+
+TEST(Accel, PacketOfLightSubpathBouncesFindsFlatInstances) {
+    // A packet recorded from coherent MLT (two light subpaths of one bundle, four lanes
+    // each, starting above and below the lamp). With RTC_INTERSECT_CONTEXT_FLAG_COHERENT,
+    // Embree 3.13 returned the floor (t = 2.13) for lanes 4-7 where rtcIntersect1 finds
+    // the large quad (t = 0.41); without the flag (Accel's default) every lane agrees.
+    Accel accel;
+    add_box_with_lamp(accel);
+    const float o[8][3] = {{0.307705f, 1.99999f, 0.143275f}, {0.28759f, 1.99999f, 0.210934f},
+                           {0.298883f, 1.99999f, 0.0873157f}, {0.291427f, 1.99999f, 0.323182f},
+                           {0.298184216f, 1.97999251f, 0.0359352231f}, {0.292500317f, 1.97999251f, 0.0470501035f},
+                           {0.287449181f, 1.97999251f, 0.244599938f}, {0.264327466f, 1.97999251f, 0.126297802f}};
+    const float d[8][3] = {{0.26424f, -0.912822f, 0.311342f}, {0.26424f, -0.912822f, 0.311342f},
+                           {0.26424f, -0.912822f, 0.311342f}, {0.26424f, -0.912822f, 0.311342f},
+                           {0.227086842f, -0.927567422f, -0.296731412f}, {0.22708714f, -0.927567363f, -0.296731472f},
+                           {0.22708708f, -0.92756772f, -0.296731532f}, {0.22708714f, -0.927567482f, -0.296731561f}};
+    for (int width : {8, 16}) {
+        if (width > Accel::max_packet_width()) continue;
+        Ray rays[16];
+        alignas(64) int valid[16];
+        for (int i = 0; i < width; ++i) {
+            const int j = i % 8;
+            rays[i] = Ray(Vec3(o[j][0], o[j][1], o[j][2]), Vec3(d[j][0], d[j][1], d[j][2]));
+            valid[i] = -1;
+        }
+        Hit hits[16];
+        bool occ[16];
+        accel.intersect_packet(width, valid, rays, hits);
+        accel.occluded_packet(width, valid, rays, occ);
+        for (int i = 0; i < width; ++i) {
+            const Hit s = accel.intersect(rays[i]);
+            ASSERT_TRUE(s.valid());
+            EXPECT_EQ(s.instance_id, hits[i].instance_id) << "width " << width << " lane " << i;
+            EXPECT_EQ(s.prim_id, hits[i].prim_id) << "width " << width << " lane " << i;
+            EXPECT_EQ(accel.occluded(rays[i]), occ[i]);
+            if (i % 8 >= 4) EXPECT_EQ(s.instance_id, 6u);  // the large quad, 0.41 away
+        }
+    }
 }
