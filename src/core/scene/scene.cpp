@@ -358,15 +358,11 @@ const TriangleLight& Scene::triangle_light(size_t light_index) const {
     return *m_triangle_lights[light_index - m_first_triangle_light];
 }
 
-void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const {
-    const Instance& inst = m_instances[hit.instance_id];
-    const Mesh& mesh = m_meshes[inst.mesh_id];
-    uint32_t v[3];
-    mesh.triangle(hit.prim_id, v);
-    // A moving instance is placed where it is at the ray's time (as Embree placed it).
-    Transform moved;
-    if (inst.motion.size() > 1) moved = Transform(inst.matrix_at(ray.time), "moving instance");
-    const Transform& xf = inst.motion.size() > 1 ? moved : inst.xf;
+namespace {
+
+/// Scene::fill_interaction for the triangle v of `mesh` placed by `xf`.
+void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mesh& mesh,
+                 const uint32_t* v, const Transform& xf, SurfaceInteraction* si) {
     si->time = ray.time;
     Vec3 p0 = xf.m.transform_point(mesh.point(v[0]));
     Vec3 p1 = xf.m.transform_point(mesh.point(v[1]));
@@ -404,6 +400,22 @@ void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction*
     si->mesh_id = inst.mesh_id;
     si->prim_id = hit.prim_id;
     si->material_id = mesh.material_id(hit.prim_id);
+}
+
+}  // namespace
+
+void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const {
+    const Instance& inst = m_instances[hit.instance_id];
+    const Mesh& mesh = m_meshes[inst.mesh_id];
+    uint32_t v[3];
+    mesh.triangle(hit.prim_id, v);
+    // A moving instance is placed where it is at the ray's time (as Embree placed it);
+    // only then is a Transform built (a default-constructed one per hit showed in
+    // profiles).
+    if (inst.motion.size() > 1)
+        fill_placed(ray, hit, inst, mesh, v, Transform(inst.matrix_at(ray.time), "moving instance"), si);
+    else
+        fill_placed(ray, hit, inst, mesh, v, inst.xf, si);
 }
 
 bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
