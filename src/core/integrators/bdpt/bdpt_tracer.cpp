@@ -248,18 +248,9 @@ bool BdptTracer::begin_walk(BdptWalk& wk, const Ray& ray, const Spectrum& beta, 
     return wk.n < max_vertices;
 }
 
-void BdptTracer::run_walk(BdptWalk& wk, BdptSampler& sampler, BdptCounters& c,
-                          const SceneHit* first_hit) const {
-    const SceneHit* pending = first_hit;  // the camera ray's, used once
-    SceneHit traced;
+void BdptTracer::run_walk(BdptWalk& wk, BdptSampler& sampler, BdptCounters& c) const {
     for (;;) {
-        const SceneHit* hit = pending;
-        pending = nullptr;
-        if (!hit) {
-            traced = m_scene.intersect(wk.ray);
-            hit = &traced;
-        }
-        if (!walk_step(wk, *hit, sampler, c)) return;
+        if (!walk_step(wk, m_scene.intersect(wk.ray), sampler, c)) return;
     }
 }
 
@@ -455,10 +446,10 @@ bool BdptTracer::begin_camera_subpath(const Vec2& p_raster, BdptSampler& sampler
 
 int BdptTracer::generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler,
                                         int max_vertices, bool roulette, PathVertex* path,
-                                        BdptCounters& c, const SceneHit* first_hit) const {
+                                        BdptCounters& c) const {
     BdptWalk walk;
     if (begin_camera_subpath(p_raster, sampler, max_vertices, roulette, path, c, walk))
-        run_walk(walk, sampler, c, m_importance.camera().has_lens() ? nullptr : first_hit);
+        run_walk(walk, sampler, c);
     return walk.n;
 }
 
@@ -822,7 +813,7 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
 
 static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int depth, int s, int t,
                              BdptSampler& sampler, BdptWorkspace& ws, Vec2* p_raster,
-                             bool mis, BdptCounters& c, const SceneHit* first_hit = nullptr) {
+                             bool mis, BdptCounters& c) {
     if (t < 1 || s < 0 || s + t != depth + 2 || (s == 1 && t == 1)) return Spectrum(0.f);
     if (int(ws.camera.size()) < t) ws.camera.resize(size_t(t));
     if (int(ws.light.size()) < std::max(s, 1)) ws.light.resize(size_t(std::max(s, 1)));
@@ -830,7 +821,7 @@ static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int de
     sampler.start_stream(BdptSampler::k_camera);
     Vec2 u = sampler.next2d();
     *p_raster = Vec2(u.x * float(width), u.y * float(height));
-    if (tr.generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c, first_hit) != t)
+    if (tr.generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c) != t)
         return Spectrum(0.f);
     sampler.start_stream(BdptSampler::k_light);
     if (s > 0 && tr.generate_light_subpath(sampler, s, false, ws.light.data(), c,
@@ -841,10 +832,8 @@ static Spectrum evaluate_one(const BdptTracer& tr, int width, int height, int de
 }
 
 Spectrum BdptTracer::evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
-                                       BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c,
-                                       const SceneHit* first_hit) const {
-    return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, true, c,
-                        first_hit);
+                                       BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const {
+    return evaluate_one(*this, m_width, m_height, depth, s, t, sampler, ws, p_raster, true, c);
 }
 
 Spectrum BdptTracer::evaluate_strategy_unweighted(int depth, int s, int t, BdptSampler& sampler,

@@ -217,16 +217,10 @@ public:
     /// over the whole image, subpaths have exactly t and s vertices (no Russian
     /// roulette). Returns the MIS-weighted contribution and its raster position:
     /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
-    /// `first_hit`, if given, is what the camera ray for the film position hits first
-    /// (Scene::intersect's answer for Camera::generate_ray(p_raster), with motion blur at
-    /// the sample's time, PssmltTracer::camera_ray; coherent MLT traces the camera rays
-    /// of a bundle as one packet): that ray is then not traced again.
-    /// Ignored with a thin lens (the lens sample moves the ray) and for t = 1.
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
-                               BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c,
-                               const SceneHit* first_hit = nullptr) const;
-    /// Resumable evaluate_strategy (BdptStrategyLane; no `first_hit`: the camera ray is
-    /// the lane's first intersect query). Returns the first query, or none when done.
+                               BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const;
+    /// Resumable evaluate_strategy (BdptStrategyLane: coherent MLT answers its ray
+    /// queries, the camera ray first). Returns the first query, or none when done.
     BdptQuery begin_strategy(BdptStrategyLane& lane, int depth, int s, int t, BdptSampler& sampler,
                              BdptWorkspace& ws) const;
     /// Consume the answer to an intersect query (Scene::intersect's for lane.walk.ray).
@@ -253,12 +247,9 @@ public:
                                         int t, const PathVertex& sampled,
                                         float* weight_here) const;
 
-    /// Subpath generation (exposed for tests): number of vertices made. `first_hit`: the
-    /// precomputed first intersection of the camera ray (see evaluate_strategy; ignored
-    /// with a thin lens).
+    /// Subpath generation (exposed for tests): number of vertices made.
     int generate_camera_subpath(const Vec2& p_raster, BdptSampler& sampler, int max_vertices,
-                                bool roulette, PathVertex* path, BdptCounters& c,
-                                const SceneHit* first_hit = nullptr) const;
+                                bool roulette, PathVertex* path, BdptCounters& c) const;
     /// `time`: the sample's shutter time (the camera subpath's, camera[0].time).
     int generate_light_subpath(BdptSampler& sampler, int max_vertices, bool roulette,
                                PathVertex* path, BdptCounters& c, float time = 0.f) const;
@@ -276,13 +267,12 @@ public:
 private:
     // Random walks (BdptWalk): begin_walk sets one up and says whether it has a ray to
     // trace; walk_step consumes that ray's hit and says whether there is a next one;
-    // run_walk is the scalar loop (the camera ray's hit `first_hit` used once if given).
+    // run_walk is the scalar loop.
     bool begin_walk(BdptWalk& walk, const Ray& ray, const Spectrum& beta, float pdf_dir,
                     int max_vertices, bool importance, bool roulette, PathVertex* path,
                     int start) const;
     bool walk_step(BdptWalk& walk, const SceneHit& hit, BdptSampler& sampler, BdptCounters& c) const;
-    void run_walk(BdptWalk& walk, BdptSampler& sampler, BdptCounters& c,
-                  const SceneHit* first_hit = nullptr) const;
+    void run_walk(BdptWalk& walk, BdptSampler& sampler, BdptCounters& c) const;
     /// generate_camera_subpath up to its walk: the camera vertex, and the walk if one is
     /// needed (returns true; walk.n is the vertex count either way).
     bool begin_camera_subpath(const Vec2& p_raster, BdptSampler& sampler, int max_vertices,

@@ -95,12 +95,12 @@ public:
     /// with start_stream + the path_tracer.h interface). `first_hit`, if given, is what
     /// camera_ray(sampler) hits first (coherent MLT traces the camera rays of a bundle
     /// as one Embree packet, integrators/cmlt): the camera ray is then not traced again.
-    /// With the bdpt sampler it is passed to BdptTracer::evaluate_strategy (the camera
-    /// subpath's first vertex; unused for t = 1 and with a thin lens).
+    /// The pt sampler only: the bdpt sampler's bundles are evaluated by
+    /// coherent::BundleEvaluator, which answers every ray query itself.
     template <class Sampler>
     PathSample evaluate(Sampler& sampler, PathCounters& counters,
                         const SceneHit* first_hit = nullptr) const {
-        if (m_bdpt) return evaluate_bdpt(sampler, counters, first_hit);
+        if (m_bdpt) return evaluate_bdpt(sampler, counters);
         PathSample s;
         const Ray ray = camera_ray(sampler, &s.pixel);
         s.L = m_tracer->li(ray, sampler, counters, first_hit);
@@ -154,8 +154,7 @@ public:
 
 private:
     template <class Sampler>
-    PathSample evaluate_bdpt(Sampler& sampler, PathCounters& counters,
-                             const SceneHit* first_hit) const {
+    PathSample evaluate_bdpt(Sampler& sampler, PathCounters& counters) const {
         PathSample s;
         sampler.start_stream(MltSampler::connection);
         sampler.set_dimension(0);
@@ -165,8 +164,7 @@ private:
         BdptCounters c;
         BdptStreamAdapter<Sampler> adapter(sampler);
         Vec2 p_raster;
-        const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c,
-                                                       first_hit);
+        const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c);
         finish_sample(s, pmf, C, p_raster, c, counters);
         return s;
     }
