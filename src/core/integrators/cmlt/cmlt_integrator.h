@@ -41,7 +41,9 @@
 /// cmlt/settings.py, the schema). Larger bundles lose at equal time: a step costs k
 /// evaluations, and packet tracing saves too little to pay for them (the BVH queries
 /// are ~15 % of a bundle's time; tests/bench/packets.py). σ = 0.03 against 0.01 is
-/// within the noise (better on cornell, worse on the caustic); σ stays 0.01.
+/// within the noise (better on cornell, worse on the caustic); σ stays 0.01. (k = 2 was
+/// measured with its 2-lane packets traced, 20 % slower than now that fewer than 4
+/// pending rays go one by one: bundle_tracer.h's k_min_packet_lanes.)
 #include "integrators/common/render_settings.h"
 
 namespace cmlt {
