@@ -267,18 +267,9 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                 bundle_stats.merge(bc);
             });
         });
-        schedule.end_round();
-        evaluations = 0;
-        bool all_done = true;
-        for (const auto& st : chains) {
-            evaluations += st->evaluations;
-            all_done = all_done && st->evaluations >= st->budget;
-        }
-        if (all_done) break;
-        if (progress && !progress(schedule.progress_done(), schedule.progress_total()) && !schedule.last_round()) {
-            cancelled = true;
+        if (!schedule.end_round(chains, [](const ChainState& st) { return st.evaluations; }, progress,
+                                &evaluations, &cancelled))
             break;
-        }
     }
     direct.finish(cancelled, !chains.empty(), t0);
     const PtPassImage direct_image = direct_pass.develop();

@@ -145,9 +145,28 @@ public:
         if (!timed()) return budget * uint64_t(m_round + 1) / k_rounds;
         return std::min(budget, done + m_quota);
     }
-    /// After the round: false if every chain has spent its budget (timed) — the caller
-    /// knows; here only the round counter advances.
-    void end_round() { ++m_round; }
+    /// After a round: advance the round counter, set *evaluations to every chain's
+    /// evaluations (`done(chain)`, chains with a `budget`), report progress. False when
+    /// the frame ends: every chain has spent its budget, or `progress` asked to stop
+    /// before the last round (then *cancelled is set).
+    template <class Chains, class Done>
+    bool end_round(const Chains& chains, Done done, const ProgressCallback& progress,
+                   uint64_t* evaluations, bool* cancelled) {
+        ++m_round;
+        *evaluations = 0;
+        bool all_done = true;
+        for (const auto& st : chains) {
+            const uint64_t d = done(*st);
+            *evaluations += d;
+            all_done = all_done && d >= st->budget;
+        }
+        if (all_done) return false;
+        if (progress && !progress(progress_done(), progress_total()) && !last_round()) {
+            *cancelled = true;
+            return false;
+        }
+        return true;
+    }
     int round() const { return m_round; }
     bool last_round() const { return !timed() && m_round >= k_rounds; }
 

@@ -233,18 +233,9 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                 counters.add(c);
             });
         });
-        schedule.end_round();
-        evaluations = 0;
-        bool all_done = true;
-        for (const auto& st : chains) {
-            evaluations += st->done;
-            all_done = all_done && st->done >= st->budget;
-        }
-        if (all_done) break;
-        if (progress && !progress(schedule.progress_done(), schedule.progress_total()) && !schedule.last_round()) {
-            cancelled = true;
+        if (!schedule.end_round(chains, [](const ChainRun& st) { return st.done; }, progress,
+                                &evaluations, &cancelled))
             break;
-        }
     }
     direct.finish(cancelled, !chains.empty(), t0);
     const PtPassImage direct_image = direct_pass.develop();
