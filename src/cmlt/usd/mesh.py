@@ -31,6 +31,9 @@ class MeshGeom:
     tri_face: Optional[np.ndarray]         # int64 (M,) authored face of each triangle
     deforming: bool = False
     warnings: List[str] = field(default_factory=list)
+    # per-vertex values the materials read through UsdPrimvarReaders:
+    # PrimvarRequest -> float32 (N, request.width), rendering-space colours
+    primvars: Optional[dict] = None
 
 
 def _tstr(time: Usd.TimeCode) -> str:
@@ -115,6 +118,78 @@ def _normals_primvar(prim, mesh: UsdGeom.Mesh, api, time) -> Optional[_Primvar]:
                         np.asarray(vals, dtype=np.float64).reshape(-1, 3), None,
                         attr.ValueMightBeTimeVarying())
     return None
+
+
+def _natural_width(pv: UsdGeom.Primvar, time) -> int:
+    """Components per element of a primvar's value (1 for float[]/int[])."""
+    v = pv.Get(time)
+    if v is None:
+        return 1
+    a = np.asarray(v)
+    return int(a.shape[1]) if a.ndim == 2 else 1
+
+
+def _to_width(values: np.ndarray, width: int) -> np.ndarray:
+    """(L, k) -> (L, width): a scalar is repeated, a narrower vector padded
+    with 0, a wider one cut."""
+    k = values.shape[1]
+    if k == width:
+        return values
+    if k == 1:
+        return np.repeat(values, width, axis=1)
+    if k > width:
+        return values[:, :width]
+    return np.concatenate([values, np.zeros((len(values), width - k))], axis=1)
+
+
+def _request_values(pv: UsdGeom.Primvar, req, raw: np.ndarray) -> np.ndarray:
+    """A request's element values (L, width): fitted, colours converted from
+    the primvar's authored colour space to the rendering space."""
+    vals = _to_width(raw, req.width)
+    if req.colour and req.width == 3 and len(vals):
+        from ..color import authored_colorspace, get_config
+        cs = authored_colorspace(pv.GetAttr())
+        vals = np.asarray(get_config().to_rendering_space(
+            np.ascontiguousarray(vals, dtype=np.float32), cs, prim=pv.GetAttr().GetPrim()),
+            dtype=np.float64)
+    return vals
+
+
+def shape_primvars(prim, requests, n_points: int, time, warn) -> Optional[dict]:
+    """Per-vertex request values for an intrinsic shape (Sphere, Cube ...): its
+    tessellation has no authored vertices, so a constant primvar fills every
+    vertex, any other interpolation gives its mean with a warning, a missing
+    one the reader's fallback with a warning. None without requests."""
+    if not requests:
+        return None
+    path = str(prim.GetPath())
+    api = UsdGeom.PrimvarsAPI(prim)
+    out = {}
+    for req in requests:
+        pv = api.GetPrimvar(req.varname)
+        value = None
+        if pv and pv.HasAuthoredValue():
+            flat = pv.ComputeFlattened(time)
+            if flat is not None and len(flat):
+                raw = np.asarray(flat, dtype=np.float64)
+                raw = raw.reshape(len(raw), -1)
+                vals = _request_values(pv, req, raw)
+                vals = vals[np.isfinite(vals).all(axis=1)]
+                if len(vals):
+                    value = vals.mean(axis=0)
+                    if len(vals) > 1 and pv.GetInterpolation() != UsdGeom.Tokens.constant:
+                        warn(f"{path}: primvar {req.varname} is {pv.GetInterpolation()} on an "
+                             f"intrinsic {prim.GetTypeName()}; {req.reader} reads its mean")
+        if value is None:
+            value = np.asarray(req.fallback, dtype=np.float64)
+            warn(f"{path}: has no primvar {req.varname}, which {req.reader} reads; using the "
+                 f"reader's fallback {_fmt(req.fallback)}")
+        out[req] = np.ascontiguousarray(np.tile(value, (n_points, 1)), dtype=np.float32)
+    return out
+
+
+def _fmt(v) -> str:
+    return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
 
 
 # ---------------------------------------------------------------- topology
@@ -375,17 +450,25 @@ class MeshReader:
     TOPO_ATTRS = ("faceVertexCounts", "faceVertexIndices", "holeIndices", "orientation")
 
     def __init__(self, prim, uv_name: Optional[str] = None,
-                 uv_fallback: Optional[Tuple[float, float]] = None, uv_reader: str = ""):
+                 uv_fallback: Optional[Tuple[float, float]] = None, uv_reader: str = "",
+                 primvar_requests=()):
         """``uv_name``: the primvar the material's UsdPrimvarReader_float2
         reads (for the texture shader ``uv_reader``); where the mesh lacks it, every vertex gets the
         reader's ``uv_fallback`` (the spec's "fetch failed" value), with a
         warning. Without ``uv_fallback``, a missing ``uv_name`` falls back to
-        ``st`` or another texCoord2f primvar (see :func:`find_uv_primvar`)."""
+        ``st`` or another texCoord2f primvar (see :func:`find_uv_primvar`).
+
+        ``primvar_requests``: the :class:`cmlt.usd.materials.PrimvarRequest`
+        of the materials' UsdPrimvarReaders; each becomes per-vertex columns
+        of ``MeshGeom.primvars`` (any interpolation: constant, uniform,
+        vertex, varying, faceVarying; indexed or not), the reader's fallback
+        where the mesh lacks the primvar (with a warning naming the mesh)."""
         self.path = str(prim.GetPath())
         self.uv_name = uv_name
         self.uv_fallback = None if uv_fallback is None else \
             tuple(float(v) for v in uv_fallback)
         self.uv_reader = uv_reader
+        self.requests = tuple(primvar_requests or ())
         self.topo: Optional[_Topo] = None
         self.topo_key = None
         self.static_geom: Optional[MeshGeom] = None
@@ -441,6 +524,22 @@ class MeshReader:
             if npv is not None and npv.name == "st":   # pragma: no cover
                 npv.name = "normals"
             primvars.append(uv)
+        req_pv = {}                             # request index -> (Usd primvar, _Primvar)
+        for k, req in enumerate(self.requests):
+            cache_key = f"pv:{k}"
+            upv = api.GetPrimvar(req.varname)
+            if not (upv and upv.HasAuthoredValue()):
+                continue
+            rp = self._pv_cache.get(cache_key)
+            if rp is None:
+                rp = _read_primvar(upv, time, _natural_width(upv, time))
+                if rp is not None and not rp.varying:
+                    self._pv_cache[cache_key] = rp
+            if rp is None:
+                continue
+            rp.name = cache_key
+            primvars.append(rp)
+            req_pv[k] = upv
         pv_varying = any(pv.varying for pv in primvars)
         pv_key = tuple((pv.name, pv.interp, pv.indices is not None,
                         len(pv.values)) for pv in primvars)
@@ -469,6 +568,8 @@ class MeshReader:
                 continue                       # dropped by validation
             e = topo.out_elem[pv.name]
             vals = pv.values if e is None else pv.values[e]
+            if pv.name.startswith("pv:"):
+                continue                       # material primvars: below
             if pv.name == "normals":
                 if not np.isfinite(vals).all():
                     warnings.append(f"{path}: normals contain NaN/Inf (time {tstr}); ignored")
@@ -487,6 +588,8 @@ class MeshReader:
             warnings.append(f"{path}: has no primvar {self.uv_name}, which {by} reads through "
                             f"a UsdPrimvarReader_float2; textures use the reader's fallback st "
                             f"({self.uv_fallback[0]:g}, {self.uv_fallback[1]:g})")
+        mat_pvs = self._material_primvars(primvars, req_pv, topo, len(out_pts), warnings, tstr) \
+            if self.requests else None
         if len(out_pts) != len(points) and topo.out_pt is None:   # pragma: no cover
             raise SkipPrim(f"{path}: point count changed (time {tstr}); not rendered")
 
@@ -522,7 +625,35 @@ class MeshReader:
             # points or normals may change from frame to frame (USD time samples)
             deforming=bool(skinned or pts_varying or (npv is not None and npv.varying)),
             warnings=warnings,
+            primvars=mat_pvs,
         )
         if not (topo_varying or pts_varying or pv_varying or skinned):
             self.static_geom = geom
         return geom
+
+    def _material_primvars(self, primvars, req_pv, topo, n_out, warnings, tstr) -> dict:
+        """MeshGeom.primvars: per request, float32 (n_out, width) at the output
+        vertices; the reader's fallback where the mesh lacks the primvar (or
+        validation dropped it), non-finite values replaced by it."""
+        by_name = {pv.name: pv for pv in primvars}
+        out = {}
+        for k, req in enumerate(self.requests):
+            name = f"pv:{k}"
+            pv = by_name.get(name)
+            fb = np.asarray(req.fallback, dtype=np.float64)
+            if pv is None or name not in topo.out_elem:
+                why = "has no primvar" if k not in req_pv else "cannot use primvar"
+                warnings.append(f"{self.path}: {why} {req.varname}, which {req.reader} reads "
+                                f"(time {tstr}); using the reader's fallback {_fmt(req.fallback)}")
+                out[req] = np.ascontiguousarray(np.tile(fb, (n_out, 1)), dtype=np.float32)
+                continue
+            elem_vals = _request_values(req_pv[k], req, pv.values)
+            bad = ~np.isfinite(elem_vals).all(axis=1)
+            if bad.any():
+                warnings.append(f"{self.path}: primvar {req.varname} has {int(bad.sum())} "
+                                f"NaN/Inf value(s) (time {tstr}); the reader's fallback there")
+                elem_vals = np.where(bad[:, None], fb[None, :], elem_vals)
+            e = topo.out_elem[name]
+            vals = elem_vals[:n_out] if e is None else elem_vals[e]
+            out[req] = np.ascontiguousarray(vals, dtype=np.float32)
+        return out
