@@ -16,7 +16,7 @@ SUDO     ?=
 APT_PKGS := build-essential cmake ninja-build libembree-dev libtbb-dev \
             googletest libgtest-dev python3-dev python3-venv
 PY_PKGS  := scikit-build-core nanobind numpy usd-core openimageio "opencolorio>=2.2" \
-            rich matplotlib pytest
+            materialx rich matplotlib pytest
 THREADS  ?= 2
 DEMO_FRAMES ?= 1:24
 

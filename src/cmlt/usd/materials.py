@@ -288,6 +288,15 @@ def _primvar_record(material: str, name: str, reader: UsdShade.Shader, sid: str,
     return rec, constant
 
 
+def _primvar_request_record(name: str, varname: str, fallback, reader: str, sid: str) -> dict:
+    """The inputs record of ``name`` read per vertex from primvar ``varname``
+    (``fallback`` in rendering-space units), as _primvar_record makes it."""
+    fb = tuple(float(x) for x in fallback)
+    return {"shader": reader, "id": sid, "primvar": varname, "fallback": fb,
+            "primvar_request": PrimvarRequest(varname, PRIMVAR_INPUTS[name],
+                                              name in COLOR_INPUTS, fb, reader)}
+
+
 def _fmt(v) -> str:
     return "(" + ", ".join(f"{x:g}" for x in v) + ")" if isinstance(v, tuple) else f"{v:g}"
 
@@ -315,6 +324,13 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
     path = str(material.GetPath())
     shader = find_preview_surface(material)
     if shader is None:
+        # MaterialX: a network of ND_* nodes, or a referenced .mtlx document
+        from .materialx import read_materialx_network
+        found, mx_mat = read_materialx_network(material, time, warnings)
+        if mx_mat is not None:
+            return mx_mat
+        if found:                                        # MaterialX, but unmappable: warned
+            return Material(name=path, inputs={"unsupported": True})
         warnings.append(f"{path}: no UsdPreviewSurface surface shader (unsupported shader "
                         f"network); rendered with the default grey material")
         return Material(name=path, inputs={"unsupported": True})
@@ -390,14 +406,23 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
     )
 
 
-def bound_material(prim) -> Optional[UsdShade.Material]:
+def bound_material(prim):
     """The material bound to ``prim`` for final renders (purpose 'full',
-    falling back to all-purpose bindings), or None."""
+    falling back to all-purpose bindings), or None. A binding whose target
+    does not exist because it lies under a reference to a ``.mtlx``
+    document (which usd-core cannot compose) gives a
+    :class:`cmlt.usd.materialx.MtlxMaterialRef` instead."""
     try:
-        mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial(UsdShade.Tokens.full)
+        mat, rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial(UsdShade.Tokens.full)
     except Exception:                                    # pragma: no cover
         return None
-    return mat if mat and mat.GetPrim().IsValid() else None
+    if mat and mat.GetPrim().IsValid():
+        return mat
+    targets = rel.GetTargets() if rel else []
+    if targets:
+        from .materialx import mtlx_binding
+        return mtlx_binding(prim.GetStage(), targets[0])
+    return None
 
 
 #: the request of a gprim without a material whose displayColor varies over it
@@ -488,11 +513,15 @@ class MaterialTable:
         return self._add_special(key, Material(name=key, diffuse=req.fallback,
                                                inputs={"diffuseColor": rec}))
 
-    def material(self, mat: UsdShade.Material) -> int:
+    def material(self, mat) -> int:
         key = str(mat.GetPath())
         i = self._index.get(key)
         if i is None:
-            m = read_material(mat, self.time, self.warnings)
+            if isinstance(mat, UsdShade.Material):
+                m = read_material(mat, self.time, self.warnings)
+            else:                                        # a .mtlx document's material
+                m = mat.read(self.time, self.warnings) or \
+                    Material(name=key, inputs={"unsupported": True})
             if m.inputs.get("unsupported"):
                 i = self.default()
             else:
