@@ -444,6 +444,148 @@ def smooth_normals(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------- reading
 
+# ---------------------------------------------------------------- subdivision
+
+#: subdivision schemes refined with OpenSubdiv (``none``: rendered as authored)
+SUBDIV_SCHEMES = ("catmullClark", "loop", "bilinear")
+#: a mesh's own refinement level (``int cmlt:subdivisionLevel``; 0 = the control cage)
+SUBDIV_LEVEL_ATTR = "cmlt:subdivisionLevel"
+MAX_SUBDIV_LEVEL = 6
+#: refined faces of one mesh at most: a higher level is lowered, with a warning
+MAX_SUBDIV_FACES = 4_000_000
+_default_level = 2
+
+
+def default_subdiv_level() -> int:
+    """Refinement level of subdivision surfaces without ``cmlt:subdivisionLevel``."""
+    return _default_level
+
+
+def set_default_subdiv_level(level: int) -> None:
+    """Set :func:`default_subdiv_level` (0 renders every control cage as
+    authored, with smooth normals). Meshes already read keep their level."""
+    global _default_level
+    level = int(level)
+    if not 0 <= level <= MAX_SUBDIV_LEVEL:
+        raise ValueError(f"subdivision level must be 0..{MAX_SUBDIV_LEVEL}, got {level}")
+    _default_level = level
+
+
+def subdiv_level_of(prim) -> int:
+    """Refinement level of a mesh: 0 for ``subdivisionScheme = none`` (and
+    unknown schemes), else its ``cmlt:subdivisionLevel`` if authored, else
+    :func:`default_subdiv_level`."""
+    scheme = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get()
+    if scheme not in SUBDIV_SCHEMES:
+        return 0
+    attr = prim.GetAttribute(SUBDIV_LEVEL_ATTR)
+    if attr and attr.HasAuthoredValue():
+        try:
+            return max(0, min(int(attr.Get()), MAX_SUBDIV_LEVEL))
+        except (TypeError, ValueError):
+            return default_subdiv_level()
+    return default_subdiv_level()
+
+
+def refine_subdivision(path, mesh, points, counts, fvi, primvars, level, time):
+    """Refine a subdivision mesh's cage with OpenSubdiv (``cmlt._core.subdivide``):
+    returns (limit points, face counts, face vertex indices, primvars on the
+    refined mesh, the authored face of each refined face, warnings).
+
+    Authored normals are ignored (UsdGeom: a subdivision surface's normals
+    come from the surface); the limit normals become vertex normals. Vertex
+    and varying primvars are refined like the points, faceVarying ones by
+    OpenSubdiv's face-varying rules (``faceVaryingLinearInterpolation``),
+    uniform ones follow their authored face, constant ones stay."""
+    import cmlt._core as core
+    tstr = _tstr(time)
+    warnings: List[str] = []
+    n_points = len(points)
+    n_faces = len(counts)
+    counts = np.asarray(counts, dtype=np.int64)
+    keep = counts >= 3
+    if not keep.all():
+        raise SkipPrim(f"{path}: {int((~keep).sum())} face(s) with fewer than 3 vertices; a "
+                       f"subdivision surface needs polygons (time {tstr}); not rendered")
+    scheme = str(mesh.GetSubdivisionSchemeAttr().Get())
+    if scheme == "loop" and (counts != 3).any():
+        warnings.append(f"{path}: subdivisionScheme loop needs triangles but the mesh has "
+                        f"{int((counts != 3).sum())} other polygon(s); refined as catmullClark")
+        scheme = "catmullClark"
+    asked = level
+    while level > 1 and n_faces * 4 ** level > MAX_SUBDIV_FACES:   # each level: 4 faces per face
+        level -= 1
+    if level < asked:
+        warnings.append(f"{path}: {n_faces} faces: subdivided to level {level}, not {asked} "
+                        f"(at most {MAX_SUBDIV_FACES} refined faces)")
+
+    def arr(getter, dtype):
+        v = getter().Get(time)
+        return np.ascontiguousarray(np.asarray(v if v is not None else [], dtype=dtype).reshape(-1))
+
+    vertex_pvs, fvar_pvs, uniform_pvs, const_pvs = [], [], [], []
+    K = len(fvi)
+    for pv in primvars:
+        if pv.name == "normals":
+            continue
+        try:
+            elem = _elem_per_corner(pv, counts, fvi, n_faces, n_points, K, path, tstr)
+        except ValueError as exc:
+            warnings.append(str(exc))
+            continue
+        if pv.interp == UsdGeom.Tokens.constant:
+            const_pvs.append(pv)
+        elif pv.interp == UsdGeom.Tokens.uniform:
+            face_elem = pv.indices[:n_faces] if pv.indices is not None else np.arange(n_faces)
+            uniform_pvs.append((pv, face_elem))
+        elif pv.interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            vals = pv.values[pv.indices[:n_points]] if pv.indices is not None else \
+                pv.values[:n_points]
+            vertex_pvs.append((pv, vals))
+        else:
+            fvar_pvs.append((pv, elem))
+    vdata = np.ascontiguousarray(np.concatenate([v for _, v in vertex_pvs], axis=1),
+                                 dtype=np.float64) if vertex_pvs else None
+    fvar = [(np.ascontiguousarray(pv.values, dtype=np.float64),
+             np.ascontiguousarray(elem, dtype=np.int32)) for pv, elem in fvar_pvs]
+    try:
+        r = core.subdivide(
+            np.ascontiguousarray(points, dtype=np.float64),
+            np.ascontiguousarray(counts, dtype=np.int32), np.ascontiguousarray(fvi, dtype=np.int32),
+            scheme=scheme, level=int(level),
+            crease_indices=arr(mesh.GetCreaseIndicesAttr, np.int32),
+            crease_lengths=arr(mesh.GetCreaseLengthsAttr, np.int32),
+            crease_sharpnesses=arr(mesh.GetCreaseSharpnessesAttr, np.float32),
+            corner_indices=arr(mesh.GetCornerIndicesAttr, np.int32),
+            corner_sharpnesses=arr(mesh.GetCornerSharpnessesAttr, np.float32),
+            hole_indices=arr(mesh.GetHoleIndicesAttr, np.int32),
+            interpolate_boundary=str(mesh.GetInterpolateBoundaryAttr().Get() or "edgeAndCorner"),
+            face_varying_linear=str(mesh.GetFaceVaryingLinearInterpolationAttr().Get()
+                                    or "cornersPlus1"),
+            smooth_triangles=str(mesh.GetTriangleSubdivisionRuleAttr().Get()) == "smooth",
+            vertex_data=vdata, face_varying=fvar, name=path)
+    except ValueError as exc:                            # SceneError, bad arguments
+        raise SkipPrim(f"{path}: cannot be subdivided (time {tstr}): {exc}; not rendered") \
+            from None
+    parent = np.asarray(r["face_parent"], dtype=np.int64)
+    out: List[_Primvar] = list(const_pvs)
+    col = 0
+    for pv, vals in vertex_pvs:
+        k = vals.shape[1]
+        out.append(_Primvar(pv.name, UsdGeom.Tokens.vertex,
+                            np.asarray(r["vertex_data"][:, col:col + k]), None, pv.varying))
+        col += k
+    for (pv, _), (values, indices) in zip(fvar_pvs, r["face_varying"]):
+        out.append(_Primvar(pv.name, UsdGeom.Tokens.faceVarying, np.asarray(values),
+                            np.asarray(indices, dtype=np.int64), pv.varying))
+    for pv, face_elem in uniform_pvs:
+        out.append(_Primvar(pv.name, UsdGeom.Tokens.uniform, pv.values[face_elem[parent]], None,
+                            pv.varying))
+    out.append(_Primvar("normals", UsdGeom.Tokens.vertex, np.asarray(r["normals"]), None, True))
+    return (np.asarray(r["points"]), np.asarray(r["face_counts"], dtype=np.int64),
+            np.asarray(r["face_indices"], dtype=np.int64), out, parent, warnings)
+
+
 class MeshReader:
     """Reads one UsdGeom.Mesh prim, caching what does not change in time."""
 
@@ -473,6 +615,9 @@ class MeshReader:
         self.topo_key = None
         self.static_geom: Optional[MeshGeom] = None
         self._pv_cache: dict = {}               # primvars that do not vary in time
+
+    def _subdiv_level(self, prim, mesh) -> int:
+        return subdiv_level_of(prim)
 
     def _varying(self, prim) -> Tuple[bool, bool]:
         topo = any(prim.GetAttribute(a).ValueMightBeTimeVarying()
@@ -544,7 +689,22 @@ class MeshReader:
         pv_key = tuple((pv.name, pv.interp, pv.indices is not None,
                         len(pv.values)) for pv in primvars)
 
-        if self.topo is None or topo_varying or self.topo_key != pv_key or \
+        level = self._subdiv_level(prim, mesh)
+        subdiv_warnings: List[str] = []
+        if level > 0:
+            # a subdivision surface: refine the cage (every read; a static mesh is read once)
+            counts = mesh.GetFaceVertexCountsAttr().Get(time)
+            fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
+            left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+            counts = np.asarray(counts if counts is not None else [], dtype=np.int64)
+            fvi = np.asarray(fvi if fvi is not None else [], dtype=np.int64)
+            points, counts, fvi, primvars, parent, subdiv_warnings = refine_subdivision(
+                path, mesh, points, counts, fvi, primvars, level, time)
+            topo, _ = build_topology(path, counts, fvi, len(points), None, left, primvars, time,
+                                     points=points)
+            topo.tri_face = parent[topo.tri_face]         # the authored face of each triangle
+            self.topo, self.topo_key = None, None
+        elif self.topo is None or topo_varying or self.topo_key != pv_key or \
                 any(pv.varying and pv.indices is not None for pv in primvars):
             counts = mesh.GetFaceVertexCountsAttr().Get(time)
             fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
@@ -557,8 +717,9 @@ class MeshReader:
                                      left, primvars, time, points=points)
             self.topo, self.topo_key = topo, pv_key
             self._tri_pts = None
-        topo = self.topo
-        warnings = list(topo.warnings)
+        if level <= 0:
+            topo = self.topo
+        warnings = subdiv_warnings + list(topo.warnings)
 
         # gather per-vertex arrays
         out_pts = points if topo.out_pt is None else points[topo.out_pt]

@@ -8,6 +8,7 @@
 
 #include "util/error.h"
 
+#include <opensubdiv/far/error.h>
 #include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/topologyDescriptor.h>
 
@@ -20,6 +21,12 @@ namespace cmlt {
 namespace {
 
 using namespace OpenSubdiv;
+
+/// OpenSubdiv reports errors through a callback (printing to stderr by default): keep the
+/// last message of this thread for the exception instead.
+thread_local std::string t_osd_error;
+
+void osd_error(Far::ErrorType, const char* message) { t_osd_error = message ? message : ""; }
 
 /// A view of `width` doubles: what PrimvarRefiner's templates interpolate.
 struct Elem {
@@ -185,9 +192,14 @@ SubdivResult subdivide(const SubdivInput& in) {
     desc.fvarChannels = fvar.data();
 
     using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+    Far::SetErrorCallback(osd_error);
+    t_osd_error.clear();
     std::unique_ptr<Far::TopologyRefiner> refiner(
         Factory::Create(desc, Factory::Options(scheme_type(in.scheme), sdc_options(in))));
-    if (!refiner) CMLT_THROW(SceneError, "subdivide '" << in.name << "': OpenSubdiv rejected the topology");
+    if (!refiner)
+        CMLT_THROW(SceneError, "subdivide '" << in.name << "': OpenSubdiv rejected the topology ("
+                                             << (t_osd_error.empty() ? "no reason given" : t_osd_error)
+                                             << ")");
     Far::TopologyRefiner::UniformOptions uo(in.level);
     uo.fullTopologyInLastLevel = true;
     refiner->RefineUniform(uo);
