@@ -700,8 +700,9 @@ class MeshReader:
             fvi = np.asarray(fvi if fvi is not None else [], dtype=np.int64)
             points, counts, fvi, primvars, parent, subdiv_warnings = refine_subdivision(
                 path, mesh, points, counts, fvi, primvars, level, time)
-            topo, _ = build_topology(path, counts, fvi, len(points), None, left, primvars, time,
-                                     points=points)
+            # (refined quads are convex enough for a fan: no concavity pass, which would
+            # cost more than the refinement itself)
+            topo, _ = build_topology(path, counts, fvi, len(points), None, left, primvars, time)
             topo.tri_face = parent[topo.tri_face]         # the authored face of each triangle
             self.topo, self.topo_key = None, None
         elif self.topo is None or topo_varying or self.topo_key != pv_key or \
