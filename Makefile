@@ -13,10 +13,10 @@ VENV     ?= .venv
 PY       := $(VENV)/bin/python
 BUILD    := build/py
 SUDO     ?=
-APT_PKGS := build-essential cmake ninja-build libembree-dev libtbb-dev \
+APT_PKGS := build-essential cmake ninja-build libembree-dev libtbb-dev libosd-dev \
             googletest libgtest-dev python3-dev python3-venv
 PY_PKGS  := scikit-build-core nanobind numpy usd-core openimageio "opencolorio>=2.2" \
-            rich matplotlib pytest
+            materialx rich matplotlib pytest
 THREADS  ?= 2
 DEMO_FRAMES ?= 1:24
 

@@ -38,5 +38,6 @@ std::shared_ptr<void> make_owner(std::vector<nb::object> objs);
 void bind_scene(nb::module_& m);
 void bind_render(nb::module_& m);
 void bind_temporal(nb::module_& m);
+void bind_geometry(nb::module_& m);
 
 }  // namespace cmlt::bindings

@@ -16,7 +16,8 @@ using namespace nb::literals;
 namespace {
 
 uint32_t add_mesh(Scene& s, const std::string& name, nb::handle points, nb::handle indices,
-                  nb::handle normals, nb::handle uvs, nb::handle material_ids) {
+                  nb::handle normals, nb::handle uvs, nb::handle material_ids,
+                  nb::handle primvars) {
     const char* fn = "add_mesh";
     std::vector<nb::object> keep;
     MeshData d;
@@ -42,6 +43,17 @@ uint32_t add_mesh(Scene& s, const std::string& name, nb::handle points, nb::hand
         AnyArray ma = as_array(material_ids, fn, "material_ids");
         d.material_ids = checked_matrix<uint32_t>(ma, fn, "material_ids", long(d.n_tris), 0, "uint32");
         keep.push_back(nb::borrow(material_ids));
+    }
+    if (!primvars.is_none()) {
+        AnyArray va = as_array(primvars, fn, "primvars");
+        if (va.ndim() != 2 || va.shape(1) < 1 || va.shape(1) > size_t(k_max_primvar_columns))
+            throw nb::value_error(("add_mesh: primvars must have shape (N, K) with K in 1.." +
+                                   std::to_string(k_max_primvar_columns))
+                                      .c_str());
+        d.primvars = checked_matrix<float>(va, fn, "primvars", long(d.n_points), long(va.shape(1)),
+                                           "float32");
+        d.n_primvar_columns = uint32_t(va.shape(1));
+        keep.push_back(nb::borrow(primvars));
     }
     d.owner = make_owner(std::move(keep));
     return s.add_mesh(name, std::move(d));
@@ -137,6 +149,25 @@ void material_from_params(Material& m, const float* row, size_t cols, size_t r) 
     m.ch_clearcoat = ch(c::ch_clearcoat, 0);
     m.ch_clearcoat_roughness = ch(c::ch_clearcoat_roughness, 0);
     m.ch_opacity = ch(c::ch_opacity, 3);
+    auto pv = [&](int col, const char* what) -> int8_t {
+        if (size_t(col) >= cols) return -1;
+        float v = row[col];
+        if (!(v >= -1.f && v < float(k_max_primvar_columns)) || v != std::floor(v))
+            throw nb::value_error(("set_materials: params[" + std::to_string(r) + ", " +
+                                   std::to_string(col) + "] (" + what +
+                                   " primvar column) must be -1 or 0.." +
+                                   std::to_string(k_max_primvar_columns - 1) + ", got " +
+                                   std::to_string(v))
+                                      .c_str());
+        return int8_t(v);
+    };
+    m.pv_diffuse = pv(c::pv_diffuse, "diffuseColor");
+    m.pv_specular = pv(c::pv_specular, "specularColor");
+    m.pv_metallic = pv(c::pv_metallic, "metallic");
+    m.pv_roughness = pv(c::pv_roughness, "roughness");
+    m.pv_clearcoat = pv(c::pv_clearcoat, "clearcoat");
+    m.pv_clearcoat_roughness = pv(c::pv_clearcoat_roughness, "clearcoatRoughness");
+    m.pv_opacity = pv(c::pv_opacity, "opacity");
 }
 
 void set_materials(Scene& s, nb::handle diffuse, nb::handle emission, nb::handle params) {
@@ -154,10 +185,12 @@ void set_materials(Scene& s, nb::handle diffuse, nb::handle emission, nb::handle
     if (!params.is_none()) {
         AnyArray pa = as_array(params, "set_materials", "params");
         if (pa.ndim() != 2 || (pa.shape(1) != size_t(k_param_cols_basic) &&
-                               pa.shape(1) != size_t(k_param_cols_full)))
+                               pa.shape(1) != size_t(k_param_cols_full) &&
+                               pa.shape(1) != size_t(k_param_cols_primvar)))
             throw nb::value_error(("set_materials: params must have shape (K, " +
-                                   std::to_string(k_param_cols_basic) + ") or (K, " +
-                                   std::to_string(k_param_cols_full) + ")")
+                                   std::to_string(k_param_cols_basic) + "), (K, " +
+                                   std::to_string(k_param_cols_full) + ") or (K, " +
+                                   std::to_string(k_param_cols_primvar) + ")")
                                       .c_str());
         const float* p = checked_matrix<float>(pa, "set_materials", "params", long(d.size()),
                                                long(pa.shape(1)), "float32");
@@ -268,9 +301,11 @@ void bind_scene(nb::module_& m) {
     nb::class_<Scene>(m, "Scene", "The render scene of one frame (meshes share numpy memory).")
         .def(nb::init<>())
         .def("add_mesh", &add_mesh, "name"_a, "points"_a, "indices"_a, "normals"_a = nb::none(),
-             "uvs"_a = nb::none(), "material_ids"_a = nb::none(),
+             "uvs"_a = nb::none(), "material_ids"_a = nb::none(), "primvars"_a = nb::none(),
              "Add a mesh without copying: points float32 (N,3) from padded_points, indices uint32 "
-             "(M,3), normals float32 (N,3), uvs float32 (N,2), material_ids uint32 (M,). The arrays "
+             "(M,3), normals float32 (N,3), uvs float32 (N,2), material_ids uint32 (M,), primvars "
+             "float32 (N,K) per-vertex primvar columns (K <= 8) that material inputs driven by a "
+             "UsdPrimvarReader read (set_materials params columns 25-31). The arrays "
              "are kept alive and must not be modified afterwards. Returns the mesh id.")
         .def("update_mesh_points", &update_mesh_points, "mesh_id"_a, "points"_a,
              "normals"_a = nb::none(),
@@ -307,13 +342,16 @@ void bind_scene(nb::module_& m) {
         .def("set_materials", &set_materials, "diffuse"_a, "emission"_a, "params"_a = nb::none(),
              "Material table: diffuse and emission (K,3); material_ids index the rows.\n\n"
              "params=None: Lambert materials (diffuse + emission only). Otherwise every row is a\n"
-             "UsdPreviewSurface; params is float32 (K, 11) or (K, 25) with columns\n"
+             "UsdPreviewSurface; params is float32 (K, 11), (K, 25) or (K, 32) with columns\n"
              "  0-2 specularColor rgb, 3 useSpecularWorkflow (0/1), 4 metallic, 5 roughness,\n"
              "  6 clearcoat, 7 clearcoatRoughness, 8 opacity, 9 opacityThreshold, 10 ior,\n"
              "  texture ids (-1 = none): 11 diffuseColor, 12 emissiveColor, 13 specularColor,\n"
              "  14 normal, 15 metallic, 16 roughness, 17 clearcoat, 18 clearcoatRoughness,\n"
              "  19 opacity; channels (0..3 = r,g,b,a) read by the scalar inputs: 20 metallic,\n"
-             "  21 roughness, 22 clearcoat, 23 clearcoatRoughness, 24 opacity.\n"
+             "  21 roughness, 22 clearcoat, 23 clearcoatRoughness, 24 opacity; first primvar\n"
+             "  column (-1 = none; colours read 3 columns) of the mesh's primvars: 25 diffuseColor,\n"
+             "  26 specularColor, 27 metallic, 28 roughness, 29 clearcoat, 30 clearcoatRoughness,\n"
+             "  31 opacity.\n"
              "(cmlt.shot.bridge.MATERIAL_PARAM_COLUMNS mirrors this layout.)")
         .def("add_texture", &add_texture, "image"_a, "wrap_s"_a = "repeat", "wrap_t"_a = "repeat",
              "scale"_a = std::array<float, 4>{1.f, 1.f, 1.f, 1.f},

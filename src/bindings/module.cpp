@@ -114,4 +114,5 @@ NB_MODULE(_core, m) {
     bind_scene(m);
     bind_render(m);
     bind_temporal(m);
+    bind_geometry(m);
 }

@@ -76,6 +76,12 @@ class Mesh:
     # Motion blur: the points at the shutter's time steps (each like ``points``),
     # evenly spaced over [shutter open, shutter close]; None = no deformation blur.
     motion_points: Optional[List[np.ndarray]] = None
+    # Per-vertex values that material inputs read through UsdPrimvarReaders:
+    # {key: float32 (N, w)}, the key being the ``primvar_request`` of the
+    # material input that reads it (``Material.inputs[name]["primvar_request"]``,
+    # a cmlt.usd.materials.PrimvarRequest or any hashable for hand-built scenes;
+    # w = 3 for colour inputs, 1 for scalar ones). None = no such values.
+    primvars: Optional[Dict[object, np.ndarray]] = None
 
 
 @dataclass

@@ -41,6 +41,7 @@ def Xform "World"
         }
         def Mesh "Arm" (prepend apiSchemas = ["SkelBindingAPI"])
         {
+            uniform token subdivisionScheme = "none"
             int[] faceVertexCounts = [4, 4]
             int[] faceVertexIndices = [0, 1, 4, 3, 1, 2, 5, 4]
             point3f[] points = [(0, 0, 0), (1.5, 0, 0), (2, 0, 0), (0, 0.1, 0), (1.5, 0.1, 0), (2, 0.1, 0)]
@@ -57,6 +58,7 @@ def Xform "World"
     }
     def Mesh "Ground"
     {
+        uniform token subdivisionScheme = "none"
         int[] faceVertexCounts = [4]
         int[] faceVertexIndices = [0, 1, 2, 3]
         point3f[] points = [(-5, -1, 5), (5, -1, 5), (5, -1, -5), (-5, -1, -5)]

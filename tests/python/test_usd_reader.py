@@ -530,6 +530,7 @@ def test29_large_mesh_is_fast(tmp_path):
     quads = np.stack([v0, v0 + 1, v0 + n + 2, v0 + n + 1], 1).reshape(-1)
     stage = Usd.Stage.CreateInMemory()
     m = UsdGeom.Mesh.Define(stage, "/grid")
+    m.CreateSubdivisionSchemeAttr("none")           # a polygon mesh
     from pxr import Vt
     m.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts))
     m.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(n * n, 4, dtype=np.int32)))

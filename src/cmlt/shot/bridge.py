@@ -42,7 +42,7 @@ import numpy as np
 from ..scene import FrameScene, Mesh, padded_points
 
 __all__ = ["SceneBridge", "UpdateReport", "BridgeError", "MATERIAL_PARAM_COLUMNS",
-           "material_params"]
+           "PRIMVAR_PARAM_COLUMNS", "material_params", "primvar_layout", "MAX_PRIMVAR_COLUMNS"]
 
 #: Column layout of the ``params`` table of ``core.Scene.set_materials``
 #: (src/core/materials/material.h, ``material_col``). Texture columns hold a
@@ -54,23 +54,36 @@ MATERIAL_PARAM_COLUMNS = (
     "tex_roughness", "tex_clearcoat", "tex_clearcoat_roughness", "tex_opacity",
     "ch_metallic", "ch_roughness", "ch_clearcoat", "ch_clearcoat_roughness", "ch_opacity",
 )
-_COL = {name: i for i, name in enumerate(MATERIAL_PARAM_COLUMNS)}
+#: Appended to MATERIAL_PARAM_COLUMNS when some material reads primvars: the
+#: first column of the mesh's ``primvars`` array each input reads (-1: none).
+PRIMVAR_PARAM_COLUMNS = (
+    "pv_diffuse", "pv_specular", "pv_metallic", "pv_roughness", "pv_clearcoat",
+    "pv_clearcoat_roughness", "pv_opacity",
+)
+_COL = {name: i for i, name in enumerate(MATERIAL_PARAM_COLUMNS + PRIMVAR_PARAM_COLUMNS)}
+#: columns of a mesh's primvars array the core interpolates at a hit (k_max_primvar_columns)
+MAX_PRIMVAR_COLUMNS = 8
 #: UsdUVTexture output -> channel read by a scalar input
 _CHANNELS = {"rgb": 0, "r": 0, "g": 1, "b": 2, "a": 3}
 
 
-def material_params(m, texture_ids=None) -> np.ndarray:
+def material_params(m, texture_ids=None, primvar_columns=None) -> np.ndarray:
     """One row of the params table for a :class:`cmlt.scene.Material`.
 
     ``texture_ids`` maps an input name (``diffuseColor``, ``roughness`` …) to
-    ``(texture id, channel)``; inputs without an entry use their constant."""
-    row = np.full(len(MATERIAL_PARAM_COLUMNS), -1.0, dtype=np.float32)
+    ``(texture id, channel)``; inputs without an entry use their constant.
+    ``primvar_columns`` (None: the row has no primvar columns) maps the layout
+    key of a primvar (:func:`primvar_layout`) to its first column; inputs whose
+    ``primvar_request`` is there read it per hit."""
+    ncols = len(MATERIAL_PARAM_COLUMNS) + (len(PRIMVAR_PARAM_COLUMNS)
+                                           if primvar_columns is not None else 0)
+    row = np.full(ncols, -1.0, dtype=np.float32)
     row[0:3] = m.specular
     row[_COL["use_specular_workflow"]] = 1.0 if m.use_specular_workflow else 0.0
     for name in ("metallic", "roughness", "clearcoat", "clearcoat_roughness", "opacity",
                  "opacity_threshold", "ior"):
         row[_COL[name]] = float(getattr(m, name))
-    row[_COL["ch_metallic"]:] = 0.0
+    row[_COL["ch_metallic"]:_COL["ch_opacity"] + 1] = 0.0
     row[_COL["ch_opacity"]] = 3.0
     for usd_name, (tid, ch) in (texture_ids or {}).items():
         col = _TEXTURE_INPUTS.get(usd_name)
@@ -79,7 +92,81 @@ def material_params(m, texture_ids=None) -> np.ndarray:
         row[_COL["tex_" + col]] = float(tid)
         if "ch_" + col in _COL:
             row[_COL["ch_" + col]] = float(ch)
+    for usd_name, rec in (m.inputs or {}).items() if primvar_columns is not None else ():
+        key = rec.get("primvar_request") if isinstance(rec, dict) else None
+        col = _TEXTURE_INPUTS.get(usd_name)
+        if key is None or col is None or ("pv_" + col) not in _COL or key not in primvar_columns:
+            continue
+        row[_COL["pv_" + col]] = float(primvar_columns[key])
     return row
+
+
+#: primvar inputs that read 3 columns (the rest read 1)
+_COLOUR_PRIMVAR_INPUTS = ("diffuseColor", "specularColor")
+
+
+def primvar_layout(materials, warn=None) -> dict:
+    """The columns of the meshes' ``primvars`` arrays: {key: (first column,
+    width, fill)} for every distinct ``primvar_request`` of the materials'
+    inputs, in material order. ``fill`` is what a mesh without that key gets
+    (the request's fallback, else the material's constant). Requests past
+    MAX_PRIMVAR_COLUMNS are left out (``warn`` is told); their inputs keep
+    their constants."""
+    layout, col = {}, 0
+    for m in materials:
+        for name, rec in (m.inputs or {}).items():
+            key = rec.get("primvar_request") if isinstance(rec, dict) else None
+            if key is None or key in layout or name not in _TEXTURE_INPUTS:
+                continue
+            width = int(getattr(key, "width", 0) or
+                        (3 if name in _COLOUR_PRIMVAR_INPUTS else 1))
+            if col + width > MAX_PRIMVAR_COLUMNS:
+                if warn is not None:
+                    warn(f"{m.name}: input {name} reads primvar "
+                         f"{getattr(key, 'varname', key)}, but the frame's materials already "
+                         f"read {col} primvar columns (at most {MAX_PRIMVAR_COLUMNS}); "
+                         f"using its fallback")
+                continue
+            fill = getattr(key, "fallback", None)
+            if fill is None:
+                attr = {"diffuseColor": "diffuse", "specularColor": "specular",
+                        "clearcoatRoughness": "clearcoat_roughness"}.get(name, name)
+                fill = getattr(m, attr, 0.0)
+            fill = tuple(float(x) for x in (fill if isinstance(fill, (tuple, list))
+                                            else (fill,)))
+            fill = (fill * width)[:width] if len(fill) == 1 else (fill + (0.0,) * width)[:width]
+            layout[key] = (col, width, fill)
+            col += width
+    return layout
+
+
+def primvar_array(mesh, layout) -> Optional[np.ndarray]:
+    """float32 (N, K) for the core (``Scene.add_mesh(primvars=...)``): the
+    mesh's ``primvars`` placed at their layout columns; None when the mesh has
+    none of them."""
+    pvs = getattr(mesh, "primvars", None)
+    if not pvs or not layout:
+        return None
+    n = int(np.asarray(mesh.points).reshape(-1, 3).shape[0])
+    if not any(k in pvs for k in layout):
+        return None
+    k_total = max(c + w for c, w, _ in layout.values())
+    out = np.empty((n, k_total), dtype=np.float32)
+    for key, (c, w, fill) in layout.items():
+        a = pvs.get(key)
+        if a is None:
+            out[:, c:c + w] = np.asarray(fill, dtype=np.float32)
+            continue
+        a = np.asarray(a, dtype=np.float32)
+        if a.ndim == 1:
+            a = a[:, None]
+        if a.shape[0] != n or a.shape[1] not in (1, w):
+            raise BridgeError(f"{mesh.name}: primvar {getattr(key, 'varname', key)} has shape "
+                              f"{a.shape}, expected ({n}, {w})")
+        out[:, c:c + w] = a
+    if not np.isfinite(out).all():
+        raise BridgeError(f"{mesh.name}: primvars contain NaN or Inf")
+    return out
 
 
 #: UsdPreviewSurface input name -> the suffix of its tex_/ch_ columns.
@@ -181,6 +268,8 @@ class _MeshState:
     material_ids: Optional[np.ndarray]
     # the FrameScene's own arrays last seen (identity checks)
     src: Tuple = (None, None, None)      # (indices, uvs, material_ids)
+    primvars: Optional[np.ndarray] = None   # the (N, K) array handed to the core
+    primvars_src: object = None             # the Mesh.primvars dict it came from
 
 
 def _f32(a, cols: int) -> np.ndarray:
@@ -212,6 +301,7 @@ class SceneBridge:
         self._texture_arrays: list = []         # arrays shared with the core (zero copy)
         self._signature = None
         self._moving: List[bool] = []           # per instance: has shutter time steps
+        self._layout: dict = {}                 # primvar_layout of the materials
         self.last_update = UpdateReport()
 
     # -- helpers ---------------------------------------------------------
@@ -226,7 +316,8 @@ class SceneBridge:
             mats = [Material(name="<default>")]
         diffuse = np.array([m.diffuse for m in mats], dtype=np.float32).reshape(-1, 3)
         emission = np.array([m.emission for m in mats], dtype=np.float32).reshape(-1, 3)
-        params = np.stack([material_params(m, self._texture_ids(m)) for m in mats])
+        cols = {k: c for k, (c, _, _) in self._layout.items()} if self._layout else None
+        params = np.stack([material_params(m, self._texture_ids(m), cols) for m in mats])
         return diffuse, emission, np.ascontiguousarray(params, dtype=np.float32)
 
     def _texture_ids(self, m) -> dict:
@@ -314,6 +405,16 @@ class SceneBridge:
             if not _same(mesh.material_ids, old.src[2], old.material_ids):
                 return f"{mesh.name}: material ids changed"
             old.src = (mesh.indices, mesh.uvs, mesh.material_ids)
+        layout = primvar_layout(fs.materials or [])
+        if layout != self._layout:
+            return "primvar layout changed"
+        for mesh, old in zip(fs.meshes, self._meshes):
+            pvs = getattr(mesh, "primvars", None)
+            if pvs is old.primvars_src:        # the reader's very dict: unchanged
+                continue
+            if not _optional_equal(primvar_array(mesh, layout), old.primvars):
+                return f"{mesh.name}: primvars changed"
+            old.primvars_src = pvs
         if inst != self._instances:
             return "instances changed"
         if fs.static_signature is not None and self._signature is not None and \
@@ -323,9 +424,11 @@ class SceneBridge:
 
     # -- building ---------------------------------------------------------
     def _build(self, fs: FrameScene) -> None:
+        import warnings
         core = self._core
         scene = core.Scene()
         meshes, mesh_ids = [], []
+        self._layout = primvar_layout(fs.materials or [], warn=warnings.warn)
         for mesh in fs.meshes:
             points = padded_points(mesh.points)
             indices = np.ascontiguousarray(np.asarray(mesh.indices, dtype=np.uint32).reshape(-1, 3))
@@ -333,12 +436,15 @@ class SceneBridge:
             uvs = None if mesh.uvs is None else _f32(mesh.uvs, 2)
             mids = (None if mesh.material_ids is None else
                     np.ascontiguousarray(np.asarray(mesh.material_ids, dtype=np.uint32).reshape(-1)))
+            pv = primvar_array(mesh, self._layout)
+            kwargs = {} if pv is None else {"primvars": pv}
             mesh_ids.append(scene.add_mesh(mesh.name, points, indices,
-                                           normals=normals, uvs=uvs, material_ids=mids))
+                                           normals=normals, uvs=uvs, material_ids=mids, **kwargs))
             # keep the very arrays handed over: the core may share their
             # buffers (zero-copy), so they must stay alive and unchanged
             meshes.append(_MeshState(_topology_key(mesh), points, normals, indices, uvs, mids,
-                                     (mesh.indices, mesh.uvs, mesh.material_ids)))
+                                     (mesh.indices, mesh.uvs, mesh.material_ids), pv,
+                                     getattr(mesh, "primvars", None)))
         inst_ids, transforms = [], []
         for inst in fs.instances:
             if not 0 <= inst.mesh < len(mesh_ids):

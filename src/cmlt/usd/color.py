@@ -83,11 +83,15 @@ def load_texture(path: str, source_colorspace: Optional[str] = "auto", *,
     ACEScg and stored back as one channel, its ACEScg luminance (a grey stays
     grey under the conversion, so nothing is lost; the sRGB curve is
     undone).
+
+    ``path`` may lie inside a ``.usdz`` package (``pkg.usdz[tex.png]``): it is
+    read through USD's asset resolver (:func:`cmlt.usd.assets.local_path`).
     """
     import OpenImageIO as oiio
     from ..color import get_config
+    from .assets import local_path
 
-    inp = oiio.ImageInput.open(path)
+    inp = oiio.ImageInput.open(local_path(path))
     if inp is None:
         raise OSError(f"texture {path}: cannot read: {oiio.geterror()}")
     try:
@@ -138,9 +142,15 @@ def texture_wrap_metadata(path: str) -> Tuple[Optional[str], Optional[str]]:
     UsdPreviewSurface spec's names), else OpenImageIO's ``wrapmodes``
     (``"periodic,clamp"``: TIFF/.tx and OpenEXR files made by maketx or
     txmake). (None, None) when the file says nothing or cannot be read; a
-    value that is not a wrap mode is None too."""
+    value that is not a wrap mode is None too. A path inside a ``.usdz``
+    package is read through the asset resolver."""
     import OpenImageIO as oiio
+    from .assets import AssetError, local_path
 
+    try:
+        path = local_path(path)
+    except AssetError:
+        return None, None
     inp = oiio.ImageInput.open(path)
     if inp is None:
         oiio.geterror()

@@ -30,7 +30,7 @@ from .camera import framing_camera, gf_to_np, read_camera
 from .errors import UsdLoadError
 from .lights import default_dome, read_light
 from .materials import MaterialTable, subset_bindings
-from .mesh import MeshReader, SkipPrim
+from .mesh import MeshReader, SkipPrim, shape_primvars
 from .skel import SkelBindings
 from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, UNREGISTERED_REASON,
                     _stage_file, check_time_metadata, composition_warnings, ignored_reason,
@@ -255,7 +255,8 @@ class _Frame:
             reader = self.state.mesh_cache.get(key)
             if reader is None or not isinstance(reader, MeshReader):
                 uv_name, uv_fallback, uv_reader = self.materials.uv_primvar(prim)
-                reader = MeshReader(src, uv_name, uv_fallback=uv_fallback, uv_reader=uv_reader)
+                reader = MeshReader(src, uv_name, uv_fallback=uv_fallback, uv_reader=uv_reader,
+                                    primvar_requests=self.materials.primvar_requests(prim))
                 self.state.mesh_cache[key] = reader
             skin = self._skinning(prim) if outer is None else None
             posed = self._skinned_points(prim, skin, self.tc) if skin is not None else None
@@ -314,10 +315,12 @@ class _Frame:
                 mat_ids = np.ascontiguousarray(mat_ids, dtype=np.uint32)
                 self.state.material_ids_cache[ckey] = (tri_face, mat_ids)
             mi = len(self.meshes)
+            pvs = geom.primvars if type_name == "Mesh" else shape_primvars(
+                src, self.materials.primvar_requests(prim), len(geom.points), self.tc, self.warn)
             self.meshes.append(Mesh(name=str(path), points=geom.points, indices=geom.indices,
                                     normals=geom.normals, uvs=geom.uvs,
                                     material_ids=mat_ids,
-                                    deforming=geom.deforming))
+                                    deforming=geom.deforming, primvars=pvs))
             self._mesh_index[mkey] = mi
         if skin is not None:
             # skinned points are in skeleton space: placed by the Skeleton prim

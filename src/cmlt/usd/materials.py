@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
@@ -31,6 +32,42 @@ PREVIEW_DEFAULTS = {
 }
 COLOR_INPUTS = ("diffuseColor", "emissiveColor", "specularColor")
 _TEXTURE_CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3}
+
+#: UsdPrimvarReader_* shader ids -> the width of their ``result``
+PRIMVAR_READERS = {
+    "UsdPrimvarReader_float": 1, "UsdPrimvarReader_int": 1, "UsdPrimvarReader_float2": 2,
+    "UsdPrimvarReader_float3": 3, "UsdPrimvarReader_normal": 3, "UsdPrimvarReader_point": 3,
+    "UsdPrimvarReader_vector": 3, "UsdPrimvarReader_float4": 4,
+}
+#: UsdPreviewSurface inputs the core reads per hit from primvars (colour: 3 columns)
+PRIMVAR_INPUTS = {"diffuseColor": 3, "specularColor": 3, "metallic": 1, "roughness": 1,
+                  "clearcoat": 1, "clearcoatRoughness": 1, "opacity": 1}
+
+
+@dataclass(frozen=True)
+class PrimvarRequest:
+    """A per-vertex value a material input reads through a UsdPrimvarReader:
+    the mesh reader interpolates primvar ``varname`` to ``width`` columns
+    (1 for scalar inputs, 3 for colours; a narrower primvar is repeated
+    (scalar) or padded with 0, a wider one cut), converting colours to the
+    rendering space; where a gprim lacks the primvar, ``fallback`` (already
+    in rendering-space units) fills it, with a warning naming ``reader``.
+    Equal requests share their columns (``cmlt.shot.bridge``)."""
+
+    varname: str
+    width: int
+    colour: bool
+    fallback: Tuple[float, ...]
+    reader: str = field(default="", compare=False)
+
+
+def _fit_width(values, width: int) -> Tuple[float, ...]:
+    v = tuple(float(x) for x in (values if isinstance(values, (tuple, list)) else (values,)))
+    if not v:
+        v = (0.0,)
+    if len(v) == 1:
+        return v * width
+    return (v + (0.0,) * width)[:width]
 
 
 def _shader_id(shader: UsdShade.Shader) -> str:
@@ -213,6 +250,57 @@ def _fallback_constant(name: str, record: dict):
     return fb[0]
 
 
+def _primvar_record(material: str, name: str, reader: UsdShade.Shader, sid: str,
+                    warnings: List[str]):
+    """(inputs record, constant) for a surface input driven by a
+    UsdPrimvarReader_*. The constant is the reader's ``fallback`` (the spec's
+    default: zeros), what the input takes where a gprim lacks the primvar and
+    what inputs that cannot vary per hit (emission, ior, normal ...) keep,
+    with a warning. Colour constants are returned in the rendering space."""
+    varname = ""
+    vn = reader.GetInput("varname")
+    if vn:
+        raw, _, _ = _value_source(vn)
+        varname = str(raw) if raw else ""
+    rpath = str(reader.GetPath())
+    default = PREVIEW_DEFAULTS.get(name)
+    width = 3 if isinstance(default, tuple) and len(default) == 3 else 1
+    colour = name in COLOR_INPUTS
+    fb_raw = _input_value(reader, "fallback", 0.0)
+    fb = _fit_width(fb_raw if fb_raw is not None else 0.0, width)
+    if colour:
+        fb_attr = reader.GetInput("fallback")
+        fb = to_rendering_space(fb, fb_attr.GetAttr() if fb_attr else None,
+                                prim=reader.GetPrim())
+    rec = {"shader": rpath, "id": sid, "primvar": varname, "fallback": fb}
+    constant = fb if width == 3 else fb[0]
+    if not varname:
+        warnings.append(f"{material}: input {name} is read by {rpath} ({sid}) without a "
+                        f"varname; using its fallback {_fmt(fb)}")
+        return rec, constant
+    if name not in PRIMVAR_INPUTS:
+        warnings.append(f"{material}: input {name} reads primvar {varname} through {rpath} "
+                        f"({sid}), which cmlt cannot vary over a surface for {name}; using "
+                        f"the reader's fallback {_fmt(fb)}")
+        return rec, constant
+    rec["primvar_request"] = PrimvarRequest(varname, PRIMVAR_INPUTS[name], colour, tuple(fb),
+                                            rpath)
+    return rec, constant
+
+
+def _primvar_request_record(name: str, varname: str, fallback, reader: str, sid: str) -> dict:
+    """The inputs record of ``name`` read per vertex from primvar ``varname``
+    (``fallback`` in rendering-space units), as _primvar_record makes it."""
+    fb = tuple(float(x) for x in fallback)
+    return {"shader": reader, "id": sid, "primvar": varname, "fallback": fb,
+            "primvar_request": PrimvarRequest(varname, PRIMVAR_INPUTS[name],
+                                              name in COLOR_INPUTS, fb, reader)}
+
+
+def _fmt(v) -> str:
+    return "(" + ", ".join(f"{x:g}" for x in v) + ")" if isinstance(v, tuple) else f"{v:g}"
+
+
 def find_preview_surface(material: UsdShade.Material) -> Optional[UsdShade.Shader]:
     """The UsdPreviewSurface of a material: the universal surface output, else
     any render context's surface output that is a UsdPreviewSurface."""
@@ -236,16 +324,31 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
     path = str(material.GetPath())
     shader = find_preview_surface(material)
     if shader is None:
+        # MaterialX: a network of ND_* nodes, or a referenced .mtlx document
+        from .materialx import read_materialx_network
+        found, mx_mat = read_materialx_network(material, time, warnings)
+        if mx_mat is not None:
+            return mx_mat
+        if found:                                        # MaterialX, but unmappable: warned
+            return Material(name=path, inputs={"unsupported": True})
         warnings.append(f"{path}: no UsdPreviewSurface surface shader (unsupported shader "
                         f"network); rendered with the default grey material")
         return Material(name=path, inputs={"unsupported": True})
     values: Dict[str, object] = {}
     inputs: Dict[str, object] = {}
+    converted = set()                     # values already in the rendering space
     for inp in shader.GetInputs():
         name = inp.GetBaseName()
         value, src, output = _value_source(inp)
         if src is not None:
             sid = _shader_id(src)
+            if sid in PRIMVAR_READERS:
+                rec, fb = _primvar_record(path, name, src, sid, warnings)
+                inputs[name] = rec
+                values[name] = fb
+                if isinstance(fb, tuple):
+                    converted.add(name)
+                continue
             if sid == "UsdUVTexture":
                 rec = _texture_record(src, output or "rgb", warnings)
                 if rec.get("unresolved"):
@@ -269,6 +372,8 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
         v = values.get(name, PREVIEW_DEFAULTS[name])
         if not isinstance(v, tuple) or len(v) < 3:
             v = PREVIEW_DEFAULTS[name]
+        if name in converted:
+            return tuple(float(x) for x in v[:3])
         attr = shader.GetInput(name)
         # the input's colorSpace metadata, else ColorSpaceAPI up namespace, else lin_rec709
         return to_rendering_space(v[:3], attr.GetAttr() if attr else None,
@@ -301,14 +406,43 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
     )
 
 
-def bound_material(prim) -> Optional[UsdShade.Material]:
+def bound_material(prim):
     """The material bound to ``prim`` for final renders (purpose 'full',
-    falling back to all-purpose bindings), or None."""
+    falling back to all-purpose bindings), or None. A binding whose target
+    does not exist because it lies under a reference to a ``.mtlx``
+    document (which usd-core cannot compose) gives a
+    :class:`cmlt.usd.materialx.MtlxMaterialRef` instead."""
     try:
-        mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial(UsdShade.Tokens.full)
+        mat, rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial(UsdShade.Tokens.full)
     except Exception:                                    # pragma: no cover
         return None
-    return mat if mat and mat.GetPrim().IsValid() else None
+    if mat and mat.GetPrim().IsValid():
+        return mat
+    targets = rel.GetTargets() if rel else []
+    if targets:
+        from .materialx import mtlx_binding
+        return mtlx_binding(prim.GetStage(), targets[0])
+    return None
+
+
+#: the request of a gprim without a material whose displayColor varies over it
+def _display_request() -> PrimvarRequest:
+    return PrimvarRequest("displayColor", 3, True, (0.18, 0.18, 0.18), "displayColor")
+
+
+def display_color_varies(prim, time) -> bool:
+    """``primvars:displayColor`` has more than one distinct value over the gprim."""
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+    if not pv or not pv.HasAuthoredValue():
+        return False
+    if pv.GetInterpolation() == UsdGeom.Tokens.constant:
+        return False
+    v = pv.Get(time)
+    if v is None or len(v) < 2:
+        return False
+    import numpy as np
+    a = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+    return bool((a != a[0]).any())
 
 
 def display_color(prim, time) -> Optional[Tuple[float, float, float]]:
@@ -369,11 +503,25 @@ class MaterialTable:
         key = "<displayColor %.6g %.6g %.6g>" % tuple(rgb)
         return self._add_special(key, Material(name=key, diffuse=tuple(rgb)))
 
-    def material(self, mat: UsdShade.Material) -> int:
+    def display_per_vertex(self) -> int:
+        """The material of gprims without one whose displayColor varies:
+        diffuse read per hit from displayColor (as Storm's fallback does)."""
+        key = "<displayColor primvar>"
+        req = _display_request()
+        rec = {"shader": "displayColor", "id": "displayColor", "primvar": req.varname,
+               "fallback": req.fallback, "primvar_request": req}
+        return self._add_special(key, Material(name=key, diffuse=req.fallback,
+                                               inputs={"diffuseColor": rec}))
+
+    def material(self, mat) -> int:
         key = str(mat.GetPath())
         i = self._index.get(key)
         if i is None:
-            m = read_material(mat, self.time, self.warnings)
+            if isinstance(mat, UsdShade.Material):
+                m = read_material(mat, self.time, self.warnings)
+            else:                                        # a .mtlx document's material
+                m = mat.read(self.time, self.warnings) or \
+                    Material(name=key, inputs={"unsupported": True})
             if m.inputs.get("unsupported"):
                 i = self.default()
             else:
@@ -387,10 +535,28 @@ class MaterialTable:
         mat = bound_material(prim)
         if mat is not None:
             return self.material(mat)
+        if display_color_varies(prim, self.time):
+            return self.display_per_vertex()
         dc = display_color(prim, self.time)
         if dc is not None:
             return self.display(dc)
         return self.default()
+
+    def primvar_requests(self, prim) -> Tuple[PrimvarRequest, ...]:
+        """What the materials ``prim`` uses (its binding, its GeomSubsets'
+        bindings, else the per-vertex displayColor material) read per vertex
+        through UsdPrimvarReaders, each request once, in material order."""
+        mats = [bound_material(prim)] + [m for _, m in subset_bindings(prim, self.time)]
+        indices = [self.material(m) for m in mats if m is not None]
+        if mats[0] is None:
+            indices.insert(0, self.for_prim(prim))
+        out: Dict[PrimvarRequest, None] = {}
+        for i in indices:
+            for v in self.materials[i].inputs.values():
+                req = v.get("primvar_request") if isinstance(v, dict) else None
+                if req is not None:
+                    out.setdefault(req, None)
+        return tuple(out)
 
     def uv_primvar_name(self, prim) -> Optional[str]:
         """The st primvar name the bound material's textures read, if any."""

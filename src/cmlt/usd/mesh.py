@@ -31,6 +31,9 @@ class MeshGeom:
     tri_face: Optional[np.ndarray]         # int64 (M,) authored face of each triangle
     deforming: bool = False
     warnings: List[str] = field(default_factory=list)
+    # per-vertex values the materials read through UsdPrimvarReaders:
+    # PrimvarRequest -> float32 (N, request.width), rendering-space colours
+    primvars: Optional[dict] = None
 
 
 def _tstr(time: Usd.TimeCode) -> str:
@@ -115,6 +118,78 @@ def _normals_primvar(prim, mesh: UsdGeom.Mesh, api, time) -> Optional[_Primvar]:
                         np.asarray(vals, dtype=np.float64).reshape(-1, 3), None,
                         attr.ValueMightBeTimeVarying())
     return None
+
+
+def _natural_width(pv: UsdGeom.Primvar, time) -> int:
+    """Components per element of a primvar's value (1 for float[]/int[])."""
+    v = pv.Get(time)
+    if v is None:
+        return 1
+    a = np.asarray(v)
+    return int(a.shape[1]) if a.ndim == 2 else 1
+
+
+def _to_width(values: np.ndarray, width: int) -> np.ndarray:
+    """(L, k) -> (L, width): a scalar is repeated, a narrower vector padded
+    with 0, a wider one cut."""
+    k = values.shape[1]
+    if k == width:
+        return values
+    if k == 1:
+        return np.repeat(values, width, axis=1)
+    if k > width:
+        return values[:, :width]
+    return np.concatenate([values, np.zeros((len(values), width - k))], axis=1)
+
+
+def _request_values(pv: UsdGeom.Primvar, req, raw: np.ndarray) -> np.ndarray:
+    """A request's element values (L, width): fitted, colours converted from
+    the primvar's authored colour space to the rendering space."""
+    vals = _to_width(raw, req.width)
+    if req.colour and req.width == 3 and len(vals):
+        from ..color import authored_colorspace, get_config
+        cs = authored_colorspace(pv.GetAttr())
+        vals = np.asarray(get_config().to_rendering_space(
+            np.ascontiguousarray(vals, dtype=np.float32), cs, prim=pv.GetAttr().GetPrim()),
+            dtype=np.float64)
+    return vals
+
+
+def shape_primvars(prim, requests, n_points: int, time, warn) -> Optional[dict]:
+    """Per-vertex request values for an intrinsic shape (Sphere, Cube ...): its
+    tessellation has no authored vertices, so a constant primvar fills every
+    vertex, any other interpolation gives its mean with a warning, a missing
+    one the reader's fallback with a warning. None without requests."""
+    if not requests:
+        return None
+    path = str(prim.GetPath())
+    api = UsdGeom.PrimvarsAPI(prim)
+    out = {}
+    for req in requests:
+        pv = api.GetPrimvar(req.varname)
+        value = None
+        if pv and pv.HasAuthoredValue():
+            flat = pv.ComputeFlattened(time)
+            if flat is not None and len(flat):
+                raw = np.asarray(flat, dtype=np.float64)
+                raw = raw.reshape(len(raw), -1)
+                vals = _request_values(pv, req, raw)
+                vals = vals[np.isfinite(vals).all(axis=1)]
+                if len(vals):
+                    value = vals.mean(axis=0)
+                    if len(vals) > 1 and pv.GetInterpolation() != UsdGeom.Tokens.constant:
+                        warn(f"{path}: primvar {req.varname} is {pv.GetInterpolation()} on an "
+                             f"intrinsic {prim.GetTypeName()}; {req.reader} reads its mean")
+        if value is None:
+            value = np.asarray(req.fallback, dtype=np.float64)
+            warn(f"{path}: has no primvar {req.varname}, which {req.reader} reads; using the "
+                 f"reader's fallback {_fmt(req.fallback)}")
+        out[req] = np.ascontiguousarray(np.tile(value, (n_points, 1)), dtype=np.float32)
+    return out
+
+
+def _fmt(v) -> str:
+    return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
 
 
 # ---------------------------------------------------------------- topology
@@ -369,27 +444,180 @@ def smooth_normals(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------- reading
 
+# ---------------------------------------------------------------- subdivision
+
+#: subdivision schemes refined with OpenSubdiv (``none``: rendered as authored)
+SUBDIV_SCHEMES = ("catmullClark", "loop", "bilinear")
+#: a mesh's own refinement level (``int cmlt:subdivisionLevel``; 0 = the control cage)
+SUBDIV_LEVEL_ATTR = "cmlt:subdivisionLevel"
+MAX_SUBDIV_LEVEL = 6
+#: refined faces of one mesh at most: a higher level is lowered, with a warning
+MAX_SUBDIV_FACES = 4_000_000
+_default_level = 2
+
+
+def default_subdiv_level() -> int:
+    """Refinement level of subdivision surfaces without ``cmlt:subdivisionLevel``."""
+    return _default_level
+
+
+def set_default_subdiv_level(level: int) -> None:
+    """Set :func:`default_subdiv_level` (0 renders every control cage as
+    authored, with smooth normals). Meshes already read keep their level."""
+    global _default_level
+    level = int(level)
+    if not 0 <= level <= MAX_SUBDIV_LEVEL:
+        raise ValueError(f"subdivision level must be 0..{MAX_SUBDIV_LEVEL}, got {level}")
+    _default_level = level
+
+
+def subdiv_level_of(prim) -> int:
+    """Refinement level of a mesh: 0 for ``subdivisionScheme = none`` (and
+    unknown schemes), else its ``cmlt:subdivisionLevel`` if authored, else
+    :func:`default_subdiv_level`."""
+    scheme = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get()
+    if scheme not in SUBDIV_SCHEMES:
+        return 0
+    attr = prim.GetAttribute(SUBDIV_LEVEL_ATTR)
+    if attr and attr.HasAuthoredValue():
+        try:
+            return max(0, min(int(attr.Get()), MAX_SUBDIV_LEVEL))
+        except (TypeError, ValueError):
+            return default_subdiv_level()
+    return default_subdiv_level()
+
+
+def refine_subdivision(path, mesh, points, counts, fvi, primvars, level, time):
+    """Refine a subdivision mesh's cage with OpenSubdiv (``cmlt._core.subdivide``):
+    returns (limit points, face counts, face vertex indices, primvars on the
+    refined mesh, the authored face of each refined face, warnings).
+
+    Authored normals are ignored (UsdGeom: a subdivision surface's normals
+    come from the surface); the limit normals become vertex normals. Vertex
+    and varying primvars are refined like the points, faceVarying ones by
+    OpenSubdiv's face-varying rules (``faceVaryingLinearInterpolation``),
+    uniform ones follow their authored face, constant ones stay."""
+    import cmlt._core as core
+    tstr = _tstr(time)
+    warnings: List[str] = []
+    n_points = len(points)
+    n_faces = len(counts)
+    counts = np.asarray(counts, dtype=np.int64)
+    keep = counts >= 3
+    if not keep.all():
+        raise SkipPrim(f"{path}: {int((~keep).sum())} face(s) with fewer than 3 vertices; a "
+                       f"subdivision surface needs polygons (time {tstr}); not rendered")
+    scheme = str(mesh.GetSubdivisionSchemeAttr().Get())
+    if scheme == "loop" and (counts != 3).any():
+        warnings.append(f"{path}: subdivisionScheme loop needs triangles but the mesh has "
+                        f"{int((counts != 3).sum())} other polygon(s); refined as catmullClark")
+        scheme = "catmullClark"
+    asked = level
+    while level > 1 and n_faces * 4 ** level > MAX_SUBDIV_FACES:   # each level: 4 faces per face
+        level -= 1
+    if level < asked:
+        warnings.append(f"{path}: {n_faces} faces: subdivided to level {level}, not {asked} "
+                        f"(at most {MAX_SUBDIV_FACES} refined faces)")
+
+    def arr(getter, dtype):
+        v = getter().Get(time)
+        return np.ascontiguousarray(np.asarray(v if v is not None else [], dtype=dtype).reshape(-1))
+
+    vertex_pvs, fvar_pvs, uniform_pvs, const_pvs = [], [], [], []
+    K = len(fvi)
+    for pv in primvars:
+        if pv.name == "normals":
+            continue
+        try:
+            elem = _elem_per_corner(pv, counts, fvi, n_faces, n_points, K, path, tstr)
+        except ValueError as exc:
+            warnings.append(str(exc))
+            continue
+        if pv.interp == UsdGeom.Tokens.constant:
+            const_pvs.append(pv)
+        elif pv.interp == UsdGeom.Tokens.uniform:
+            face_elem = pv.indices[:n_faces] if pv.indices is not None else np.arange(n_faces)
+            uniform_pvs.append((pv, face_elem))
+        elif pv.interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            vals = pv.values[pv.indices[:n_points]] if pv.indices is not None else \
+                pv.values[:n_points]
+            vertex_pvs.append((pv, vals))
+        else:
+            fvar_pvs.append((pv, elem))
+    vdata = np.ascontiguousarray(np.concatenate([v for _, v in vertex_pvs], axis=1),
+                                 dtype=np.float64) if vertex_pvs else None
+    fvar = [(np.ascontiguousarray(pv.values, dtype=np.float64),
+             np.ascontiguousarray(elem, dtype=np.int32)) for pv, elem in fvar_pvs]
+    try:
+        r = core.subdivide(
+            np.ascontiguousarray(points, dtype=np.float64),
+            np.ascontiguousarray(counts, dtype=np.int32), np.ascontiguousarray(fvi, dtype=np.int32),
+            scheme=scheme, level=int(level),
+            crease_indices=arr(mesh.GetCreaseIndicesAttr, np.int32),
+            crease_lengths=arr(mesh.GetCreaseLengthsAttr, np.int32),
+            crease_sharpnesses=arr(mesh.GetCreaseSharpnessesAttr, np.float32),
+            corner_indices=arr(mesh.GetCornerIndicesAttr, np.int32),
+            corner_sharpnesses=arr(mesh.GetCornerSharpnessesAttr, np.float32),
+            hole_indices=arr(mesh.GetHoleIndicesAttr, np.int32),
+            interpolate_boundary=str(mesh.GetInterpolateBoundaryAttr().Get() or "edgeAndCorner"),
+            face_varying_linear=str(mesh.GetFaceVaryingLinearInterpolationAttr().Get()
+                                    or "cornersPlus1"),
+            smooth_triangles=str(mesh.GetTriangleSubdivisionRuleAttr().Get()) == "smooth",
+            vertex_data=vdata, face_varying=fvar, name=path)
+    except ValueError as exc:                            # SceneError, bad arguments
+        raise SkipPrim(f"{path}: cannot be subdivided (time {tstr}): {exc}; not rendered") \
+            from None
+    parent = np.asarray(r["face_parent"], dtype=np.int64)
+    out: List[_Primvar] = list(const_pvs)
+    col = 0
+    for pv, vals in vertex_pvs:
+        k = vals.shape[1]
+        out.append(_Primvar(pv.name, UsdGeom.Tokens.vertex,
+                            np.asarray(r["vertex_data"][:, col:col + k]), None, pv.varying))
+        col += k
+    for (pv, _), (values, indices) in zip(fvar_pvs, r["face_varying"]):
+        out.append(_Primvar(pv.name, UsdGeom.Tokens.faceVarying, np.asarray(values),
+                            np.asarray(indices, dtype=np.int64), pv.varying))
+    for pv, face_elem in uniform_pvs:
+        out.append(_Primvar(pv.name, UsdGeom.Tokens.uniform, pv.values[face_elem[parent]], None,
+                            pv.varying))
+    out.append(_Primvar("normals", UsdGeom.Tokens.vertex, np.asarray(r["normals"]), None, True))
+    return (np.asarray(r["points"]), np.asarray(r["face_counts"], dtype=np.int64),
+            np.asarray(r["face_indices"], dtype=np.int64), out, parent, warnings)
+
+
 class MeshReader:
     """Reads one UsdGeom.Mesh prim, caching what does not change in time."""
 
     TOPO_ATTRS = ("faceVertexCounts", "faceVertexIndices", "holeIndices", "orientation")
 
     def __init__(self, prim, uv_name: Optional[str] = None,
-                 uv_fallback: Optional[Tuple[float, float]] = None, uv_reader: str = ""):
+                 uv_fallback: Optional[Tuple[float, float]] = None, uv_reader: str = "",
+                 primvar_requests=()):
         """``uv_name``: the primvar the material's UsdPrimvarReader_float2
         reads (for the texture shader ``uv_reader``); where the mesh lacks it, every vertex gets the
         reader's ``uv_fallback`` (the spec's "fetch failed" value), with a
         warning. Without ``uv_fallback``, a missing ``uv_name`` falls back to
-        ``st`` or another texCoord2f primvar (see :func:`find_uv_primvar`)."""
+        ``st`` or another texCoord2f primvar (see :func:`find_uv_primvar`).
+
+        ``primvar_requests``: the :class:`cmlt.usd.materials.PrimvarRequest`
+        of the materials' UsdPrimvarReaders; each becomes per-vertex columns
+        of ``MeshGeom.primvars`` (any interpolation: constant, uniform,
+        vertex, varying, faceVarying; indexed or not), the reader's fallback
+        where the mesh lacks the primvar (with a warning naming the mesh)."""
         self.path = str(prim.GetPath())
         self.uv_name = uv_name
         self.uv_fallback = None if uv_fallback is None else \
             tuple(float(v) for v in uv_fallback)
         self.uv_reader = uv_reader
+        self.requests = tuple(primvar_requests or ())
         self.topo: Optional[_Topo] = None
         self.topo_key = None
         self.static_geom: Optional[MeshGeom] = None
         self._pv_cache: dict = {}               # primvars that do not vary in time
+
+    def _subdiv_level(self, prim, mesh) -> int:
+        return subdiv_level_of(prim)
 
     def _varying(self, prim) -> Tuple[bool, bool]:
         topo = any(prim.GetAttribute(a).ValueMightBeTimeVarying()
@@ -441,11 +669,43 @@ class MeshReader:
             if npv is not None and npv.name == "st":   # pragma: no cover
                 npv.name = "normals"
             primvars.append(uv)
+        req_pv = {}                             # request index -> (Usd primvar, _Primvar)
+        for k, req in enumerate(self.requests):
+            cache_key = f"pv:{k}"
+            upv = api.GetPrimvar(req.varname)
+            if not (upv and upv.HasAuthoredValue()):
+                continue
+            rp = self._pv_cache.get(cache_key)
+            if rp is None:
+                rp = _read_primvar(upv, time, _natural_width(upv, time))
+                if rp is not None and not rp.varying:
+                    self._pv_cache[cache_key] = rp
+            if rp is None:
+                continue
+            rp.name = cache_key
+            primvars.append(rp)
+            req_pv[k] = upv
         pv_varying = any(pv.varying for pv in primvars)
         pv_key = tuple((pv.name, pv.interp, pv.indices is not None,
                         len(pv.values)) for pv in primvars)
 
-        if self.topo is None or topo_varying or self.topo_key != pv_key or \
+        level = self._subdiv_level(prim, mesh)
+        subdiv_warnings: List[str] = []
+        if level > 0:
+            # a subdivision surface: refine the cage (every read; a static mesh is read once)
+            counts = mesh.GetFaceVertexCountsAttr().Get(time)
+            fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
+            left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+            counts = np.asarray(counts if counts is not None else [], dtype=np.int64)
+            fvi = np.asarray(fvi if fvi is not None else [], dtype=np.int64)
+            points, counts, fvi, primvars, parent, subdiv_warnings = refine_subdivision(
+                path, mesh, points, counts, fvi, primvars, level, time)
+            # (refined quads are convex enough for a fan: no concavity pass, which would
+            # cost more than the refinement itself)
+            topo, _ = build_topology(path, counts, fvi, len(points), None, left, primvars, time)
+            topo.tri_face = parent[topo.tri_face]         # the authored face of each triangle
+            self.topo, self.topo_key = None, None
+        elif self.topo is None or topo_varying or self.topo_key != pv_key or \
                 any(pv.varying and pv.indices is not None for pv in primvars):
             counts = mesh.GetFaceVertexCountsAttr().Get(time)
             fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
@@ -458,8 +718,9 @@ class MeshReader:
                                      left, primvars, time, points=points)
             self.topo, self.topo_key = topo, pv_key
             self._tri_pts = None
-        topo = self.topo
-        warnings = list(topo.warnings)
+        if level <= 0:
+            topo = self.topo
+        warnings = subdiv_warnings + list(topo.warnings)
 
         # gather per-vertex arrays
         out_pts = points if topo.out_pt is None else points[topo.out_pt]
@@ -469,6 +730,8 @@ class MeshReader:
                 continue                       # dropped by validation
             e = topo.out_elem[pv.name]
             vals = pv.values if e is None else pv.values[e]
+            if pv.name.startswith("pv:"):
+                continue                       # material primvars: below
             if pv.name == "normals":
                 if not np.isfinite(vals).all():
                     warnings.append(f"{path}: normals contain NaN/Inf (time {tstr}); ignored")
@@ -487,6 +750,8 @@ class MeshReader:
             warnings.append(f"{path}: has no primvar {self.uv_name}, which {by} reads through "
                             f"a UsdPrimvarReader_float2; textures use the reader's fallback st "
                             f"({self.uv_fallback[0]:g}, {self.uv_fallback[1]:g})")
+        mat_pvs = self._material_primvars(primvars, req_pv, topo, len(out_pts), warnings, tstr) \
+            if self.requests else None
         if len(out_pts) != len(points) and topo.out_pt is None:   # pragma: no cover
             raise SkipPrim(f"{path}: point count changed (time {tstr}); not rendered")
 
@@ -522,7 +787,35 @@ class MeshReader:
             # points or normals may change from frame to frame (USD time samples)
             deforming=bool(skinned or pts_varying or (npv is not None and npv.varying)),
             warnings=warnings,
+            primvars=mat_pvs,
         )
         if not (topo_varying or pts_varying or pv_varying or skinned):
             self.static_geom = geom
         return geom
+
+    def _material_primvars(self, primvars, req_pv, topo, n_out, warnings, tstr) -> dict:
+        """MeshGeom.primvars: per request, float32 (n_out, width) at the output
+        vertices; the reader's fallback where the mesh lacks the primvar (or
+        validation dropped it), non-finite values replaced by it."""
+        by_name = {pv.name: pv for pv in primvars}
+        out = {}
+        for k, req in enumerate(self.requests):
+            name = f"pv:{k}"
+            pv = by_name.get(name)
+            fb = np.asarray(req.fallback, dtype=np.float64)
+            if pv is None or name not in topo.out_elem:
+                why = "has no primvar" if k not in req_pv else "cannot use primvar"
+                warnings.append(f"{self.path}: {why} {req.varname}, which {req.reader} reads "
+                                f"(time {tstr}); using the reader's fallback {_fmt(req.fallback)}")
+                out[req] = np.ascontiguousarray(np.tile(fb, (n_out, 1)), dtype=np.float32)
+                continue
+            elem_vals = _request_values(req_pv[k], req, pv.values)
+            bad = ~np.isfinite(elem_vals).all(axis=1)
+            if bad.any():
+                warnings.append(f"{self.path}: primvar {req.varname} has {int(bad.sum())} "
+                                f"NaN/Inf value(s) (time {tstr}); the reader's fallback there")
+                elem_vals = np.where(bad[:, None], fb[None, :], elem_vals)
+            e = topo.out_elem[name]
+            vals = elem_vals[:n_out] if e is None else elem_vals[e]
+            out[req] = np.ascontiguousarray(vals, dtype=np.float32)
+        return out

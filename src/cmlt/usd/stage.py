@@ -278,7 +278,11 @@ def _is_light(prim) -> bool:
 def subdivision_note(prim) -> str:
     scheme = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get()
     if scheme and scheme != UsdGeom.Tokens.none:
-        return f"{prim.GetPath()}: subdivisionScheme is {scheme}; rendered as the control cage"
+        from .mesh import subdiv_level_of
+        level = subdiv_level_of(prim)
+        how = (f"refined with OpenSubdiv to level {level}" if level > 0
+               else "rendered as the control cage (level 0)")
+        return f"{prim.GetPath()}: subdivisionScheme is {scheme}; {how}"
     return ""
 
 

@@ -12,6 +12,12 @@
 /// resolved). `tex_normal` is a tangent-space normal map (after scale/bias, in [-1, 1]^3,
 /// +z along the shading normal, +x along dp/du).
 ///
+/// Primvar inputs (UsdPrimvarReader_*): `pv_*` is the first column of the hit's interpolated
+/// primvars (SurfaceInteraction::primvars, from MeshData::primvars) or -1; a colour input
+/// reads 3 columns from there, a scalar input 1. A hit whose mesh has too few columns keeps
+/// the constant (the reader's fallback). A texture wins over a primvar on the same input.
+/// Emission is never read from primvars (triangle lights sample a constant or a texture).
+///
 /// opacityThreshold > 0 turns opacity into a cutout (UsdPreviewSurface spec): opacity below
 /// the threshold is no surface at all (an ior-1 pass-through), anything else is opaque.
 /// Otherwise (1 - opacity) weights the dielectric (glass) lobe with `ior`.
@@ -40,13 +46,16 @@ struct Material {
             tex_clearcoat_roughness = -1, tex_opacity = -1;
     uint8_t ch_metallic = 0, ch_roughness = 0, ch_clearcoat = 0, ch_clearcoat_roughness = 0,
             ch_opacity = 3;
+    int8_t pv_diffuse = -1, pv_specular = -1, pv_metallic = -1, pv_roughness = -1,
+           pv_clearcoat = -1, pv_clearcoat_roughness = -1, pv_opacity = -1;
 
     bool is_emissive() const { return max_component(emission) > 0.f || tex_emission >= 0; }
 };
 
 /// Column layout of the float32 (K, P) `params` table of `Scene.set_materials`
-/// (P = k_param_cols_basic without textures, or k_param_cols_full with them).
-/// Texture columns hold a texture id or -1; channel columns 0..3 (r, g, b, a).
+/// (P = k_param_cols_basic without textures, k_param_cols_full with them, or
+/// k_param_cols_primvar with primvar inputs too). Texture columns hold a texture id or -1;
+/// channel columns 0..3 (r, g, b, a); primvar columns a first primvar column or -1.
 namespace material_col {
 constexpr int specular_r = 0, specular_g = 1, specular_b = 2, use_specular_workflow = 3,
               metallic = 4, roughness = 5, clearcoat = 6, clearcoat_roughness = 7, opacity = 8,
@@ -56,8 +65,11 @@ constexpr int tex_diffuse = 11, tex_emission = 12, tex_specular = 13, tex_normal
               tex_clearcoat_roughness = 18, tex_opacity = 19;
 constexpr int ch_metallic = 20, ch_roughness = 21, ch_clearcoat = 22, ch_clearcoat_roughness = 23,
               ch_opacity = 24;
+constexpr int pv_diffuse = 25, pv_specular = 26, pv_metallic = 27, pv_roughness = 28,
+              pv_clearcoat = 29, pv_clearcoat_roughness = 30, pv_opacity = 31;
 }  // namespace material_col
 constexpr int k_param_cols_basic = 11;
 constexpr int k_param_cols_full = 25;
+constexpr int k_param_cols_primvar = 32;
 
 }  // namespace cmlt

@@ -13,16 +13,21 @@ const Texture* lookup(const std::vector<Texture>& textures, int32_t id) {
                : nullptr;
 }
 
-Spectrum colour_input(const Spectrum& constant, int32_t tex, const Vec2& st,
-                      const std::vector<Texture>& textures) {
-    const Texture* t = lookup(textures, tex);
-    return t ? t->eval(st).xyz() : constant;
+/// A texture if the input has one, else the hit's primvar columns if the input reads them
+/// and the mesh has them, else the constant.
+Spectrum colour_input(const Spectrum& constant, int32_t tex, int8_t pv, const Vec2& st,
+                      const std::vector<Texture>& textures, const float* primvars, int n_primvars) {
+    if (const Texture* t = lookup(textures, tex)) return t->eval(st).xyz();
+    if (pv >= 0 && int(pv) + 3 <= n_primvars)
+        return Spectrum(primvars[pv], primvars[pv + 1], primvars[pv + 2]);
+    return constant;
 }
 
-float scalar_input(float constant, int32_t tex, uint8_t channel, const Vec2& st,
-                   const std::vector<Texture>& textures) {
-    const Texture* t = lookup(textures, tex);
-    return t ? channel_of(t->eval(st), channel) : constant;
+float scalar_input(float constant, int32_t tex, uint8_t channel, int8_t pv, const Vec2& st,
+                   const std::vector<Texture>& textures, const float* primvars, int n_primvars) {
+    if (const Texture* t = lookup(textures, tex)) return channel_of(t->eval(st), channel);
+    if (pv >= 0 && int(pv) < n_primvars) return primvars[pv];
+    return constant;
 }
 
 PreviewSurfaceParams constant_params(const Material& mat) {
@@ -52,16 +57,24 @@ void apply_cutout(PreviewSurfaceParams* p, float opacity_threshold) {
 }  // namespace
 
 PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
-                                    const std::vector<Texture>& textures) {
+                                    const std::vector<Texture>& textures, const float* primvars,
+                                    int n_primvars) {
+    const float* q = primvars;
+    const int n = primvars ? n_primvars : 0;
     PreviewSurfaceParams p = constant_params(mat);
-    p.diffuse = colour_input(mat.diffuse, mat.tex_diffuse, st, textures);
-    p.specular = colour_input(mat.specular, mat.tex_specular, st, textures);
-    p.metallic = scalar_input(mat.metallic, mat.tex_metallic, mat.ch_metallic, st, textures);
-    p.roughness = scalar_input(mat.roughness, mat.tex_roughness, mat.ch_roughness, st, textures);
-    p.clearcoat = scalar_input(mat.clearcoat, mat.tex_clearcoat, mat.ch_clearcoat, st, textures);
+    p.diffuse = colour_input(mat.diffuse, mat.tex_diffuse, mat.pv_diffuse, st, textures, q, n);
+    p.specular = colour_input(mat.specular, mat.tex_specular, mat.pv_specular, st, textures, q, n);
+    p.metallic = scalar_input(mat.metallic, mat.tex_metallic, mat.ch_metallic, mat.pv_metallic, st,
+                              textures, q, n);
+    p.roughness = scalar_input(mat.roughness, mat.tex_roughness, mat.ch_roughness,
+                               mat.pv_roughness, st, textures, q, n);
+    p.clearcoat = scalar_input(mat.clearcoat, mat.tex_clearcoat, mat.ch_clearcoat,
+                               mat.pv_clearcoat, st, textures, q, n);
     p.clearcoat_roughness = scalar_input(mat.clearcoat_roughness, mat.tex_clearcoat_roughness,
-                                         mat.ch_clearcoat_roughness, st, textures);
-    p.opacity = scalar_input(mat.opacity, mat.tex_opacity, mat.ch_opacity, st, textures);
+                                         mat.ch_clearcoat_roughness, mat.pv_clearcoat_roughness,
+                                         st, textures, q, n);
+    p.opacity = scalar_input(mat.opacity, mat.tex_opacity, mat.ch_opacity, mat.pv_opacity, st,
+                             textures, q, n);
     apply_cutout(&p, mat.opacity_threshold);
     return p;
 }
@@ -96,10 +109,12 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
         }
     }
     if (!mat.preview) {
-        return Bsdf(LambertianBsdf(colour_input(mat.diffuse, mat.tex_diffuse, si.uv, textures)), ns,
-                    si.ng);
+        return Bsdf(LambertianBsdf(colour_input(mat.diffuse, mat.tex_diffuse, -1, si.uv, textures,
+                                                nullptr, 0)),
+                    ns, si.ng);
     }
-    return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures)), ns, si.ng);
+    return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures, si.primvars, si.n_primvars)),
+                ns, si.ng);
 }
 
 bool may_pass_rays(const Material& mat) {
@@ -108,21 +123,25 @@ bool may_pass_rays(const Material& mat) {
     // a vertex to see its emission (a crossed surface makes none).
     if (mat.is_emissive()) return false;
     if (mat.opacity_threshold > 0.f)  // a cut-out wherever opacity < threshold (apply_cutout)
-        return mat.tex_opacity >= 0 || mat.opacity < mat.opacity_threshold;
-    if (mat.tex_opacity < 0 && !(mat.opacity < 1.f)) return false;  // opaque everywhere
+        return mat.tex_opacity >= 0 || mat.pv_opacity >= 0 || mat.opacity < mat.opacity_threshold;
+    if (mat.tex_opacity < 0 && mat.pv_opacity < 0 && !(mat.opacity < 1.f))
+        return false;  // opaque everywhere
     // Transmission somewhere: a pass-through if the (sanitised) ior is 1.
     PreviewSurfaceParams p = constant_params(mat);
     p.opacity = 0.f;
     return PreviewSurfaceBsdf(p).has_pass_through();
 }
 
-Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures) {
-    return colour_input(mat.diffuse, mat.tex_diffuse, st, textures);
+Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures,
+                        const float* primvars, int n_primvars) {
+    // the Lambert material (preview == false) has no primvar inputs, as in make_bsdf
+    return colour_input(mat.diffuse, mat.tex_diffuse, mat.preview ? mat.pv_diffuse : int8_t(-1), st,
+                        textures, primvars, primvars ? n_primvars : 0);
 }
 
 Spectrum emitted_radiance(const Material& mat, const Vec2& st,
                           const std::vector<Texture>& textures) {
-    Spectrum e = colour_input(mat.emission, mat.tex_emission, st, textures);
+    Spectrum e = colour_input(mat.emission, mat.tex_emission, -1, st, textures, nullptr, 0);
     return {std::max(0.f, e.x), std::max(0.f, e.y), std::max(0.f, e.z)};
 }
 

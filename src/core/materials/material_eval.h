@@ -11,18 +11,22 @@
 namespace cmlt {
 
 /// UsdPreviewSurface parameters of `mat` at texture coordinate `st` (textures applied,
-/// opacityThreshold cutout resolved).
+/// opacityThreshold cutout resolved), with the hit's interpolated primvar columns
+/// (SurfaceInteraction::primvars, n_primvars of them) for the inputs that read primvars.
 PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
-                                    const std::vector<Texture>& textures);
+                                    const std::vector<Texture>& textures,
+                                    const float* primvars = nullptr, int n_primvars = 0);
 
-/// The BSDF at `si`. The shading normal is si.ns, perturbed by the material's normal map
+/// The BSDF at `si` (textures at si.uv, primvar inputs from si.primvars). The shading normal is si.ns, perturbed by the material's normal map
 /// when it has one and si.dpdu is known; it stays on si.ng's side.
 Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
                const std::vector<Texture>& textures);
 
 /// The diffuse colour (UsdPreviewSurface diffuseColor, or the Lambert colour) at texture
-/// coordinate `st`, textured as make_bsdf textures it: what the albedo AOV reports.
-Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures);
+/// coordinate `st`, textured (and read from the hit's primvars) as make_bsdf does: what the
+/// albedo AOV reports.
+Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures,
+                        const float* primvars = nullptr, int n_primvars = 0);
 
 /// Can a hit on `mat` let a ray through without scattering (a pass-through lobe:
 /// opacityThreshold cut-out, or an ior-1 interface with opacity < 1, constant or

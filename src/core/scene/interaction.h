@@ -22,6 +22,11 @@ constexpr float k_offset_rel = 0x1p-18f;
 /// Shadow rays stop this fraction short of their (already offset) target.
 constexpr float k_shadow_epsilon = 1e-4f;
 
+/// Most per-vertex primvar columns a mesh carries (MeshData::primvars): enough for a
+/// displayColor (3) + displayOpacity (1) and one more colour and scalar; each column costs
+/// a float in every SurfaceInteraction.
+constexpr int k_max_primvar_columns = 8;
+
 inline Vec3 offset_ray_origin(const Vec3& p, const Vec3& ng, float error_scale, const Vec3& w) {
     Vec3 off = ng * (k_offset_rel * error_scale);
     return dot(w, ng) < 0.f ? p - off : p + off;
@@ -44,6 +49,11 @@ struct SurfaceInteraction {
     uint32_t mesh_id = 0;
     uint32_t prim_id = 0;
     uint32_t material_id = 0;
+    /// The mesh's per-vertex primvar columns (MeshData::primvars) interpolated at the hit
+    /// with its barycentrics; the first `n_primvars` are set (0 for a mesh without them).
+    /// Material inputs read by a UsdPrimvarReader take their value from here.
+    uint8_t n_primvars = 0;
+    float primvars[k_max_primvar_columns] = {};
 
     Ray spawn_ray(const Vec3& d) const {
         Ray r(offset_ray_origin(p, ng, error_scale, d), d, 0.f, k_infinity);

@@ -1,6 +1,7 @@
 #pragma once
 /// \file A triangle mesh in object space, sharing memory with its owner (numpy arrays).
 #include "math/vec.h"
+#include "scene/interaction.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -18,6 +19,11 @@ struct MeshData {
     const float* normals = nullptr;        ///< (n_points, 3) or null
     const float* uvs = nullptr;            ///< (n_points, 2) or null
     const uint32_t* material_ids = nullptr;  ///< (n_tris,) or null (material 0)
+    /// (n_points, n_primvar_columns) per-vertex primvar values, or null: the columns that
+    /// material inputs driven by a UsdPrimvarReader read (Material::pv_*), interpolated
+    /// at a hit into SurfaceInteraction::primvars. At most k_max_primvar_columns.
+    const float* primvars = nullptr;
+    uint32_t n_primvar_columns = 0;
     std::shared_ptr<void> owner;           ///< keeps the arrays alive (set by the bindings)
 };
 
@@ -37,6 +43,9 @@ struct Mesh {
     Vec2 uv(uint32_t i) const {
         const float* t = data.uvs + 2 * size_t(i);
         return {t[0], t[1]};
+    }
+    const float* primvar_row(uint32_t i) const {
+        return data.primvars + size_t(data.n_primvar_columns) * size_t(i);
     }
     void triangle(uint32_t prim, uint32_t v[3]) const {
         const uint32_t* t = data.indices + 3 * size_t(prim);

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace cmlt {
 
@@ -53,6 +54,14 @@ uint32_t Scene::add_mesh(const std::string& name, MeshData data) {
     }
     if (data.normals) validate_finite(name, "normals", data.normals, data.n_points, 3);
     if (data.uvs) validate_finite(name, "uvs", data.uvs, data.n_points, 2);
+    if (data.n_primvar_columns > uint32_t(k_max_primvar_columns))
+        CMLT_THROW(SceneError, "mesh '" << name << "': " << data.n_primvar_columns
+                                        << " primvar columns, at most " << k_max_primvar_columns);
+    if (data.n_primvar_columns > 0 && !data.primvars)
+        CMLT_THROW(SceneError, "mesh '" << name << "': primvars is null");
+    if (!data.primvars) data.n_primvar_columns = 0;
+    if (data.primvars)
+        validate_finite(name, "primvars", data.primvars, data.n_points, data.n_primvar_columns);
 
     Mesh mesh;
     mesh.name = name;
@@ -328,6 +337,16 @@ void Scene::commit() {
                 CMLT_THROW(SceneError, "material " << i << " refers to texture " << id
                                                    << " but there are " << m_textures.size()
                                                    << " textures");
+        const std::pair<int8_t, int> pvs[] = {{m.pv_diffuse, 3},   {m.pv_specular, 3},
+                                              {m.pv_metallic, 1},  {m.pv_roughness, 1},
+                                              {m.pv_clearcoat, 1}, {m.pv_clearcoat_roughness, 1},
+                                              {m.pv_opacity, 1}};
+        for (const auto& pv : pvs)
+            if (pv.first >= 0 && int(pv.first) + pv.second > k_max_primvar_columns)
+                CMLT_THROW(SceneError, "material " << i << " reads primvar columns " << int(pv.first)
+                                                   << ".." << int(pv.first) + pv.second - 1
+                                                   << " but meshes carry at most "
+                                                   << k_max_primvar_columns);
     }
     // Which materials can let rays pass (visibility queries step through them only then).
     m_material_passes.assign(m_materials.size(), 0);
@@ -400,6 +419,12 @@ void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mes
     si->mesh_id = inst.mesh_id;
     si->prim_id = hit.prim_id;
     si->material_id = mesh.material_id(hit.prim_id);
+    si->n_primvars = uint8_t(mesh.data.n_primvar_columns);
+    if (si->n_primvars) {
+        const float *q0 = mesh.primvar_row(v[0]), *q1 = mesh.primvar_row(v[1]),
+                    *q2 = mesh.primvar_row(v[2]);
+        for (int c = 0; c < si->n_primvars; ++c) si->primvars[c] = q0[c] * b0 + q1[c] * b1 + q2[c] * b2;
+    }
 }
 
 }  // namespace

@@ -96,7 +96,7 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                                     const SurfaceInteraction& si = hit.si;
                                     const Material& mat = scene.material(si.material_id);
                                     const Bsdf bsdf = make_bsdf(mat, si, scene.textures());
-                                    albedo += diffuse_colour(mat, si.uv, scene.textures());
+                                    albedo += diffuse_colour(mat, si.uv, scene.textures(), si.primvars, si.n_primvars);
                                     n = face_forward(bsdf.shading_normal(), si.wo);
                                     p = si.p;
                                 } else {
