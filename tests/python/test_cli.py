@@ -260,7 +260,7 @@ def test_12_stage_settings_then_flags(make_shot, tmp_path):
 
 def test_13_core_settings_errors_name_their_source():
     from cmlt.settings import RenderSettings
-    from cmlt.shot.sequence import _settings_message
+    from cmlt.shot.core_settings import settings_message as _settings_message
     rs = RenderSettings(integrator="bdpt")
     msg, usage = _settings_message("RenderSettings.integrator: unknown integrator 'bdpt'", rs,
                                    {"integrator": "flag --integrator"})

@@ -140,7 +140,7 @@ def test07_header_metadata(tiny_shot, tmp_path, capsys):
 def test08_b_estimates_and_mutations_go_into_the_header_when_reported():
     from types import SimpleNamespace
     from cmlt.settings import RenderSettings
-    from cmlt.shot.sequence import _header_metadata
+    from cmlt.shot.output import header_metadata as _header_metadata
 
     fs = SimpleNamespace(time=3.0)
     md = _header_metadata(3.0, fs, "/s.usda", "/cam", RenderSettings(),

@@ -13,7 +13,7 @@ import pytest
 from cmlt.cli import main
 from cmlt.io.exr import read_header
 from cmlt.settings import RenderSettings
-from cmlt.shot.sequence import _header_metadata
+from cmlt.shot.output import header_metadata as _header_metadata
 
 MLT = ["--integrator", "pssmlt", "--spp", "8", "--res", "16x12", "--threads", "2",
        "--chains", "32", "--bootstrap-samples", "256"]

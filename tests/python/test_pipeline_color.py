@@ -16,7 +16,7 @@ import PyOpenColorIO as ocio
 import pytest
 from pxr import Sdf, Usd, UsdShade
 
-import cmlt.shot.sequence as seqmod
+import cmlt.shot.frame_job as seqmod
 from cmlt.color import GAMUT_CHROMATICITIES, get_config, load_config, set_config
 from cmlt.shot import RenderOptions, render_sequence
 from cmlt.usd import load_frame, open_stage

@@ -20,8 +20,8 @@ import sys
 from typing import Optional
 
 from .flicker import FlickerReport, _finite_or_none, compare, flicker
-from .sequence import MetricsError, _GLOB_CHARS, load_image, load_sequence
-from ..shot.frames import has_frame_token
+from ..io.frame_pattern import has_frame_token, is_glob
+from .sequence import MetricsError, load_image, load_sequence
 
 __all__ = ["COMMANDS", "add_parsers", "run", "plot_report"]
 
@@ -73,7 +73,7 @@ def _frame(f: float) -> str:
 
 
 def _is_sequence(text: str) -> bool:
-    return has_frame_token(text) or bool(_GLOB_CHARS.search(text))
+    return has_frame_token(text) or is_glob(text)
 
 
 def _write_json(path: str, data) -> None:
