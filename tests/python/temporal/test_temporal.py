@@ -15,14 +15,15 @@ import os
 import numpy as np
 import pytest
 
-core = pytest.importorskip("cmlt._core")
+import cmlt._core as core  # the real core: an ImportError is a failure, not a skip
 
 from cmlt.metrics import flicker, load_image  # noqa: E402
 from cmlt.shot import RenderError, RenderOptions, render_sequence  # noqa: E402
 from cmlt.temporal import StateError, read_state, state_path  # noqa: E402
 from cmlt.temporal.normalization import update_normalization  # noqa: E402
+import support
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = str(support.ROOT)
 STATIC = os.path.join(ROOT, "sequences", "static_flicker", "shot.usda")
 MOVING = os.path.join(ROOT, "sequences", "moving_light", "shot.usda")
 

@@ -15,54 +15,14 @@ import pytest
 import cmlt._core as core
 from cmlt.scene import Camera, FrameScene, Instance, Material, Mesh, padded_points
 from cmlt.shot.bridge import SceneBridge
+from support.scenes import RES, cornell_scene
+from support.stats import ACESCG_Y, lum_se, t_critical
+import support
 
 pytestmark = pytest.mark.statistical
 
-ACESCG_Y = np.array([0.2722287, 0.6740818, 0.0536895])
-RES = 32
 SEEDS = 12
 MPP = 128          # mutations per pixel of each MLT run
-
-
-def _lum_se(var):
-    """Standard error of the image-mean luminance from a variance AOV (H, W, 3) with
-    independent pixels. The channels of one pixel are strongly correlated (the
-    channels-independent sum_c Y_c^2 var_c underestimated the variance of the mean 1.5-2.5x,
-    measured over 64 seeds), and only per-channel variances are known, so this is the
-    Cauchy-Schwarz bound sqrt(Var(sum_c Y_c X_c)) <= sum_c Y_c sd_c (exact for fully
-    correlated channels, conservative otherwise)."""
-    n = var.shape[0] * var.shape[1]
-    return float(np.sqrt(np.asarray(var).reshape(-1, 3).sum(0)) @ ACESCG_Y) / n
-
-
-def _quad(name, c, u, v, mat):
-    c, u, v = (np.asarray(a, float) for a in (c, u, v))
-    pts = padded_points([c - u - v, c + u - v, c + u + v, c - u + v])
-    return Mesh(name, pts, np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
-                material_ids=np.array([mat, mat], np.uint32))
-
-
-def cornell_scene():
-    """A 2 m box open towards the camera (+z): white floor, ceiling and back wall, red
-    left and green right walls, an emissive square under the ceiling; camera at z = 3.4."""
-    mats = [Material("/white", diffuse=(0.7, 0.7, 0.7)), Material("/red", diffuse=(0.6, 0.06, 0.05)),
-            Material("/green", diffuse=(0.1, 0.5, 0.1)),
-            Material("/light", diffuse=(0.0, 0.0, 0.0), emission=(12.0, 10.0, 8.0))]
-    quads = [  # normals point into the box (u x v)
-        _quad("/floor", (0, 0, 0), (0, 0, 1), (1, 0, 0), 0),
-        _quad("/ceiling", (0, 2, 0), (1, 0, 0), (0, 0, 1), 0),
-        _quad("/back", (0, 1, -1), (1, 0, 0), (0, 1, 0), 0),
-        _quad("/left", (-1, 1, 0), (0, 1, 0), (0, 0, 1), 1),
-        _quad("/right", (1, 1, 0), (0, 0, 1), (0, 1, 0), 2),
-        _quad("/lamp", (0, 1.98, 0), (0.3, 0, 0), (0, 0, 0.3), 3),
-    ]
-    cam_xf = np.eye(4)
-    cam_xf[:3, 3] = (0, 1, 3.4)
-    return FrameScene(
-        time=1.0, meshes=quads, instances=[Instance(q.name, i, np.eye(4)) for i, q in enumerate(quads)],
-        materials=mats, lights=[],
-        camera=Camera("/cam", cam_xf, focal_length=35, horizontal_aperture=24, vertical_aperture=24),
-        resolution=(RES, RES), meters_per_unit=1.0)
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +37,7 @@ def _settings(integrator, spp, seed, **kw):
     st.width = st.height = RES
     st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, 8
     st.integrator = integrator
-    st.mlt_path_sampler = "pt"   # this file: PSSMLT over the path tracer (bdpt: test_mlt_bdpt.py)
+    st.mlt_path_sampler = "pt"   # this file: PSSMLT over the path tracer (bdpt: test_pssmlt_bdpt.py)
     for k, v in kw.items():
         setattr(st, k, v)
     return st
@@ -96,46 +56,6 @@ def mlt_runs(scene):
         r = core.render(scene, _settings("pssmlt", MPP, seed, chains=128, bootstrap_samples=16384))
         runs.append((np.asarray(r.image, np.float64), dict(r.stats)))
     return runs
-
-
-def t_critical(dof, two_sided_alpha):
-    """Quantile of Student's t by bisection on the regularised incomplete beta (no scipy)."""
-    def sf(t):  # P(T > t), t >= 0
-        x = dof / (dof + t * t)
-        return 0.5 * _betainc(dof / 2, 0.5, x)
-    lo, hi = 0.0, 1e3
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if sf(mid) > two_sided_alpha / 2 else (lo, mid)
-    return hi
-
-
-def _betainc(a, b, x):
-    """Regularised incomplete beta I_x(a, b) (continued fraction, Numerical Recipes)."""
-    if x <= 0:
-        return 0.0
-    if x >= 1:
-        return 1.0
-    lbeta = math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
-    front = math.exp(lbeta + a * math.log(x) + b * math.log(1 - x))
-    if x > (a + 1) / (a + b + 2):
-        return 1.0 - _betainc(b, a, 1 - x)
-    f, c, d = 1.0, 1.0, 0.0
-    for i in range(400):
-        m = i // 2
-        if i == 0:
-            num = 1.0
-        elif i % 2 == 0:
-            num = m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
-        else:
-            num = -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))
-        d = 1.0 + num * d
-        d = 1.0 / (d if abs(d) > 1e-300 else 1e-300)
-        c = 1.0 + num / c if abs(c) > 1e-300 else 1e-300
-        f *= c * d
-        if abs(c * d - 1.0) < 1e-14:
-            break
-    return front * (f - 1.0) / a
 
 
 def test_01_t_quantile():
@@ -173,7 +93,7 @@ def test_03_mean_brightness_within_1_percent(mlt_runs, reference):
     m, se = means.mean(), means.std(ddof=1) / math.sqrt(SEEDS)
     # SE of the luminance mean: R, G, B are correlated, so the channels-independent
     # sum underestimates it; Cauchy-Schwarz bound sum_c Y_c se_c (see _lum_se)
-    ref_se = _lum_se(ref_var)
+    ref_se = lum_se(ref_var)
     assert abs(m / ref_y - 1) < 0.01, (m, ref_y, se)
     # and within the t confidence interval (two-sided false-alarm rate 1e-3)
     t = t_critical(SEEDS - 1, 1e-3)
@@ -216,7 +136,7 @@ def test_05_bootstrap_b_is_the_mean_of_f_star(scene, reference):
     ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
     # SE of the luminance mean: R, G, B are correlated, so the channels-independent
     # sum underestimates it; Cauchy-Schwarz bound sum_c Y_c se_c (see _lum_se)
-    ref_se = _lum_se(ref_var)
+    ref_se = lum_se(ref_var)
     for seed in range(4):
         st = dict(core.render(scene, _settings("pssmlt", MPP, seed, chains=128, bootstrap_samples=16384,
                                                importance="luminance", direct_fraction=0)).stats)
@@ -250,7 +170,7 @@ def test_08_cli_render_pssmlt(tmp_path):
 
     from cmlt.cli import main
 
-    shot = os.path.join(os.path.dirname(__file__), "..", "..", "sequences", "cornell", "shot.usda")
+    shot = str(support.SEQUENCES / "cornell" / "shot.usda")
     out = tmp_path / "mlt.####.exr"
     code = main(["render", shot, "--frames", "1", "--out", str(out), "--res", "16x12", "--spp", "8",
                  "--integrator", "pssmlt", "--sigma", "0.02", "--large-step-probability", "0.4",

@@ -33,7 +33,7 @@ def _render(fs, spp=4):
 
 
 def test01_srgb_texture_arrives_as_acescg(tmp_path):
-    oiio = pytest.importorskip("OpenImageIO")
+    import OpenImageIO as oiio
     from cmlt.usd.color import load_texture
     texels = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [200, 150, 50]]], np.uint8)
     path = str(tmp_path / "t.png")

@@ -21,8 +21,9 @@ from cmlt.settings import (SCHEMA_NAME, RenderSettings, SettingsError,
                            find_settings_prim, flag_name, format_settings, resolve_settings)
 
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdRender  # noqa: E402
+import support
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = str(support.ROOT)
 
 
 def make_stage(body: str = "", api: bool = True, metadata: bool = True):

@@ -8,8 +8,9 @@ from pxr import Usd
 
 import cmlt  # noqa: F401  (registers the CmltRenderSettingsAPI schema)
 from cmlt.cli import main
+import support
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = str(support.ROOT)
 CORNELL = os.path.join(ROOT, "sequences", "cornell", "shot.usda")
 
 

@@ -12,13 +12,14 @@ from cmlt.scene import FrameScene
 from cmlt.usd import UsdLoadError, load_frame, open_stage, stage_info
 from cmlt.color import from_rendering_space
 from cmlt.color import to_rendering_space as _to_acescg
+import support
 
 
 def acescg(rgb, source="lin_rec709"):
     """What the reader makes of an (untagged, linear Rec.709) authored colour."""
     return _to_acescg(tuple(float(c) for c in rgb), source)
 
-DATA = os.path.join(os.path.dirname(__file__), os.pardir, "data", "usd")
+DATA = str(support.DATA_USD)
 
 
 def data(name):

@@ -58,7 +58,7 @@ def test_02_static_prims_are_not_touched(tiny_shot):
 def test_03_static_flag_is_trusted():
     """A static mesh is not compared: even different points are not sent
     (the reader, not an array comparison, decides)."""
-    from test_shot_bridge import _frame
+    from support.scenes import tent_frame as _frame
     bridge = SceneBridge(core)
     a = _frame(1, 0.3, 0.0)
     a.meshes[1].deforming = False

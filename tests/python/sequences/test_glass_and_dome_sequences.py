@@ -1,4 +1,4 @@
-"""The issue-3 sequences load: caustic_glass (glass material, moving sphere light) and
+"""Two example sequences load: caustic_glass (glass material, moving sphere light) and
 textured_dome (dome texture, textured materials, moving camera), and a small render of
 each is finite and not black."""
 from pathlib import Path
@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import cmlt._core as core
+import support
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = support.ROOT
 
 
 def _frame(shot, t, res=(32, 32)):

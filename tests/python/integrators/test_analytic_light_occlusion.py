@@ -30,7 +30,7 @@ import cmlt._core as core
 from cmlt.scene import Camera, FrameScene, Instance, Light, Material
 from cmlt.shot.bridge import SceneBridge
 
-from test_mlt import _quad
+from support.scenes import quad as _quad
 
 pytestmark = pytest.mark.statistical
 RES, B = 32, 8

@@ -1,5 +1,5 @@
 """Multiplexed PSSMLT over BDPT (pssmlt's default path sampler) against BDPT, on the
-Cornell-like box of test_mlt.py and on a glass caustic (smooth glass sphere on a diffuse
+Cornell-like box of test_pssmlt.py (support/scenes.py) and on a glass caustic (smooth glass sphere on a diffuse
 floor, small sphere light), both built through the Python scene API.
 
 Confidence intervals come from K independent seeds (MLT pixel errors are correlated
@@ -28,62 +28,17 @@ import cmlt._core as core
 from cmlt.scene import Camera, FrameScene, Instance, Light, Material, Mesh, padded_points
 from cmlt.shot.bridge import SceneBridge
 
-from test_mlt import ACESCG_Y, _lum_se, cornell_scene, t_critical, _quad
+from support.scenes import MAX_DEPTH, RES, caustic_scene, cornell_scene
+from support.stats import ACESCG_Y, lum_se, t_critical
 
 pytestmark = pytest.mark.statistical
 
-RES = 32
 SEEDS = 10
-MAX_DEPTH = 6
 CASES = {  # scene -> (mutations per pixel, BDPT reference spp)
     "cornell": (384, 1024),
     "caustic": (256, 1024),
 }
 TOL_MEAN = {"cornell": 0.01, "caustic": None}   # see the module docstring
-
-
-def _uv_sphere(radius, n_theta=24, n_phi=48):
-    pts, tris = [], []
-    for i in range(n_theta + 1):
-        th = math.pi * i / n_theta
-        for j in range(n_phi):
-            ph = 2 * math.pi * j / n_phi
-            pts.append((radius * math.sin(th) * math.cos(ph), radius * math.cos(th),
-                        -radius * math.sin(th) * math.sin(ph)))
-    for i in range(n_theta):
-        for j in range(n_phi):
-            a, b = i * n_phi + j, i * n_phi + (j + 1) % n_phi
-            c, d = a + n_phi, b + n_phi
-            tris += [(a, c, b), (b, c, d)]   # counter-clockwise seen from outside
-    p = np.array(pts, float)
-    return p, np.array(tris, np.uint32), p / radius
-
-
-def caustic_scene():
-    """Smooth glass ball (opacity 0, ior 1.5, roughness 0) of radius 0.4 on a 2 m diffuse
-    floor, a sphere light of radius 0.1 above and to the side: the caustic under the ball
-    is an (L) S S D E path, found by light tracing (t = 1)."""
-    mats = [Material("/floor", diffuse=(0.7, 0.7, 0.7)),
-            Material("/glass", diffuse=(0.0, 0.0, 0.0), opacity=0.0, ior=1.5, roughness=0.0)]
-    floor = _quad("/floor", (0, 0, 0), (0, 0, 1), (1, 0, 0), 0)
-    p, t, n = _uv_sphere(0.4)
-    ball = Mesh("/ball", padded_points(p), t, normals=padded_points(n),
-                material_ids=np.ones(len(t), np.uint32))
-    ball_xf = np.eye(4)
-    ball_xf[:3, 3] = (0, 0.41, 0)
-    light_xf = np.eye(4)
-    light_xf[:3, 3] = (0.3, 1.4, -0.1)
-    cam_xf = np.eye(4)
-    a = math.radians(-38)
-    cam_xf[:3, :3] = [[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]]
-    cam_xf[:3, 3] = (0, 1.3, 1.6)
-    return FrameScene(
-        time=1.0, meshes=[floor, ball],
-        instances=[Instance("/floor", 0, np.eye(4)), Instance("/ball", 1, ball_xf)],
-        materials=mats,
-        lights=[Light("/light", "sphere", light_xf, radiance=(60.0, 55.0, 45.0), radius=0.1)],
-        camera=Camera("/cam", cam_xf, focal_length=22, horizontal_aperture=36, vertical_aperture=36),
-        resolution=(RES, RES), meters_per_unit=1.0)
 
 
 SCENES = {"cornell": cornell_scene, "caustic": caustic_scene}
@@ -142,7 +97,7 @@ def test_02_mean_brightness_within_1_percent(runs, name):
     ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
     # SE of the luminance mean: R, G, B are correlated, so the channels-independent
     # sum underestimates it; Cauchy-Schwarz bound sum_c Y_c se_c (see _lum_se)
-    ref_se = _lum_se(ref_var)
+    ref_se = lum_se(ref_var)
     means = np.array([img.reshape(-1, 3).mean(0) @ ACESCG_Y for img, _ in mlt])
     m, se = means.mean(), means.std(ddof=1) / math.sqrt(SEEDS)
     print(f"{name}: mean Y {m:.5f} +- {se:.5f}, BDPT {ref_y:.5f} +- {ref_se:.5f}, "

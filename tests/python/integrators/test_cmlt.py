@@ -1,7 +1,7 @@
-"""Coherent MLT (integrator 'cmlt') on the diffuse Cornell-like box of test_mlt.py,
+"""Coherent MLT (integrator 'cmlt') on the diffuse Cornell-like box of test_pssmlt.py (support/scenes.py),
 against a path-traced reference.
 
-Statistics as in test_mlt.py: MLT pixel errors are correlated, so confidence
+Statistics as in test_pssmlt.py: MLT pixel errors are correlated, so confidence
 intervals come from K independent seeds (t-distribution, K-1 degrees of freedom),
 with the PT reference's own standard error added in quadrature. Block means: 4x4
 blocks of 8x8 pixels, Bonferroni over the 16 blocks at a family-wise false-alarm
@@ -16,7 +16,8 @@ import pytest
 import cmlt._core as core
 from cmlt.shot.bridge import SceneBridge
 
-from test_mlt import ACESCG_Y, RES, _lum_se, cornell_scene, t_critical
+from support.scenes import RES, cornell_scene
+from support.stats import ACESCG_Y, lum_se, t_critical
 
 pytestmark = pytest.mark.statistical
 SEEDS = 8
@@ -59,7 +60,9 @@ def _runs(scene, inner, seeds=SEEDS):
                     bootstrap_samples=150000) for s in range(seeds)]
 
 
-def _check(runs, reference, assert_exact):
+def _check(runs, reference):
+    """Assert the image mean (the normalisation) and every block against the PT
+    reference; returns (mean ratio, relative block errors)."""
     ref, ref_var = reference
     ref_l = _lum(ref)
     # per-pixel luminance variance, Cauchy-Schwarz bound (channels are correlated)
@@ -74,25 +77,26 @@ def _check(runs, reference, assert_exact):
     t = (blocks.mean(axis=0) - ref_b) / se
     crit = t_critical(K - 1, ALPHA / t.size)
     rel = blocks.mean(axis=0) / ref_b - 1
-    brightest = int(np.argmax(ref_b))
-    print(f"mean ratio {ratio:.4f}; block |t| max {np.abs(t).max():.2f} (crit {crit:.2f}); "
-          f"block bias max {np.abs(rel).max():+.3%}; brightest block {rel[brightest]:+.3%}")
     for img, _, st in runs:
         assert np.isfinite(img).all() and st["nan_samples"] == 0
-    if assert_exact:
-        m_se = np.sqrt(means.var(ddof=1) / K + ref_lv.sum() / ref_l.size ** 2)
-        assert abs(ratio - 1) < 0.01 + 3 * m_se / ref_l.mean(), ratio
-        assert abs(ratio - 1) < 0.01
-        assert np.all(np.abs(t) < crit), t
+    m_se = np.sqrt(means.var(ddof=1) / K + ref_lv.sum() / ref_l.size ** 2)
+    assert abs(ratio - 1) < 0.01 + 3 * m_se / ref_l.mean(), ratio
+    assert abs(ratio - 1) < 0.01, ratio
+    assert np.all(np.abs(t) < crit), (t, crit, rel)
     return ratio, rel
 
 
 @pytest.mark.parametrize("inner", ["bundle", "mtm", "seed"])
 def test_cmlt_converges_to_pt(scene, reference, inner):
-    """Exactness asserted for bundle (default) and mtm; the seed rule's bias is printed."""
+    """bundle (the default) and mtm are exact: the image mean and every block agree
+    with PT. The seed rule is biased in how it spreads the splats over the pixels
+    (DESIGN.md §3; tests/cpp/mcmc/test_seed_rule.cpp asserts that bias on a 1-D
+    target), but each of its steps still splats a total weight of 1, so its mean is
+    the normalisation b like the exact rules': asserted the same way. On this diffuse
+    box at the default k = 2 its block bias is below what 8 seeds resolve, and that is
+    asserted too: a seed rule whose bias grows into view here fails."""
     runs = _runs(scene, inner)
-    print(f"\ninner={inner}:", end=" ")
-    _check(runs, reference, assert_exact=inner != "seed")
+    _check(runs, reference)
     st = runs[0][2]
     assert st["inner"] == inner and st["tries"] == 2 and st["inner_length"] == 4  # the defaults
     assert st["path_sampler"] == "bdpt"   # the default path sampler (multiplexed BDPT)
@@ -149,7 +153,7 @@ def test_pt_sampler_packets_bit_identical(scene):
     assert "caustic" not in sa["kernel_stats"]
 
 
-# ---- the glass caustic of test_mlt_bdpt.py (L S S D E, found by light tracing) ----------
+# ---- the glass caustic of test_pssmlt_bdpt.py (L S S D E, found by light tracing) ----------
 
 CAUSTIC_SEEDS = 10
 CAUSTIC_EVALS = 512      # path evaluations per pixel of each cmlt run
@@ -158,7 +162,7 @@ CAUSTIC_REF_SPP = 1024   # BDPT reference
 
 @pytest.fixture(scope="module")
 def caustic():
-    from test_mlt_bdpt import MAX_DEPTH, RES as C_RES, caustic_scene
+    from support.scenes import MAX_DEPTH, RES as C_RES, caustic_scene
 
     scene = SceneBridge(core).update(caustic_scene())
 
@@ -198,7 +202,7 @@ def test_caustic_finite_and_caustic_perturbation_accepted(caustic_runs):
     moved = sum(st["kernel_stats"]["caustic"]["moved"] for _, st in runs)
     steps = sum(st["kernel_stats"]["caustic"]["steps"] for _, st in runs)
     print(f"\ncaustic perturbation: {steps} steps, acceptance {moved / steps:.3f}")
-    # no chain sticks (issue 4's measure; see test_mlt_bdpt.py test_04): the share of
+    # no chain sticks (issue 4's measure; see test_pssmlt_bdpt.py test_04): the share of
     # all steps spent in the most-occupied 0.1% of the states visited stays small
     top = [st["top_occupancy"] for _, st in runs]
     print(f"caustic: steps in the most-occupied 0.1% of states: max {max(top):.4f}")
@@ -207,14 +211,14 @@ def test_caustic_finite_and_caustic_perturbation_accepted(caustic_runs):
 
 def test_caustic_mean_within_t_interval(caustic_runs):
     """Mean brightness over the seeds vs BDPT: Student's t at a false-alarm rate of 1e-3,
-    the reference's SE (variance AOV) in quadrature (as test_mlt_bdpt.py; no 1% check on
+    the reference's SE (variance AOV) in quadrature (as test_pssmlt_bdpt.py; no 1% check on
     this heavy-tailed scene, see its docstring)."""
     (ref, ref_var), runs = caustic_runs
     n = ref.shape[0] * ref.shape[1]
     ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
     # SE of the luminance mean: R, G, B are correlated, so the channels-independent
-    # sum underestimates it; Cauchy-Schwarz bound sum_c Y_c se_c (see _lum_se)
-    ref_se = _lum_se(ref_var)
+    # sum underestimates it; Cauchy-Schwarz bound sum_c Y_c se_c (see lum_se)
+    ref_se = lum_se(ref_var)
     means = np.array([img.reshape(-1, 3).mean(0) @ ACESCG_Y for img, _ in runs])
     m, se = means.mean(), means.std(ddof=1) / np.sqrt(len(runs))
     print(f"\ncaustic cmlt: mean Y {m:.5f} +- {se:.5f}, BDPT {ref_y:.5f} +- {ref_se:.5f}, "
@@ -226,7 +230,7 @@ def test_caustic_mean_within_t_interval(caustic_runs):
 def test_caustic_blocks_within_t_intervals(caustic_runs):
     """4x4 blocks of 8x8 pixels per channel (caustic, ball, light) vs BDPT: t-test with
     K-1 dof, Bonferroni over the 48 tests at a family-wise false-alarm rate of 1e-2 (as
-    test_mlt_bdpt.py). Black blocks count as agreeing."""
+    test_pssmlt_bdpt.py). Black blocks count as agreeing."""
     (ref, ref_var), runs = caustic_runs
     B = 8
     nb = ref.shape[0] // B

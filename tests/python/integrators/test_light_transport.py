@@ -29,8 +29,8 @@ import cmlt._core as core
 from cmlt.scene import Camera, FrameScene, Instance, Light, Material, Mesh, padded_points
 from cmlt.shot.bridge import SceneBridge
 
-from test_mlt import cornell_scene, t_critical, _quad
-from test_mlt_bdpt import _uv_sphere
+from support.scenes import cornell_scene, quad as _quad, uv_sphere as _uv_sphere
+from support.stats import t_critical
 
 pytestmark = pytest.mark.statistical
 
@@ -187,7 +187,7 @@ def test02_textured_cut_out_is_evaluated_at_the_hit(integrator, tmp_path):
     """Opacity from a texture's alpha: 0 for u < 1/2, 1 beyond (threshold 0.5). Shadow
     rays are cut out where the camera path would be: the floor is lit for x < 0 (its
     shadow rays cross the quad at x/3 < 0) and dark for x > 0."""
-    oiio = pytest.importorskip("OpenImageIO")
+    import OpenImageIO as oiio
     tex = np.zeros((2, 4, 4), np.float32)
     tex[:, 2:, 3] = 1.0
     path = str(tmp_path / "alpha.exr")
@@ -220,7 +220,7 @@ def test03_ior_1_veil_transmits_one_minus_opacity(integrator, open_floor):
 
 
 def _cornell_with(extra_quads, lens=None, moving_block=False):
-    """test_mlt's Cornell box (32 x 32), optionally with more quads (name, centre, u, v,
+    """test_pssmlt's Cornell box (support/scenes.py) (32 x 32), optionally with more quads (name, centre, u, v,
     Material), a thin lens (f_stop, focus distance) or a block sliding 0.8 m along x
     while the shutter is open."""
     fs = cornell_scene()

@@ -8,6 +8,7 @@ import cmlt._core as core   # the real core: an ImportError is a failure, not a 
 from cmlt.scene import Camera, FrameScene, Instance, Light, Material, Mesh, padded_points
 from cmlt.shot.bridge import SceneBridge
 from cmlt.usd import load_frame, open_stage
+from support.scenes import look_down_camera, plane, rot_x, tent, tent_frame
 
 
 def _settings(w=32, h=24, spp=4, seed=11):
@@ -42,46 +43,8 @@ def test_01_incremental_equals_fresh_on_usd_shot(tiny_shot):
     np.testing.assert_allclose(img2_inc, img2_fresh, rtol=1e-5, atol=1e-6)  # ...and agree
 
 
-def _plane(size=4.0):
-    s = size / 2
-    pts = padded_points([(-s, 0, -s), (s, 0, -s), (s, 0, s), (-s, 0, s)])
-    return Mesh("/plane", pts, np.array([[0, 2, 1], [0, 3, 2]], np.uint32))
-
-
-def _tent(height):
-    """A deforming 'tent': 5 points, the centre one moves up."""
-    pts = padded_points([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1), (0, height, 0)])
-    idx = np.array([[0, 4, 1], [1, 4, 2], [2, 4, 3], [3, 4, 0]], np.uint32)
-    return Mesh("/tent", pts, idx, deforming=True)
-
-
-def _look_down_camera():
-    # camera at (0, 3, 3) looking at the origin: rotate -45 degrees about X
-    c, s = np.cos(np.radians(-45)), np.sin(np.radians(-45))
-    t = np.array([[1, 0, 0, 0], [0, c, -s, 3], [0, s, c, 3], [0, 0, 0, 1]], float)
-    return Camera("/cam", t, focal_length=35, horizontal_aperture=36, vertical_aperture=27)
-
-
-def _rot_x(degrees):
-    """Rotation about X; a distant light shines along its local -Z."""
-    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
-    return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]], float)
-
-
-def _frame(time, tent_height, tent_x):
-    xf = np.eye(4)
-    xf[0, 3] = tent_x
-    return FrameScene(
-        time=time, meshes=[_plane(), _tent(tent_height)],
-        instances=[Instance("/plane", 0, np.eye(4)), Instance("/tent", 1, xf)],
-        materials=[Material("/white", diffuse=(0.7, 0.7, 0.7))],
-        lights=[Light("/sun", "distant", _rot_x(-60), radiance=(3.0, 3.0, 3.0), angle=5.0),
-                Light("/sky", "dome", np.eye(4), radiance=(0.2, 0.25, 0.3))],
-        camera=_look_down_camera(), resolution=(32, 24), meters_per_unit=1.0)
-
-
 def test_02_deforming_mesh_and_transform_incremental_equals_fresh():
-    a, b = _frame(1, 0.3, 0.0), _frame(2, 1.2, 0.4)
+    a, b = tent_frame(1, 0.3, 0.0), tent_frame(2, 1.2, 0.4)
     st = _settings()
     bridge = SceneBridge(core)
     img_a = _render(bridge.update(a), st)
@@ -95,8 +58,8 @@ def test_02_deforming_mesh_and_transform_incremental_equals_fresh():
 
 def test_03_unchanged_frame_updates_nothing():
     bridge = SceneBridge(core)
-    bridge.update(_frame(1, 0.3, 0.0))
-    bridge.update(_frame(2, 0.3, 0.0))
+    bridge.update(tent_frame(1, 0.3, 0.0))
+    bridge.update(tent_frame(2, 0.3, 0.0))
     rep = bridge.last_update
     assert (rep.rebuilt, rep.meshes_updated, rep.transforms_updated) == (False, 0, 0)
 
@@ -104,15 +67,15 @@ def test_03_unchanged_frame_updates_nothing():
 def test_04_topology_change_rebuilds():
     bridge = SceneBridge(core)
     st = _settings()
-    bridge.update(_frame(1, 0.3, 0.0))
-    changed = _frame(2, 0.3, 0.0)
+    bridge.update(tent_frame(1, 0.3, 0.0))
+    changed = tent_frame(2, 0.3, 0.0)
     changed.meshes[1] = Mesh("/tent", changed.meshes[1].points,
                              changed.meshes[1].indices[:2].copy(), deforming=True)
     img_inc = _render(bridge.update(changed), st)
     assert bridge.last_update.rebuilt and "indices" in bridge.last_update.reason
     np.testing.assert_array_equal(img_inc, _render(SceneBridge(core).update(changed), st))
     # an added instance also rebuilds
-    more = _frame(3, 0.3, 0.0)
+    more = tent_frame(3, 0.3, 0.0)
     more.meshes[1] = changed.meshes[1]
     more.instances.append(Instance("/tent2", 1, np.eye(4)))
     bridge.update(more)
@@ -122,8 +85,8 @@ def test_04_topology_change_rebuilds():
 def test_05_material_change_is_sent():
     bridge = SceneBridge(core)
     st = _settings()
-    img_white = _render(bridge.update(_frame(1, 0.3, 0.0)), st)
-    red = _frame(2, 0.3, 0.0)
+    img_white = _render(bridge.update(tent_frame(1, 0.3, 0.0)), st)
+    red = tent_frame(2, 0.3, 0.0)
     red.materials = [Material("/white", diffuse=(0.7, 0.1, 0.1))]
     img_red = _render(bridge.update(red), st)
     assert bridge.last_update.materials_updated and not bridge.last_update.rebuilt

@@ -28,11 +28,12 @@ import cmlt._core as core
 from cmlt.shot.bridge import SceneBridge
 from cmlt.usd import load_frame, open_stage
 
-from test_mlt import t_critical
+from support.stats import t_critical
+import support
 
 pytestmark = pytest.mark.statistical
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = support.ROOT
 SHOT = ROOT / "sequences" / "textured_dome" / "shot.usda"
 W, H, B, K = 48, 32, 8, 32
 SPP = {"pt": 16, "bdpt": 8}

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from cmlt.usd import load_frame, open_stage
+import support
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = str(support.ROOT)
 SEQ = os.path.join(ROOT, "sequences")
 FRAMES = (1, 12, 13, 24)
 

@@ -1,0 +1,101 @@
+"""The shape of the code and of the tests: the cmlt package has no import cycle
+(between modules, nor between its subpackages), and every test module's
+basename is unique across tests/ (pytest's default import mode needs it)."""
+from __future__ import annotations
+
+import ast
+from collections import Counter
+from pathlib import Path
+
+import support
+
+SRC = support.ROOT / "src" / "cmlt"
+
+
+def _modules():
+    """{dotted module name: path} of src/cmlt (packages by their __init__)."""
+    out = {}
+    for path in SRC.rglob("*.py"):
+        parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        out[".".join(parts)] = path
+    return out
+
+
+def import_graph():
+    """Module -> the cmlt modules it imports, at module level or inside functions
+    (``from . import x`` of a submodule counts as importing the submodule)."""
+    mods = _modules()
+    known = set(mods) | {"cmlt._core"}
+    graph = {}
+    for name, path in mods.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names if a.name in known}
+            elif isinstance(node, ast.ImportFrom):
+                base = package.split(".")
+                if node.level:
+                    base = base[:len(base) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else [])) if node.level \
+                    else node.module
+                subs = {f"{mod}.{a.name}" for a in node.names} & known
+                deps |= subs
+                if len(subs) < len(node.names) and mod in known:
+                    deps.add(mod)
+        graph[name] = deps - {name}
+    return graph
+
+
+def _cycle(graph):
+    """One cycle of ``graph`` as a list of nodes, or None."""
+    state, stack = {}, []
+
+    def visit(v):
+        state[v] = 1
+        stack.append(v)
+        for w in sorted(graph.get(v, ())):
+            if state.get(w) == 1:
+                return stack[stack.index(w):] + [w]
+            if w not in state:
+                found = visit(w)
+                if found:
+                    return found
+        stack.pop()
+        state[v] = 2
+        return None
+
+    for v in sorted(graph):
+        if v not in state:
+            found = visit(v)
+            if found:
+                return found
+    return None
+
+
+def test01_no_import_cycle_between_modules():
+    graph = import_graph()
+    assert len(graph) > 40                          # the walk found the package
+    assert "cmlt.usd.frame" in graph["cmlt.usd.info"]
+    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
+
+
+def test02_no_import_cycle_between_subpackages():
+    def top(m):
+        return ".".join(m.split(".")[:2])
+    graph = {}
+    for a, deps in import_graph().items():
+        graph.setdefault(top(a), set()).update(top(b) for b in deps if top(b) != top(a))
+    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
+
+
+def test03_the_cycle_check_can_fail():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test04_test_module_basenames_are_unique():
+    names = Counter(p.name for p in (support.ROOT / "tests").rglob("test_*.py"))
+    assert names and not [n for n, k in names.items() if k > 1]
