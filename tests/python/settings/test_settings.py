@@ -224,3 +224,21 @@ def test13_format_settings():
     assert lines["sigma"].split()[1:] == ["0.01", "cmlt:sigma", "default"]
     assert lines["carry_states"].split()[1] == "true"
     assert flag_name("large_step_probability") == "--large-step-probability"
+
+
+def test14_one_settings_prim_rule_for_the_reader_and_the_settings():
+    """renderSettingsPrimPath naming no RenderSettings prim is an error for the
+    stage reader as for the settings (it used to fall back to the first prim in
+    load_frame only); without metadata both take the first RenderSettings prim."""
+    from cmlt.usd import UsdLoadError, load_frame
+    stage = make_stage("uniform int cmlt:spp = 4\nuniform int2 resolution = (20, 10)\n")
+    stage.SetMetadata("renderSettingsPrimPath", "/Render/nope")
+    with pytest.raises(SettingsError, match="render settings /Render/nope does not exist"):
+        resolve_settings(stage)
+    with pytest.raises(UsdLoadError, match="render settings /Render/nope does not exist"):
+        load_frame(stage, 0)
+    stage = make_stage("uniform int cmlt:spp = 4\nuniform int2 resolution = (20, 10)\n",
+                       metadata=False)
+    settings, sources = resolve_settings(stage)
+    assert settings.resolution == load_frame(stage, 0).resolution == (20, 10)
+    assert sources["resolution"] == "stage:/Render/settings"
