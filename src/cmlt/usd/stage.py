@@ -57,14 +57,14 @@ def composition_warnings(stage) -> List[str]:
 
 class StageState:
     """Per-stage state kept between calls: warnings from opening, and the
-    mesh caches of :mod:`cmlt.usd.frame`. Invalidated when the stage changes."""
+    mesh caches of :mod:`cmlt.usd.traversal`. Invalidated when the stage changes."""
 
     def __init__(self, stage):
         self.stage_ref = weakref.ref(stage)
         self.open_warnings: List[str] = []
         self.mesh_cache: Dict[object, object] = {}
         self.shape_cache: Dict[object, object] = {}
-        # (prim path, stop path) -> the transform might vary in time (frame.py)
+        # (prim path, stop path) -> the transform might vary in time (traversal.py)
         self.xform_anim: Dict[object, bool] = {}
         # (gprim key, material signature) -> (tri_face, material ids): one array
         # object per static mesh, so the bridge recognises it by identity
