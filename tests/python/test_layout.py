@@ -99,3 +99,27 @@ def test03_the_cycle_check_can_fail():
 def test04_test_module_basenames_are_unique():
     names = Counter(p.name for p in (support.ROOT / "tests").rglob("test_*.py"))
     assert names and not [n for n, k in names.items() if k > 1]
+
+
+def _pyproject():
+    import tomllib
+    with open(support.ROOT / "pyproject.toml", "rb") as fh:
+        return tomllib.load(fh)
+
+
+def test05_the_version_is_pyprojects():
+    import cmlt
+    assert cmlt.__version__ == _pyproject()["project"]["version"]
+
+
+def test06_the_makefile_installs_pyprojects_build_requirements_and_test_extra():
+    """The Makefile names no package of its own: the build requirements (needed for
+    --no-build-isolation) are pyproject's, and the rest comes from `.[test]`."""
+    import re
+    make = (support.ROOT / "Makefile").read_text()
+    reqs = re.search(r"^BUILD_REQS\s*:=\s*(.*)$", make, re.M).group(1)
+    assert re.findall(r'"([^"]+)"', reqs) == _pyproject()["build-system"]["requires"]
+    assert "-e '.[test]'" in make
+    extras = _pyproject()["project"]["optional-dependencies"]
+    assert "matplotlib" in extras["plot"] and set(extras["plot"]) <= set(extras["test"])
+    assert not any(d.startswith("matplotlib") for d in _pyproject()["project"]["dependencies"])

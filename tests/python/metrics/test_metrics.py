@@ -222,6 +222,19 @@ def test_cli_flicker_table_json_plot(three, capsys):
     assert code == 0 and "frame differences" in out
 
 
+def test_cli_plot_without_matplotlib_is_a_clear_error(three, capsys, monkeypatch):
+    """matplotlib is the optional extra `plot`: without it --plot fails before any
+    work, naming the extra, and writes nothing."""
+    import sys
+    tmp, *_ = three
+    png = tmp / "out" / "none.png"
+    monkeypatch.setitem(sys.modules, "matplotlib", None)     # import matplotlib -> ImportError
+    code = main(["flicker", str(tmp / "renders" / "shot.####.exr"), "--plot", str(png)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--plot needs matplotlib" in err and "cmlt[plot]" in err, err
+    assert not png.exists()
+
+
 def test_cli_compare(three, capsys):
     tmp, R, seq, refs = three
     assert main(["compare", seq[1], refs[1]]) == 0
