@@ -25,7 +25,7 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .atomic import atomic_path
+from .image import write_image
 
 __all__ = ["COMPRESSIONS", "AOV_CHANNELS", "ExrWriteError", "NonFiniteImageError", "write_exr",
            "read_exr", "check_crop", "read_header", "format_header"]
@@ -184,19 +184,7 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
     for key, value in (attributes or {}).items():
         _set_raw_attribute(spec, key, value)
 
-    with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(tmp)
-        if out is None:
-            raise ExrWriteError(f"{path}: no EXR writer: {oiio.geterror()}")
-        try:
-            if not out.open(tmp, spec):
-                raise ExrWriteError(f"{path}: cannot open for writing: {out.geterror()}")
-            if not out.write_image(pixels):
-                raise ExrWriteError(f"{path}: write failed: {out.geterror()}")
-        finally:
-            ok = out.close()
-        if not ok:
-            raise ExrWriteError(f"{path}: close failed: {out.geterror()}")
+    write_image(path, spec, pixels, path, error=ExrWriteError)
 
 
 def read_exr(path: str) -> Tuple[np.ndarray, Dict[str, Any]]:

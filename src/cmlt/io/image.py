@@ -1,4 +1,5 @@
-"""Reading images: pixels and header through OpenImageIO, and their RGB.
+"""Reading and writing images through OpenImageIO: pixels and header, their RGB,
+and the atomic write every image file of cmlt goes through.
 
 One rule picks the colour of an image, for the metrics and the contact sheet
 alike: the channels named ``R``, ``G``, ``B``; else a luminance channel ``Y``
@@ -14,7 +15,9 @@ from typing import Any, Dict, List, Tuple
 
 import numpy as np
 
-__all__ = ["ImageReadError", "read_image", "read_rgb", "rgb_channels", "header"]
+from .atomic import atomic_path
+
+__all__ = ["ImageReadError", "read_image", "read_rgb", "rgb_channels", "header", "write_image"]
 
 
 class ImageReadError(OSError):
@@ -71,3 +74,24 @@ def read_rgb(path: str, dtype=np.float32) -> Tuple[np.ndarray, Any]:
 def header(spec) -> Dict[str, Any]:
     """The header attributes of an ImageSpec by name."""
     return {a.name: a.value for a in spec.extra_attribs}
+
+
+def write_image(path: str, spec, pixels: np.ndarray, what: str, error=OSError) -> None:
+    """Write ``pixels`` with ``spec`` to ``path`` atomically (a temporary name, then
+    renamed: a half-written file never replaces a good one). Failures raise
+    ``error`` with ``what`` (e.g. the path) at the start of the message."""
+    import OpenImageIO as oiio
+
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(tmp)
+        if out is None:
+            raise error(f"{what}: OpenImageIO has no writer: {oiio.geterror()}")
+        try:
+            if not out.open(tmp, spec):
+                raise error(f"{what}: cannot open for writing: {out.geterror()}")
+            if not out.write_image(pixels):
+                raise error(f"{what}: write failed: {out.geterror()}")
+        finally:
+            ok = out.close()
+        if not ok:
+            raise error(f"{what}: close failed: {out.geterror()}")

@@ -13,12 +13,12 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom
+from pxr import Gf, Usd, UsdGeom
 
 from ..scene import Camera
 from .errors import UsdLoadError
 from .lights import rigid_and_scale
-from .stage import stage_file
+from .stage import prim_at, stage_file
 
 
 def gf_to_np(m) -> np.ndarray:
@@ -116,9 +116,8 @@ def camera_at_path(stage, path) -> "Usd.Prim":
     """The Camera prim at ``path``; UsdLoadError naming the stage when there is
     none or it is not a Camera."""
     path = str(path)
-    prim = stage.GetPrimAtPath(path) if Sdf.Path.IsValidPathString(path) and \
-        Sdf.Path(path).IsAbsolutePath() else None
-    if not prim:
+    prim = prim_at(stage, path)
+    if prim is None:
         raise UsdLoadError(f"{stage_file(stage)}: camera {path} does not exist")
     if not prim.IsA(UsdGeom.Camera):
         raise UsdLoadError(f"{stage_file(stage)}: camera {path} is a "

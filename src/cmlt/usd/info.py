@@ -176,7 +176,7 @@ def stage_info(stage) -> StageInfo:
     info.settings_camera_warning = settings_camera_problem(stage, settings)
     if info.settings_camera_warning:
         warnings.append(info.settings_camera_warning)
-    from ..color.config import stage_color_warnings     # noqa: E402 (PyOpenColorIO: lazily)
+    from ..color.stage_config import stage_color_warnings   # (cmlt.color: PyOpenColorIO, lazily)
     warnings.extend(w for w in stage_color_warnings(stage) if w not in warnings)
     if info.meters_per_unit <= 0 or not math.isfinite(info.meters_per_unit):
         warnings.append(f"{info.path}: metersPerUnit is {info.meters_per_unit:g}; using 0.01")

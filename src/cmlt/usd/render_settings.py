@@ -13,7 +13,7 @@ from typing import Optional, Tuple
 from pxr import Sdf, Usd, UsdGeom, UsdRender
 
 from .errors import UsdLoadError
-from .stage import stage_file
+from .stage import prim_at, stage_file
 
 __all__ = ["find_settings_prim", "settings_resolution", "settings_camera",
            "settings_camera_problem", "default_resolution"]
@@ -43,9 +43,8 @@ def find_settings_prim(stage, settings_prim_path: Optional[str] = None) -> Optio
             if prim.IsA(UsdRender.Settings):
                 return prim
         return None
-    prim = stage.GetPrimAtPath(path) if Sdf.Path.IsValidPathString(path) and \
-        Sdf.Path(path).IsAbsolutePath() else None
-    if not prim:
+    prim = prim_at(stage, path)
+    if prim is None:
         raise UsdLoadError(f"{stage_file(stage)}: render settings {path} does not exist")
     if not prim.IsA(UsdRender.Settings):
         raise UsdLoadError(f"{stage_file(stage)}: render settings {path} is a "

@@ -34,6 +34,13 @@ def one_line(text: str) -> str:
     return "; ".join(p for p in parts if p)
 
 
+def prim_at(stage, path: str):
+    """The prim at an absolute prim path, or None (no prim, or not such a path)."""
+    ok = Sdf.Path.IsValidPathString(path) and Sdf.Path(path).IsAbsolutePath()
+    prim = stage.GetPrimAtPath(path) if ok else None
+    return prim if prim else None
+
+
 def stage_file(stage) -> str:
     """The file of the stage's root layer (its identifier if it has none)."""
     layer = stage.GetRootLayer()
