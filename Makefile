@@ -3,6 +3,7 @@
 #   make demo   install what is missing, render sequences/cornell into renders/
 #   make test   install what is missing, run ctest (C++) and pytest (Python)
 #   make bench  run the benchmarks in tests/bench (not part of make test)
+#   make schema rewrite plugins/usd/cmltSchemas from the settings table
 #
 # Works as root on a fresh Debian 12 machine; elsewhere set SUDO=sudo or
 # install the APT_PKGS yourself.
@@ -15,12 +16,14 @@ BUILD    := build/py
 SUDO     ?=
 APT_PKGS := build-essential cmake ninja-build libembree-dev libtbb-dev libosd-dev \
             googletest libgtest-dev python3-dev python3-venv
-PY_PKGS  := scikit-build-core nanobind numpy usd-core openimageio "opencolorio>=2.2" \
-            materialx rich matplotlib pytest
+# pyproject.toml's [build-system] requires: the editable install builds without
+# isolation (incremental C++ builds in $(BUILD)), so they must be in the venv. The
+# package's own dependencies and its test extra come from pyproject.toml itself.
+BUILD_REQS := "scikit-build-core>=0.10" "nanobind>=2.0"
 THREADS  ?= 2
 DEMO_FRAMES ?= 1:24
 
-.PHONY: all demo test ctest pytest bench install apt-deps clean
+.PHONY: all demo test ctest pytest bench install apt-deps schema clean
 
 all: install
 
@@ -31,16 +34,17 @@ apt-deps:
 	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing >/dev/null; \
 	fi
 
-$(VENV)/.deps-stamp: Makefile
+$(VENV)/.deps-stamp: Makefile pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q $(PY_PKGS)
+	$(PY) -m pip install -q $(BUILD_REQS)
 	@touch $@
 
-# Editable install: Python sources are used in place; the C++ core, the
-# nanobind module and the GoogleTest binary build incrementally in $(BUILD).
+# Editable install with the test extra (pytest, matplotlib): Python sources are used
+# in place; the C++ core, the nanobind module and the GoogleTest binary build
+# incrementally in $(BUILD).
 install: apt-deps $(VENV)/.deps-stamp
-	$(PY) -m pip install -q --no-build-isolation -e . \
+	$(PY) -m pip install -q --no-build-isolation -e '.[test]' \
 	  -C build-dir=$(BUILD) -C cmake.define.CMLT_BUILD_TESTS=ON
 
 ctest: install
@@ -59,6 +63,11 @@ demo: install
 
 bench: install
 	$(PY) tests/bench/run_all.py
+
+# rewrite the USD schema files from the settings table (after editing
+# src/core/integrators/common/render_settings.h; make test fails while they are stale)
+schema: install
+	$(PY) -m cmlt.settings.usd_schema --write
 
 clean:
 	rm -rf build renders

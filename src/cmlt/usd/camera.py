@@ -1,4 +1,4 @@
-"""UsdGeom.Camera -> :class:`cmlt.scene.Camera`, and the framing camera.
+"""UsdGeom.Camera -> :class:`cmlt.scene.Camera`, which camera, and the framing camera.
 
 Camera.transform is rigid (rotation + translation in metres); USD cameras
 look down local -Z with +Y up. Focal length and apertures are kept in their
@@ -13,10 +13,12 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from pxr import Gf, UsdGeom
+from pxr import Gf, Usd, UsdGeom
 
 from ..scene import Camera
+from .errors import UsdLoadError
 from .lights import rigid_and_scale
+from .stage import prim_at, stage_file
 
 
 def gf_to_np(m) -> np.ndarray:
@@ -108,3 +110,44 @@ def framing_camera(bounds: Optional[Tuple[np.ndarray, np.ndarray]], up_axis: str
     return Camera(name="<framing>", transform=m, focal_length=focal,
                   horizontal_aperture=hap, vertical_aperture=vap,
                   near=near, far=dist + 2.0 * radius, lens_unit=0.001)
+
+
+def camera_at_path(stage, path) -> "Usd.Prim":
+    """The Camera prim at ``path``; UsdLoadError naming the stage when there is
+    none or it is not a Camera."""
+    path = str(path)
+    prim = prim_at(stage, path)
+    if prim is None:
+        raise UsdLoadError(f"{stage_file(stage)}: camera {path} does not exist")
+    if not prim.IsA(UsdGeom.Camera):
+        raise UsdLoadError(f"{stage_file(stage)}: camera {path} is a "
+                           f"{prim.GetTypeName() or 'typeless prim'}, not a Camera")
+    return prim
+
+
+def stage_cameras(stage) -> List:
+    """Every Camera prim of the stage, instance proxies included, in traversal order."""
+    return [p for p in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies())
+            if p.IsA(UsdGeom.Camera)]
+
+
+def instance_bounds(meshes, instances) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """World-space bounds (lo, hi) of the points the instances use, or None."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    by_mesh: Dict[int, List[np.ndarray]] = {}
+    for inst in instances:
+        by_mesh.setdefault(inst.mesh, []).append(inst.transform)
+    for mi, xs in by_mesh.items():
+        p = meshes[mi].points
+        used = np.zeros(len(p), dtype=bool)
+        used[meshes[mi].indices.reshape(-1)] = True
+        p = p[used] if not used.all() else p
+        plo, phi = p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)
+        corners = np.array([[x, y, z, 1.0] for x in (plo[0], phi[0])
+                            for y in (plo[1], phi[1]) for z in (plo[2], phi[2])])
+        X = np.asarray(xs)                                  # (k, 4, 4)
+        w = np.einsum("kij,cj->kci", X, corners)[..., :3].reshape(-1, 3)
+        lo, hi = np.minimum(lo, w.min(axis=0)), np.maximum(hi, w.max(axis=0))
+    if not np.isfinite(lo).all():
+        return None
+    return lo, hi
