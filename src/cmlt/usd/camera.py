@@ -6,6 +6,12 @@ authored lens unit (tenths of a scene unit, i.e. mm on a cm stage) -- only
 their ratios matter to a pinhole -- and ``Camera.lens_unit`` says how many
 metres one lens unit is (metersPerUnit / 10). Clipping range and
 focusDistance are converted to metres.
+
+A camera under a scaled transform sees a scaled world: its clipping range,
+focus distance and lens unit are lengths in the camera's own space, so they
+scale with it (by ``cbrt|det|`` of the camera-to-world matrix in metres, which
+is metersPerUnit for an unscaled camera); the rigid part of the transform is
+kept as the camera's pose.
 """
 from __future__ import annotations
 
@@ -41,7 +47,12 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         v = attr.Get(time) if attr else None
         return _finite(v, default) if v is not None else default
 
-    xf, _ = rigid_and_scale(world_m)
+    xf, axes = rigid_and_scale(world_m)
+    # metres per camera-space unit: metersPerUnit times the transform's (uniform) scale
+    det = abs(float(np.linalg.det(np.asarray(world_m, dtype=np.float64)[:3, :3])))
+    unit = det ** (1.0 / 3.0) if math.isfinite(det) and det > 0 else float(mpu)
+    if abs(unit / float(mpu) - 1.0) < 1e-9:
+        unit = float(mpu)           # unscaled: exactly metersPerUnit (no rounding of the cube root)
     proj = cam.GetProjectionAttr().Get(time) or "perspective"
     near, far = 1.0, 1.0e6
     cr = cam.GetClippingRangeAttr().Get(time)
@@ -56,13 +67,13 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
         horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
         vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
-        near=near * mpu,
-        far=far * mpu,
+        near=near * unit,
+        far=far * unit,
         f_stop=get(cam.GetFStopAttr(), 0.0),
-        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * mpu,
+        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * unit,
         shutter_open=get(cam.GetShutterOpenAttr(), 0.0),
         shutter_close=get(cam.GetShutterCloseAttr(), 0.0),
-        lens_unit=mpu / 10.0,
+        lens_unit=unit / 10.0,
     )
     if c.focal_length <= 0:
         warnings.append(f"{path}: focalLength is {c.focal_length:g}; using 50")
