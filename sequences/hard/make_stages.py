@@ -304,7 +304,7 @@ def caustic_lsdse():
     st.box("Floor", (-3.0, -0.1, -3.0), (3.0, 0.0, 3.0), floor)
     st.box("Back", (-3.0, -0.05, -1.6), (3.0, 2.0, -1.5), st.diffuse("Wall", (0.5, 0.5, 0.55)))
     st.sphere("Ball", (0.0, 0.301, 0.0), 0.3, st.glass())
-    st.sphere_light("Key", (0.3, 1.4, -0.7), 0.02, 6.0e4, color=(1.0, 0.95, 0.85))
+    st.sphere_light("Key", (0.0, 2.0, -0.3), 0.02, 6.0e4, color=(1.0, 0.95, 0.85))
     st.camera(eye=(0.0, 1.2, 2.0), target=(0.0, 0.1, -0.2), focal=30.0, aperture=(36.0, 27.0))
     st.settings((32, 24))
     return st.save()
@@ -318,8 +318,8 @@ def caustic_sds():
     st.box("Floor", (-3.0, -0.1, -3.0), (3.0, 0.0, 3.0), floor)
     st.box("Back", (-3.0, -0.05, -1.6), (3.0, 2.0, -1.5), st.diffuse("Wall", (0.5, 0.5, 0.55)))
     st.sphere("Ball", (0.0, 0.301, 0.0), 0.3, st.glass())
-    st.box("Slab", (-2.0, -0.05, 1.2), (2.0, 2.5, 1.23), st.glass())
-    st.sphere_light("Key", (0.3, 1.4, -0.7), 0.1, 3.0e3, color=(1.0, 0.95, 0.85))
+    st.box("Slab", (-2.0, 0.1, 1.2), (2.0, 2.5, 1.23), st.glass())
+    st.sphere_light("Key", (0.0, 2.0, -0.3), 0.1, 3.0e3, color=(1.0, 0.95, 0.85))
     st.camera(eye=(0.0, 1.2, 2.0), target=(0.0, 0.1, -0.2), focal=30.0, aperture=(36.0, 27.0))
     st.settings((32, 24))
     return st.save()
@@ -395,12 +395,13 @@ def all_black():
 
 
 def light_behind_glass():
-    st = Stage("light_behind_glass", "The only light, a small sphere, sits inside a closed "
-               "glass box (a lantern) on the floor of a room: every light path leaves "
-               "through two glass interfaces (next-event estimation is blocked).")
+    st = Stage("light_behind_glass", "The only light, a small sphere, is embedded in a solid "
+               "glass block (a lantern) hanging 30 cm above the floor of a room: every light "
+               "path leaves through a glass interface (next-event estimation is blocked), "
+               "many after total internal reflections.")
     room(st)
-    st.box("Lantern", (-0.25, 0.0, -0.75), (0.25, 0.6, -0.25), st.glass())
-    st.sphere_light("Flame", (0.0, 0.3, -0.5), 0.03, 3.0e3, color=(1.0, 0.8, 0.5))
+    st.box("Lantern", (-0.25, 0.3, -0.75), (0.25, 0.9, -0.25), st.glass())
+    st.sphere_light("Flame", (0.0, 0.6, -0.5), 0.03, 3.0e3, color=(1.0, 0.8, 0.5))
     st.camera(eye=(0.0, 1.5, 5.0), target=(0.0, 1.0, 0.0), near=0.05)
     st.settings((32, 24))
     return st.save()
