@@ -3,7 +3,7 @@
 // ±2^31 per pixel and channel: a bright pixel at a high mutation count (e.g. a pixel
 // value of 10^6 under the pixel importance at 4,000 mutations per pixel, or the
 // luminance target's L/Y of a saturated colour over 10^8 splats) passes it, and a plain
-// int64 sum wrapped around silently (1e9 added 8 times read back as -2.6e8).
+// int64 sum wrapped around silently (1e9 added 8 times read back as -5.9e8).
 #include "integrators/mlt/splat_film.h"
 
 #include <gtest/gtest.h>
