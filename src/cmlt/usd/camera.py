@@ -22,6 +22,7 @@ import numpy as np
 from pxr import Gf, UsdGeom
 
 from ..scene import Camera
+from .errors import UsdLoadError
 from .lights import rigid_and_scale
 
 
@@ -47,6 +48,9 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         v = attr.Get(time) if attr else None
         return _finite(v, default) if v is not None else default
 
+    if not np.isfinite(np.asarray(world_m, dtype=np.float64)).all():
+        raise UsdLoadError(f"{path}: the camera's transform is not finite (time "
+                           f"{'default' if time.IsDefault() else f'{time.GetValue():g}'})")
     xf, axes = rigid_and_scale(world_m)
     # metres per camera-space unit: metersPerUnit times the transform's (uniform) scale
     det = abs(float(np.linalg.det(np.asarray(world_m, dtype=np.float64)[:3, :3])))
@@ -82,6 +86,12 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         warnings.append(f"{path}: apertures must be > 0 ({c.horizontal_aperture:g}, "
                         f"{c.vertical_aperture:g}); using 20.955 x 15.2908")
         c.horizontal_aperture, c.vertical_aperture = 20.955, 15.2908
+    if not (c.f_stop >= 0.0):
+        warnings.append(f"{path}: fStop is {c.f_stop:g}; using 0 (a pinhole)")
+        c.f_stop = 0.0
+    if not (c.focus_distance >= 0.0 and math.isfinite(c.focus_distance)):
+        warnings.append(f"{path}: focusDistance is {c.focus_distance:g} m; using 0 (no focus plane)")
+        c.focus_distance = 0.0
     if not (0 < c.near < c.far):
         warnings.append(f"{path}: clippingRange ({near:g}, {far:g}) is not 0 < near < far; "
                         f"using (0.01, 1e6) m")
