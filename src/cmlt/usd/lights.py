@@ -177,7 +177,9 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
                             f"supported; ignored")
     for size in ("width", "height", "radius", "length"):
         v = getattr(light, size)
-        if not math.isfinite(v):
+        with np.errstate(over="ignore"):
+            ok = bool(np.isfinite(np.float32(v)))   # the core holds sizes in float32
+        if not ok:
             warnings.append(f"{path}: its {size} is not finite in world space ({v:g}, time "
                             f"{_t(time)}); not rendered")
             return None

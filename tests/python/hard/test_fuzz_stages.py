@@ -277,6 +277,11 @@ def check_stage(text, time=1.0, pssmlt=False):
 @given(stages())
 def test01_malformed_stages_render_finite_or_fail_clearly(spec):
     text = write_stage(spec)
+    # the case being rendered, so a crash of the process leaves it behind
+    last = os.path.join(ROOT, "renders", "fuzz_last.usda")
+    os.makedirs(os.path.dirname(last), exist_ok=True)
+    with open(last, "w") as fh:
+        fh.write(f"#usda 1.0\n# time {spec['time']} pssmlt {spec['pssmlt']}\n" + text.split("\n", 1)[1])
     try:
         check_stage(text, spec["time"], spec["pssmlt"])
     except Exception:
