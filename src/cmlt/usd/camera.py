@@ -26,6 +26,10 @@ from .errors import UsdLoadError
 from .lights import rigid_and_scale
 
 
+#: largest float32: camera lengths beyond it would reach the core as inf
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def gf_to_np(m) -> np.ndarray:
     """Gf.Matrix4d (row-vector) -> float64 (4, 4) column-vector matrix."""
     return np.array(m, dtype=np.float64).reshape(4, 4).T.copy()
@@ -86,12 +90,18 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         warnings.append(f"{path}: apertures must be > 0 ({c.horizontal_aperture:g}, "
                         f"{c.vertical_aperture:g}); using 20.955 x 15.2908")
         c.horizontal_aperture, c.vertical_aperture = 20.955, 15.2908
-    if not (c.f_stop >= 0.0):
+    if not (0.0 <= c.f_stop < _FLOAT32_MAX):
         warnings.append(f"{path}: fStop is {c.f_stop:g}; using 0 (a pinhole)")
         c.f_stop = 0.0
-    if not (c.focus_distance >= 0.0 and math.isfinite(c.focus_distance)):
+    if not (0.0 <= c.focus_distance < _FLOAT32_MAX):     # the core holds it in float32
         warnings.append(f"{path}: focusDistance is {c.focus_distance:g} m; using 0 (no focus plane)")
         c.focus_distance = 0.0
+    if not (c.lens_unit > 0.0 and c.lens_unit < _FLOAT32_MAX):
+        warnings.append(f"{path}: its transform's scale gives a lens unit of {c.lens_unit:g} m; "
+                        f"using metersPerUnit / 10")
+        c.lens_unit = mpu / 10.0
+    if c.far >= _FLOAT32_MAX:
+        c.far = 1.0e30
     if not (0 < c.near < c.far):
         warnings.append(f"{path}: clippingRange ({near:g}, {far:g}) is not 0 < near < far; "
                         f"using (0.01, 1e6) m")
