@@ -6,6 +6,12 @@ authored lens unit (tenths of a scene unit, i.e. mm on a cm stage) -- only
 their ratios matter to a pinhole -- and ``Camera.lens_unit`` says how many
 metres one lens unit is (metersPerUnit / 10). Clipping range and
 focusDistance are converted to metres.
+
+A camera under a scaled transform sees a scaled world: its clipping range,
+focus distance and lens unit are lengths in the camera's own space, so they
+scale with it (by ``cbrt|det|`` of the camera-to-world matrix in metres, which
+is metersPerUnit for an unscaled camera); the rigid part of the transform is
+kept as the camera's pose.
 """
 from __future__ import annotations
 
@@ -19,6 +25,10 @@ from ..scene import Camera
 from .errors import UsdLoadError
 from .lights import rigid_and_scale
 from .stage import prim_at, stage_file
+
+
+#: largest float32: camera lengths beyond it would reach the core as inf
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def gf_to_np(m) -> np.ndarray:
@@ -43,7 +53,15 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         v = attr.Get(time) if attr else None
         return _finite(v, default) if v is not None else default
 
-    xf, _ = rigid_and_scale(world_m)
+    if not np.isfinite(np.asarray(world_m, dtype=np.float64)).all():
+        raise UsdLoadError(f"{path}: the camera's transform is not finite (time "
+                           f"{'default' if time.IsDefault() else f'{time.GetValue():g}'})")
+    xf, axes = rigid_and_scale(world_m)
+    # metres per camera-space unit: metersPerUnit times the transform's (uniform) scale
+    det = abs(float(np.linalg.det(np.asarray(world_m, dtype=np.float64)[:3, :3])))
+    unit = det ** (1.0 / 3.0) if math.isfinite(det) and det > 0 else float(mpu)
+    if abs(unit / float(mpu) - 1.0) < 1e-9:
+        unit = float(mpu)           # unscaled: exactly metersPerUnit (no rounding of the cube root)
     proj = cam.GetProjectionAttr().Get(time) or "perspective"
     near, far = 1.0, 1.0e6
     cr = cam.GetClippingRangeAttr().Get(time)
@@ -58,13 +76,13 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
         horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
         vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
-        near=near * mpu,
-        far=far * mpu,
+        near=near * unit,
+        far=far * unit,
         f_stop=get(cam.GetFStopAttr(), 0.0),
-        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * mpu,
+        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * unit,
         shutter_open=get(cam.GetShutterOpenAttr(), 0.0),
         shutter_close=get(cam.GetShutterCloseAttr(), 0.0),
-        lens_unit=mpu / 10.0,
+        lens_unit=unit / 10.0,
     )
     if c.focal_length <= 0:
         warnings.append(f"{path}: focalLength is {c.focal_length:g}; using 50")
@@ -73,6 +91,18 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         warnings.append(f"{path}: apertures must be > 0 ({c.horizontal_aperture:g}, "
                         f"{c.vertical_aperture:g}); using 20.955 x 15.2908")
         c.horizontal_aperture, c.vertical_aperture = 20.955, 15.2908
+    if not (0.0 <= c.f_stop < _FLOAT32_MAX):
+        warnings.append(f"{path}: fStop is {c.f_stop:g}; using 0 (a pinhole)")
+        c.f_stop = 0.0
+    if not (0.0 <= c.focus_distance < _FLOAT32_MAX):     # the core holds it in float32
+        warnings.append(f"{path}: focusDistance is {c.focus_distance:g} m; using 0 (no focus plane)")
+        c.focus_distance = 0.0
+    if not (c.lens_unit > 0.0 and c.lens_unit < _FLOAT32_MAX):
+        warnings.append(f"{path}: its transform's scale gives a lens unit of {c.lens_unit:g} m; "
+                        f"using metersPerUnit / 10")
+        c.lens_unit = mpu / 10.0
+    if c.far >= _FLOAT32_MAX:
+        c.far = 1.0e30
     if not (0 < c.near < c.far):
         warnings.append(f"{path}: clippingRange ({near:g}, {far:g}) is not 0 < near < far; "
                         f"using (0.01, 1e6) m")
