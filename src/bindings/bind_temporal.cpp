@@ -96,6 +96,35 @@ void bind_temporal(nb::module_& m) {
             return out;
         },
         "a"_a, "b"_a, "The states of a followed by those of b (ids kept).");
+    m.def("temporal_bootstrap_count", &temporal::bootstrap_count, "settings"_a,
+          "Bootstrap samples a render with these settings evaluates.");
+    m.def(
+        "temporal_bootstrap_states",
+        [](Scene& scene, const RenderSettings& settings, uint64_t count) {
+            prepare(scene, settings, "temporal_bootstrap_states");
+            nb::gil_scoped_release release;
+            return temporal::bootstrap_states(scene, settings, count);
+        },
+        "scene"_a, "settings"_a, "count"_a,
+        "The render's bootstrap points 0..count-1 evaluated in this frame's scene, as MltStates "
+        "(f_star = f*; temporal/carry.h).");
+    m.def(
+        "temporal_couple_starts",
+        [](const std::vector<double>& f_old, const std::vector<double>& f_new,
+           const std::vector<uint64_t>& prev_picks, uint64_t n, uint64_t seed, uint32_t frame_key) {
+            const temporal::CoupledStarts c = temporal::couple_starts(f_old, f_new, prev_picks, n, seed, frame_key);
+            nb::dict d;
+            d["picks"] = c.picks;
+            d["kept"] = c.kept;
+            d["refreshed"] = c.refreshed;
+            d["fresh"] = c.fresh;
+            d["tv"] = c.tv;
+            return d;
+        },
+        "f_old"_a, "f_new"_a, "prev_picks"_a, "n"_a, "seed"_a, "frame_key"_a,
+        "Chain starts (bootstrap indices) of a frame coupled to the previous frame's "
+        "(temporal/carry.h couple_starts): dict picks, kept, refreshed, fresh, tv.");
+    m.def("temporal_keyed_uniform", &temporal::keyed_uniform, "seed"_a, "domain"_a, "id"_a, "counter"_a);
     m.def("temporal_systematic_resample", &temporal::systematic_resample, "weights"_a, "n"_a, "u0"_a);
     m.def("temporal_carry_uniform", &temporal::carry_uniform, "seed"_a, "key"_a);
     m.def("temporal_gather_states", &temporal::gather_states, "carried"_a, "pool"_a, "picks"_a,

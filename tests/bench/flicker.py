@@ -1,14 +1,28 @@
-"""Flicker benchmark (issue 5): independent frames vs stored seeds vs seeds +
-carried states vs all three with smoothing, on static_flicker, moving_light and
-door_ajar — TF, GF, mean relMSE against per-frame PT references, time per frame.
+"""Flicker benchmark: independent frames vs stored seeds vs seeds + carried states
+vs all three with smoothing, per sequence — TF, GF and mean relMSE against
+per-frame converged references (DESIGN.md §4), at an equal sample budget per
+frame (``--spp``: path evaluations per pixel; never a time budget, so the
+numbers do not depend on the machine's load).
 
-    .venv/bin/python tests/bench/flicker.py [--res 48] [--frames 1:8] [--spp 16]
-        [--ref-spp 512] [--chains 256] [--out bench_out/flicker]
+    .venv/bin/python tests/bench/flicker.py [--sequences a,b] [--seeds 4] [--res 48]
+        [--frames 1:8] [--spp N] [--ref-spp N] [--chains 256] [--integrator cmlt]
+        [--configs independent,...] [--cvvdp] [--out bench_out/flicker]
 
-Writes OUT/flicker.md (markdown table) and OUT/flicker.png (TF and GF per
-configuration and sequence), and prints the table.
+Every configuration runs with ``--seeds`` shot seeds (1..N) and the table gives the
+mean over seeds and its standard error: one seed's relMSE is mostly that seed's luck
+(independent frames and stored seeds have the same per-frame error distribution, so
+their difference on one seed is noise). Per sequence the budget defaults to the
+table below (door_ajar needs 128 mutations per pixel to converge at all); ``--spp``
+and ``--ref-spp`` override it for every sequence. References are cached in
+OUT/SEQ/ref (reused when shot, size, frames, integrator and spp match).
+
+Writes OUT/flicker.md (markdown table), OUT/flicker.json (per-frame values: ratio of
+mean brightness to the reference, relMSE, TF terms, per seed) and OUT/flicker.png (TF
+and GF per configuration and sequence, log scale), and prints the table.
 """
 import argparse
+import json
+import math
 import os
 import sys
 import time
@@ -19,7 +33,14 @@ from cmlt.metrics import flicker, load_image
 from cmlt.shot import RenderOptions, render_sequence
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SEQUENCES = ("static_flicker", "moving_light", "door_ajar")
+#: sequence -> (spp, reference spp) defaults
+SEQUENCES = {
+    "static_flicker": (16, 512),
+    "moving_light": (16, 512),
+    "door_ajar": (128, 4096),
+    "camera_pan": (16, 512),
+    "fading_light": (16, 512),
+}
 CONFIGS = {
     "independent": dict(seed_per_frame=True, carry_states=False, smooth_normalization=False),
     "stored seeds": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False),
@@ -29,65 +50,164 @@ CONFIGS = {
 }
 
 
+def config_dir(name: str) -> str:
+    return name.replace(" + ", "_").replace(" ", "_")
+
+
+def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int):
+    """Per-frame references (F, H, W, 3), rendered once and cached in ``out``."""
+    key = {"shot": os.path.abspath(shot), "frames": frames, "integrator": integrator,
+           "res": list(res), "spp": int(spp)}
+    meta = os.path.join(out, "ref.json")
+    if os.path.exists(meta):
+        with open(meta) as fh:
+            old = json.load(fh)
+        if old.get("key") == key and all(os.path.exists(p) for p in old["written"]):
+            return np.stack([load_image(p) for p in old["written"]])
+    r = render_sequence(shot, frames, os.path.join(out, "r.####.exr"),
+                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp),
+                        progress=False, quiet=True)
+    os.makedirs(out, exist_ok=True)
+    with open(meta, "w") as fh:
+        json.dump({"key": key, "written": list(r.written)}, fh)
+    return np.stack([load_image(p) for p in r.written])
+
+
+def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: int, chains: int,
+                  seed: int, **kw):
+    """Render one configuration; returns (images (F, H, W, 3), temporal records,
+    seconds per frame)."""
+    t0 = time.perf_counter()
+    r = render_sequence(shot, frames, os.path.join(out, "f.####.exr"),
+                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
+                                      chains=chains, bootstrap_samples=16 * chains, seed=seed,
+                                      **kw), progress=False, quiet=True)
+    dt = (time.perf_counter() - t0) / len(r.written)
+    recs = []
+    for p in r.written:
+        with open(p + ".json") as fh:
+            recs.append(json.load(fh).get("temporal", {}))
+    return np.stack([load_image(p) for p in r.written]), recs, dt
+
+
+def _mean_se(values):
+    v = np.asarray([x for x in values if x is not None], dtype=np.float64)
+    if v.size == 0:
+        return math.nan, math.nan
+    se = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan
+    return float(v.mean()), se
+
+
+def _fmt(m, se, digits):
+    if not math.isfinite(m):
+        return "-"
+    s = f"{m:.{digits}f}"
+    return s if not math.isfinite(se) else f"{s} ± {se:.{digits}f}"
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser()
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--res", type=int, default=48)
     ap.add_argument("--frames", default="1:8")
-    ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--ref-spp", type=int, default=512)
+    ap.add_argument("--spp", type=int, default=None, help="every sequence (default: its own)")
+    ap.add_argument("--ref-spp", type=int, default=None, help="every sequence (default: its own)")
     ap.add_argument("--chains", type=int, default=256)
+    ap.add_argument("--seeds", type=int, default=4, help="shot seeds 1..N per configuration")
     ap.add_argument("--out", default=os.path.join("bench_out", "flicker"))
     ap.add_argument("--sequences", default=",".join(SEQUENCES))
-    ap.add_argument("--integrator", default="pssmlt", help="pssmlt or cmlt")
+    ap.add_argument("--configs", default=",".join(CONFIGS))
+    ap.add_argument("--integrator", default="cmlt", help="pssmlt or cmlt")
     ap.add_argument("--ref-integrator", default="bdpt",
                     help="per-frame references (bdpt: light through the door's slit is what "
                     "the path tracer finds slowly)")
+    ap.add_argument("--cvvdp", action="store_true",
+                    help="also ColorVideoVDP JOD against the references (cmlt.metrics.cvvdp; "
+                    "needs the optional cvvdp package)")
     a = ap.parse_args(argv)
     res = (a.res, a.res)
-    rows = []
     seqs = [x for x in a.sequences.split(",") if x]
+    configs = [x for x in a.configs.split(",") if x]
+    for c in configs:
+        if c not in CONFIGS:
+            ap.error(f"--configs: unknown configuration {c!r} (one of {', '.join(CONFIGS)})")
+    jod = None
+    if a.cvvdp:
+        from cmlt.metrics.cvvdp import CvvdpUnavailable, video_jod
+        jod = video_jod
+    rows, dump = [], {"argv": argv if argv is not None else sys.argv[1:], "sequences": {}}
     for seq in seqs:
+        spp, ref_spp = SEQUENCES.get(seq, (16, 512))
+        spp = a.spp or spp
+        ref_spp = a.ref_spp or ref_spp
         shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
-        ref = render_sequence(shot, a.frames, os.path.join(a.out, seq, "ref", "r.####.exr"),
-                              RenderOptions(integrator=a.ref_integrator, resolution=res, spp=a.ref_spp),
-                              progress=False, quiet=True)
-        refs = np.stack([load_image(p) for p in ref.written])
-        for name, kw in CONFIGS.items():
-            t0 = time.perf_counter()
-            r = render_sequence(shot, a.frames,
-                                os.path.join(a.out, seq, name.replace(" ", "_").replace("+", ""),
-                                             "f.####.exr"),
-                                RenderOptions(integrator=a.integrator, resolution=res, spp=a.spp,
-                                              chains=a.chains, bootstrap_samples=16 * a.chains,
-                                              **kw), progress=False, quiet=True)
-            dt = (time.perf_counter() - t0) / len(r.written)
-            rep = flicker(np.stack([load_image(p) for p in r.written]), refs)
-            rows.append((seq, name, rep.tf, rep.gf, rep.mean_rel_mse, dt))
-            print(f"{seq:15s} {name:28s} TF {rep.tf:.4f} GF {rep.gf:.5f} "
-                  f"relMSE {rep.mean_rel_mse:.4f} {dt:.2f} s/frame", file=sys.stderr)
-    lines = ["| sequence | configuration | TF | GF | mean relMSE | s / frame |",
-             "|---|---|---:|---:|---:|---:|"]
-    lines += [f"| {s} | {n} | {tf:.4f} | {gf:.5f} | {mse:.4f} | {dt:.2f} |"
-              for s, n, tf, gf, mse, dt in rows]
+        refs = reference(shot, a.frames, os.path.join(a.out, seq, "ref"), a.ref_integrator,
+                         res, ref_spp)
+        dseq = dump["sequences"].setdefault(seq, {"spp": spp, "ref_spp": ref_spp,
+                                                  "reference_mean": refs.mean(axis=(1, 2, 3)).tolist(),
+                                                  "configs": {}})
+        for name in configs:
+            per_seed = []
+            for seed in range(1, a.seeds + 1):
+                out = os.path.join(a.out, seq, config_dir(name), f"seed{seed}")
+                imgs, recs, dt = render_config(shot, a.frames, out, a.integrator, res, spp,
+                                               a.chains, seed, **CONFIGS[name])
+                rep = flicker(imgs, refs)
+                j = None
+                if jod is not None:
+                    try:
+                        j = jod(imgs, refs, fps=24.0)
+                    except CvvdpUnavailable as exc:
+                        print(f"cvvdp: {exc}", file=sys.stderr)
+                        jod = None
+                per_seed.append({"seed": seed, "tf": rep.tf, "gf": rep.gf,
+                                 "rel_mse": rep.mean_rel_mse, "s_per_frame": dt,
+                                 "ratio": rep.ratio, "delta": rep.delta,
+                                 "frame_rel_mse": rep.rel_mse, "jod": j,
+                                 "b_used": [r.get("b_used") for r in recs],
+                                 "change": [r.get("change_detected") for r in recs]})
+                print(f"{seq:15s} {name:28s} seed {seed} TF {rep.tf:.4f} GF {rep.gf:.5f} "
+                      f"relMSE {rep.mean_rel_mse:.4f}" + (f" JOD {j:.3f}" if j is not None else "")
+                      + f" {dt:.2f} s/frame", file=sys.stderr)
+            dseq["configs"][name] = per_seed
+            rows.append((seq, name, spp) + tuple(
+                _mean_se([p[k] for p in per_seed]) for k in ("tf", "gf", "rel_mse", "jod",
+                                                               "s_per_frame")))
+    head = "| sequence | configuration | spp | TF | GF | mean relMSE |"
+    rule = "|---|---|---:|---:|---:|---:|"
+    if a.cvvdp:
+        head += " JOD |"
+        rule += "---:|"
+    lines = [head + " s / frame |", rule + "---:|"]
+    for s, n, spp, tf, gf, mse, j, dt in rows:
+        line = f"| {s} | {n} | {spp} | {_fmt(*tf, 4)} | {_fmt(*gf, 4)} | {_fmt(*mse, 4)} |"
+        if a.cvvdp:
+            line += f" {_fmt(*j, 3)} |"
+        lines.append(line + f" {dt[0]:.2f} |")
     table = "\n".join(lines)
     os.makedirs(a.out, exist_ok=True)
+    cmd = " ".join(["tests/bench/flicker.py"] + list(dump["argv"]))
     with open(os.path.join(a.out, "flicker.md"), "w") as fh:
-        fh.write(f"`{' '.join(['tests/bench/flicker.py'] + (argv or sys.argv[1:]))}`\n\n"
+        fh.write(f"`{cmd}` ({a.integrator}, {a.res}x{a.res}, frames {a.frames}, {a.chains} "
+                 f"chains, seeds 1..{a.seeds}: mean ± standard error over seeds)\n\n"
                  + table + "\n")
+    with open(os.path.join(a.out, "flicker.json"), "w") as fh:
+        json.dump(dump, fh, indent=1)
     try:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+        fig, ax = plt.subplots(1, 2, figsize=(12, 4))
         x = np.arange(len(seqs))
-        for k, name in enumerate(CONFIGS):
+        width = 0.8 / max(1, len(configs))
+        for k, name in enumerate(configs):
             vals = [r for r in rows if r[1] == name]
-            ax[0].bar(x + 0.2 * k, [v[2] for v in vals], 0.2, label=name)
-            ax[1].bar(x + 0.2 * k, [v[3] for v in vals], 0.2, label=name)
+            ax[0].bar(x + width * k, [max(v[3][0], 1e-6) for v in vals], width, label=name)
+            ax[1].bar(x + width * k, [max(v[4][0], 1e-7) for v in vals], width, label=name)
         for i, t in enumerate(("TF", "GF")):
-            ax[i].set_xticks(x + 0.3, seqs)
+            ax[i].set_xticks(x + 0.4 - width / 2, seqs, fontsize=8)
             ax[i].set_yscale("log")
-            ax[i].set_title(f"{t} ({a.integrator}, {a.spp} mutations/px, lower is better)")
+            ax[i].set_title(f"{t} ({a.integrator}, mean of {a.seeds} seeds, lower is better)")
         ax[0].legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(os.path.join(a.out, "flicker.png"), dpi=100)

@@ -8,10 +8,12 @@
 #include "integrators/common/render.h"
 #include "integrators/mlt/chain_state.h"
 #include "temporal/carry.h"
+#include "util/error.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 
 using namespace cmlt;
@@ -29,6 +31,17 @@ void slit_scene(Scene& s) {
     uint32_t lamp = s.add_mesh("/lamp", quad_mesh(Vec3(0, 1.3f, 0), Vec3(0.05f, 0, 0), Vec3(0, 0, 0.05f), 1));
     for (uint32_t m : {floor, left, right, lamp}) s.add_instance(m, Mat4());
     s.set_camera(camera_at(Mat4::translate(0, 0.8f, 0) * Mat4::rotate(-90, 1, 0, 0), 18.f, 36.f));
+    s.commit();
+}
+
+/// A floor and a wall lit by a small lamp at x = lamp_x (direct and one-bounce light).
+void lamp_scene(Scene& s, float lamp_x) {
+    s.set_materials({Material{Spectrum(0.7f), Spectrum(0.f)}, Material{Spectrum(0.f), Spectrum(60.f)}});
+    const uint32_t floor = s.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(3, 0, 0), Vec3(0, 0, -3)));
+    const uint32_t wall = s.add_mesh("/wall", quad_mesh(Vec3(0, 0.7f, -0.6f), Vec3(3, 0, 0), Vec3(0, 1.5f, 0)));
+    const uint32_t lamp = s.add_mesh("/lamp", quad_mesh(Vec3(lamp_x, 0.9f, 0), Vec3(0.2f, 0, 0), Vec3(0, 0, 0.2f), 1));
+    for (uint32_t m : {floor, wall, lamp}) s.add_instance(m, Mat4());
+    s.set_camera(camera_at(Mat4::translate(0, 0.6f, 1.2f) * Mat4::rotate(-25, 1, 0, 0), 18.f, 36.f));
     s.commit();
 }
 
@@ -165,4 +178,187 @@ TEST(Temporal, EvaluateStatesReproducesTheRendersTargetAndRestartsChains) {
         EXPECT_EQ(b.stats.mlt.imported_chains, 32u);
         for (float v : b.image) ASSERT_TRUE(std::isfinite(v));
     }
+}
+
+// couple_starts on a discrete toy: M bootstrap points with old and new probabilities p, q
+// (a region that dims, one that brightens, one that switches on where p = 0, and a part
+// that does not change). Frame f's starts are drawn ∝ p; the coupled starts must be
+// distributed ∝ q (chi-square over many trials), keep their old start with probability
+// 1 − TV, and never move where q = p.
+TEST(Temporal, CoupledStartsAreDistributedAsFreshOnesAndKeepWhatDidNotChange) {
+    const size_t M = 40;
+    std::vector<double> f_old(M), f_new(M);
+    for (size_t i = 0; i < M; ++i) {
+        const double base = 1.0 + double(i % 7);
+        f_old[i] = i < 30 ? base : 0.0;                      // 30..39: black in frame f
+        f_new[i] = i < 10 ? base : i < 20 ? 0.3 * base : i < 30 ? 2.0 * base : 4.0;
+    }
+    double so = 0, sn = 0;
+    for (size_t i = 0; i < M; ++i) so += f_old[i], sn += f_new[i];
+    double tv = 0;
+    for (size_t i = 0; i < M; ++i) tv += std::max(0.0, f_new[i] / sn - f_old[i] / so);
+    const uint64_t n = 64;
+    const int trials = 4000;
+    std::vector<double> count(M, 0.0);
+    double kept = 0;
+    for (int t = 0; t < trials; ++t) {
+        const double u0 = temporal::keyed_uniform(99, 0x7f, 0, uint32_t(t));
+        const std::vector<uint64_t> prev = temporal::systematic_resample(f_old, n, u0);
+        ASSERT_EQ(prev.size(), n);
+        const temporal::CoupledStarts c = temporal::couple_starts(f_old, f_new, prev, n, 7, uint32_t(t));
+        ASSERT_EQ(c.picks.size(), n);
+        EXPECT_EQ(c.kept + c.refreshed + c.fresh, n);
+        EXPECT_EQ(c.fresh, 0u);
+        EXPECT_NEAR(c.tv, tv, 1e-12);
+        kept += double(c.kept);
+        for (uint64_t k = 0; k < n; ++k) {
+            ASSERT_LT(c.picks[k], M);
+            count[c.picks[k]] += 1;
+            // an unchanged or brighter start is always kept
+            const size_t i = prev[k];
+            if (f_new[i] / sn >= f_old[i] / so) EXPECT_EQ(c.picks[k], i);
+        }
+    }
+    // expected counts ∝ q: chi-square with M − 1 degrees of freedom (p = 1e-4 bound ~ 83 for 39)
+    const double total = double(trials) * double(n);
+    double chi2 = 0;
+    for (size_t i = 0; i < M; ++i) {
+        const double e = total * f_new[i] / sn;
+        chi2 += (count[i] - e) * (count[i] - e) / e;
+    }
+    EXPECT_LT(chi2, 83.0);
+    EXPECT_NEAR(kept / total, 1.0 - tv, 0.01);
+
+    // static: every chain keeps its start
+    const std::vector<uint64_t> prev = temporal::systematic_resample(f_old, n, 0.3);
+    const temporal::CoupledStarts same = temporal::couple_starts(f_old, f_old, prev, n, 7, 1);
+    EXPECT_EQ(same.picks, prev);
+    EXPECT_EQ(same.kept, n);
+    EXPECT_EQ(same.tv, 0.0);
+    // first frame (no previous starts): a fresh systematic resampling ∝ f_new
+    const temporal::CoupledStarts first = temporal::couple_starts({}, f_new, {}, n, 7, 1);
+    EXPECT_EQ(first.fresh, n);
+    EXPECT_EQ(first.kept, 0u);
+    // more chains than before: the new ones start fresh; all black: no starts
+    const temporal::CoupledStarts more = temporal::couple_starts(f_old, f_old, prev, n + 5, 7, 1);
+    EXPECT_EQ(more.fresh, 5u);
+    EXPECT_TRUE(temporal::couple_starts(f_old, std::vector<double>(M, 0.0), prev, n, 7, 1).picks.empty());
+}
+
+TEST(Temporal, BootstrapStatesAreTheRendersBootstrap) {
+    Scene s;
+    slit_scene(s);
+    RenderSettings st;
+    st.width = 24;
+    st.height = 16;
+    st.spp = 32;
+    st.seed = 3;
+    st.threads = 2;
+    st.integrator = "pssmlt";
+    st.chains = 16;
+    st.bootstrap_samples = 2048;
+    st.direct_fraction = 0;
+    const uint64_t n = temporal::bootstrap_count(st);
+    ASSERT_EQ(n, 2048u);
+    const auto boot = temporal::bootstrap_states(s, st, n);
+    RenderResult a = render(s, st);
+    ASSERT_EQ(a.bootstrap_f.size(), n);
+    int nonzero = 0;
+    for (size_t i = 0; i < n; ++i) {
+        EXPECT_NEAR(boot->chains[i].f_star, a.bootstrap_f[i], 1e-5 * (1.0 + a.bootstrap_f[i])) << i;
+        nonzero += boot->chains[i].f_star > 0;
+    }
+    EXPECT_GT(nonzero, 0);
+    // given to the render, it is not evaluated again and b is the same
+    std::vector<double> f;
+    for (const auto& c : boot->chains) f.push_back(c.f_star);
+    st.mlt_bootstrap_f = std::make_shared<const std::vector<double>>(f);
+    RenderResult b = render(s, st);
+    ASSERT_EQ(b.bootstrap_f.size(), f.size());
+    for (size_t i = 0; i < n; ++i) EXPECT_EQ(b.bootstrap_f[i], float(f[i]));
+    EXPECT_NEAR(b.stats.mlt.b_bootstrap, a.stats.mlt.b_bootstrap, 1e-5 * a.stats.mlt.b_bootstrap);
+    st.mlt_bootstrap_f = std::make_shared<const std::vector<double>>(std::vector<double>(3, 1.0));
+    EXPECT_THROW(render(s, st), SettingsError);
+}
+
+// The whole carry-over on a real render: chain starts coupled from frame A (the lamp
+// over the slit) to frame B (the lamp moved sideways: the light falls elsewhere) give
+// frame B the expected image of a fresh frame B. Over many seeds, the block means of
+// (coupled B − fresh B) — paired: both share the seed's bootstrap points — are within
+// their noise; a biased variant (every chain keeps its frame-A start, no reweighting)
+// is caught by the same test, so it has the power to see a wrong start distribution.
+TEST(Temporal, CoupledStartsGiveTheFreshFramesExpectedImage) {
+    Scene a, b;
+    lamp_scene(a, -0.4f);
+    lamp_scene(b, 0.4f);
+    const int W = 24, H = 16, seeds = 48, nb = 24;  // 4x4-pixel blocks
+    const auto blocks = [&](const RenderResult& r) {
+        std::vector<double> m(nb, 0.0);
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                for (int c = 0; c < 3; ++c) m[size_t((y / 4) * (W / 4) + x / 4)] += r.image[size_t(3 * (y * W + x) + c)];
+        return m;
+    };
+    std::vector<std::vector<double>> d_coupled, d_biased;
+    for (int seed = 1; seed <= seeds; ++seed) {
+        RenderSettings st;
+        st.width = W;
+        st.height = H;
+        st.spp = 16;
+        st.seed = uint64_t(seed);
+        st.threads = 2;
+        st.integrator = "pssmlt";
+        st.chains = 192;
+        st.bootstrap_samples = 1024;
+        st.direct_fraction = 0;  // the chains render every path
+        st.importance = "luminance";
+        const uint64_t n = temporal::bootstrap_count(st);
+        const auto boot_a = temporal::bootstrap_states(a, st, n), boot_b = temporal::bootstrap_states(b, st, n);
+        std::vector<double> fa, fb;
+        for (const auto& c : boot_a->chains) fa.push_back(c.f_star);
+        for (const auto& c : boot_b->chains) fb.push_back(c.f_star);
+        const temporal::CoupledStarts sa = temporal::couple_starts({}, fa, {}, 192, st.seed, 1);
+        const temporal::CoupledStarts sb = temporal::couple_starts(fa, fb, sa.picks, 192, st.seed, 2);
+        ASSERT_GT(sb.tv, 0.2);  // the light really moved
+        const RenderResult fresh = render(b, st);
+        st.mlt_bootstrap_f = std::make_shared<const std::vector<double>>(fb);
+        st.mlt_initial_states = temporal::gather_states(*boot_b, *boot_b, sb.picks, 0);
+        const RenderResult coupled = render(b, st);
+        st.mlt_initial_states = temporal::gather_states(*boot_b, *boot_b, sa.picks, 0);
+        const RenderResult biased = render(b, st);
+        const auto f = blocks(fresh), c = blocks(coupled), x = blocks(biased);
+        std::vector<double> dc(nb), dx(nb);
+        for (int i = 0; i < nb; ++i) {
+            dc[size_t(i)] = c[size_t(i)] - f[size_t(i)];
+            dx[size_t(i)] = x[size_t(i)] - f[size_t(i)];
+        }
+        d_coupled.push_back(dc);
+        d_biased.push_back(dx);
+    }
+    // sum of squared z-scores of the blocks' mean paired differences (blocks where the
+    // renders never differ are left out)
+    const auto chi2 = [&](const std::vector<std::vector<double>>& d, int* dof) {
+        double sum = 0;
+        *dof = 0;
+        for (int i = 0; i < nb; ++i) {
+            double m = 0, m2 = 0;
+            for (const auto& v : d) m += v[size_t(i)];
+            m /= double(d.size());
+            for (const auto& v : d) m2 += (v[size_t(i)] - m) * (v[size_t(i)] - m);
+            const double se = std::sqrt(m2 / double(d.size() - 1) / double(d.size()));
+            if (!(se > 0)) continue;
+            sum += (m / se) * (m / se);
+            ++*dof;
+        }
+        return sum;
+    };
+    int dof_c = 0, dof_x = 0;
+    const double chi_c = chi2(d_coupled, &dof_c), chi_x = chi2(d_biased, &dof_x);
+    ASSERT_GT(dof_c, 8);
+    // chi-square bound at p = 0.001: dof + 3.1·sqrt(2·dof) + 5 covers 8..24 dof
+    const double bound = double(dof_c) + 3.1 * std::sqrt(2.0 * double(dof_c)) + 5.0;
+    std::printf("coupled: chi2 %.1f (%d blocks), biased: chi2 %.1f (%d blocks), bound %.1f\n", chi_c, dof_c,
+                chi_x, dof_x, bound);
+    EXPECT_LT(chi_c, bound) << "dof " << dof_c;
+    EXPECT_GT(chi_x, double(dof_x) + 3.1 * std::sqrt(2.0 * double(dof_x)) + 5.0) << "dof " << dof_x;
 }

@@ -4,6 +4,7 @@
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/path/path_tracer_impl.h"
@@ -121,6 +122,97 @@ std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSe
         o.chain_id = j;
         fill_state(o, smp, x);
     });
+    return out;
+}
+
+uint64_t bootstrap_count(const RenderSettings& settings) {
+    return mlt::FrameBudget::plan(settings).bootstrap;
+}
+
+std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
+                                                   uint64_t count) {
+    check_settings(settings, "bootstrap_states");
+    const Tracers tr(scene, settings);
+    auto out = std::make_shared<mlt::ChainStates>();
+    out->path_sampler = settings.mlt_path_sampler;
+    out->chains.resize(size_t(count));
+    parallel(settings, count, [&](uint64_t i, PathCounters& c) {
+        // as the render's bootstrap (pssmlt_integrator.cpp; cmlt's keys (bootstrap, i, 1)
+        // are the same point): one large step of the sampler keyed (bootstrap, i)
+        MltSampler smp(settings.seed, settings.sigma, settings.large_step_probability, RngDomain::bootstrap,
+                       uint32_t(i));
+        smp.start_iteration(true);
+        const mlt::PathSample x = tr.tracer.evaluate(smp, c);
+        smp.accept();
+        mlt::ChainState& o = out->chains[size_t(i)];
+        o.chain_id = i;
+        fill_state(o, smp, x);
+        o.f_star = x.invalid ? 0.0 : x.f;
+    });
+    return out;
+}
+
+double keyed_uniform(uint64_t seed, uint32_t domain, uint32_t id, uint32_t counter) {
+    const Philox4x32Counter r =
+        philox4x32(mlt::detail::mlt_counter(3, RngDomain(domain), id, counter, 0), mlt::detail::mlt_key(seed));
+    return mlt::detail::bits_to_unit(r[0], r[1]);
+}
+
+CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<double>& f_new,
+                            const std::vector<uint64_t>& prev_picks, uint64_t n, uint64_t seed,
+                            uint32_t frame_key) {
+    const auto clean = [](double v) { return (std::isfinite(v) && v > 0.0) ? v : 0.0; };
+    double sum_new = 0.0, sum_old = 0.0;
+    for (double v : f_new) sum_new += clean(v);
+    for (double v : f_old) sum_old += clean(v);
+    CoupledStarts out;
+    if (!(sum_new > 0.0) || n == 0) return out;  // nothing to start from
+    const bool coupled = !prev_picks.empty() && f_old.size() == f_new.size() && sum_old > 0.0;
+    std::vector<int64_t> slot(size_t(n), -1);   // the chain's bootstrap index, -1: to draw
+    std::vector<uint8_t> residual(size_t(n), 0);  // 1: refreshed from the residual, 0: fresh
+    if (coupled) {
+        double tv = 0.0;
+        for (size_t i = 0; i < f_new.size(); ++i) tv += std::max(0.0, clean(f_new[i]) / sum_new - clean(f_old[i]) / sum_old);
+        out.tv = tv;
+        for (uint64_t k = 0; k < n; ++k) {
+            if (k >= prev_picks.size() || prev_picks[size_t(k)] >= f_new.size()) continue;  // fresh
+            const size_t i = size_t(prev_picks[size_t(k)]);
+            const double p = clean(f_old[i]) / sum_old, q = clean(f_new[i]) / sum_new;
+            // keep with probability min(1, q/p); p = 0 cannot have been picked (a
+            // start from a state file written with other values: refresh it)
+            const double a = p > 0.0 ? std::min(1.0, q / p) : 0.0;
+            if (a >= 1.0 || keyed_uniform(seed, k_domain_keep, uint32_t(k), frame_key) < a) {
+                slot[size_t(k)] = int64_t(i);
+                ++out.kept;
+            } else {
+                residual[size_t(k)] = 1;
+            }
+        }
+    }
+    // the draws: refreshed chains from the residual (q − p)^+, new chains from q; each group
+    // by systematic resampling with a keyed uniform, assigned in chain order
+    for (int group = 1; group >= 0; --group) {
+        std::vector<uint64_t> who;
+        for (uint64_t k = 0; k < n; ++k)
+            if (slot[size_t(k)] < 0 && residual[size_t(k)] == uint8_t(group)) who.push_back(k);
+        if (who.empty()) continue;
+        std::vector<double> w(f_new.size());
+        double total = 0.0;
+        for (size_t i = 0; i < f_new.size(); ++i) {
+            const double q = clean(f_new[i]) / sum_new;
+            w[i] = group == 1 ? std::max(0.0, q - clean(f_old[i]) / sum_old) : q;
+            total += w[i];
+        }
+        if (!(total > 0.0)) {  // rounding left no residual mass: draw from q
+            for (size_t i = 0; i < f_new.size(); ++i) w[i] = clean(f_new[i]) / sum_new;
+        }
+        const double u0 = keyed_uniform(seed, k_domain_refresh, uint32_t(group), frame_key);
+        const std::vector<uint64_t> picks = systematic_resample(w, who.size(), u0);
+        for (size_t j = 0; j < who.size() && j < picks.size(); ++j) slot[size_t(who[j])] = int64_t(picks[j]);
+        (group == 1 ? out.refreshed : out.fresh) += who.size();
+    }
+    out.picks.reserve(size_t(n));
+    for (int64_t s : slot) out.picks.push_back(uint64_t(s));
     return out;
 }
 

@@ -1,6 +1,12 @@
 #pragma once
 /// \file Carrying a Markov-chain population from frame f to frame f+1 (DESIGN.md §4,
-/// "carried chain states") — generic over the integrator: anything that runs chains of
+/// "carried chain states"). The frame loop's carry-over (src/cmlt/temporal/driver.py)
+/// couples the chain starts of consecutive frames on the bootstrap points
+/// (bootstrap_states, couple_starts below): exact, and the starts move only where the
+/// target changed. The particle tools after this comment (evaluate_states, sample_pool,
+/// plan_carry: reweighting and resampling carried states ∝ f*_{f+1}/f*_f) are the
+/// general sequential-Monte-Carlo form, for states that are not bootstrap points.
+/// Generic over the integrator: anything that runs chains of
 /// MltSampler states through a PssmltTracer (pssmlt, cmlt) and exports / imports
 /// mlt::ChainStates (integrators/mlt/chain_state.h) can use it.
 ///
@@ -56,6 +62,8 @@ namespace cmlt::temporal {
 inline constexpr uint32_t k_domain_evaluate = 0x40;  ///< id = carried state index
 inline constexpr uint32_t k_domain_pool = 0x41;      ///< id = pool point index
 inline constexpr uint32_t k_domain_carry = 0x42;     ///< id = frame key: the resampling uniform
+inline constexpr uint32_t k_domain_keep = 0x43;      ///< id = chain, counter = frame key: keep tests
+inline constexpr uint32_t k_domain_refresh = 0x44;   ///< id = group, counter = frame key: refresh draws
 
 /// Evaluate every state of `states` in `scene` (f* and colour of the new frame, the
 /// technique decoded again) with the settings' path sampler; coordinates without a value
@@ -68,6 +76,52 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
 /// k_domain_pool, j)) evaluated in `scene`: their states (f_star = f*).
 std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSettings& settings,
                                               uint64_t pool_seed, uint64_t count);
+
+/// Bootstrap samples the frame's render evaluates (mlt_frame.h FrameBudget: min(bootstrap
+/// samples, half of what the pilot and the direct pass leave)).
+uint64_t bootstrap_count(const RenderSettings& settings);
+
+/// The render's bootstrap points — large steps keyed (settings.seed, bootstrap, i),
+/// i < count — evaluated in `scene` as the render evaluates them: their states, f_star
+/// = f*. Given to the render (RenderSettings::mlt_bootstrap_f) the render does not
+/// evaluate them again; a chain started from state i starts from bootstrap point i.
+std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
+                                                   uint64_t count);
+
+/// Chain starts of frame f+1 coupled to those of frame f (maximal coupling of the two
+/// frames' bootstrap resampling distributions).
+///
+/// With stored seeds the bootstrap points v_i are the same in both frames; a fresh
+/// frame starts its chains from v_i with probability p_i = f*_f(v_i) / Σ f*_f (old) or
+/// q_i = f*_{f+1}(v_i) / Σ f*_{f+1} (new). Chain k started frame f from v_{i_k}; it
+/// keeps that start with probability min(1, q_{i_k} / p_{i_k}) (a keyed uniform per
+/// chain and frame), and a chain that does not is refreshed from the residual
+/// distribution ∝ (q_i − p_i)^+ (systematic resampling over the refreshed chains).
+/// If frame f's starts were distributed as its fresh resampling (expected count of v_i
+/// n p_i), the expected count of v_i is now n·min(p_i, q_i) + n·TV·(q_i − p_i)^+ / TV =
+/// n q_i: the starts are distributed exactly as a fresh frame's, so the expected image
+/// is the one a fresh render gives, while a start whose target did not change (q_i =
+/// p_i: a static part of the image) stays where it was, and its chain — same start,
+/// same numbers — retraces the previous frame's path. Where the target changed, the
+/// fewest chains move (1 − TV of them keep their start; no scheme that keeps the
+/// starts' distribution exact can keep more).
+///
+/// `prev_picks` empty (first frame), Σ f_old = 0, or a size mismatch: a fresh
+/// systematic resampling ∝ f_new. Chains beyond prev_picks.size() start fresh (∝ q).
+struct CoupledStarts {
+    std::vector<uint64_t> picks;   ///< bootstrap index of each chain's start (n of them)
+    uint64_t kept = 0;             ///< chains that kept their previous start
+    uint64_t refreshed = 0;        ///< chains refreshed from the residual
+    uint64_t fresh = 0;            ///< chains started fresh (no previous start)
+    double tv = 1.0;               ///< total variation distance Σ (q − p)^+ (1: no previous)
+};
+CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<double>& f_new,
+                            const std::vector<uint64_t>& prev_picks, uint64_t n, uint64_t seed,
+                            uint32_t frame_key);
+
+/// Uniform in [0, 1) keyed by (seed, domain, id, counter) (the keep tests and refresh
+/// draws of couple_starts).
+double keyed_uniform(uint64_t seed, uint32_t domain, uint32_t id, uint32_t counter);
 
 /// Systematic resampling: `n` indices into `weights` (≥ 0, finite), index i drawn
 /// ⌊n W_i / ΣW + fractional offset⌋ times, with one uniform u0 ∈ [0, 1). Sorted.

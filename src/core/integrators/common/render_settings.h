@@ -131,8 +131,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "fold the frame number into the random streams (independent noise per frame, for "  \
          "comparison; more flicker); off keeps stored seeds")
 
-/// Settings of one frame: the fields of the table above, plus two inputs that the
-/// temporal driver hands over (not settings: no default, range or flag).
+/// Settings of one frame: the fields of the table above, plus inputs that the temporal
+/// driver hands over (not settings: no default, range or flag).
 struct RenderSettings {
 #define CMLT_DECLARE_INT(name, def, lo, hi, attr, flag, doc) int name = def;
 #define CMLT_DECLARE_REAL(name, def, lo, hi, lo_open, attr, flag, doc) double name = def;
@@ -151,6 +151,11 @@ struct RenderSettings {
     /// bootstrap (one chain per state; integrators/mlt/chain_state.h). nullptr / empty:
     /// bootstrap.
     std::shared_ptr<const mlt::ChainStates> mlt_initial_states;
+    /// pssmlt/cmlt: f* of the frame's bootstrap samples 0..n-1 to use instead of
+    /// evaluating them (the temporal driver evaluates them before the render, to choose
+    /// the chain starts: temporal/carry.h). Exactly the frame's bootstrap count; counted
+    /// in the budget as if evaluated. nullptr: the render evaluates them.
+    std::shared_ptr<const std::vector<double>> mlt_bootstrap_f;
     /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
     /// (the temporal driver renders it once per frame for the render and its carry-over
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).
