@@ -125,6 +125,46 @@ void bind_temporal(nb::module_& m) {
         "Chain starts (bootstrap indices) of a frame coupled to the previous frame's "
         "(temporal/carry.h couple_starts): dict picks, kept, refreshed, fresh, tv.");
     m.def("temporal_keyed_uniform", &temporal::keyed_uniform, "seed"_a, "domain"_a, "id"_a, "counter"_a);
+    m.def(
+        "temporal_screen_anchors",
+        [](Scene& scene, const RenderSettings& settings, int n_x, int n_y) {
+            prepare(scene, settings, "temporal_screen_anchors");
+            std::vector<temporal::Anchor> a;
+            {
+                nb::gil_scoped_release release;
+                a = temporal::screen_anchors(scene, settings, n_x, n_y);
+            }
+            std::vector<double> flat;
+            flat.reserve(a.size() * 6);
+            for (const auto& x : a) {
+                flat.insert(flat.end(), {double(x.instance), double(x.p_object.x), double(x.p_object.y),
+                                         double(x.p_object.z), double(x.p_raster.x), double(x.p_raster.y)});
+            }
+            return flat;
+        },
+        "scene"_a, "settings"_a, "n_x"_a, "n_y"_a,
+        "First hits of an n_x x n_y grid of camera rays as a flat list of (instance or -1, "
+        "object-space x, y, z, raster x, y) per grid cell, row by row (temporal/carry.h).");
+    m.def(
+        "temporal_project_anchors",
+        [](Scene& scene, const RenderSettings& settings, const std::vector<double>& flat) {
+            prepare(scene, settings, "temporal_project_anchors");
+            if (flat.size() % 6) throw std::invalid_argument("temporal_project_anchors: 6 numbers per anchor");
+            std::vector<temporal::Anchor> a(flat.size() / 6);
+            for (size_t i = 0; i < a.size(); ++i) {
+                a[i].instance = int32_t(flat[6 * i]);
+                a[i].p_object = Vec3(float(flat[6 * i + 1]), float(flat[6 * i + 2]), float(flat[6 * i + 3]));
+                a[i].p_raster = Vec2(float(flat[6 * i + 4]), float(flat[6 * i + 5]));
+            }
+            const std::vector<Vec2> r = temporal::project_anchors(scene, settings, a);
+            std::vector<double> out;
+            out.reserve(2 * r.size());
+            for (const Vec2& v : r) out.insert(out.end(), {double(v.x), double(v.y)});
+            return out;
+        },
+        "scene"_a, "settings"_a, "anchors"_a,
+        "Raster positions (flat x, y per anchor; NaN: gone or behind the camera) of anchors "
+        "from temporal_screen_anchors in this frame's scene.");
     m.def("temporal_systematic_resample", &temporal::systematic_resample, "weights"_a, "n"_a, "u0"_a);
     m.def("temporal_carry_uniform", &temporal::carry_uniform, "seed"_a, "key"_a);
     m.def("temporal_gather_states", &temporal::gather_states, "carried"_a, "pool"_a, "picks"_a,

@@ -47,7 +47,11 @@ CONFIGS = {
     "seeds + carried": dict(seed_per_frame=False, carry_states=True, smooth_normalization=False),
     "seeds + carried + smoothing": dict(seed_per_frame=False, carry_states=True,
                                         smooth_normalization=True),
+    # everything on but the chains' film offset kept at 0 (no camera reprojection)
+    "all but reprojection": dict(seed_per_frame=False, carry_states=True,
+                                        smooth_normalization=True, _reproject=False),
 }
+DEFAULT_CONFIGS = ("independent", "stored seeds", "seeds + carried", "seeds + carried + smoothing")
 
 
 def config_dir(name: str) -> str:
@@ -77,6 +81,8 @@ def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: i
                   seed: int, **kw):
     """Render one configuration; returns (images (F, H, W, 3), temporal records,
     seconds per frame)."""
+    from cmlt.temporal import driver
+    driver.REPROJECT = bool(kw.pop("_reproject", True))
     t0 = time.perf_counter()
     r = render_sequence(shot, frames, os.path.join(out, "f.####.exr"),
                         RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
@@ -88,6 +94,48 @@ def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: i
         with open(p + ".json") as fh:
             recs.append(json.load(fh).get("temporal", {}))
     return np.stack([load_image(p) for p in r.written]), recs, dt
+
+
+def screen_flow(shot: str, frames: str, res):
+    """Where each pixel centre's first hit is in the next frame: a list over frame pairs
+    of (H, W, 2) raster positions (NaN: nothing hit, or behind the camera), from the
+    core's screen anchors (the geometry and camera of each frame)."""
+    import cmlt._core as core
+    from cmlt.shot.bridge import SceneBridge
+    from cmlt.shot.frames import parse_frames
+    from cmlt.usd import load_frame, open_stage, stage_info
+    stage = open_stage(shot)
+    info = stage_info(stage)
+    times = parse_frames(frames, info.start, info.end, info.has_authored_time_range)
+    st = core.RenderSettings()
+    st.width, st.height = int(res[0]), int(res[1])
+    bridge = SceneBridge(core)
+    out, prev = [], None
+    for t in times:
+        scene = bridge.update(load_frame(stage, t, resolution=tuple(res)))
+        if prev is not None:
+            p = np.asarray(core.temporal_project_anchors(scene, st, prev), dtype=np.float64)
+            out.append(p.reshape(st.height, st.width, 2))
+        prev = core.temporal_screen_anchors(scene, st, st.width, st.height)
+    return out
+
+
+def motion_compensated_tf(images, refs, flow) -> float:
+    """TF with the error of frame f compared to frame f+1's error where that surface
+    point went (nearest pixel): mean |E_{f+1}(p') − E_f(p)| / mean R over the pixels
+    whose point stays in the image. On a static shot it is TF."""
+    E = np.asarray(images, np.float64) - np.asarray(refs, np.float64)
+    norm = float(np.asarray(refs, np.float64).mean())
+    H, W = E.shape[1:3]
+    terms = []
+    for k, fl in enumerate(flow):
+        x = np.floor(fl[..., 0])
+        y = np.floor(fl[..., 1])
+        ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (x < W) & (y >= 0) & (y < H)
+        yy, xx = np.nonzero(ok)
+        d = np.abs(E[k + 1][y[ok].astype(int), x[ok].astype(int)] - E[k][yy, xx])
+        terms.append(float(d.mean()) / norm if d.size else 0.0)
+    return float(np.mean(terms)) if terms else math.nan
 
 
 def _mean_se(values):
@@ -116,7 +164,8 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=4, help="shot seeds 1..N per configuration")
     ap.add_argument("--out", default=os.path.join("bench_out", "flicker"))
     ap.add_argument("--sequences", default=",".join(SEQUENCES))
-    ap.add_argument("--configs", default=",".join(CONFIGS))
+    ap.add_argument("--configs", default=",".join(DEFAULT_CONFIGS),
+                    help=f"any of: {', '.join(CONFIGS)}")
     ap.add_argument("--integrator", default="cmlt", help="pssmlt or cmlt")
     ap.add_argument("--ref-integrator", default="bdpt",
                     help="per-frame references (bdpt: light through the door's slit is what "
@@ -143,6 +192,7 @@ def main(argv=None):
         shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
         refs = reference(shot, a.frames, os.path.join(a.out, seq, "ref"), a.ref_integrator,
                          res, ref_spp)
+        flow = screen_flow(shot, a.frames, res)
         dseq = dump["sequences"].setdefault(seq, {"spp": spp, "ref_spp": ref_spp,
                                                   "reference_mean": refs.mean(axis=(1, 2, 3)).tolist(),
                                                   "configs": {}})
@@ -153,6 +203,7 @@ def main(argv=None):
                 imgs, recs, dt = render_config(shot, a.frames, out, a.integrator, res, spp,
                                                a.chains, seed, **CONFIGS[name])
                 rep = flicker(imgs, refs)
+                tf_mc = motion_compensated_tf(imgs, refs, flow)
                 j = None
                 if jod is not None:
                     try:
@@ -160,27 +211,28 @@ def main(argv=None):
                     except CvvdpUnavailable as exc:
                         print(f"cvvdp: {exc}", file=sys.stderr)
                         jod = None
-                per_seed.append({"seed": seed, "tf": rep.tf, "gf": rep.gf,
+                per_seed.append({"seed": seed, "tf": rep.tf, "tf_mc": tf_mc, "gf": rep.gf,
                                  "rel_mse": rep.mean_rel_mse, "s_per_frame": dt,
                                  "ratio": rep.ratio, "delta": rep.delta,
                                  "frame_rel_mse": rep.rel_mse, "jod": j,
                                  "b_used": [r.get("b_used") for r in recs],
                                  "change": [r.get("change_detected") for r in recs]})
-                print(f"{seq:15s} {name:28s} seed {seed} TF {rep.tf:.4f} GF {rep.gf:.5f} "
+                print(f"{seq:15s} {name:28s} seed {seed} TF {rep.tf:.4f} TFmc {tf_mc:.4f} GF {rep.gf:.5f} "
                       f"relMSE {rep.mean_rel_mse:.4f}" + (f" JOD {j:.3f}" if j is not None else "")
                       + f" {dt:.2f} s/frame", file=sys.stderr)
             dseq["configs"][name] = per_seed
             rows.append((seq, name, spp) + tuple(
-                _mean_se([p[k] for p in per_seed]) for k in ("tf", "gf", "rel_mse", "jod",
+                _mean_se([p[k] for p in per_seed]) for k in ("tf", "tf_mc", "gf", "rel_mse", "jod",
                                                                "s_per_frame")))
-    head = "| sequence | configuration | spp | TF | GF | mean relMSE |"
-    rule = "|---|---|---:|---:|---:|---:|"
+    head = "| sequence | configuration | spp | TF | TF, motion-compensated | GF | mean relMSE |"
+    rule = "|---|---|---:|---:|---:|---:|---:|"
     if a.cvvdp:
         head += " JOD |"
         rule += "---:|"
     lines = [head + " s / frame |", rule + "---:|"]
-    for s, n, spp, tf, gf, mse, j, dt in rows:
-        line = f"| {s} | {n} | {spp} | {_fmt(*tf, 4)} | {_fmt(*gf, 4)} | {_fmt(*mse, 4)} |"
+    for s, n, spp, tf, tfmc, gf, mse, j, dt in rows:
+        line = (f"| {s} | {n} | {spp} | {_fmt(*tf, 4)} | {_fmt(*tfmc, 4)} | {_fmt(*gf, 4)} "
+                f"| {_fmt(*mse, 4)} |")
         if a.cvvdp:
             line += f" {_fmt(*j, 3)} |"
         lines.append(line + f" {dt[0]:.2f} |")
@@ -203,7 +255,7 @@ def main(argv=None):
         for k, name in enumerate(configs):
             vals = [r for r in rows if r[1] == name]
             ax[0].bar(x + width * k, [max(v[3][0], 1e-6) for v in vals], width, label=name)
-            ax[1].bar(x + width * k, [max(v[4][0], 1e-7) for v in vals], width, label=name)
+            ax[1].bar(x + width * k, [max(v[5][0], 1e-7) for v in vals], width, label=name)
         for i, t in enumerate(("TF", "GF")):
             ax[i].set_xticks(x + 0.4 - width / 2, seqs, fontsize=8)
             ax[i].set_yscale("log")

@@ -74,6 +74,27 @@ def frame_key(frame: float) -> int:
     return int(round(float(frame) * 1000.0)) & 0xFFFFFFFF
 
 
+#: follow the image's screen motion with the chains' film offset (the flicker
+#: benchmark turns it off to measure what it does)
+REPROJECT = True
+#: screen-motion anchors per frame (a grid of camera rays: what they hit, followed
+#: into the next frame to measure how far the image moved)
+ANCHOR_GRID = (16, 16)
+
+
+def film_shift(anchors, projected, width: int, height: int) -> Tuple[float, float]:
+    """The image's screen motion from one frame to the next in film units (fractions
+    of the width and height): the median displacement of the anchors that are still
+    in front of the camera. (0, 0) when fewer than a quarter of them are."""
+    a = np.asarray(anchors, dtype=np.float64).reshape(-1, 6)
+    p = np.asarray(projected, dtype=np.float64).reshape(-1, 2)
+    ok = np.isfinite(p).all(axis=1) & (a[:, 0] >= 0)
+    if a.shape[0] == 0 or ok.sum() < max(1, a.shape[0] // 4):
+        return 0.0, 0.0
+    d = p[ok] - a[ok, 4:6]
+    return float(np.median(d[:, 0])) / width, float(np.median(d[:, 1])) / height
+
+
 def bootstrap_ratio(f_old, f_new) -> Optional[dict]:
     """The ratio estimator of b_{f+1}/b_f over the bootstrap points (the same points
     in both frames with stored seeds: common random numbers): R = Σ f_new / Σ f_old,
@@ -153,10 +174,12 @@ class TemporalDriver:
         if hasattr(st, "mlt_initial_states"):
             st.mlt_initial_states = None
             st.mlt_bootstrap_f = None
+            st.mlt_film_offset_x = st.mlt_film_offset_y = 0.0
         rec = {"seed": int(st.seed), "seed_per_frame": self.per_frame,
                "carry_states": self.carry, "smooth_normalization": self.smooth,
                "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
-        self._pending = {"ratio": None, "picks": [], "boot_f": None}
+        self._pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
+                         "anchors": []}
         if self.integrator in MLT_INTEGRATORS and hasattr(st, "pilot"):
             # the pixel importance's pilot, rendered once for the render and for the
             # carry-over evaluations below (f* must be the same function in all of them)
@@ -165,16 +188,28 @@ class TemporalDriver:
                 st.pilot = core.render_pilot(scene, st)
         if not self.carry:
             return rec
+        prev = self.prev
+        prev_ok = prev is not None and not self.per_frame
+        # the chains' film offset follows the image's screen motion (camera, moving
+        # geometry): a start kept from the previous frame then lands on the same surface
+        offset = (0.0, 0.0)
+        if REPROJECT and prev_ok and prev.anchors:
+            dx, dy = film_shift(prev.anchors, core.temporal_project_anchors(scene, st, prev.anchors),
+                                st.width, st.height)
+            offset = ((prev.film_offset[0] + dx) % 1.0, (prev.film_offset[1] + dy) % 1.0)
+        st.mlt_film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
+        st.mlt_film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
+        self._pending["film_offset"] = (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))
+        self._pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
         n_boot = int(core.temporal_bootstrap_count(st))
         boot = core.temporal_bootstrap_states(scene, st, n_boot)
         f_new = list(core.temporal_f_star(boot))
         # the render uses these values for b and does not evaluate the points again
         st.mlt_bootstrap_f = f_new
         self._pending["boot_f"] = f_new
-        prev = self.prev
         f_old: List[float] = []
         prev_picks: List[int] = []
-        if prev is not None and not self.per_frame and prev.boot_f and prev.start_picks:
+        if prev_ok and prev.boot_f and prev.start_picks:
             f_old = list(np.frombuffer(prev.boot_f, dtype="<f8"))
             if len(f_old) == n_boot:
                 prev_picks = list(prev.start_picks)
@@ -191,7 +226,8 @@ class TemporalDriver:
         rec.update(state_in=self.prev_source if prev_picks else None,
                    carried_chains=int(c["kept"]), refreshed_chains=int(c["refreshed"]),
                    fresh_chains=int(c["fresh"]),
-                   start_tv=float(c["tv"]) if prev_picks else None)
+                   start_tv=float(c["tv"]) if prev_picks else None,
+                   film_offset=list(self._pending["film_offset"]))
         if self._pending["ratio"] is not None:
             rec["ratio_mean"] = float(self._pending["ratio"]["mean"])
         return rec
@@ -239,6 +275,8 @@ class TemporalDriver:
                         integrator=self.integrator, seed=self.base_seed, frame=float(frame),
                         settings_hash=self.settings_hash, chain_count=len(picks),
                         start_picks=picks,
+                        film_offset=tuple(self._pending.get("film_offset", (0.0, 0.0))),
+                        anchors=list(self._pending.get("anchors", [])),
                         boot_f=np.asarray(boot_f, dtype="<f8").tobytes()
                         if boot_f is not None else b"",
                         history=history)

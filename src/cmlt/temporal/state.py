@@ -19,6 +19,9 @@ reads ``state.0012.bin``). Little-endian::
                                     (the next frame's chain-start coupling and paired
                                     change test; stored seeds make them the same points)
              u64 n | n × u32        bootstrap index each chain started this frame from
+             2 × f64                the chains' film offset (x, y) in this frame
+             u64 a | a × 6 × f64    screen anchors (instance, object-space x, y, z,
+                                    raster x, y): the next frame's screen motion
              u32 k | k × record     normalisation history, oldest first (see below)
     trailer  u32 CRC-32 (zlib) of header + payload
 
@@ -78,6 +81,10 @@ class FrameState:
     start_picks: List[int] = field(default_factory=list)
     #: f* of the frame's bootstrap points by index (float64, little-endian)
     boot_f: bytes = b""
+    #: the chains' film offset in this frame
+    film_offset: tuple = (0.0, 0.0)
+    #: flat screen anchors, 6 numbers each (core temporal_screen_anchors)
+    anchors: List[float] = field(default_factory=list)
     history: List[NormRecord] = field(default_factory=list)
 
     @property
@@ -113,6 +120,11 @@ def encode_state(s: FrameState) -> bytes:
     payload += struct.pack("<Q", len(s.boot_f) // 8) + bytes(s.boot_f)
     payload += struct.pack("<Q", len(s.start_picks))
     payload += struct.pack(f"<{len(s.start_picks)}I", *s.start_picks)
+    payload += struct.pack("<2d", float(s.film_offset[0]), float(s.film_offset[1]))
+    if len(s.anchors) % 6:
+        raise ValueError("FrameState.anchors: not 6 numbers per anchor")
+    payload += struct.pack("<Q", len(s.anchors) // 6)
+    payload += struct.pack(f"<{len(s.anchors)}d", *s.anchors)
     payload += struct.pack("<I", len(hist))
     for r in hist:
         payload += _RECORD.pack(*(float(getattr(r, k)) for k in _REC_FIELDS), 1 if r.change else 0)
@@ -158,6 +170,11 @@ def decode_state(data: bytes, path: str = "<state>") -> FrameState:
         out.start_picks = list(struct.unpack_from(f"<{n}I", data, p)); p += 4 * n
         if any(i >= q for i in out.start_picks):
             raise struct.error("a chain start is not a bootstrap index")
+        out.film_offset = struct.unpack_from("<2d", data, p); p += 16
+        (a,) = struct.unpack_from("<Q", data, p); p += 8
+        if p + 48 * a > len(data):
+            raise struct.error("screen anchors run past the end")
+        out.anchors = list(struct.unpack_from(f"<{6 * a}d", data, p)); p += 48 * a
         (k,) = struct.unpack_from("<I", data, p); p += 4
         for _ in range(k):
             vals = _RECORD.unpack_from(data, p); p += _RECORD.size

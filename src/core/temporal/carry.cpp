@@ -216,6 +216,42 @@ CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<
     return out;
 }
 
+std::vector<Anchor> screen_anchors(const Scene& scene, const RenderSettings& settings, int n_x, int n_y) {
+    check_settings(settings, "screen_anchors");
+    if (n_x < 1 || n_y < 1) CMLT_THROW(SettingsError, "screen_anchors: grid " << n_x << "x" << n_y << " is empty");
+    const Camera camera(scene.camera_desc(), settings.width, settings.height);
+    std::vector<Anchor> out(size_t(n_x) * size_t(n_y));
+    parallel(settings, out.size(), [&](uint64_t i, PathCounters&) {
+        Anchor& a = out[size_t(i)];
+        const int gx = int(i % uint64_t(n_x)), gy = int(i / uint64_t(n_x));
+        a.p_raster = Vec2((float(gx) + 0.5f) * float(settings.width) / float(n_x),
+                          (float(gy) + 0.5f) * float(settings.height) / float(n_y));
+        Ray ray = camera.generate_ray(a.p_raster);
+        const SceneHit h = scene.intersect(ray);
+        if (h.kind != SceneHit::Kind::surface) return;
+        const Instance& inst = scene.instance(h.si.instance_id);
+        a.instance = int32_t(h.si.instance_id);
+        a.p_object = inst.matrix_at(h.si.time).inverse().transform_point(h.si.p);
+    });
+    return out;
+}
+
+std::vector<Vec2> project_anchors(const Scene& scene, const RenderSettings& settings,
+                                  const std::vector<Anchor>& anchors) {
+    check_settings(settings, "project_anchors");
+    const Camera camera(scene.camera_desc(), settings.width, settings.height);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::vector<Vec2> out(anchors.size(), Vec2(nan, nan));
+    for (size_t i = 0; i < anchors.size(); ++i) {
+        const Anchor& a = anchors[i];
+        if (a.instance < 0 || size_t(a.instance) >= scene.instance_count()) continue;
+        const Vec3 p = scene.instance(uint32_t(a.instance)).matrix_at(0.f).transform_point(a.p_object);
+        Vec2 r;
+        if (camera.world_to_raster(p, &r) && std::isfinite(r.x) && std::isfinite(r.y)) out[i] = r;
+    }
+    return out;
+}
+
 std::vector<uint64_t> systematic_resample(const std::vector<double>& weights, uint64_t n, double u0) {
     double total = 0.0;
     for (double w : weights) total += (std::isfinite(w) && w > 0.0) ? w : 0.0;

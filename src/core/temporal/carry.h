@@ -123,6 +123,21 @@ CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<
 /// draws of couple_starts).
 double keyed_uniform(uint64_t seed, uint32_t domain, uint32_t id, uint32_t counter);
 
+/// Screen motion (camera reprojection). An anchor is what the camera ray through a film
+/// position hits first, in the hit instance's object space, so that it follows the
+/// instance (and the camera) into the next frame.
+struct Anchor {
+    int32_t instance = -1;  ///< hit instance, -1: the ray hit nothing (or a light)
+    Vec3 p_object{0.f};     ///< hit point in the instance's object space
+    Vec2 p_raster{0.f, 0.f};///< film position the ray went through (raster units)
+};
+/// Anchors of an n_x × n_y grid of film positions (cell centres, row by row).
+std::vector<Anchor> screen_anchors(const Scene& scene, const RenderSettings& settings, int n_x, int n_y);
+/// Raster positions of `anchors` in `scene` (its instances' transforms and camera):
+/// NaN where the anchor has no hit, its instance is gone, or it is behind the camera.
+std::vector<Vec2> project_anchors(const Scene& scene, const RenderSettings& settings,
+                                  const std::vector<Anchor>& anchors);
+
 /// Systematic resampling: `n` indices into `weights` (≥ 0, finite), index i drawn
 /// ⌊n W_i / ΣW + fractional offset⌋ times, with one uniform u0 ∈ [0, 1). Sorted.
 /// Empty if Σ weights = 0.

@@ -156,6 +156,10 @@ struct RenderSettings {
     /// the chain starts: temporal/carry.h). Exactly the frame's bootstrap count; counted
     /// in the budget as if evaluated. nullptr: the render evaluates them.
     std::shared_ptr<const std::vector<double>> mlt_bootstrap_f;
+    /// pssmlt/cmlt: offset of the chains' film position on the torus, [0, 1) per axis
+    /// (pssmlt_tracer.h shift_film: the same target, reparametrised); the temporal driver
+    /// moves it with the camera. Default 0, 0.
+    double mlt_film_offset_x = 0.0, mlt_film_offset_y = 0.0;
     /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
     /// (the temporal driver renders it once per frame for the render and its carry-over
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).
