@@ -1,5 +1,5 @@
-// Bindings of the temporal carry-over (src/core/temporal/carry.h): evaluate carried chain
-// states in a new frame, sample the refresh pool, plan and gather the chain starts.
+// Bindings of the temporal carry-over (src/core/temporal/carry.h): the bootstrap points
+// of a frame, the coupled chain starts, screen anchors, and states evaluated in a frame.
 // The GIL is released while paths are traced.
 #include "bind_common.h"
 
@@ -38,16 +38,6 @@ void bind_temporal(nb::module_& m) {
         "Evaluate chain states (MltStates) in this frame's scene: the completed states with "
         "this frame's f_star and colour (temporal/carry.h).");
     m.def(
-        "temporal_sample_pool",
-        [](Scene& scene, const RenderSettings& settings, uint64_t pool_seed, uint64_t count) {
-            prepare(scene, settings, "temporal_sample_pool");
-            nb::gil_scoped_release release;
-            return temporal::sample_pool(scene, settings, pool_seed, count);
-        },
-        "scene"_a, "settings"_a, "pool_seed"_a, "count"_a,
-        "`count` independent uniform points keyed by (pool_seed, pool domain, j), evaluated "
-        "in this frame's scene, as MltStates.");
-    m.def(
         "temporal_f_star", [](const mlt::ChainStates& s) {
             std::vector<double> f;
             f.reserve(s.chains.size());
@@ -55,23 +45,6 @@ void bind_temporal(nb::module_& m) {
             return f;
         },
         "states"_a, "f_star of every state, in order (list of float).");
-    m.def(
-        "temporal_plan_carry",
-        [](const std::vector<double>& f_old, const std::vector<double>& f_new,
-           const std::vector<double>& pool_old, const std::vector<double>& pool_new, double b_old,
-           uint64_t n, double u0) {
-            const temporal::CarryPlan p = temporal::plan_carry(f_old, f_new, pool_old, pool_new, b_old, n, u0);
-            nb::dict d;
-            d["picks"] = p.picks;
-            d["from_carried"] = p.from_carried;
-            d["from_pool"] = p.from_pool;
-            d["weight_carried"] = p.weight_carried;
-            d["weight_pool"] = p.weight_pool;
-            return d;
-        },
-        "f_old"_a, "f_new"_a, "pool_old"_a, "pool_new"_a, "b_old"_a, "n"_a, "u0"_a,
-        "Deterministic-mixture weights of carried and pool particles and n systematic "
-        "resampling picks (temporal/carry.h).");
     m.def(
         "temporal_ratio_statistics",
         [](const std::vector<double>& f_old, const std::vector<double>& f_new) {
@@ -166,7 +139,6 @@ void bind_temporal(nb::module_& m) {
         "Raster positions (flat x, y per anchor; NaN: gone or behind the camera) of anchors "
         "from temporal_screen_anchors in this frame's scene.");
     m.def("temporal_systematic_resample", &temporal::systematic_resample, "weights"_a, "n"_a, "u0"_a);
-    m.def("temporal_carry_uniform", &temporal::carry_uniform, "seed"_a, "key"_a);
     m.def("temporal_gather_states", &temporal::gather_states, "carried"_a, "pool"_a, "picks"_a,
           "pool_id_base"_a, "States picked from carried (index < len) and pool (index - len).");
 }

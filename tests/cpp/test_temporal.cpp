@@ -1,8 +1,9 @@
-// Temporal carry-over (src/core/temporal/carry.h): systematic resampling, the
-// deterministic-mixture importance resampling of carried + pool particles (a 1-D toy
-// with a "light switched on" where the old target had almost nothing), the ratio
-// statistics, and evaluate_states on a real render's final chain states (same scene:
-// the same f* bit for bit; the render then starts every chain from them).
+// Temporal carry-over (src/core/temporal/carry.h): systematic resampling, keyed
+// uniforms, the ratio statistics (a 1-D toy with a "light switched on"), evaluate_states
+// on a real render's final chain states (same scene: the same f* bit for bit), the
+// bootstrap points given to the render, the coupled chain starts (a discrete toy: exact
+// distribution; a real render: the fresh frame's expected image, and a biased variant is
+// caught), screen anchors and the film offset.
 #include "test_util.h"
 
 #include "integrators/common/render.h"
@@ -71,61 +72,42 @@ TEST(Temporal, SystematicResampleCounts) {
     EXPECT_EQ(temporal::systematic_resample(w, 33, 0.42), temporal::systematic_resample(w, 33, 0.42));
 }
 
-TEST(Temporal, CarryUniformIsKeyed) {
-    EXPECT_EQ(temporal::carry_uniform(7, 3), temporal::carry_uniform(7, 3));
-    EXPECT_NE(temporal::carry_uniform(7, 3), temporal::carry_uniform(7, 4));
-    const double u = temporal::carry_uniform(9, 1);
-    EXPECT_GE(u, 0.0);
-    EXPECT_LT(u, 1.0);
+TEST(Temporal, KeyedUniformIsKeyed) {
+    using temporal::keyed_uniform;
+    EXPECT_EQ(keyed_uniform(7, temporal::k_domain_keep, 3, 5), keyed_uniform(7, temporal::k_domain_keep, 3, 5));
+    EXPECT_NE(keyed_uniform(7, temporal::k_domain_keep, 3, 5), keyed_uniform(7, temporal::k_domain_keep, 3, 6));
+    EXPECT_NE(keyed_uniform(7, temporal::k_domain_keep, 3, 5), keyed_uniform(7, temporal::k_domain_keep, 4, 5));
+    EXPECT_NE(keyed_uniform(7, temporal::k_domain_keep, 3, 5), keyed_uniform(7, temporal::k_domain_refresh, 3, 5));
+    double mean = 0;
+    for (uint32_t k = 0; k < 10000; ++k) {
+        const double u = keyed_uniform(9, temporal::k_domain_keep, k, 1);
+        ASSERT_GE(u, 0.0);
+        ASSERT_LT(u, 1.0);
+        mean += u / 10000;
+    }
+    EXPECT_NEAR(mean, 0.5, 0.01);
 }
 
-// 1-D toy: old target f0 = 1 + 30·1[0.2,0.3) on [0, 0.5), 0 on [0.5, 1); new target
-// f1 = f0 + 60·1[0.7,0.75) (a light switched on where the old target is black: no carried
-// particle can be there). Carried particles ~ f0 (stratified inverse CDF), pool points
-// stratified uniform. The resampled starts must be distributed ∝ f1: mass 3/6.5 in the
-// new light, 3.1/6.5 in the old bump.
-TEST(Temporal, PlanCarryResamplesToTheNewTarget) {
+// Ratio statistics on a 1-D toy: old target f0 = 1 + 30·1[0.2,0.3) on [0, 0.5), 0 on
+// [0.5, 1); new target f1 = f0 + 60·1[0.7,0.75) (a light switched on where the old target
+// is black). Over states ∝ f0, mean(f1/f0) is blind to the new light (why the carry-over
+// couples on the bootstrap points, whose Σ f1 / Σ f0 sees it).
+TEST(Temporal, RatioStatisticsAreBlindToNewLight) {
     auto f0 = [](double x) { return x < 0.5 ? 1.0 + (x >= 0.2 && x < 0.3 ? 30.0 : 0.0) : 0.0; };
     auto f1 = [&](double x) { return f0(x) + (x >= 0.7 && x < 0.75 ? 60.0 : 0.0); };
-    const double b0 = 3.5, b1 = 6.5;
-    const size_t nc = 4000, np = 4000, n = 20000;
-    std::vector<double> xc, fo, fn;
+    const double b0 = 3.5;
+    const size_t nc = 4000;
+    std::vector<double> fo, fn;
     for (size_t i = 0; i < nc; ++i) {
         const double u = (double(i) + 0.5) / double(nc) * b0;  // cumulative mass
         double x;
         if (u < 0.2) x = u;
         else if (u < 0.2 + 3.1) x = 0.2 + (u - 0.2) / 31.0;
         else x = 0.3 + (u - 3.3);
-        xc.push_back(x);
         fo.push_back(f0(x));
         fn.push_back(f1(x));
     }
-    std::vector<double> xp, po, pn;
-    for (size_t j = 0; j < np; ++j) {
-        const double x = (double(j) + 0.5) / double(np);
-        xp.push_back(x);
-        po.push_back(f0(x));
-        pn.push_back(f1(x));
-    }
-    const temporal::CarryPlan plan = temporal::plan_carry(fo, fn, po, pn, b0, n, 0.37);
-    ASSERT_EQ(plan.picks.size(), n);
-    EXPECT_EQ(plan.from_carried + plan.from_pool, n);
-    double in_new = 0, in_old = 0;
-    for (uint64_t p : plan.picks) {
-        const double x = p < nc ? xc[p] : xp[p - nc];
-        in_new += (x >= 0.7 && x < 0.75);
-        in_old += (x >= 0.2 && x < 0.3);
-    }
-    EXPECT_NEAR(in_new / n, 3.0 / b1, 0.01);
-    EXPECT_NEAR(in_old / n, 3.1 / b1, 0.01);
-    EXPECT_GT(plan.from_carried, plan.from_pool / 2);  // carried chains do most of the old part
-
-    // carried particles alone cannot see the new light: why the pool exists
-    const temporal::CarryPlan only = temporal::plan_carry(fo, fn, {}, {}, b0, n, 0.37);
-    for (uint64_t p : only.picks) ASSERT_LT(xc[p], 0.5);
-
-    // ... and the ratio estimator is blind to it too: b0 · mean(f1/f0) = b0, while the
-    // fresh estimate says b1 — the disagreement is the change signal
+    // b0 · mean(f1/f0) = b0, while b1 = 6.5
     const temporal::RatioStats r = temporal::ratio_statistics(fo, fn);
     EXPECT_EQ(r.count, nc);
     EXPECT_DOUBLE_EQ(b0 * r.mean, b0);
@@ -164,8 +146,8 @@ TEST(Temporal, EvaluateStatesReproducesTheRendersTargetAndRestartsChains) {
         // evaluated again: nothing left to draw, the same values
         auto ev2 = temporal::evaluate_states(s, st, *ev);
         for (size_t i = 0; i < ev->chains.size(); ++i) EXPECT_EQ(ev2->chains[i].f_star, ev->chains[i].f_star);
-        // pool points are keyed: the same twice
-        auto p1 = temporal::sample_pool(s, st, 9, 64), p2 = temporal::sample_pool(s, st, 9, 64);
+        // bootstrap points are keyed: the same twice
+        auto p1 = temporal::bootstrap_states(s, st, 64), p2 = temporal::bootstrap_states(s, st, 64);
         for (size_t j = 0; j < 64; ++j) EXPECT_EQ(p1->chains[j].f_star, p2->chains[j].f_star);
         // start the next render from a gathered population
         std::vector<uint64_t> picks;

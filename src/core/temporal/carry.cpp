@@ -105,26 +105,6 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
     return out;
 }
 
-std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSettings& settings,
-                                              uint64_t pool_seed, uint64_t count) {
-    check_settings(settings, "sample_pool");
-    const Tracers tr(scene, settings);
-    auto out = std::make_shared<mlt::ChainStates>();
-    out->path_sampler = settings.mlt_path_sampler;
-    out->chains.resize(size_t(count));
-    parallel(settings, count, [&](uint64_t j, PathCounters& c) {
-        MltSampler smp(pool_seed, settings.sigma, settings.large_step_probability,
-                       RngDomain(k_domain_pool), uint32_t(j));
-        smp.start_iteration(true);
-        const mlt::PathSample x = tr.tracer.evaluate(smp, c);
-        smp.accept();
-        mlt::ChainState& o = out->chains[j];
-        o.chain_id = j;
-        fill_state(o, smp, x);
-    });
-    return out;
-}
-
 uint64_t bootstrap_count(const RenderSettings& settings) {
     return mlt::FrameBudget::plan(settings).bootstrap;
 }
@@ -280,11 +260,6 @@ std::vector<uint64_t> systematic_resample(const std::vector<double>& weights, ui
     return out;
 }
 
-double carry_uniform(uint64_t seed, uint32_t key) {
-    mlt::CounterRng rng(seed, RngDomain(k_domain_carry), key);
-    return rng.uniform();
-}
-
 RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<double>& f_new) {
     CMLT_CHECK_MSG(f_old.size() == f_new.size(), "ratio_statistics: size mismatch");
     RatioStats r;
@@ -301,43 +276,6 @@ RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<
     r.mean = mean;
     r.variance = r.count > 1 ? m2 / double(r.count - 1) : 0.0;
     return r;
-}
-
-CarryPlan plan_carry(const std::vector<double>& f_old, const std::vector<double>& f_new,
-                     const std::vector<double>& pool_old, const std::vector<double>& pool_new,
-                     double b_old, uint64_t n, double u0) {
-    CMLT_CHECK_MSG(f_old.size() == f_new.size(), "plan_carry: carried f_old / f_new size mismatch");
-    CMLT_CHECK_MSG(pool_old.empty() || pool_old.size() == pool_new.size(),
-                   "plan_carry: pool_old / pool_new size mismatch");
-    const double nc = double(f_old.size()), np = double(pool_new.size());
-    const bool have_b = std::isfinite(b_old) && b_old > 0.0;
-    // mixture density (unnormalised): n · f*_f(x) / b_f + N · 1
-    const auto density = [&](double fo) {
-        const double carried = (have_b && std::isfinite(fo) && fo > 0.0) ? nc * fo / b_old : 0.0;
-        return carried + np;
-    };
-    const auto weight = [&](double fo, double fn) {
-        if (!(std::isfinite(fn) && fn > 0.0)) return 0.0;
-        const double q = density(fo);
-        return q > 0.0 ? fn / q : 0.0;
-    };
-    std::vector<double> w;
-    w.reserve(f_old.size() + pool_new.size());
-    CarryPlan plan;
-    for (size_t i = 0; i < f_old.size(); ++i) {
-        // a carried particle is a draw from π_f only if the previous frame had b_f > 0
-        const double wi = have_b ? weight(f_old[i], f_new[i]) : 0.0;
-        plan.weight_carried += wi;
-        w.push_back(wi);
-    }
-    for (size_t j = 0; j < pool_new.size(); ++j) {
-        const double wj = weight(pool_old.empty() ? 0.0 : pool_old[j], pool_new[j]);
-        plan.weight_pool += wj;
-        w.push_back(wj);
-    }
-    plan.picks = systematic_resample(w, n, u0);
-    for (uint64_t p : plan.picks) (p < f_old.size() ? plan.from_carried : plan.from_pool) += 1;
-    return plan;
 }
 
 std::shared_ptr<mlt::ChainStates> gather_states(const mlt::ChainStates& a, const mlt::ChainStates& b,

@@ -1,49 +1,28 @@
 #pragma once
-/// \file Carrying a Markov-chain population from frame f to frame f+1 (DESIGN.md §4,
-/// "carried chain states"). The frame loop's carry-over (src/cmlt/temporal/driver.py)
-/// couples the chain starts of consecutive frames on the bootstrap points
-/// (bootstrap_states, couple_starts below): exact, and the starts move only where the
-/// target changed. The particle tools after this comment (evaluate_states, sample_pool,
-/// plan_carry: reweighting and resampling carried states ∝ f*_{f+1}/f*_f) are the
-/// general sequential-Monte-Carlo form, for states that are not bootstrap points.
-/// Generic over the integrator: anything that runs chains of
-/// MltSampler states through a PssmltTracer (pssmlt, cmlt) and exports / imports
-/// mlt::ChainStates (integrators/mlt/chain_state.h) can use it.
+/// \file Carrying Markov chains from frame f to frame f+1 (DESIGN.md §4, "carried chain
+/// states"), generic over the integrator: anything that runs chains of MltSampler states
+/// through a PssmltTracer (pssmlt, cmlt) and imports mlt::ChainStates
+/// (integrators/mlt/chain_state.h) can use it. The frame loop (src/cmlt/temporal/driver.py):
 ///
-/// The population at the end of frame f, {u_i}, i = 1..n, is (approximately) distributed
-/// ∝ f*_f (the chains are in equilibrium). To start frame f+1 without bias we treat it as
-/// a set of particles (sequential Monte Carlo):
+///   1. evaluates the frame's bootstrap points before the render (bootstrap_states: with
+///      stored seeds the same points every frame) and gives their f* to the render
+///      (RenderSettings::mlt_bootstrap_f), which does not evaluate them again;
+///   2. chooses the chain starts among them, coupled to the previous frame's starts
+///      (couple_starts): a start stays where its target did not change, moves where it
+///      did, and the starts are distributed exactly as a fresh frame's;
+///   3. offsets the chains' film position (RenderSettings::mlt_film_offset_x/y, a
+///      measure-preserving reparametrisation) by the image's screen motion, measured
+///      with screen anchors (screen_anchors, project_anchors), so that under a moving
+///      camera a kept start lands on the surface it saw before.
+/// Why coupling rather than reweighting carried particles: resampling a population
+/// reweighted by f*_{f+1}/f*_f duplicates a few states where it does not cover the new
+/// target, and short chains do not spread them out again (measured on moving_light:
+/// relMSE growing over the frames, tests/bench/results/flicker_baseline.md); the
+/// coupled starts are as good as a fresh frame's every frame.
 ///
-///   1. evaluate f*_{f+1}(u_i) in the new scene (evaluate_states). A coordinate the state
-///      has no value for (NaN: the old path did not read it) is uniform and independent
-///      under π_f, so drawing it now is exact; the drawn value is written back into the
-///      state, so the chain later replays exactly the path that was weighted;
-///   2. add a pool of N independent uniform points v_j (sample_pool; a large step each,
-///      keyed by (shot seed, pool domain, j) — the same points every frame), whose f*_f
-///      (the previous frame's pool evaluation) and f*_{f+1} are known;
-///   3. weight every particle x of the union by the deterministic-mixture (balance
-///      heuristic) importance weight of the new target against the mixture proposal
-///        W(x) = f*_{f+1}(x) / ( n · f*_f(x) / b_f  +  N · 1 )
-///      (carried particles were drawn from π_f = f*_f / b_f, pool particles from the
-///      uniform density 1); self-normalised, Σ_x W(x) δ_x / Σ W is an importance sample
-///      of π_{f+1} = f*_{f+1} / b_{f+1} whose proposal covers the whole space (the pool),
-///      so light that appears in frame f+1 (a lamp switched on, f*_f = 0 there) is found
-///      — carried particles cannot see it, pool particles can, and they are weighted up
-///      exactly where the carried population is thin;
-///   4. resample n chain starts ∝ W with systematic resampling (one uniform, keyed by
-///      (seed, resample domain, frame key): deterministic). Importance resampling from a
-///      weighted sample targeting π_{f+1} gives starts distributed (as n, N grow) ∝
-///      π_{f+1}: the chains start in equilibrium, as bootstrap resampling does for a
-///      fresh frame. A carried particle whose new weight is ~0 simply dies; the pool
-///      refreshes it.
-///
-/// With a static scene f*_{f+1} = f*_f, every carried weight is b_f / (n + N b_f / f*_f),
-/// and the chains continue where they stopped (with stored seeds the numbers are the
-/// same as in frame f, so the population settles and consecutive frames agree).
-///
-/// The ratio estimator of the normalisation (DESIGN.md §4) comes out of step 1:
-///   b_ratio = b_f · mean_i( f*_{f+1}(u_i) / f*_f(u_i) ),
-/// since E_{π_f}[f*_{f+1}/f*_f] = b_{f+1}/b_f on the support of f*_f (ratio_statistics).
+/// evaluate_states (a state's f* in the new scene) and ratio_statistics (the mean of
+/// f*_{f+1}/f*_f over states ∝ f*_f, an estimate of b_{f+1}/b_f on the support of f*_f)
+/// are the tools for states that are not bootstrap points.
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/chain_state.h"
 
@@ -60,8 +39,6 @@ namespace cmlt::temporal {
 /// Counter domains of the temporal numbers (MltSampler's RngDomain is an 8-bit field;
 /// these values are outside the ones mlt_sampler.h names).
 inline constexpr uint32_t k_domain_evaluate = 0x40;  ///< id = carried state index
-inline constexpr uint32_t k_domain_pool = 0x41;      ///< id = pool point index
-inline constexpr uint32_t k_domain_carry = 0x42;     ///< id = frame key: the resampling uniform
 inline constexpr uint32_t k_domain_keep = 0x43;      ///< id = chain, counter = frame key: keep tests
 inline constexpr uint32_t k_domain_refresh = 0x44;   ///< id = group, counter = frame key: refresh draws
 
@@ -71,11 +48,6 @@ inline constexpr uint32_t k_domain_refresh = 0x44;   ///< id = group, counter = 
 /// Returns the completed states (f_star, colour, depth/s/t of the new frame).
 std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const RenderSettings& settings,
                                                   const mlt::ChainStates& states);
-
-/// N independent uniform points (one large step each, keyed by (pool_seed,
-/// k_domain_pool, j)) evaluated in `scene`: their states (f_star = f*).
-std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSettings& settings,
-                                              uint64_t pool_seed, uint64_t count);
 
 /// Bootstrap samples the frame's render evaluates (mlt_frame.h FrameBudget: min(bootstrap
 /// samples, half of what the pilot and the direct pass leave)).
@@ -143,9 +115,6 @@ std::vector<Vec2> project_anchors(const Scene& scene, const RenderSettings& sett
 /// Empty if Σ weights = 0.
 std::vector<uint64_t> systematic_resample(const std::vector<double>& weights, uint64_t n, double u0);
 
-/// Uniform in [0, 1) keyed by (seed, k_domain_carry, key).
-double carry_uniform(uint64_t seed, uint32_t key);
-
 /// Ratio statistics over the carried states: w_i = f_new_i / f_old_i for f_old_i > 0.
 struct RatioStats {
     uint64_t count = 0;  ///< states with f_old > 0
@@ -154,20 +123,6 @@ struct RatioStats {
     uint64_t zero = 0;   ///< states whose new f* is 0 (lost their contribution)
 };
 RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<double>& f_new);
-
-/// The plan of step 3–4: mixture weights of carried (f_old, f_new) and pool (pool_old,
-/// pool_new) particles, n starts resampled with uniform u0. pool_old may be empty (no
-/// previous pool evaluation: pool points then count as uncovered by the carried
-/// population, f*_f = 0). Returned indices < carried count are carried particles, the
-/// others pool particles (index − carried count).
-struct CarryPlan {
-    std::vector<uint64_t> picks;
-    uint64_t from_carried = 0, from_pool = 0;
-    double weight_carried = 0.0, weight_pool = 0.0;  ///< Σ W of each group
-};
-CarryPlan plan_carry(const std::vector<double>& f_old, const std::vector<double>& f_new,
-                     const std::vector<double>& pool_old, const std::vector<double>& pool_new,
-                     double b_old, uint64_t n, double u0);
 
 /// A ChainStates of picked states: pick p < a.size() → a.chains[p], else b.chains[p − a.size()];
 /// chain c gets chain_id = the picked state's chain_id for carried picks, and
