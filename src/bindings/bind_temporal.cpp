@@ -75,12 +75,20 @@ void bind_temporal(nb::module_& m) {
         "temporal_bootstrap_states",
         [](Scene& scene, const RenderSettings& settings, uint64_t count) {
             prepare(scene, settings, "temporal_bootstrap_states");
-            nb::gil_scoped_release release;
-            return temporal::bootstrap_states(scene, settings, count);
+            PathCounters c;
+            std::shared_ptr<mlt::ChainStates> states;
+            {
+                nb::gil_scoped_release release;
+                states = temporal::bootstrap_states(scene, settings, count, &c);
+            }
+            nb::dict d;
+            d["rays"] = c.rays;
+            d["samples"] = c.samples;
+            return nb::make_tuple(states, d);
         },
         "scene"_a, "settings"_a, "count"_a,
-        "The render's bootstrap points 0..count-1 evaluated in this frame's scene, as MltStates "
-        "(f_star = f*; temporal/carry.h).");
+        "The render's bootstrap points 0..count-1 evaluated in this frame's scene: (MltStates "
+        "with f_star = f*, {'rays', 'samples'} traced; temporal/carry.h).");
     m.def(
         "temporal_couple_starts",
         [](const std::vector<double>& f_old, const std::vector<double>& f_new,

@@ -139,6 +139,41 @@ def motion_compensated_tf(images, refs, flow) -> float:
     return float(np.mean(terms)) if terms else math.nan
 
 
+def plot(rows, seqs, configs, path, what):
+    """TF and GF per sequence and configuration, log scale; a value of 0 (a static
+    shot with stored seeds) is marked "0" at the axis floor."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4))
+    x = np.arange(len(seqs))
+    width = 0.8 / max(1, len(configs))
+    for i, (t, col) in enumerate((("TF", 4), ("GF", 6))):
+        vals = [r[col][0] for r in rows if r[1] in configs]
+        positive = [v for v in vals if v > 0]
+        floor = 0.3 * min(positive) if positive else 1e-3
+        for k, name in enumerate(configs):
+            v = [next((r[col][0] for r in rows if r[0] == q and r[1] == name), math.nan)
+                 for q in seqs]
+            bars = ax[i].bar(x + width * k, [max(y, floor) for y in v], width, label=name,
+                             color=f"C{k}")
+            for bar, y in zip(bars, v):
+                if y == 0:
+                    ax[i].text(bar.get_x() + bar.get_width() / 2, floor * 1.15, "0",
+                               ha="center", va="bottom", fontsize=8, color=f"C{k}")
+        ax[i].set_xticks(x + 0.4 - width / 2, seqs, fontsize=8)
+        ax[i].set_yscale("log")
+        ax[i].set_ylim(bottom=floor)
+        ax[i].set_title(f"{t} ({what}; lower is better)", fontsize=9)
+    ax[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def _mean_se(values):
     v = np.asarray([x for x in values if x is not None], dtype=np.float64)
     if v.size == 0:
@@ -249,26 +284,8 @@ def main(argv=None):
                  + table + "\n")
     with open(os.path.join(a.out, "flicker.json"), "w") as fh:
         json.dump(dump, fh, indent=1)
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(1, 2, figsize=(12, 4))
-        x = np.arange(len(seqs))
-        width = 0.8 / max(1, len(configs))
-        for k, name in enumerate(configs):
-            vals = [r for r in rows if r[1] == name]
-            ax[0].bar(x + width * k, [max(v[4][0], 1e-6) for v in vals], width, label=name)
-            ax[1].bar(x + width * k, [max(v[6][0], 1e-7) for v in vals], width, label=name)
-        for i, t in enumerate(("TF", "GF")):
-            ax[i].set_xticks(x + 0.4 - width / 2, seqs, fontsize=8)
-            ax[i].set_yscale("log")
-            ax[i].set_title(f"{t} ({a.integrator}, mean of {a.seeds} seeds, lower is better)")
-        ax[0].legend(fontsize=7)
-        fig.tight_layout()
-        fig.savefig(os.path.join(a.out, "flicker.png"), dpi=100)
-    except ImportError:
-        pass
+    plot(rows, seqs, configs, os.path.join(a.out, "flicker.png"),
+         f"{a.integrator}, mean of {a.seeds} seeds")
     print(table)
 
 

@@ -27,6 +27,7 @@ values bit for bit.
 from __future__ import annotations
 
 import math
+import time
 from typing import List, Optional, Tuple
 
 import numpy as np
@@ -202,8 +203,12 @@ class TemporalDriver:
         self._pending["film_offset"] = (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))
         self._pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
         n_boot = int(core.temporal_bootstrap_count(st))
-        boot = core.temporal_bootstrap_states(scene, st, n_boot)
+        t0 = time.perf_counter()
+        boot, traced = core.temporal_bootstrap_states(scene, st, n_boot)
         f_new = list(core.temporal_f_star(boot))
+        # the render counts these evaluations in its budget but not their rays (as the
+        # pilot's): the record says what the frame loop traced for them
+        rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0)
         # the render uses these values for b and does not evaluate the points again
         st.mlt_bootstrap_f = f_new
         self._pending["boot_f"] = f_new

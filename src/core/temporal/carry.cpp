@@ -18,6 +18,7 @@
 #include <tbb/task_arena.h>
 
 #include <cmath>
+#include <mutex>
 
 namespace cmlt::temporal {
 
@@ -58,14 +59,21 @@ void fill_state(mlt::ChainState& out, const MltSampler& smp, const mlt::PathSamp
 }
 
 template <class Fn>
-void parallel(const RenderSettings& s, uint64_t n, Fn&& fn) {
+void parallel(const RenderSettings& s, uint64_t n, Fn&& fn, PathCounters* total = nullptr) {
     const int threads = s.threads > 0 ? s.threads : tbb::info::default_concurrency();
     tbb::task_arena arena(threads);
+    std::mutex mutex;
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 16), [&](const tbb::blocked_range<uint64_t>& r) {
             ScopedFtzDaz ftz;  // as the render's chains: the same f* bit for bit
             PathCounters c;
             for (uint64_t i = r.begin(); i != r.end(); ++i) fn(i, c);
+            if (!total) return;
+            const std::lock_guard<std::mutex> lock(mutex);
+            total->camera_rays += c.camera_rays;
+            total->shadow_rays += c.shadow_rays;
+            total->rays += c.rays;
+            total->samples += c.samples;
         });
     });
 }
@@ -110,7 +118,7 @@ uint64_t bootstrap_count(const RenderSettings& settings) {
 }
 
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
-                                                   uint64_t count) {
+                                                   uint64_t count, PathCounters* counters) {
     check_settings(settings, "bootstrap_states");
     const Tracers tr(scene, settings);
     auto out = std::make_shared<mlt::ChainStates>();
@@ -128,7 +136,7 @@ std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const Ren
         o.chain_id = i;
         fill_state(o, smp, x);
         o.f_star = x.invalid ? 0.0 : x.f;
-    });
+    }, counters);
     return out;
 }
 

@@ -25,6 +25,7 @@
 /// are the tools for states that are not bootstrap points.
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/chain_state.h"
+#include "integrators/path/path_tracer.h"
 
 #include <cstdint>
 #include <memory>
@@ -57,8 +58,9 @@ uint64_t bootstrap_count(const RenderSettings& settings);
 /// i < count — evaluated in `scene` as the render evaluates them: their states, f_star
 /// = f*. Given to the render (RenderSettings::mlt_bootstrap_f) the render does not
 /// evaluate them again; a chain started from state i starts from bootstrap point i.
+/// `counters`, if given, receives the rays and samples traced.
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
-                                                   uint64_t count);
+                                                   uint64_t count, PathCounters* counters = nullptr);
 
 /// Chain starts of frame f+1 coupled to those of frame f (maximal coupling of the two
 /// frames' bootstrap resampling distributions).
