@@ -122,8 +122,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
 // has no field for them. Same columns.
 #define CMLT_SEQUENCE_SETTINGS(INT, REAL, U64, BOOL, TOKEN)                                  \
     BOOL(carry_states, true, "cmlt:temporal:carryStates", "--independent-frames",            \
-         "start each frame's chains from the previous frame's states (reweighted and "       \
-         "resampled)")                                                                       \
+         "start each frame's chains where the previous frame's started, coupled: a start "   \
+         "moves only where its target changed (and follows the camera)")                    \
     BOOL(smooth_normalization, true, "cmlt:temporal:smoothNormalization", "--no-smoothing",  \
          "smooth the MLT normalisation b over neighbouring frames while the lighting does "  \
          "not change")                                                                       \
