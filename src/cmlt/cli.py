@@ -205,7 +205,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--aov", type=parse_aovs, metavar="LIST", dest="aov", default=(),
                    help="extra channels in the same EXR: albedo (albedo.R/G/B), normal "
                    "(N.X/Y/Z, world space), depth (Z, along the camera axis; 0 = no hit), "
-                   "variance (variance.R/G/B); comma-separated")
+                   "variance (variance.R/G/B), error (relMSE: the per-pixel relMSE estimate, "
+                   "pt and bdpt); comma-separated")
     r.add_argument("--aov-samples", type=_int_at_least(1), default=4, dest="aov_samples",
                    metavar="N", help="camera rays per pixel of the albedo/normal/depth pass "
                    "(default 4)")

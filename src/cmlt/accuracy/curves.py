@@ -12,10 +12,10 @@ A row of ``accuracy.csv`` is one (renderer, integrator, budget): the means over 
 renders (seeds x frames) and the standard errors of the means (sample standard deviation
 over the renders / sqrt(renders)).
 
-The fit: log relMSE = a + k log t by least squares over every render of an integrator
-(t its measured wall time). Unbiased Monte Carlo converges as 1/t (k = -1); the time to
-reach a target error E is exp((log E - a) / k), *extrapolated* when outside the range of
-times measured.
+The fit: log relMSE = a + k log t by least squares through an integrator's per-budget
+means (t the mean measured wall time; :func:`fits` says why means). Unbiased Monte Carlo
+converges as 1/t (k = -1); the time to reach a target error E is exp((log E - a) / k),
+*extrapolated* when outside the range of times measured.
 """
 from __future__ import annotations
 
@@ -164,13 +164,37 @@ def fit(times: Sequence[float], errors: Sequence[float], renderer: str = "cmlt",
     return f
 
 
+def _fit_means(rs: Sequence[Run], renderer: str, integrator: str) -> Fit:
+    by_budget: Dict[float, List[Run]] = {}
+    for r in rs:
+        by_budget.setdefault(r.seconds, []).append(r)
+    t = [float(np.mean([r.time_s for r in b])) for b in by_budget.values()]
+    e = [float(np.mean([r.relmse for r in b])) for b in by_budget.values()]
+    return fit(t, e, renderer, integrator)
+
+
 def fits(runs: Iterable[Run]) -> List[Fit]:
-    """One fit per (renderer, integrator), over all its renders."""
+    """One fit per (renderer, integrator) through its per-budget means (mean time, mean
+    relMSE over seeds and frames): a render's error is heavy-tailed (a few rare paths
+    decide it), so the line through the means follows the expected error, which falls as
+    1/t, where a line through every render's log error would follow its typical value and
+    come out flatter. ``slope_se``: the delete-one-seed jackknife when there are >= 3
+    seeds (each seed's renders left out in turn), else from the residuals."""
     groups: Dict[tuple, List[Run]] = {}
     for r in runs:
         groups.setdefault((r.renderer, r.integrator), []).append(r)
-    return [fit([r.time_s for r in rs], [r.relmse for r in rs], ren, integ)
-            for (ren, integ), rs in groups.items()]
+    out = []
+    for (ren, integ), rs in groups.items():
+        f = _fit_means(rs, ren, integ)
+        seeds = sorted({r.seed for r in rs})
+        if len(seeds) >= 3 and math.isfinite(f.slope):
+            loo = np.array([_fit_means([r for r in rs if r.seed != s], ren, integ).slope
+                            for s in seeds])
+            if np.isfinite(loo).all():
+                k = len(seeds)
+                f.slope_se = float(math.sqrt((k - 1) / k * float(((loo - loo.mean()) ** 2).sum())))
+        out.append(f)
+    return out
 
 
 def _fmt(v: float, spec: str = ".4g") -> str:

@@ -8,36 +8,46 @@ Independent groups
 ------------------
 A render that is the mean of G independent, unbiased group images Y_1..Y_G (group g from
 n_g of the N samples: pt/bdpt sample passes, pssmlt/cmlt chains split into G groups, or
-simply G renders with different seeds) has the per-pixel estimates
+simply G renders with different seeds) has, per pixel and channel,
 
-    I     = sum_g n_g Y_g / N                                   the image
-    v     = sum_g n_g (Y_g - I)^2 / ((G - 1) N)                 unbiased for Var(I)
-    R2    = max(I^2 - v, 0)                                     unbiased for R^2 (before the clamp)
-    e_p   = v / (R2 + eps)                                      the pixel's relMSE estimate
-    E     = mean_p e_p                                          the image's
+    I     = sum_g n_g Y_g / N                             the image
+    v     = sum_g n_g (Y_g - I)^2 / ((G - 1) N)           unbiased for Var(I) = E[(I - R)^2]
+    e_p   = v / D_p                                       the pixel's relMSE estimate
+    E     = mean_p e_p                                    the image's
 
-Why the denominator is ``I^2 - v`` and not ``I^2``: E[I^2] = R^2 + Var(I), so the noisy
-image in the denominator is too bright on average, and it is brightest exactly where the
-error is largest. A pixel whose mean comes from one rare bright sample X (a firefly, a
-caustic path found once) has I = X/N and v = X^2/N^2 = I^2 up to O(1/N) terms: with I^2 in
-the denominator its estimate is I^2/(I^2 + eps) <= 1 however wrong the pixel is, while
-the measured term is I^2/(R^2 + eps), up to I^2/eps. With ``I^2 - v`` the firefly's R2 is
-about 0, its estimate I^2/eps, as measured. Where the noise is small against R the two
-denominators agree (relative difference relMSE_p).
+The numerator is unbiased. The denominator D_p must stand in for R_p^2 + eps with R
+unknown, and no function of the groups does that without bias; ``denominator`` chooses:
 
-What stays biased: 1/(R2 + eps) is a convex function of a noisy R2, so pixels whose own
-relative error is large (relMSE_p of order 0.1 or more) are over-estimated by about
-4 relMSE_p R^2/(R^2 + eps) (second order); the clamp at 0 bounds it. Calibration against
-references (tests/bench/error_estimate.py) shows how much that matters per integrator and
-budget; the README's "What accuracy costs" section has the numbers.
+* ``plug-in``: I^2 + eps. E[I^2] = R^2 + Var(I), and positively skewed noise (most samples
+  small, a few large: rendering's) makes v and I large together, so a pixel's term is
+  under-estimated exactly where its error is large; a pixel whose mean is one rare bright
+  sample gets v ~ I^2 and e_p ~ 1 however wrong it is;
+* ``corrected``: max(I^2 - v, 0) + eps, unbiased for R^2 + eps before the clamp; but its
+  inverse is over-estimated (Jensen: 1/x is convex) by about 4 relMSE_p R^2 / (R^2 + eps)
+  relative, and without bound where the pixel's own relative error is of order one (the
+  clamp at 0 leaves eps): a pixel that caught a light's edge once in 16 samples;
+* ``geometric`` (the default): sqrt(plug-in x corrected). The two biases have opposite
+  signs where rendering noise lives and meet at the truth as the noise shrinks (both
+  denominators -> R^2 + eps; first-order difference v); their geometric mean was the
+  calibrated one in tests/bench/error_estimate.py (64x64 cornell, pt/bdpt/pssmlt/cmlt,
+  168 renders at 5 budgets: 97 % within 0.67-1.5x of the measured relMSE, plug-in 93 %,
+  corrected 67 %; caustic_glass bdpt: 85 %, 75 %, 55 %).
+
+What none of them sees: a render whose error is dominated by rare paths -- a firefly, a
+caustic path found once -- in pixels whose true value is far below the sample: I^2 - v
+keeps a cross term 2 R X / N for a single sample X, so all three denominators stay far
+above R^2 + eps and the estimate is low (5-30x in the caustic_glass renders with a
+firefly); pt on caustic_glass is made of such pixels. Nor does any estimate from
+independent groups see a bias common to all groups (MLT's start-up and normalisation
+bias at small budgets).
 
 Uncertainty
 -----------
-``stderr`` is the delete-one-group jackknife of E (each E_{-g} is the same estimator on the
-other G - 1 groups, scaled to the full N): it sees the noise of the variance estimates,
-heavy tails included (a group holding the only firefly of a pixel makes the E_{-g} differ
-a lot). It is the uncertainty of E as an estimate of the *expected* relMSE; the relMSE of
-one image also scatters around its expectation, about as much.
+``stderr`` of :func:`estimate_from_groups` is the delete-one-group jackknife of E (each
+E_{-g} is the same estimator on the other G - 1 groups, scaled to the full N): it sees the
+noise of the variance estimates, heavy tails included (a group holding the only firefly
+of a pixel makes the E_{-g} differ a lot). It is the uncertainty of E as an estimate of
+the *expected* relMSE; the relMSE of one image scatters around its expectation too.
 
 Per-pass variance
 -----------------
@@ -53,18 +63,19 @@ A shared scale
 pssmlt and cmlt multiply the chains' image by one normalisation b shared by every chain
 group, so the groups do not see b's error. With b's relative variance ``scale_rel_var``
 ((b_stderr / b)^2) and the part of the image it scales (the chains' part: image minus the
-direct pass), the term ``scale_rel_var * C_p^2 / (R2 + eps)`` is added per pixel.
+direct pass), ``scale_rel_var * C_p^2`` is added to v per pixel.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, Optional, Sequence
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["REL_MSE_EPS", "ErrorEstimate", "estimate_from_groups", "estimate_from_variance",
-           "pixel_terms"]
+__all__ = ["REL_MSE_EPS", "DENOMINATORS", "DEFAULT_DENOMINATOR", "ErrorEstimate",
+           "estimate_from_groups", "estimate_from_variance", "pixel_terms", "estimate_render",
+           "estimate_record", "estimate_metadata", "estimate_text", "VARIANCE_INTEGRATORS"]
 
 #: the relMSE denominator's epsilon (as cmlt.metrics.rel_mse)
 REL_MSE_EPS = 1e-2
@@ -101,15 +112,17 @@ class ErrorEstimate:
 
 #: the denominators (R^2 + eps estimates) :func:`pixel_terms` knows
 DENOMINATORS = ("corrected", "plug-in", "geometric")
+#: the one renders use (tests/bench/error_estimate.py measured the three)
+DEFAULT_DENOMINATOR = "geometric"
 
 
 def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
                 scale_rel_var: float = 0.0, scaled: Optional[np.ndarray] = None,
-                denominator: str = "corrected") -> np.ndarray:
+                denominator: str = DEFAULT_DENOMINATOR) -> np.ndarray:
     """Per pixel and channel: e = v / D, v the variance of the mean (plus s C^2 with
     s = scale_rel_var, C = scaled, default the image) and D one of DENOMINATORS:
     ``corrected`` max(I^2 - v, 0) + eps, ``plug-in`` I^2 + eps, ``geometric`` the
-    geometric mean of the two."""
+    geometric mean of the two (the module docstring says why)."""
     image = np.asarray(image, np.float64)
     v = np.maximum(np.asarray(var, np.float64), 0.0)
     if scale_rel_var > 0.0:
@@ -152,7 +165,7 @@ def _moments(S1, S2, N, G):
 def estimate_from_groups(groups, weights: Optional[Sequence[float]] = None,
                          eps: float = REL_MSE_EPS, scale_rel_var: float = 0.0,
                          scaled: Optional[np.ndarray] = None, keep_pixels: bool = True,
-                         denominator: str = "corrected") -> ErrorEstimate:
+                         denominator: str = DEFAULT_DENOMINATOR) -> ErrorEstimate:
     """relMSE estimate of the mean of ``groups`` ((G, H, W, 3) independent unbiased images,
     group g from ``weights[g]`` samples; default equal) with its jackknife standard error."""
     Y, n = _check_groups(groups, weights)
@@ -180,7 +193,7 @@ def estimate_from_groups(groups, weights: Optional[Sequence[float]] = None,
 def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: int = 0,
                            split: int = 4, keep_pixels: bool = True,
                            scale_rel_var: float = 0.0, scaled: Optional[np.ndarray] = None,
-                           denominator: str = "corrected") -> ErrorEstimate:
+                           denominator: str = DEFAULT_DENOMINATOR) -> ErrorEstimate:
     """relMSE estimate of ``image`` from its per-pixel variance of the mean (pt, bdpt:
     RenderResult.variance), standard error from ``split`` x ``split`` interleaved
     sub-images. ``passes``: the sample passes behind the variance (recorded only)."""
@@ -199,3 +212,71 @@ def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: in
     se = float(np.std(subs, ddof=1) / k) if len(subs) > 1 else math.nan
     return ErrorEstimate(E, se, int(passes), "variance", e.mean(axis=2) if keep_pixels else None,
                          {"denominator": denominator})
+
+
+# ------------------------------------------------------------------ a render's estimate
+
+#: integrators whose RenderResult.variance is the per-pixel variance of the mean over
+#: independent sample passes (estimate_from_variance applies)
+VARIANCE_INTEGRATORS = ("pt", "bdpt")
+
+
+def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
+                    keep_pixels: bool = False) -> Tuple[Optional[ErrorEstimate], str]:
+    """The relMSE estimate a finished ``core.render`` result allows, and how it was made
+    (or why there is none).
+
+    * ``result.group_images`` ((G, H, W, 3), each an unbiased image of the frame from a
+      G-th of the work; ``result.group_weights`` their path evaluations): estimate_from_groups,
+      with the shared-normalisation term of pssmlt/cmlt (b_stderr / b, on the chains'
+      part: image minus ``result.direct``);
+    * pt, bdpt: estimate_from_variance on ``result.variance`` (passes are independent);
+    * otherwise (pssmlt, cmlt without groups): None.
+    """
+    stats = dict(result.stats) if stats is None else stats
+    integ = str(stats.get("integrator", ""))
+    image = np.asarray(result.image, dtype=np.float64)
+    groups = getattr(result, "group_images", None)
+    if groups is not None:
+        weights = getattr(result, "group_weights", None)
+        b, b_se = stats.get("b"), stats.get("b_stderr")
+        s = float(b_se) ** 2 / float(b) ** 2 if b and b_se else 0.0
+        direct = getattr(result, "direct", None)
+        chains = image if direct is None else image - np.asarray(direct, np.float64)
+        est = estimate_from_groups(np.asarray(groups), weights=weights, scale_rel_var=s,
+                                   scaled=chains, keep_pixels=keep_pixels,
+                                   denominator=DEFAULT_DENOMINATOR)
+        return est, "groups"
+    if integ in VARIANCE_INTEGRATORS:
+        est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
+                                     passes=int(stats.get("spp", 0) or 0),
+                                     keep_pixels=keep_pixels, denominator=DEFAULT_DENOMINATOR)
+        return est, "variance"
+    return None, (f"{integ or 'this integrator'}: no estimate (the chains' samples are "
+                  "correlated; it needs the core to split them into independent groups)")
+
+
+def estimate_record(result, stats: Optional[Dict[str, Any]] = None) -> Dict[str, Any]:
+    """The sidecar record of a render's estimate: ErrorEstimate.as_dict(), or
+    ``{"available": False, "reason": ...}``."""
+    est, how = estimate_render(result, stats)
+    if est is None:
+        return {"available": False, "reason": how}
+    return dict(est.as_dict(), available=True)
+
+
+def estimate_metadata(record: Optional[Dict[str, Any]]) -> Dict[str, Any]:
+    """``cmlt:*`` header attributes (without the prefix) of an :func:`estimate_record`."""
+    if not record or not record.get("available"):
+        return {}
+    return {"relMSEEstimate": float(record["relmse"]),
+            "relMSEEstimateStderr": float(record["stderr"]),
+            "relMSEEstimateGroups": int(record["groups"]),
+            "relMSEEstimateMethod": f"{record['method']}/{record.get('denominator', '')}"}
+
+
+def estimate_text(record: Optional[Dict[str, Any]]) -> str:
+    """``relMSE ~0.0031 ± 0.0002`` for the progress line; '' without an estimate."""
+    if not record or not record.get("available"):
+        return ""
+    return f"relMSE ~{record['relmse']:.2g} ± {record['stderr']:.1g}"

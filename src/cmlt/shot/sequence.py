@@ -337,7 +337,18 @@ def _aov_images(core, scene, st, r, aovs, opts: RenderOptions,
             out["depth"] = np.asarray(a["Z"])
     if "variance" in aovs:
         out["variance"] = np.asarray(r.variance)
+    if "error" in aovs:                 # the per-pixel relMSE estimate (cmlt.accuracy.estimate)
+        from ..accuracy.estimate import estimate_render
+        out["error"] = estimate_render(r, stats, keep_pixels=True)[0].pixel.astype(np.float32)
     return {name: out[name] for name in aovs}
+
+
+def _check_error_aov(aovs, integrator: str) -> None:
+    from ..accuracy.estimate import VARIANCE_INTEGRATORS
+    if "error" in aovs and integrator not in VARIANCE_INTEGRATORS:
+        raise UsageError(f"--aov error: a per-pixel error estimate needs integrator "
+                         f"{' or '.join(VARIANCE_INTEGRATORS)} (the {integrator} chains' samples "
+                         "are correlated; their estimate needs chain groups from the core)")
 
 
 #: RenderResult.stats keys (MLT integrators) -> cmlt:* header attribute names:
@@ -388,6 +399,8 @@ def _header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
     for key, name in _MLT_STATS.items():
         if key in stats and stats[key] is not None:
             md[name] = stats[key]
+    from ..accuracy.estimate import estimate_metadata
+    md.update(estimate_metadata(stats.get("error_estimate")))   # relMSEEstimate, ...
     rec = temporal or {}
     if rec.get("b_used") is not None and "b" in md:
         md["bCore"] = md["b"]                   # the core's b, before temporal smoothing
@@ -542,6 +555,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     settings_record = dict(resolved.as_dict(), threads=int(opts.threads), half=bool(opts.half),
                            compression=opts.compression, output_colorspace=colorspace_name)
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
+    _check_error_aov(aovs, resolved.integrator)
     if aovs:
         settings_record.update(aovs=list(aovs), aov_samples=int(opts.aov_samples))
     if opts.crop is not None:
@@ -652,6 +666,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 if not np.isfinite(image).all():
                     raise RenderError(f"{shot}: frame {frame:g}: the core returned "
                                       f"{int((~np.isfinite(image)).sum())} non-finite pixel values")
+                from ..accuracy.estimate import estimate_record
+                stats["error_estimate"] = estimate_record(r, stats)     # relMSE without a reference
                 image, trec, state_bytes = temporal.finish(r, stats, image, frame, trec)
                 aov_images = _aov_images(core, scene, st, r, aovs, opts, stats)
                 stats["wall_time_s"] = time.perf_counter() - t0
