@@ -274,7 +274,7 @@ def run(args) -> int:
                              else f"{ref.time_s:.1f} s")
                           + (f"; its own relMSE ~ {ref.relmse_floor:.2g}"
                              if math.isfinite(ref.relmse_floor) else ""), count=False)
-            references.append({"frame": frame, "source": ref.source, "integrator": ref.integrator,
+            references.append({"frame": frame, "source": _rel(ref.source), "integrator": ref.integrator,
                                "spp": ref.spp, "time_s": ref.time_s,
                                "relmse_floor": ref.relmse_floor,
                                "relmse_floor_stderr": ref.relmse_floor_stderr,
@@ -341,8 +341,8 @@ def run(args) -> int:
     w, h = res
     title = f"{shot_name}, {w}x{h}, {len(seeds)} seed(s), {len(frames)} frame(s)"
     plot_curves(rows, os.path.join(out, "accuracy.png"), title=title, floor=floor)
-    meta = {"argv": list(sys.argv),
-            "shot": os.path.abspath(args.shot), "frames": frames, "resolution": [w, h],
+    meta = {"argv": [_rel(a) if os.path.exists(a) else a for a in sys.argv],
+            "shot": _rel(args.shot), "frames": frames, "resolution": [w, h],
             "seconds": budgets, "seeds": seeds, "threads": args.threads,
             "integrators": [s.text for s in specs], "peers": [f"{r}:{i}" for r, i in peers],
             "peer_status": session.status if session is not None else {},
@@ -369,6 +369,14 @@ def run(args) -> int:
         sys.stderr.write(f"cmlt: wrote {os.path.join(out, 'accuracy.csv')}, "
                          f"{os.path.join(out, 'accuracy.png')}\n")
     return EXIT_OK
+
+
+def _rel(path: str) -> str:
+    """``path`` relative to the working directory when inside it (records stay portable)."""
+    if not path:
+        return path
+    ap = os.path.abspath(path)
+    return os.path.relpath(ap) if ap.startswith(os.getcwd() + os.sep) else ap
 
 
 def _out_dir(args, shot_name: Optional[str]) -> str:
