@@ -261,7 +261,11 @@ def markdown_table(rows: Sequence[Row], fit_list: Sequence[Fit], title: str = ""
         cells = []
         for t in TARGETS:
             v = f.targets.get(t)
+            if not math.isfinite(f.slope):          # fewer than two budgets: no fit
+                cells.append("-")
+                continue
             cells.append(_seconds(v) + (" (extrapolated)" if f.extrapolated(v) else ""))
-        slope = _fmt(f.slope, ".2f") + (f" ± {_fmt(f.slope_se, '.2f')}" if math.isfinite(f.slope_se) else "")
+        slope = (_fmt(f.slope, ".2f") + (f" ± {_fmt(f.slope_se, '.2f')}" if math.isfinite(f.slope_se) else "")
+                 if math.isfinite(f.slope) else "-")
         out.append(f"| {f.label} | {slope} | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"

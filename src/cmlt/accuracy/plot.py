@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from typing import Optional, Sequence
 
-__all__ = ["plot_curves"]
+__all__ = ["plot_curves", "plot_grid", "draw_curves"]
 
 
 def plot_curves(rows: Sequence, path: str, title: str = "",
@@ -18,6 +18,36 @@ def plot_curves(rows: Sequence, path: str, title: str = "",
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5.2, 3.8))
+    draw_curves(ax, rows, title, floor)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def plot_grid(panels: Sequence, path: str, columns: int = 3, dpi: int = 80) -> str:
+    """Several shots in one PNG: ``panels`` is a list of (rows, title, floor)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(panels)
+    cols = min(columns, n)
+    nrows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.3 * nrows), squeeze=False)
+    for ax, (rows, title, floor) in zip(axes.flat, panels):
+        draw_curves(ax, rows, title, floor, legend=ax is axes.flat[0])
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def draw_curves(ax, rows: Sequence, title: str = "", floor: Optional[float] = None,
+                legend: bool = True) -> None:
+    """The curves of ``rows`` on a matplotlib axis."""
     labels = []
     for r in rows:
         if r.label not in labels:
@@ -49,13 +79,16 @@ def plot_curves(rows: Sequence, path: str, title: str = "",
         ax.axhline(floor, color="0.6", lw=0.8, ls="-.", label="reference's own relMSE")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    budgets = sorted({float(r.seconds) for r in rows if r.seconds > 0})
+    if budgets:                         # ticks at the budgets, plain numbers
+        from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+        ax.xaxis.set_major_locator(FixedLocator(budgets))
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("wall time per render (s)")
     ax.set_ylabel("relMSE")
     if title:
         ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.25)
-    ax.legend(fontsize=7, loc="best")
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
+    if legend:
+        ax.legend(fontsize=7, loc="best")
