@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Calibration of the in-render error estimate (cmlt.accuracy.estimate) against references.
+"""Calibration of the in-render error estimate (cmlt.metrics.error_estimate) against references.
 
 For each shot, integrator and budget, renders are repeated with fresh seeds; each
 render's *estimated* relMSE (no reference used) is compared with its relMSE *measured*
@@ -37,7 +37,7 @@ import numpy as np
 
 from cmlt.accuracy import (ShotFrame, estimate_from_groups, estimate_from_variance, measure,
                            parse_integrator, render_reference)
-from cmlt.accuracy.estimate import DENOMINATORS
+from cmlt.metrics.error_estimate import DENOMINATORS
 
 #: sample budgets (samples or path evaluations per pixel) per render / per group
 VARIANCE_SPP = {"pt": (16, 32, 64, 128, 256), "bdpt": (8, 16, 32, 64, 128)}

@@ -77,8 +77,9 @@ DEFAULT_INTEGRATORS = {
 }
 DEFAULT_REFS = {"cmlt": "bdpt", "mitsuba": "path", "luxcore": "PATHCPU"}
 
-from cmlt.accuracy.peers import (CmltRenderer, RemoteRenderer, Worker,  # noqa: E402
-                                 clipped_ratio, luminance, start_peer)
+from cmlt.accuracy.peers import (RemoteRenderer, Worker, clipped_ratio,  # noqa: E402
+                                 luminance, start_peer)
+from cmlt.accuracy.render import CmltRenderer  # noqa: E402
 from cmlt.accuracy.render import stage_start as _stage_start  # noqa: E402
 from cmlt.metrics import rel_mse as relmse  # noqa: E402
 

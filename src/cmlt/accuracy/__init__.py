@@ -13,14 +13,15 @@
     estimate_from_variance(run.image, run.variance).relmse   # pt, bdpt: no reference needed
 
 Modules: :mod:`.render` (a frame in the core, timed renders, cached references),
-:mod:`.curves` (rows, fits, CSV, markdown), :mod:`.plot`, :mod:`.estimate` (the error
-estimate), :mod:`.peers` (Mitsuba 3 and LuxCore on the same frame), :mod:`.cli`
-(the ``cmlt accuracy`` command).
+:mod:`.curves` (rows, fits, CSV, markdown), :mod:`.plot`, :mod:`.peers` (Mitsuba 3 and
+LuxCore on the same frame), :mod:`.cli` (the ``cmlt accuracy`` command). The error
+estimate is :mod:`cmlt.metrics.error_estimate` (``cmlt render`` records it too), its names
+re-exported here.
 """
+from ..metrics.error_estimate import (REL_MSE_EPS, ErrorEstimate, estimate_from_groups,
+                                      estimate_from_variance, pixel_terms)
 from .curves import (CSV_COLUMNS, TARGETS, Fit, Row, Run, aggregate, fit, fits, markdown_table,
                      measure, read_csv, write_csv, write_runs_csv)
-from .estimate import (REL_MSE_EPS, ErrorEstimate, estimate_from_groups, estimate_from_variance,
-                       pixel_terms)
 from .render import (INTEGRATORS, AccuracyError, IntegratorSpec, Reference, RenderRun, ShotFrame,
                      load_reference, parse_integrator, render_reference, stage_start)
 

@@ -1,5 +1,6 @@
 """``cmlt accuracy``: what accuracy costs in time on a shot (registered by :mod:`cmlt.cli`
-with :func:`add_parser`; the parser sets ``handler`` to :func:`run`).
+with :func:`add_parser`; the parser sets ``handler`` to :func:`run`; ``python -m cmlt
+accuracy`` is the same command).
 
 ::
 
@@ -43,9 +44,9 @@ import os
 import platform
 import sys
 import time
-from typing import List, Optional, Sequence
+from typing import List, Optional
 
-__all__ = ["add_parser", "run", "main"]
+__all__ = ["add_parser", "run"]
 
 EXIT_OK, EXIT_RENDER, EXIT_USAGE = 0, 1, 2
 
@@ -382,12 +383,3 @@ def _rel(path: str) -> str:
 def _out_dir(args, shot_name: Optional[str]) -> str:
     return args.out or os.path.join("renders", "accuracy", shot_name or "shot")
 
-
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m cmlt.accuracy.cli ...`` (the same as ``cmlt accuracy ...``)."""
-    from ..cli import main as cmlt_main
-    return cmlt_main(["accuracy", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

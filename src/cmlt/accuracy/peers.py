@@ -354,38 +354,6 @@ def convert_frame(fs, shot: str) -> PScene:
     return ps
 
 
-# ============================================================== cmlt
-
-class CmltRenderer:
-    """cmlt in the driver process, with the same ``render`` as the peers' handles."""
-
-    name = "cmlt"
-
-    def __init__(self, shot_path: str, frame: float, res, lambert: bool, threads: int):
-        import cmlt
-        from .render import ShotFrame
-        self.sf = ShotFrame(shot_path, frame, res, threads, lambert=lambert, peer_scene=True)
-        self.core = self.sf.core
-        self.version = getattr(cmlt, "__version__", "?")
-        self.fs = self.sf.fs
-        self.peer_scene = self.sf.peer_scene
-        self.lambert_materials = self.sf.lambert_materials
-        self.setup_s = self.sf.setup_s
-        self.res = self.sf.resolution
-        self.threads = threads
-
-    def render(self, integrator: str, budget: float, seed: int) -> dict:
-        from .render import parse_integrator
-        spec = parse_integrator(f"{integrator}:max_depth={MAX_DEPTH}", self.core)
-        c0 = time.process_time()
-        run = self.sf.render(spec, seconds=budget, seed=seed)
-        cpu = time.process_time() - c0
-        npx = self.res[0] * self.res[1]
-        return {"image": run.image, "time_s": run.time_s, "cpu_s": cpu, "setup_s": 0.0,
-                "spp": run.samples, "samples_per_s": run.samples * npx / max(run.time_s, 1e-9),
-                "extra": {"rays_per_s": float(run.stats.get("rays", 0)) / max(run.time_s, 1e-9)}}
-
-
 # ============================================================== Mitsuba 3
 
 def find_libllvm() -> Optional[str]:
@@ -800,7 +768,7 @@ class Worker:
 
 
 class RemoteRenderer:
-    """Driver-side handle with the same render() as CmltRenderer."""
+    """Driver-side handle with the same render() as cmlt.accuracy.render.CmltRenderer."""
 
     def __init__(self, worker: Worker, ps: "PScene", timeout: float):
         self.worker = worker

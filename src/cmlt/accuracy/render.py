@@ -20,7 +20,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 import numpy as np
 
 __all__ = ["AccuracyError", "IntegratorSpec", "parse_integrator", "ShotFrame", "RenderRun",
-           "Reference", "render_reference", "load_reference", "stage_start",
+           "CmltRenderer", "Reference", "render_reference", "load_reference", "stage_start",
            "TIME_BUDGET_SPP_CAP", "INTEGRATORS"]
 
 #: the sample budget of a render to a time budget (a cap it never reaches)
@@ -225,6 +225,36 @@ class ShotFrame:
                          evals / float(self.pixels), stats, direct)
 
 
+class CmltRenderer:
+    """cmlt in the driver process, with the same ``render`` as the peer renderers' handles
+    (:mod:`cmlt.accuracy.peers`): a :class:`ShotFrame` that keeps the converted scene."""
+
+    name = "cmlt"
+
+    def __init__(self, shot_path: str, frame: float, res, lambert: bool, threads: int):
+        from .._version import __version__
+        self.sf = ShotFrame(shot_path, frame, res, threads, lambert=lambert, peer_scene=True)
+        self.core = self.sf.core
+        self.version = __version__
+        self.fs = self.sf.fs
+        self.peer_scene = self.sf.peer_scene
+        self.lambert_materials = self.sf.lambert_materials
+        self.setup_s = self.sf.setup_s
+        self.res = self.sf.resolution
+        self.threads = threads
+
+    def render(self, integrator: str, budget: float, seed: int) -> dict:
+        from .peers import MAX_DEPTH
+        spec = parse_integrator(f"{integrator}:max_depth={MAX_DEPTH}", self.core)
+        c0 = time.process_time()
+        run = self.sf.render(spec, seconds=budget, seed=seed)
+        cpu = time.process_time() - c0
+        npx = self.res[0] * self.res[1]
+        return {"image": run.image, "time_s": run.time_s, "cpu_s": cpu, "setup_s": 0.0,
+                "spp": run.samples, "samples_per_s": run.samples * npx / max(run.time_s, 1e-9),
+                "extra": {"rays_per_s": float(run.stats.get("rays", 0)) / max(run.time_s, 1e-9)}}
+
+
 # ------------------------------------------------------------------ references
 
 @dataclass
@@ -259,7 +289,7 @@ def render_reference(sf: ShotFrame, integrator: str = "bdpt", spp: int = 4096,
     seed, the Lambert switch and a hash of the stage's files), else rendered and cached
     there as an EXR (image + variance channels + ``cmlt:*`` metadata)."""
     from ..io.exr import read_exr, write_exr
-    from .estimate import estimate_from_variance
+    from ..metrics.error_estimate import estimate_from_variance
 
     spec = parse_integrator(integrator, sf.core)
     path = None

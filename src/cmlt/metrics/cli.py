@@ -20,8 +20,8 @@ import sys
 from typing import Optional
 
 from .flicker import FlickerReport, _finite_or_none, compare, flicker
-from .sequence import MetricsError, _GLOB_CHARS, load_image, load_sequence
-from ..shot.frames import has_frame_token
+from ..io.frame_pattern import has_frame_token, is_glob
+from .sequence import MetricsError, load_image, load_sequence
 
 __all__ = ["COMMANDS", "add_parsers", "run", "plot_report"]
 
@@ -44,7 +44,7 @@ def add_parsers(sub) -> None:
                    "with one reference per frame")
     f.add_argument("--json", metavar="PATH", dest="json_out",
                    help="write the report as JSON (- for stdout, instead of the table)")
-    f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (matplotlib)")
+    f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (needs matplotlib: the extra cmlt[plot])")
 
     c = sub.add_parser("compare", help="compare two images: relMSE, RMSE, mean ratio, "
                        "max abs diff, PSNR",
@@ -73,7 +73,7 @@ def _frame(f: float) -> str:
 
 
 def _is_sequence(text: str) -> bool:
-    return has_frame_token(text) or bool(_GLOB_CHARS.search(text))
+    return has_frame_token(text) or is_glob(text)
 
 
 def _write_json(path: str, data) -> None:
@@ -131,12 +131,23 @@ def print_report(report: FlickerReport, sequence: str, reference: Optional[str])
         sys.stderr.write(f"cmlt: warning: {w}\n")
 
 
+def _pyplot():
+    """matplotlib.pyplot on the Agg backend; matplotlib is the optional extra
+    ``plot`` (``pip install 'cmlt[plot]'``), so a missing one is a clear error."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise MetricsError("--plot needs matplotlib, which is not installed: "
+                           "pip install 'cmlt[plot]' (or pip install matplotlib)") from None
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    return plt
+
+
 def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
     """Per-frame plot: brightness, I/R (GF) and the frame-to-frame change
     (TF), and relMSE when there is a reference."""
-    import matplotlib
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     rows = 3 if report.mode == "reference" else 2
     fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True)
@@ -183,6 +194,8 @@ def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
 
 
 def _cmd_flicker(args) -> int:
+    if args.plot:
+        _pyplot()                       # before the work: a missing matplotlib fails fast
     frames, images = load_sequence(args.sequence)
     reference = None
     if args.reference:

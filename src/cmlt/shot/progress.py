@@ -40,7 +40,23 @@ def format_rate(rays_per_s: Optional[float]) -> str:
     return f"{rays_per_s:.0f} rays/s"
 
 
-class Reporter:
+class _OnceWarnings:
+    """Each distinct warning is shown once (``warn`` shows one)."""
+
+    _seen_warnings: Set[str]
+
+    def warnings(self, texts: Iterable[str]) -> int:
+        """Show the warnings not shown before; returns how many were new."""
+        new = 0
+        for t in texts:
+            if t not in self._seen_warnings:
+                self._seen_warnings.add(t)
+                self.warn(t)
+                new += 1
+        return new
+
+
+class Reporter(_OnceWarnings):
     def __init__(self, *, show_progress: bool = True, quiet: bool = False, console=None):
         from rich.console import Console
 
@@ -84,16 +100,6 @@ class Reporter:
             return
         self.console.print(f"cmlt: warning: {text}", markup=False, highlight=False,
                            style="yellow", soft_wrap=True)
-
-    def warnings(self, texts: Iterable[str]) -> int:
-        """Print warnings not printed before; returns how many were new."""
-        new = 0
-        for t in texts:
-            if t not in self._seen_warnings:
-                self._seen_warnings.add(t)
-                self.warn(t)
-                new += 1
-        return new
 
     # -- bars ------------------------------------------------------------
     def start_sequence(self, total: int, skipped: int = 0) -> None:
@@ -148,7 +154,7 @@ class Reporter:
                                       rate=format_rate(stats.get("rays_per_s")))
         t = stats.get("time_s")
         t_text = f"{float(t):.2f} s" if t is not None else "-"
-        from ..accuracy.estimate import estimate_text
+        from ..metrics.error_estimate import estimate_text
         err = estimate_text(stats.get("error_estimate"))
         self.info(f"frame {frame:g}: {t_text}, {format_rate(stats.get('rays_per_s'))}"
                   f"{', ' + err if err else ''} -> {path}")
@@ -232,7 +238,7 @@ def _json_safe(value: Any) -> Any:
     return str(value)
 
 
-class JsonReporter:
+class JsonReporter(_OnceWarnings):
     """``--log-json``: one JSON object per line per event on ``stream``
     (stdout), flushed at once so a farm's log collector sees it live."""
 
@@ -260,15 +266,6 @@ class JsonReporter:
 
     def warn(self, text: str) -> None:
         self.emit("warning", message=text)
-
-    def warnings(self, texts: Iterable[str]) -> int:
-        new = 0
-        for t in texts:
-            if t not in self._seen_warnings:
-                self._seen_warnings.add(t)
-                self.warn(t)
-                new += 1
-        return new
 
     def start_sequence(self, total: int, skipped: int = 0) -> None:
         self._total = int(total)

@@ -1,4 +1,4 @@
-"""The relMSE estimate from independent groups (cmlt.accuracy.estimate) on synthetic
+"""The relMSE estimate from independent groups (cmlt.metrics.error_estimate) on synthetic
 images with a known truth: unbiased where the noise is moderate, a calibrated jackknife
 standard error, fireflies not hidden by the denominator, unequal groups, the shared
 scale term, and clear errors on bad input. numpy RNG with fixed seeds; a second each."""
