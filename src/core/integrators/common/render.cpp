@@ -5,6 +5,7 @@
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
 #include "integrators/common/frame_loop.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/pssmlt_integrator.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng.h"
@@ -36,7 +37,12 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     settings.validate();
     if (!scene.has_camera()) throw SceneError("render: the scene has no camera (call set_camera)");
     if (scene.dirty()) scene.commit();
-    if (settings.integrator == "bdpt") return render_bdpt(scene, settings, progress);
+    if (settings.integrator == "bdpt") {
+        if (settings.partial)
+            throw SettingsError("RenderSettings.partial: bdpt frames do not split (its light-tracing "
+                                "splats reach every pixel of a pass); render them whole");
+        return render_bdpt(scene, settings, progress);
+    }
     if (settings.integrator == "pssmlt") return render_pssmlt(scene, settings, progress);
     if (settings.integrator == "cmlt") return render_cmlt(scene, settings, progress);
 
@@ -47,9 +53,12 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
 
     std::vector<Tile> tiles;
-    for (int y = 0; y < H; y += k_tile_size)
+    // rows: all, or a part's (RenderSettings::partial; the other rows stay 0)
+    const int row0 = settings.partial ? settings.part_row_begin : 0;
+    const int row1 = settings.partial ? settings.part_row_end : H;
+    for (int y = row0; y < row1; y += k_tile_size)
         for (int x = 0; x < W; x += k_tile_size)
-            tiles.push_back({x, y, std::min(x + k_tile_size, W), std::min(y + k_tile_size, H)});
+            tiles.push_back({x, y, std::min(x + k_tile_size, W), std::min(y + k_tile_size, row1)});
 
     int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
     tbb::task_arena arena(threads);
@@ -114,6 +123,45 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     st.integrator = settings.integrator;
     st.spp = done;
     st.seed = settings.seed;
+    return res;
+}
+
+RenderResult combine_mlt_parts(int width, int height, const std::vector<const MltPart*>& parts,
+                               const std::vector<float>& direct) {
+    const size_t n = size_t(width) * size_t(height) * 3;
+    if (parts.empty()) throw SettingsError("combine_mlt_parts: no parts");
+    if (!direct.empty() && direct.size() != n)
+        CMLT_THROW(SettingsError, "combine_mlt_parts: the direct image has " << direct.size()
+                                      << " values, the frame " << n);
+    mlt::SplatFilm film(width, height);
+    mlt::NormalisationAccumulator b_acc;
+    uint64_t steps = 0;
+    for (size_t p = 0; p < parts.size(); ++p) {
+        const MltPart& part = *parts[p];
+        if (part.splat_lo.size() != n || part.splat_hi.size() != n || part.norm_counts.size() < 2 ||
+            part.norm_counts.size() != part.norm_moments.size())
+            CMLT_THROW(SettingsError, "combine_mlt_parts: part " << p << " is not a part of a "
+                                          << width << " x " << height << " frame");
+        film.add_words(part.splat_lo.data(), part.splat_hi.data());
+        // the bootstrap (the same in every part) once, then the chains in chain order,
+        // as the single-process frame merges them
+        const size_t first = p == 0 ? 0 : 1;
+        for (size_t i = first; i < part.norm_counts.size() / 2; ++i)
+            b_acc.merge(mlt::NormalisationAccumulator::from_raw(&part.norm_counts[2 * i], &part.norm_moments[2 * i]));
+        steps += part.steps;
+    }
+    const mlt::NormalisationEstimate b = b_acc.estimate();
+    RenderResult res;
+    res.width = width;
+    res.height = height;
+    PtPassImage d;
+    d.mean = direct;
+    mlt::develop_image(res, film, b.mean, steps, d);
+    res.stats.mlt.enabled = true;
+    res.stats.mlt.b = b.mean;
+    res.stats.mlt.b_stderr = b.std_error;
+    res.stats.mlt.mutations = steps;
+    res.stats.mlt.clamped_splats = film.clamped();
     return res;
 }
 

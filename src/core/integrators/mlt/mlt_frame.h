@@ -32,6 +32,8 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <memory>
+#include <utility>
 #include <vector>
 
 namespace cmlt::mlt {
@@ -51,6 +53,17 @@ struct FrameBudget {
     }
 };
 
+/// Rows [first, second) of the frame's pixel passes this render covers: all of them, or
+/// a part's (RenderSettings::partial).
+inline std::pair<int, int> part_rows(const RenderSettings& s) {
+    return s.partial ? std::make_pair(s.part_row_begin, s.part_row_end) : std::make_pair(0, s.height);
+}
+/// Chains [first, second) of the frame's n this render runs: all, or a part's.
+inline std::pair<uint64_t, uint64_t> part_chains(const RenderSettings& s, uint64_t n) {
+    if (!s.partial) return {0, n};
+    return {std::min(s.part_chain_begin, n), std::min(s.part_chain_end, n)};
+}
+
 /// The direct pass (depths 0 and 1) of a Metropolis frame: independent path-traced
 /// samples keyed (seed, pixel, k_direct_sample_base + s), accumulated over slices.
 class DirectPass {
@@ -58,7 +71,7 @@ public:
     DirectPass(const Scene& scene, const RenderSettings& s)
         : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height),
           m_tracer(scene, std::min(1, s.max_depth)), m_motion_blur(scene.motion_blur()),
-          m_film(s.width, s.height), m_enabled(s.direct_fraction > 0.0) {}
+          m_film(s.width, s.height), m_enabled(s.direct_fraction > 0.0), m_rows(part_rows(s)) {}
 
     bool enabled() const { return m_enabled; }
     int passes() const { return m_passes; }
@@ -69,7 +82,7 @@ public:
         if (!m_enabled || total <= m_passes) return;
         const int s0 = m_passes, s1 = total, W = m_settings.width;
         arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<int>(0, m_settings.height, 2), [&](const tbb::blocked_range<int>& r) {
+            tbb::parallel_for(tbb::blocked_range<int>(m_rows.first, m_rows.second, 2), [&](const tbb::blocked_range<int>& r) {
                 ScopedFtzDaz ftz;
                 const TaskTimer timer(counters);
                 PathCounters c;
@@ -114,6 +127,7 @@ private:
     bool m_motion_blur;
     Film m_film;
     bool m_enabled;
+    std::pair<int, int> m_rows;  ///< rows rendered: all, or a part's (RenderSettings::partial)
     int m_passes = 0;
 };
 
@@ -268,6 +282,23 @@ inline void develop_image(RenderResult& res, const SplatFilm& film, double b, ui
         res.direct = direct.mean;
         res.variance = direct.variance;
     }
+}
+
+/// RenderResult::mlt_part of a partial render: the film's raw sums, the bootstrap's
+/// accumulator and those of chains [c0, c1) (`large(ci)`), their steps.
+template <class Large>
+void fill_part(RenderResult& res, const SplatFilm& film, const NormalisationAccumulator& boot, uint64_t c0,
+               uint64_t c1, uint64_t steps, Large&& large) {
+    auto part = std::make_shared<MltPart>();
+    film.export_words(part->splat_lo, part->splat_hi);
+    const size_t n = size_t(c1 - c0) + 1;
+    part->norm_counts.resize(2 * n);
+    part->norm_moments.resize(2 * n);
+    boot.raw(&part->norm_counts[0], &part->norm_moments[0]);
+    for (uint64_t ci = c0; ci < c1; ++ci)
+        large(ci).raw(&part->norm_counts[2 * (ci - c0 + 1)], &part->norm_moments[2 * (ci - c0 + 1)]);
+    part->steps = steps;
+    res.mlt_part = std::move(part);
 }
 
 /// MltStats fields both Metropolis integrators fill the same way.

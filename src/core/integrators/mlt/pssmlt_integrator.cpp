@@ -202,10 +202,11 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     bool cancelled = false;
     ChainSchedule schedule(settings, t0, chains.size());
     uint64_t evaluations = 0;
+    const auto run = mlt::part_chains(settings, chains.size());  // all, or a part's
     while (!chains.empty() && schedule.begin_round(evaluations)) {
         direct.before_round(schedule, evaluations);
         arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, chains.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+            tbb::parallel_for(tbb::blocked_range<size_t>(run.first, run.second, 1), [&](const tbb::blocked_range<size_t>& r) {
                 ScopedFtzDaz ftz;
                 const TaskTimer timer(counters);
                 PathCounters c;
@@ -268,6 +269,9 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
     res.mlt_states = std::move(states);
     res.mlt_start_states = std::move(start_states);
+    if (settings.partial)
+        mlt::fill_part(res, film, boot_acc, run.first, run.second, mutations,
+                       [&](uint64_t ci) -> const mlt::NormalisationAccumulator& { return chains[ci]->large; });
 
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
