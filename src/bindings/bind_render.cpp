@@ -417,7 +417,7 @@ void bind_settings(nb::module_& m) {
         "the pilot image (float32 (H, W, 3)) of the 'pixel' importance to use instead of "
         "rendering one; None (default) = render it");
     cls.def_rw("partial", &RenderSettings::partial,
-               "render one part of the frame (cmlt.distributed): pt the rows part_row_begin.."
+               "render one part of the frame (cmlt.shot.distributed): pt the rows part_row_begin.."
                "part_row_end, pssmlt/cmlt the chains part_chain_begin..part_chain_end (and their "
                "direct pass on those rows) with RenderResult.mlt_part the raw sums "
                "(combine_mlt_parts); default False");

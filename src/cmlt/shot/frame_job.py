@@ -50,7 +50,7 @@ class ShotJob:
     bridge: SceneBridge = None
     temporal: Any = None                # TemporalDriver, made on the first frame
     make_temporal: Any = None           # (width, height) -> TemporalDriver
-    distributed: Any = None             # cmlt.distributed.DaskRenderer (--dask), or None
+    distributed: Any = None             # cmlt.shot.distributed.DaskRenderer (--dask), or None
 
     def __post_init__(self):
         if self.bridge is None:

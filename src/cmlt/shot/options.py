@@ -67,7 +67,7 @@ class _FrameOptions:
     #: a bad state file: warn and start fresh instead of failing
     fresh_start_on_bad_state: bool = False
     #: render the frames' parts as Dask tasks: a scheduler address or local:N
-    #: (cmlt.distributed); None renders in this process
+    #: (cmlt.shot.distributed); None renders in this process
     dask: Optional[str] = None
     #: tasks per frame with --dask (0: twice the number of workers)
     dask_parts: int = 0

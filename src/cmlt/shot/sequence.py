@@ -180,7 +180,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     :class:`RenderCancelled`.
 
     ``client``: a ``distributed.Client``; the frames' parts then run as Dask tasks
-    (:mod:`cmlt.distributed`; ``options.dask`` = ``local:N`` or a scheduler address
+    (:mod:`cmlt.shot.distributed`; ``options.dask`` = ``local:N`` or a scheduler address
     makes one for the call). ``on_part(done, total, futures)``: called after each
     part arrives (with a client).
     """
@@ -228,7 +228,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             _close(own_client)
             raise UsageError("--dask: a time budget (--time-budget) does not split over "
                              "workers (a timed frame depends on the machine); give --spp")
-        from ..distributed import DaskRenderer
+        from .distributed import DaskRenderer
         job.distributed = DaskRenderer(client, shot, camera=opts.camera,
                                        resolution=opts.resolution, parts=int(opts.dask_parts),
                                        threads=0, on_part=on_part,
@@ -248,7 +248,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
 
 def _dask_client(address: str):
     """(client, (client, cluster)) for ``--dask ADDRESS``; the second closes them."""
-    from ..distributed import DistributedError, connect
+    from .distributed import DistributedError, connect
     try:
         client, cluster = connect(address)
     except DistributedError as exc:

@@ -165,7 +165,7 @@ struct RenderSettings {
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).
     std::shared_ptr<const std::vector<float>> pilot;
 
-    /// One part of a frame split over processes (cmlt.distributed): with `partial`,
+    /// One part of a frame split over processes (cmlt.shot.distributed): with `partial`,
     /// pt renders only rows [part_row_begin, part_row_end) (the other rows stay 0);
     /// pssmlt/cmlt run only chains [part_chain_begin, part_chain_end) of the frame's
     /// chains and their direct pass only on those rows, and return the raw sums

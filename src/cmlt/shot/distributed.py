@@ -67,7 +67,7 @@ def connect(address: str):
         if n < 1:
             raise DistributedError(f"--dask {address}: expected local:N with N >= 1 workers")
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")
         return Client(cluster), cluster
     try:
         return Client(address, timeout=30), None
@@ -92,8 +92,8 @@ def _worker_scene(shot: str, frame: float, camera, resolution):
     core scene updated with what changed since the worker's previous frame."""
     import cmlt._core as core
 
-    from .shot.bridge import SceneBridge
-    from .usd import load_frame, open_stage
+    from .bridge import SceneBridge
+    from ..usd import load_frame, open_stage
 
     c = _WORKER.get("shot")
     if c is None or c["shot"] != shot:
@@ -113,8 +113,10 @@ def render_part(spec: dict, shared: dict) -> dict:
     frame's ``shared`` inputs; returns its image rows / raw sums and stats. A pure
     function of (spec, shared)."""
     with _WORKER_LOCK:                   # one render per worker process at a time
+        t0 = time.perf_counter()
         core, scene = _worker_scene(spec["shot"], spec["frame"], spec["camera"],
                                     spec["resolution"])
+        t_scene = time.perf_counter() - t0
         st = core.RenderSettings()
         for name, value in spec["settings"].items():
             setattr(st, name, value)
@@ -147,6 +149,7 @@ def render_part(spec: dict, shared: dict) -> dict:
                "part": r.mlt_part, "bootstrap_f": None}
         if r.bootstrap_f is not None and spec.get("want_bootstrap_f"):
             out["bootstrap_f"] = np.asarray(r.bootstrap_f)
+        out["times"] = (t_scene, time.perf_counter() - t0)    # scene update, whole task
         return out
 
 
@@ -223,8 +226,10 @@ class DaskRenderer:
                   "bootstrap_f": None if boot is None else np.asarray(boot, dtype=np.float64),
                   "initial_states": None if states is None else bytes(states.to_bytes())}
         shared_bytes = _nbytes(shared)
+        t_scatter = time.perf_counter()
         shared_f = self.client.scatter(shared, broadcast=True, hash=False)
 
+        t_scatter = time.perf_counter() - t_scatter
         settings = self._settings_dict(core, st)
         rows = part_ranges(H, n_parts)
         chains = part_ranges(int(st.chains), n_parts) if mlt else [None] * n_parts
@@ -261,7 +266,10 @@ class DaskRenderer:
         finally:
             shared_f.release() if hasattr(shared_f, "release") else None
         result_bytes = sum(_nbytes(r) for r in results)
+        t_wait = time.perf_counter()
         out = self._combine(core, integ, W, H, results, boot)
+        t_combine = time.perf_counter() - t_wait
+        t_wait -= t0
         out.stats["time_s"] = time.perf_counter() - t0
         out.stats["rays_per_s"] = out.stats.get("rays", 0) / max(out.stats["time_s"], 1e-9)
         out.stats["dask"] = {
@@ -269,7 +277,14 @@ class DaskRenderer:
             "workers": n_workers, "tasks": n_parts,
             "bytes_to_workers": int(shared_bytes * n_workers + spec_bytes),
             "bytes_from_workers": int(result_bytes),
-            "split": "chains+rows" if mlt else ("rows" if integ == "pt" else "frame")}
+            "split": "chains+rows" if mlt else ("rows" if integ == "pt" else "frame"),
+            # seconds: on the client (scatter of the shared inputs, until the last part
+            # arrived, the combine), summed over the tasks (core render, whole task
+            # including the worker's scene update, of it the scene update)
+            "scatter_s": t_scatter, "wait_s": t_wait, "combine_s": t_combine,
+            "part_render_s": sum(float(r["stats"].get("time_s", 0.0)) for r in results),
+            "part_task_s": sum(r["times"][1] for r in results),
+            "part_scene_s": sum(r["times"][0] for r in results)}
         return out
 
     @staticmethod
