@@ -87,18 +87,35 @@ _WORKER: Dict[str, Any] = {}
 _WORKER_LOCK = threading.Lock()
 
 
-def _worker_scene(shot: str, frame: float, camera, resolution):
-    """(core, scene) of ``frame`` on this worker: the stage opened once per shot, the
-    core scene updated with what changed since the worker's previous frame."""
+def _worker_stage(shot: str) -> dict:
+    """This worker's cache of ``shot``: the stage, opened once, and its scene bridge."""
     import cmlt._core as core
 
+    from ..usd import open_stage
     from .bridge import SceneBridge
-    from ..usd import load_frame, open_stage
 
     c = _WORKER.get("shot")
     if c is None or c["shot"] != shot:
         c = {"shot": shot, "stage": open_stage(shot), "bridge": SceneBridge(core), "key": None}
         _WORKER["shot"] = c
+    return c
+
+
+def open_shot(shot: str) -> bool:
+    """Open ``shot`` on this worker ahead of its first task (DaskRenderer.warm)."""
+    with _WORKER_LOCK:
+        _worker_stage(shot)
+    return True
+
+
+def _worker_scene(shot: str, frame: float, camera, resolution):
+    """(core, scene) of ``frame`` on this worker: the stage opened once per shot, the
+    core scene updated with what changed since the worker's previous frame."""
+    import cmlt._core as core
+
+    from ..usd import load_frame
+
+    c = _worker_stage(shot)
     key = (float(frame), camera, tuple(resolution) if resolution else None)
     if c["key"] != key:
         c["key"] = None
@@ -192,6 +209,16 @@ class DaskRenderer:
         self.on_part = on_part
         self.address = address
         self._fields = None
+        self.warm_s = 0.0
+
+    def warm(self) -> float:
+        """Open the stage on every worker now (imports, USD composition), so that the
+        first frame's tasks do not each pay for it; returns the seconds it took. A worker
+        that joins later opens it with its first task."""
+        t0 = time.perf_counter()
+        self.client.run(open_shot, self.shot)
+        self.warm_s = time.perf_counter() - t0
+        return self.warm_s
 
     def workers(self) -> int:
         return max(1, len(self.client.scheduler_info().get("workers", {})))
@@ -281,6 +308,7 @@ class DaskRenderer:
             # seconds: on the client (scatter of the shared inputs, until the last part
             # arrived, the combine), summed over the tasks (core render, whole task
             # including the worker's scene update, of it the scene update)
+            "warmup_s": self.warm_s,         # once per sequence: DaskRenderer.warm
             "scatter_s": t_scatter, "wait_s": t_wait, "combine_s": t_combine,
             "part_render_s": sum(float(r["stats"].get("time_s", 0.0)) for r in results),
             "part_task_s": sum(r["times"][1] for r in results),

@@ -234,6 +234,11 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                                        threads=0, on_part=on_part,
                                        address=opts.dask or "")
         result.settings["dask"] = opts.dask or "client"
+        try:
+            job.distributed.warm()
+        except Exception as exc:         # a worker cannot open the shot: say so once
+            _close(own_client)
+            raise RenderError(f"{shot}: --dask: a worker cannot open the shot: {exc}") from None
     stage_warnings = [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
