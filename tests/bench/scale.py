@@ -44,12 +44,12 @@ def _noop(x):
 
 def run(shot, frames, out, opts, client):
     from cmlt.shot import render_sequence
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = render_sequence(str(shot), frames, out, opts, progress=False, quiet=True,
                           client=client)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     recs = [json.load(open(p + ".json")) for p in res.written]
-    return wall, res, recs
+    return wall, cpu, res, recs
 
 
 def main(argv=None) -> int:
@@ -93,13 +93,15 @@ def main(argv=None) -> int:
     tmp = tempfile.mkdtemp(prefix="cmlt-scale-")
     walls = {"one process": [], "1 worker": [], "2 workers": []}
     recs = {}
+    cpus = {}               # the client process's CPU seconds per run
     ref_images = None
     for rep in range(args.repeats):
         for name, n in (("1 worker", 1), ("2 workers", 2), ("one process", 0)):
             out = os.path.join(tmp, f"{name.replace(' ', '_')}_{rep}", "f.####.exr")
-            wall, res, rr = run(SHOT, args.frames, out, opts(2 if n == 0 else 1),
-                                clients[n] if n else None)
+            wall, cpu, res, rr = run(SHOT, args.frames, out, opts(2 if n == 0 else 1),
+                                     clients[n] if n else None)
             walls[name].append(wall)
+            cpus.setdefault(name, []).append(cpu)
             recs.setdefault(name, rr)
             images = [load_image(p) for p in res.written]
             if name == "one process" and ref_images is None:
@@ -134,6 +136,17 @@ def main(argv=None) -> int:
             + 2 * n * combine_per_part
 
     est = {n: estimate(n) for n in (1, 2, 4, 16, 100)}
+    # the same model on CPU seconds (robust to the other load on a shared machine):
+    # the client's CPU per frame, the workers' CPU per frame at 2 and 4 tasks
+    cpu_client = statistics.median(cpus["2 workers"]) / n_frames
+    cpu1 = mean(per_frame("1 worker", "part_cpu_s"))
+    cpu2 = mean(per_frame("2 workers", "part_cpu_s"))
+    fixed_cpu = max(0.0, (cpu2 - cpu1) / max(1.0, d2["tasks"] - d1["tasks"]))
+
+    def estimate_cpu(n):
+        return cpu_client + (cpu1 + fixed_cpu * (2 * n - d1["tasks"])) / n + latency
+
+    est_cpu = {n: estimate_cpu(n) for n in (1, 2, 4, 16, 100)}
     summary = {
         "frames": n_frames, "res": [w, h], "spp": args.spp, "chains": args.chains,
         "bootstrap_samples": args.bootstrap_samples, "repeats": args.repeats,
@@ -146,6 +159,11 @@ def main(argv=None) -> int:
         "fixed_per_task_s": fixed, "combine_per_part_s": combine_per_part,
         "estimate_frame_s": est,
         "estimate_speedup_100_vs_1": est[1] / est[100],
+        "client_cpu_s": cpus, "client_cpu_per_frame_s": cpu_client,
+        "worker_cpu_per_frame_s": {"1 worker": cpu1, "2 workers": cpu2},
+        "fixed_cpu_per_task_s": fixed_cpu, "estimate_cpu_frame_s": est_cpu,
+        "estimate_cpu_ratio_2_over_1": est_cpu[2] / est_cpu[1],
+        "estimate_cpu_speedup_100_vs_1": est_cpu[1] / est_cpu[100],
         "machine": {"cpus": os.cpu_count(), "load_avg": os.getloadavg()},
     }
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
@@ -179,7 +197,14 @@ def main(argv=None) -> int:
            "Estimated frame time T(N) = S + (P + F(2N-2))/N + L + 2N C "
            "(module doc): " + ", ".join(f"N={n}: {v:.3f} s" for n, v in est.items()) +
            f"; 100 workers vs 1: {summary['estimate_speedup_100_vs_1']:.1f}x, bounded by the "
-           f"client's serial {serial:.3f} s per frame.", ""]
+           f"client's serial {serial:.3f} s per frame.", "",
+           "The same model on CPU seconds (the other load on this shared machine does not "
+           f"enter): client {cpu_client:.3f} CPU-s per frame, workers {cpu1:.3f} / "
+           f"{cpu2:.3f} CPU-s per frame at {d1['tasks']:.0f} / {d2['tasks']:.0f} tasks "
+           f"(fixed {fixed_cpu * 1e3:.1f} ms per task): "
+           + ", ".join(f"N={n}: {v:.3f} s" for n, v in est_cpu.items())
+           + f"; 2 workers / 1 worker on idle cores: {est_cpu[2] / est_cpu[1]:.2f}x; "
+           f"100 workers vs 1: {est_cpu[1] / est_cpu[100]:.1f}x.", ""]
     Path(args.out + ".md").write_text("\n".join(md))
     print("\n".join(md))
     for c in clients.values():

@@ -130,7 +130,7 @@ def render_part(spec: dict, shared: dict) -> dict:
     frame's ``shared`` inputs; returns its image rows / raw sums and stats. A pure
     function of (spec, shared)."""
     with _WORKER_LOCK:                   # one render per worker process at a time
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         core, scene = _worker_scene(spec["shot"], spec["frame"], spec["camera"],
                                     spec["resolution"])
         t_scene = time.perf_counter() - t0
@@ -166,7 +166,8 @@ def render_part(spec: dict, shared: dict) -> dict:
                "part": r.mlt_part, "bootstrap_f": None}
         if r.bootstrap_f is not None and spec.get("want_bootstrap_f"):
             out["bootstrap_f"] = np.asarray(r.bootstrap_f)
-        out["times"] = (t_scene, time.perf_counter() - t0)    # scene update, whole task
+        # seconds: scene update, whole task (wall), whole task (CPU of the worker process)
+        out["times"] = (t_scene, time.perf_counter() - t0, time.process_time() - c0)
         return out
 
 
@@ -307,12 +308,14 @@ class DaskRenderer:
             "split": "chains+rows" if mlt else ("rows" if integ == "pt" else "frame"),
             # seconds: on the client (scatter of the shared inputs, until the last part
             # arrived, the combine), summed over the tasks (core render, whole task
-            # including the worker's scene update, of it the scene update)
+            # including the worker's scene update, of it the scene update, the whole
+            # task's CPU seconds)
             "warmup_s": self.warm_s,         # once per sequence: DaskRenderer.warm
             "scatter_s": t_scatter, "wait_s": t_wait, "combine_s": t_combine,
             "part_render_s": sum(float(r["stats"].get("time_s", 0.0)) for r in results),
             "part_task_s": sum(r["times"][1] for r in results),
-            "part_scene_s": sum(r["times"][0] for r in results)}
+            "part_scene_s": sum(r["times"][0] for r in results),
+            "part_cpu_s": sum(r["times"][2] for r in results)}
         return out
 
     @staticmethod
