@@ -6,6 +6,7 @@
 #include "integrators/common/render.h"
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/direct_pass.h"
 #include "integrators/mlt/pixel_importance.h"
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"

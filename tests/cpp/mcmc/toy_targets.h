@@ -11,9 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "integrators/mlt_kernels/mlt_kernels.h"
+#include "mcmc/mcmc.h"
+#include "test_rng.h"
+#include "toy_chains.h"
 
-namespace cmlt::mlt::testing {
+namespace cmlt::mcmc::testing {
 
 using Vec = std::vector<double>;
 
@@ -230,4 +232,4 @@ struct BinMeans {
   }
 };
 
-}  // namespace cmlt::mlt::testing
+}  // namespace cmlt::mcmc::testing

@@ -1,7 +1,8 @@
 #pragma once
-/// \file Pieces every integrator's frame loop shares: counters summed over parallel
-/// tasks, the trace / shade time split, and the schedule of passes (pt, bdpt) or chain
-/// rounds (pssmlt, cmlt) under a sample budget and an optional time budget.
+/// \file Pieces every integrator's frame loop shares: the thread arena and its parallel
+/// tasks, counters summed over the tasks, the trace / shade time split, image tiles, and
+/// the schedule of passes (pt, bdpt) or chain rounds (pssmlt, cmlt) under a sample
+/// budget and an optional time budget.
 ///
 /// Budgets. `spp` is the budget of samples (pt, bdpt) or path evaluations per pixel
 /// (pssmlt, cmlt). With `time_budget` > 0 seconds the frame also stops when that much
@@ -13,14 +14,23 @@
 #include "accel/accel.h"
 #include "integrators/common/render_settings.h"
 #include "util/cycle_clock.h"
+#include "util/fp_mode.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace cmlt {
+
+class Film;
 
 /// Counters of one frame summed over its tasks (integer sums: order-independent).
 struct FrameCounters {
@@ -71,6 +81,36 @@ inline void fill_frame_stats(RenderStats& st, const FrameCounters& c, const Cycl
     st.shade_s = st.busy_s - st.trace_s;
 }
 
+/// Worker threads of a frame: the setting, or every core for 0.
+int frame_threads(const RenderSettings& s);
+
+/// Run `body(const tbb::blocked_range<Index>&)` over [0, n) in the arena, in tasks of
+/// `grain` items. Every task runs with FTZ/DAZ set (util/fp_mode.h: the same arithmetic
+/// on every thread) and adds its time to `counters` (TaskTimer). The partitioner is
+/// tbb's default unless given (tbb::simple_partitioner for one tile per task).
+template <class Index, class Body, class Partitioner = const tbb::auto_partitioner>
+void parallel_tasks(tbb::task_arena& arena, FrameCounters& counters, Index n, Index grain, Body&& body,
+                    Partitioner&& partitioner = Partitioner()) {
+    arena.execute([&] {
+        tbb::parallel_for(
+            tbb::blocked_range<Index>(Index(0), n, grain),
+            [&](const tbb::blocked_range<Index>& r) {
+                ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
+                body(r);
+            },
+            partitioner);
+    });
+}
+
+/// A rectangle of pixels [x0, x1) × [y0, y1): the unit of work of the pass integrators.
+struct Tile {
+    int x0, y0, x1, y1;
+};
+inline constexpr int k_tile_size = 16;
+/// The image in tiles of k_tile_size², row by row.
+std::vector<Tile> image_tiles(int width, int height);
+
 /// Passes (pt, bdpt): how many sample passes to run next.
 class PassSchedule {
 public:
@@ -105,6 +145,34 @@ private:
     std::chrono::steady_clock::time_point m_start;
     int m_chunk;
 };
+
+/// The pass loop of pt and bdpt: `run(s0, s1)` renders passes [s0, s1) in chunks the
+/// schedule sizes; after each chunk `progress` may stop the frame (*cancelled is set
+/// unless that chunk was the last). Returns the passes rendered.
+template <class Run>
+int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, bool* cancelled, Run&& run) {
+    int done = 0;
+    while (const int n = schedule.next(done)) {
+        run(done, done + n);
+        done += n;
+        if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
+            schedule.next(done) > 0) {
+            *cancelled = true;
+            break;
+        }
+    }
+    return done;
+}
+
+/// The result of a pass integrator: the film's mean and variance of the mean, its
+/// non-finite samples, the counters' stats, and the frame's settings.
+RenderResult film_result(const Film& film, const FrameCounters& counters, const CycleRate& rate, double secs,
+                         const RenderSettings& settings, int threads, int passes, bool cancelled);
+
+/// Seconds since `t0`.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
 
 /// Chain rounds (pssmlt, cmlt): the evaluation count each chain runs to in this round.
 /// Fixed budget: k_rounds slices of each chain's budget. Timed: a quota per chain per

@@ -101,7 +101,7 @@ inline double box_muller(double u1, double u2) {
     return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(6.283185307179586476925 * u2);
 }
 
-/// Wrap onto [0, 1) (as mlt_kernels' wrap01: never returns 1, NaN → 0).
+/// Wrap onto [0, 1) (as mcmc::wrap01: never returns 1, NaN → 0).
 inline double wrap01(double v) {
     const double r = v - std::floor(v);
     return r < 1.0 ? r : 0.0;

@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 
 /// A Markov chain: its current state and the target value there. The kernels evaluate
 /// the target once per new point and carry f*(x) along, so a State that caches its
@@ -18,16 +18,6 @@ struct Chain {
   double fx = 0.0;  ///< f*(x); > 0 for a properly started chain
 };
 
-/// Start a chain at `x`, evaluating the target once. A negative, NaN or infinite value
-/// is stored as 0 (such a chain leaves at its first proposal with f* > 0).
-template <class State, class Target>
-Chain<State> make_chain(State x, const Target& f) {
-  Chain<State> c{std::move(x), 0.0};
-  const double v = static_cast<double>(f(c.x));
-  c.fx = (v >= 0.0 && std::isfinite(v)) ? v : 0.0;
-  return c;
-}
-
 /// Scratch for one chain (one per thread): every buffer is sized at construction, so a
 /// step performs no heap allocation — states are overwritten element-wise (same size,
 /// so std::vector assignment reuses capacity) or swapped with the chain's state.
@@ -37,7 +27,7 @@ struct Workspace {
   /// fixes the size of every scratch state (its values are irrelevant).
   Workspace(std::size_t tries, const State& prototype)
       : y(tries, prototype), z(tries, prototype), fy(tries, 0.0), fz(tries, 0.0), centre(prototype) {
-    if (tries == 0) throw std::invalid_argument("mlt::Workspace: tries (k) must be at least 1");
+    if (tries == 0) throw std::invalid_argument("mcmc::Workspace: tries (k) must be at least 1");
   }
 
   std::size_t tries() const { return y.size(); }
@@ -49,4 +39,4 @@ struct Workspace {
   State centre;            ///< bundle centre c
 };
 
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <ostream>
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 
 /// Which kernel produced a step. The names are the spelling used in settings and JSON.
 enum class MutationKind : std::uint8_t {
@@ -116,4 +116,4 @@ struct KernelStats {
   }
 };
 
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

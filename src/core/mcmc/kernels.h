@@ -13,7 +13,8 @@
 // A point with f* = 0 is never accepted and never gets a positive splat weight, except
 // the chain's own state when a chain was (wrongly) started where f* = 0: then the step
 // keeps the weights summing to 1 by splatting x, and the renderer's splat must treat
-// colour/f* = 0/0 as zero. Start chains with resample_start_states (normalisation.h).
+// colour/f* = 0/0 as zero. Start chains by resampling a bootstrap pool
+// (resample_start_indices, normalisation.h).
 //
 // Determinism: each step's random numbers depend only on the RNG state and on the
 // target values, so a given seed replays the chain bit for bit. No heap allocation:
@@ -30,7 +31,7 @@
 #include "step_stats.h"
 #include "workspace.h"
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 
 /// Splatting rule of the multiple-try step.
 enum class MtmSplatRule : std::uint8_t {
@@ -39,22 +40,6 @@ enum class MtmSplatRule : std::uint8_t {
          ///< (1−a)·f*(z_l)/F_z. Biased (see tests/cpp/mcmc/test_seed_rule.cpp):
          ///< the z_l lie around y*, not x. Kept for comparison only.
 };
-
-/// The inner-chain rule of coherent MLT (DESIGN.md §3).
-enum class InnerRule : std::uint8_t { seed, mtm, bundle };
-
-/// Default inner rule: the best exact one on the toy checks (lowest error per step and
-/// per traced path, see test_seed_rule.cpp and the commit log).
-inline constexpr InnerRule k_default_inner_rule = InnerRule::bundle;
-
-inline const char* inner_rule_name(InnerRule rule) {
-  switch (rule) {
-    case InnerRule::seed: return "seed";
-    case InnerRule::mtm: return "mtm";
-    case InnerRule::bundle: return "bundle";
-  }
-  return "unknown";
-}
 
 namespace detail {
 
@@ -304,16 +289,4 @@ StepResult bundle_step(Chain<State>& chain, const Target& f, const Proposal& pro
   return r;
 }
 
-/// One inner-chain step of coherent MLT with the chosen rule.
-template <class State, class Target, class Proposal, class Splat, class Rng>
-StepResult inner_step(InnerRule rule, Chain<State>& chain, const Target& f, const Proposal& proposal,
-                      Splat&& splat, Rng& rng, Workspace<State>& ws) {
-  switch (rule) {
-    case InnerRule::seed: return mtm_step(chain, f, proposal, splat, rng, ws, MtmSplatRule::seed);
-    case InnerRule::mtm: return mtm_step(chain, f, proposal, splat, rng, ws, MtmSplatRule::mtm);
-    case InnerRule::bundle: break;
-  }
-  return bundle_step(chain, f, proposal, splat, rng, ws);
-}
-
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

@@ -14,7 +14,7 @@
 #include <cstddef>
 #include <iterator>
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 
 /// Map a real number onto [0, 1) (the unit torus). `v - floor(v)` can round up to
 /// exactly 1.0 for tiny negative v (e.g. -1e-17), so that case is mapped to 0;
@@ -54,4 +54,4 @@ struct UniformProposal {
   }
 };
 
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

@@ -1,7 +1,8 @@
 #pragma once
 /// \file Primary-sample-space Metropolis light transport (Kelemen et al. 2002) — the
-/// frame loop: bootstrap, chain starts, chains in parallel, normalisation, image. The
-/// path sampler (pssmlt_tracer.h) is multiplexed BDPT by default (Hachisuka et al. 2014:
+/// frame loop: bootstrap, chain starts, chains in parallel, normalisation, image (the
+/// population shared with cmlt: integrators/mlt/chain_population.h; one chain and its
+/// steps: pssmlt_chain.h). The path sampler (integrators/mlt/pssmlt_tracer.h) is multiplexed BDPT by default (Hachisuka et al. 2014:
 /// the technique — depth, (s, t) — is part of the state, drawn from its own primary
 /// samples, held fixed by small steps and redrawn by large steps; technique.h) or the
 /// path tracer (RenderSettings::mlt_path_sampler = "pt").
@@ -22,13 +23,13 @@
 /// the luminance target) and b = ∫ f*(u) du:
 ///   pixel_j = W·H · ∫ h_j(u) L(u) du ≈ b · H_j / (M / (W·H)),
 ///   H_j = Σ over the M mutations of the expected-value splats (L/f*)·w in pixel j
-/// (proposal weight a, current state 1−a: mlt_kernels' metropolis_step).
+/// (proposal weight a, current state 1−a: mcmc::metropolis_step).
 ///   0. the pilot of the pixel importance and, interleaved with the chain rounds, the
 ///      direct pass (depths 0 and 1 path traced, added to the image; the chains then
-///      render depth >= 2): mlt_frame.h;
+///      render depth >= 2): integrators/mlt/mlt_frame.h, direct_pass.h;
 ///   1. bootstrap: N independent large-step samples (parallel, deterministic), b̂ = mean f*;
 ///   2. chains start by resampling the bootstrap pool ∝ f* (no start-up bias,
-///      mlt_kernels/normalisation.h), replaying the chosen sample from its key;
+///      mcmc/normalisation.h), replaying the chosen sample from its key;
 ///   3. each chain takes its share of the M mutations left of spp·W·H (or runs to the
 ///      time budget, frame_loop.h): a large step with
 ///      probability `large_step_probability`, else a small wrapped-Gaussian step σ;

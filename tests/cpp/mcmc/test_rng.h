@@ -1,17 +1,17 @@
-// cmlt — Metropolis kernels: a small deterministic random number generator.
+// Tests of the MCMC kernels: a small deterministic random number generator.
 //
-// Every kernel in this folder is a template over an RNG type with two methods:
+// Every kernel of src/core/mcmc is a template over an RNG type with two methods:
 //   double uniform();  // in [0, 1)
 //   double normal();   // standard normal N(0, 1)
-// The renderer will pass its counter-based (Philox-style) streams keyed by
-// (shot seed, chain, dimension); the tests use TestRng below: xoshiro256++ seeded
-// through splitmix64, with Box–Muller normals. Both are fully deterministic.
+// The renderer passes its counter-based streams (sampling/rng.h's CounterRng, keyed by
+// (shot seed, domain, chain)); the toy tests use TestRng: xoshiro256++ seeded through
+// splitmix64, with Box–Muller normals. Both are fully deterministic.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc::testing {
 
 /// splitmix64 step (Steele, Lea, Flood 2014): advances `state` and returns a
 /// well-mixed 64-bit value. Used to expand seeds.
@@ -72,4 +72,4 @@ class TestRng {
   bool m_has_spare = false;
 };
 
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc::testing

@@ -17,10 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "proposals.h"
-#include "workspace.h"
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 
 /// Estimate of b = E[f*] with its standard error (sample sd / √n).
 struct NormalisationEstimate {
@@ -77,33 +75,6 @@ class NormalisationAccumulator {
   double m_m2 = 0.0;
 };
 
-/// The bootstrap: N independent uniform states, their f* values and the estimate of b.
-template <class State>
-struct BootstrapPool {
-  std::vector<State> states;
-  std::vector<double> values;  ///< f*(states[i]), sanitised (invalid → 0)
-  NormalisationEstimate b;
-};
-
-/// Draw `n` independent states with `draw` (default: uniform on [0,1)^dim, the size of
-/// `prototype`), evaluate f* once each, and estimate b. Allocates (not an inner step).
-template <class State, class Target, class Rng, class Draw = UniformProposal>
-BootstrapPool<State> bootstrap(const Target& f, std::size_t n, const State& prototype, Rng& rng,
-                               const Draw& draw = Draw{}) {
-  BootstrapPool<State> pool;
-  pool.states.assign(n, prototype);
-  pool.values.assign(n, 0.0);
-  NormalisationAccumulator acc;
-  for (std::size_t i = 0; i < n; ++i) {
-    draw.sample(prototype, pool.states[i], rng);
-    const double v = static_cast<double>(f(pool.states[i]));
-    pool.values[i] = (v >= 0.0 && std::isfinite(v)) ? v : 0.0;
-    acc.add(pool.values[i]);
-  }
-  pool.b = acc.estimate();
-  return pool;
-}
-
 /// Multinomial resampling: `n` independent indices i with probability weights[i]/Σw.
 /// Never returns an index of zero weight. Throws std::invalid_argument if a weight is
 /// negative or not finite, or if no weight is positive (nothing to start a chain on).
@@ -114,13 +85,13 @@ std::vector<std::size_t> resample_start_indices(const std::vector<double>& weigh
   for (std::size_t i = 0; i < weights.size(); ++i) {
     const double w = weights[i];
     if (!(w >= 0.0) || !std::isfinite(w))
-      throw std::invalid_argument("mlt::resample_start_indices: weight " + std::to_string(i) +
+      throw std::invalid_argument("mcmc::resample_start_indices: weight " + std::to_string(i) +
                                   " is negative or not finite");
     total += w;
     cumulative[i] = total;
   }
   if (!(total > 0.0))
-    throw std::invalid_argument("mlt::resample_start_indices: all " + std::to_string(weights.size()) +
+    throw std::invalid_argument("mcmc::resample_start_indices: all " + std::to_string(weights.size()) +
                                 " bootstrap weights are zero; no chain can start (raise the bootstrap size)");
   std::vector<std::size_t> out(n);
   for (std::size_t c = 0; c < n; ++c) {
@@ -140,27 +111,4 @@ std::vector<std::size_t> resample_start_indices(const std::vector<double>& weigh
   return out;
 }
 
-/// Resample `n` chain start states from `pool` ∝ `weights` (normally the pool's f*).
-template <class State, class Rng>
-std::vector<State> resample_start_states(const std::vector<State>& pool, const std::vector<double>& weights,
-                                         std::size_t n, Rng& rng) {
-  if (pool.size() != weights.size())
-    throw std::invalid_argument("mlt::resample_start_states: pool has " + std::to_string(pool.size()) +
-                                " states but " + std::to_string(weights.size()) + " weights");
-  std::vector<State> out;
-  out.reserve(n);
-  for (std::size_t i : resample_start_indices(weights, n, rng)) out.push_back(pool[i]);
-  return out;
-}
-
-/// Start `n` chains from a bootstrap pool (resampled ∝ f*), reusing the pool's f* values.
-template <class State, class Rng>
-std::vector<Chain<State>> start_chains(const BootstrapPool<State>& pool, std::size_t n, Rng& rng) {
-  std::vector<Chain<State>> chains;
-  chains.reserve(n);
-  for (std::size_t i : resample_start_indices(pool.values, n, rng))
-    chains.push_back(Chain<State>{pool.states[i], pool.values[i]});
-  return chains;
-}
-
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc
