@@ -11,7 +11,7 @@ namespace cmlt::test {
 
 /// Deterministic uniform numbers for tests: stream `test_id`, index i.
 inline Vec2 uniform2(uint32_t test_id, uint32_t i) {
-    auto r = philox4x32({i, test_id, 0, 0xFFFF}, {0x1234u, 0x5678u});
+    auto r = philox4x32(pixel_counter(i, test_id, 0, RngStream::test), {0x1234u, 0x5678u});
     return {uint_to_unit_float(r[0]), uint_to_unit_float(r[1])};
 }
 

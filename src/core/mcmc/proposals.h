@@ -14,15 +14,9 @@
 #include <cstddef>
 #include <iterator>
 
-namespace cmlt::mcmc {
+#include "sampling/rng.h"  // wrap01: the torus of primary sample space
 
-/// Map a real number onto [0, 1) (the unit torus). `v - floor(v)` can round up to
-/// exactly 1.0 for tiny negative v (e.g. -1e-17), so that case is mapped to 0;
-/// NaN and ±Inf also map to 0 so a primary sample is never outside [0, 1).
-inline double wrap01(double v) {
-  const double r = v - std::floor(v);
-  return r < 1.0 ? r : 0.0;  // false for r == 1 and for NaN
-}
+namespace cmlt::mcmc {
 
 /// Small-step mutation: an isotropic Gaussian with standard deviation `sigma` in every
 /// coordinate, wrapped onto the torus [0,1)^n.

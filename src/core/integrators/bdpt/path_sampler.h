@@ -22,12 +22,12 @@ public:
 };
 
 /// Independent numbers of one pixel sample: Philox keyed by the seed, counter
-/// (pixel, sample, dimension, 16 + stream); each stream has its own dimension counter.
-/// (Stream ids 16.. are distinct from PixelSampler's RngStream values.)
+/// (pixel, sample, dimension, RngStream::bdpt_camera + stream) (sampling/rng_domains.h);
+/// each stream has its own dimension counter.
 class PixelStreamSampler final : public BdptSampler {
 public:
     PixelStreamSampler(uint64_t seed, uint32_t pixel, uint32_t sample)
-        : m_key{uint32_t(seed), uint32_t(seed >> 32)}, m_pixel(pixel), m_sample(sample) {}
+        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample) {}
     void start_stream(int index) override { m_stream = uint32_t(index) % 3u; }
     float next1d() override { return uint_to_unit_float(draw()[0]); }
     Vec2 next2d() override {
@@ -37,7 +37,8 @@ public:
 
 private:
     Philox4x32Counter draw() {
-        return philox4x32({m_pixel, m_sample, m_dim[m_stream]++, 16u + m_stream}, m_key);
+        const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + m_stream);
+        return philox4x32(pixel_counter(m_pixel, m_sample, m_dim[m_stream]++, stream), m_key);
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;

@@ -37,7 +37,7 @@ struct Chain : mlt::ChainTally {
         chain.x = std::move(x);
         chain.fx = fx;
     }
-    mlt::CounterRng rng;  ///< kernel numbers (perturbation choice, offsets, acceptance)
+    CounterRng rng;  ///< kernel numbers (perturbation choice, offsets, acceptance)
     uint32_t id;     ///< the chain's index: keys its numbers
     mcmc::Workspace<State> ws;
     mcmc::Chain<State> chain;

@@ -112,7 +112,7 @@ struct PerturbationProposal {
             const size_t t1 = MltSampler::index(MltSampler::connection, 1);
             for (size_t i = 0; i < to.u.size(); ++i) {
                 if (std::isnan(to.u[i]) || i == t0 || i == t1) continue;
-                to.u[i] = mlt::detail::wrap01(to.u[i] + s0 * rng.normal());
+                to.u[i] = wrap01(to.u[i] + s0 * rng.normal());
             }
             return;
         }
@@ -122,8 +122,8 @@ struct PerturbationProposal {
             to.set(i0, a);
             to.set(i1, b);
         } else {
-            const double a = mlt::detail::wrap01(from.value(seed, i0) + s0 * rng.normal());
-            const double b = mlt::detail::wrap01(from.value(seed, i1) + s1 * rng.normal());
+            const double a = wrap01(from.value(seed, i0) + s0 * rng.normal());
+            const double b = wrap01(from.value(seed, i1) + s1 * rng.normal());
             to.set(i0, a);
             to.set(i1, b);
         }

@@ -4,8 +4,9 @@
 /// (pixel_importance.h) and the direct pass (depths 0 and 1; the chains leave them to
 /// ordinary Monte Carlo, where it beats a Markov chain — Mitsuba 0.5's PSSMLT does the
 /// same). Each pass keys its samples from its own sample-index base (PixelSampler
-/// counters (seed, pixel, base + s)), so the passes never share numbers with each other
-/// or with the pt integrator, and a static shot gets the same pass every frame.
+/// counters (seed, pixel, base + s); k_pilot_sample_base and k_direct_sample_base in
+/// sampling/rng_domains.h), so the passes never share numbers with each other or with
+/// the pt integrator, and a static shot gets the same pass every frame.
 ///
 /// The direct pass runs in slices between the chain rounds (DirectSchedule), so it keeps
 /// its share of the frame's evaluations under a sample or a time budget.
@@ -13,6 +14,7 @@
 #include "film/film.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/path_tracer.h"
+#include "sampling/rng_domains.h"
 
 #include <tbb/task_arena.h>
 
@@ -26,10 +28,6 @@ class Scene;
 struct RenderSettings;
 
 namespace mlt {
-
-/// Sample-index bases of the passes (top bits: disjoint from the pt integrator's 0..).
-inline constexpr uint32_t k_pilot_sample_base = 0xC0000000u;
-inline constexpr uint32_t k_direct_sample_base = 0xA0000000u;
 
 struct PtPassImage {
     std::vector<float> mean;      ///< (H, W, 3)

@@ -26,7 +26,7 @@ using mlt::PathSample;
 /// The numbers of a chain (or a bootstrap sample) keyed (seed, domain, id). With the
 /// bdpt path sampler the technique samples change at large steps only (multiplexed MLT,
 /// mlt_sampler.h).
-inline MltSampler make_sampler(const RenderSettings& s, mlt::RngDomain domain, uint32_t id) {
+inline MltSampler make_sampler(const RenderSettings& s, RngDomain domain, uint32_t id) {
     MltSampler smp(s.seed, s.sigma, s.large_step_probability, domain, id);
     if (s.mlt_path_sampler == "bdpt")
         smp.freeze_in_small_steps(MltSampler::connection, mlt::k_technique_dimensions * MltSampler::k_slots_per_dimension);
