@@ -12,6 +12,7 @@
 /// frame depends on the machine's speed, so it is not reproducible bit for bit; a
 /// sample-budget frame is.
 #include "accel/accel.h"
+#include "integrators/common/path_counters.h"
 #include "integrators/common/render_settings.h"
 #include "util/cycle_clock.h"
 #include "util/fp_mode.h"
@@ -47,6 +48,15 @@ struct FrameCounters {
         samples.fetch_add(c.samples, std::memory_order_relaxed);
         invalid.fetch_add(invalid_samples, std::memory_order_relaxed);
         packets.fetch_add(packet_queries, std::memory_order_relaxed);
+    }
+    /// The rays and samples counted so far.
+    PathCounters paths() const {
+        PathCounters c;
+        c.camera_rays = camera_rays.load();
+        c.shadow_rays = shadow_rays.load();
+        c.rays = rays.load();
+        c.samples = samples.load();
+        return c;
     }
 };
 

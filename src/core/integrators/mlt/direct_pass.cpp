@@ -52,10 +52,7 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
     tbb::task_arena arena(frame_threads(settings));
     FrameCounters c;
     pass.render_to(arena, spp, c);
-    counters.camera_rays += c.camera_rays.load();
-    counters.shadow_rays += c.shadow_rays.load();
-    counters.rays += c.rays.load();
-    counters.samples += c.samples.load();
+    counters += c.paths();
     std::vector<float> mean = pass.develop().mean;
     if (mean.empty()) mean.assign(size_t(settings.width) * size_t(settings.height) * 3, 0.f);
     return mean;

@@ -172,10 +172,7 @@ private:
     /// Pixel, L = C / p(technique) and f* of an evaluated strategy C at p_raster.
     void finish_sample(PathSample& s, double pmf, const Spectrum& C, const Vec2& p_raster,
                        const BdptCounters& c, PathCounters& counters) const {
-        counters.camera_rays += c.camera_rays;
-        counters.shadow_rays += c.shadow_rays;
-        counters.rays += c.rays;
-        counters.samples += c.samples;
+        counters += c;
         if (!is_finite(C)) {
             s.invalid = true;
             return;

@@ -27,6 +27,7 @@
 ///   float get1d();                   // next dimension, one value in [0, 1)
 ///   Vec2 get2d();                    // next dimension, two values in [0, 1)
 /// The definition is in path_tracer_impl.h; path_tracer.cpp instantiates PixelSampler.
+#include "integrators/common/path_counters.h"
 #include "math/ray.h"
 #include "math/vec.h"
 #include "sampling/rng.h"
@@ -38,13 +39,6 @@ namespace cmlt {
 class Camera;
 class Scene;
 struct SceneHit;
-
-struct PathCounters {
-    uint64_t camera_rays = 0;
-    uint64_t shadow_rays = 0;
-    uint64_t rays = 0;
-    uint64_t samples = 0;
-};
 
 class PathTracer {
 public:
