@@ -28,6 +28,7 @@
 #include "integrators/mlt/mlt_sampler.h"
 #include "mcmc/normalisation.h"
 #include "mcmc/step_stats.h"
+#include "mcmc/workspace.h"
 #include "util/error.h"
 
 #include <algorithm>

@@ -19,7 +19,7 @@ using namespace cmlt::test;
 
 namespace {
 
-/// A floor under a ceiling with a slit, lit by a small emissive quad (as test_mlt.cpp).
+/// A floor under a ceiling with a slit, lit by a small emissive quad (as integrators/pssmlt/test_pssmlt.cpp).
 void slit_scene(Scene& s) {
     s.set_materials({Material{Spectrum(0.7f), Spectrum(0.f)}, Material{Spectrum(0.f), Spectrum(400.f)},
                      Material{Spectrum(0.f), Spectrum(0.f)}});

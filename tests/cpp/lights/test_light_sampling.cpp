@@ -1,8 +1,8 @@
-// Light sampling, the missing proofs of issue 3:
+// Light sampling, what the light transport relies on:
 //  1. chi-square of sample_li against pdf_li for the rect, disk, triangle (emissive mesh)
 //     and cylinder lights: directions seen from a reference point, histogrammed over the
 //     sphere in a frame pointing at the light, expected counts from pdf_li integrated per
-//     cell (the materials harness, tests/cpp/materials/chi2.h: fine table, coarse table,
+//     cell (the direction harness, tests/cpp/support/direction_chi2.h: fine table, coarse table,
 //     and the total mass -- the fraction of valid samples must equal the integral of
 //     pdf_li, so pdf_li and sample_li must agree on which directions see the light);
 //  2. emission sampling for every area light type (rect, disk, sphere, triangle,
@@ -19,7 +19,7 @@
 // False alarms: 19 chi-square tests in this file at alpha = 1e-3 / 19 each (Bonferroni:
 // 1e-3 for the file); the other checks are exact up to float rounding.
 #include "chi2.h"
-#include "materials/chi2.h"
+#include "direction_chi2.h"
 #include "test_util.h"
 
 #include "lights/area_lights.h"

@@ -21,6 +21,8 @@
 /// On failure the observed / expected tables are written to a text file (never on success).
 ///
 /// The harness is header-only and independent of GoogleTest.
+#include "special_functions.h"
+
 #include "math/safe_math.h"
 #include "math/vec.h"
 #include "sampling/rng.h"
@@ -38,51 +40,6 @@
 #include <vector>
 
 namespace cmlt::test {
-
-// ---------------------------------------------------------------------------------------------
-// Special functions
-// ---------------------------------------------------------------------------------------------
-
-/// Regularised upper incomplete gamma function Q(a, x) = Gamma(a, x) / Gamma(a), a > 0, x >= 0.
-/// Series for x < a + 1, Lentz continued fraction otherwise (Numerical Recipes 6.2).
-inline double regularized_gamma_q(double a, double x) {
-    if (!(a > 0.0) || std::isnan(x)) return std::nan("");
-    if (x <= 0.0) return 1.0;
-    if (std::isinf(x)) return 0.0;
-    const double log_prefactor = -x + a * std::log(x) - std::lgamma(a);
-    constexpr double eps = 1e-15, tiny = 1e-300;
-    if (x < a + 1.0) {
-        // P(a, x) = x^a e^-x / Gamma(a + 1) * sum_n x^n / ((a+1)...(a+n))
-        double ap = a, del = 1.0 / a, sum = del;
-        for (int n = 0; n < 10000; ++n) {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if (std::fabs(del) < std::fabs(sum) * eps) break;
-        }
-        return std::clamp(1.0 - sum * std::exp(log_prefactor), 0.0, 1.0);
-    }
-    double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
-    for (int i = 1; i < 10000; ++i) {
-        double an = -i * (i - a);
-        b += 2.0;
-        d = an * d + b;
-        if (std::fabs(d) < tiny) d = tiny;
-        c = b + an / c;
-        if (std::fabs(c) < tiny) c = tiny;
-        d = 1.0 / d;
-        double del = d * c;
-        h *= del;
-        if (std::fabs(del - 1.0) < eps) break;
-    }
-    return std::clamp(std::exp(log_prefactor) * h, 0.0, 1.0);
-}
-
-/// P(X >= statistic) for X ~ chi^2 with `dof` degrees of freedom.
-inline double chi2_survival(double statistic, int dof) {
-    if (dof <= 0) return 1.0;
-    return regularized_gamma_q(0.5 * dof, 0.5 * statistic);
-}
 
 // ---------------------------------------------------------------------------------------------
 // Quadrature
@@ -299,14 +256,14 @@ private:
         out.cells = fine.cells;
         out.dof = fine.cells - 1;
         out.statistic = fine.statistic;
-        out.p_value = chi2_survival(fine.statistic, out.dof);
+        out.p_value = chi2_sf(fine.statistic, out.dof);
         // (b) coarse table: the fine statistic dilutes a smooth few-percent shape error over
         // thousands of degrees of freedom; blocks of cells see it.
         const int cf = m_opt.coarse_factor;
         Pearson coarse = pearson(coarsen(m_observed, cf), coarsen(m_expected, cf), m_opt.phi_res / cf);
         out.coarse_dof = coarse.cells - 1;
         out.coarse_statistic = coarse.statistic;
-        out.coarse_p_value = chi2_survival(coarse.statistic, out.coarse_dof);
+        out.coarse_p_value = chi2_sf(coarse.statistic, out.coarse_dof);
         // (c) total mass: valid count ~ Binomial(N, I). The variance gets a floor of
         // (1e-4 N)^2 for the quadrature error of I (<= integration_eps per bin).
         const double n = m_opt.sample_count, mass = std::clamp(m_pdf_integral, 0.0, 1.0);

@@ -1,4 +1,4 @@
-// PSSMLT integrator (integrators/mlt/): determinism over thread counts, the furnace
+// PSSMLT integrator (integrators/pssmlt/): determinism over thread counts, the furnace
 // (image mean = b for a grey scene, checked against b's standard error), no NaN/Inf,
 // no stuck chain on a mostly black scene (light through a slit), budget accounting,
 // settings errors. Convergence to PT on a Cornell-like box: tests/python/test_mlt.py.

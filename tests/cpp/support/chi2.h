@@ -6,6 +6,8 @@
 // expected count of zero but observed samples fails outright (samples outside the
 // support). The caller states the significance level; with several tests in one
 // binary apply Bonferroni: alpha_per_test = alpha / number_of_tests.
+#include "special_functions.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -14,39 +16,6 @@
 #include <vector>
 
 namespace cmlt::test {
-
-/// Regularised upper incomplete gamma Q(a, x) (Numerical Recipes gser/gcf).
-inline double gamma_q(double a, double x) {
-    if (x <= 0) return 1.0;
-    double gln = std::lgamma(a);
-    if (x < a + 1) {
-        double ap = a, sum = 1.0 / a, del = sum;
-        for (int n = 0; n < 10000; ++n) {
-            ap += 1;
-            del *= x / ap;
-            sum += del;
-            if (std::fabs(del) < std::fabs(sum) * 1e-15) break;
-        }
-        return 1.0 - sum * std::exp(-x + a * std::log(x) - gln);
-    }
-    double b = x + 1 - a, c = 1.0 / 1e-300, d = 1.0 / b, h = d;
-    for (int i = 1; i < 10000; ++i) {
-        double an = -i * (i - a);
-        b += 2;
-        d = an * d + b;
-        if (std::fabs(d) < 1e-300) d = 1e-300;
-        c = b + an / c;
-        if (std::fabs(c) < 1e-300) c = 1e-300;
-        d = 1.0 / d;
-        double del = d * c;
-        h *= del;
-        if (std::fabs(del - 1.0) < 1e-15) break;
-    }
-    return std::exp(-x + a * std::log(x) - gln) * h;
-}
-
-/// P(X >= x) for X ~ chi^2(dof).
-inline double chi2_sf(double x, int dof) { return gamma_q(0.5 * dof, 0.5 * x); }
 
 struct Chi2Result {
     double statistic = 0;

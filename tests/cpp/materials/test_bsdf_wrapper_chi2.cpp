@@ -10,7 +10,7 @@
 ///
 /// Family-wise level 0.01, Bonferroni-corrected over the cases of this file.
 #include "bsdf_test_util.h"
-#include "chi2.h"
+#include "direction_chi2.h"
 
 #include "materials/bsdf.h"
 #include "math/frame.h"

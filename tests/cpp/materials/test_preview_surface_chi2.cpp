@@ -2,7 +2,7 @@
 /// non-delta lobe configuration and several outgoing directions (including grazing ones and
 /// directions inside a dielectric). Family-wise level 0.01, Bonferroni-corrected over cases.
 #include "bsdf_test_util.h"
-#include "chi2.h"
+#include "direction_chi2.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 /// \file Unit tests of fresnel.h and microfacet.h against closed forms and textbook formulas.
 #include "bsdf_test_util.h"  // TextbookGgx
-#include "chi2.h"            // adaptive_simpson
+#include "direction_chi2.h"            // adaptive_simpson
 #include "materials/fresnel.h"
 #include "materials/microfacet.h"
 
