@@ -204,7 +204,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
 void bind_render(nb::module_& m) {
     nb::class_<mlt::ChainStates>(
         m, "MltStates",
-        "Final states of a pssmlt render's chains (RenderResult.mlt_states), to start the "
+        "Final states of a pssmlt or cmlt render's chains (RenderResult.mlt_states), to start the "
         "next render's chains from (RenderSettings.mlt_initial_states). Opaque; "
         "to_bytes()/from_bytes() serialise it (integrators/mlt/chain_state.h).")
         .def("__len__", [](const mlt::ChainStates& s) { return s.chains.size(); })

@@ -105,6 +105,30 @@ inline void prepare(const Target& f, State* states, std::size_t n) {
   if constexpr (has_prepare<Target, State>::value) f.prepare(states, n);
 }
 
+/// One bundle: draw out[0..n) ~ T(from→·), hand them to the batch hook, then evaluate
+/// each into values[0..n). Returns `sum` plus the values, added in order.
+template <class State, class Target, class Proposal, class Rng>
+inline double draw_bundle(const Target& f, const Proposal& proposal, const State& from, State* out, double* values,
+                          std::size_t n, Rng& rng, double sum, StepResult& r) {
+  for (std::size_t l = 0; l < n; ++l) proposal.sample(from, out[l], rng);
+  if (n > 0) prepare(f, out, n);
+  for (std::size_t l = 0; l < n; ++l) {
+    values[l] = evaluate(f, out[l], r);
+    sum += values[l];
+  }
+  return sum;
+}
+
+/// The chain moves to `to` (point `index` + 1 of the step: 0 is x), whose value is `fy`.
+template <class State>
+inline void move_to(Chain<State>& chain, State& to, double fy, std::size_t index, StepResult& r) {
+  using std::swap;
+  swap(chain.x, to);
+  chain.fx = fy;
+  r.moved = true;
+  r.chosen = static_cast<std::uint32_t>(index + 1);
+}
+
 }  // namespace detail
 
 /// One Metropolis–Hastings step with a single proposal y ~ T(x→·) and expected-value
@@ -142,13 +166,7 @@ StepResult metropolis_step(Chain<State>& chain, const Target& f, const Proposal&
   detail::emit(splat, chain.x, 1.0 - a, r);
 
   // accept or reject; on reject chain.x is untouched (bit-exact)
-  if (rng.uniform() < a) {
-    using std::swap;
-    swap(chain.x, y);
-    chain.fx = fy;
-    r.moved = true;
-    r.chosen = 1;
-  }
+  if (rng.uniform() < a) detail::move_to(chain, y, fy, 0, r);
   return r;
 }
 
@@ -177,13 +195,7 @@ StepResult mtm_step(Chain<State>& chain, const Target& f, const Proposal& propos
   const std::size_t k = ws.tries();
 
   // 1. draw and evaluate the k candidates (one coherent bundle in the renderer)
-  double fy_sum = 0.0;
-  for (std::size_t l = 0; l < k; ++l) proposal.sample(chain.x, ws.y[l], rng);
-  detail::prepare(f, ws.y.data(), k);
-  for (std::size_t l = 0; l < k; ++l) {
-    ws.fy[l] = detail::evaluate(f, ws.y[l], r);
-    fy_sum += ws.fy[l];
-  }
+  const double fy_sum = detail::draw_bundle(f, proposal, chain.x, ws.y.data(), ws.fy.data(), k, rng, 0.0, r);
   if (!(fy_sum > 0.0)) {  // no candidate can be chosen: stay
     r.acceptance = 0.0;
     detail::emit(splat, chain.x, 1.0, r);
@@ -195,13 +207,7 @@ StepResult mtm_step(Chain<State>& chain, const Target& f, const Proposal& propos
   const State& y_star = ws.y[j];
 
   // 3. reference points around y*; z_k = x enters through chain.fx (not copied)
-  double fz_sum = chain.fx;
-  for (std::size_t l = 0; l + 1 < k; ++l) proposal.sample(y_star, ws.z[l], rng);
-  if (k > 1) detail::prepare(f, ws.z.data(), k - 1);
-  for (std::size_t l = 0; l + 1 < k; ++l) {
-    ws.fz[l] = detail::evaluate(f, ws.z[l], r);
-    fz_sum += ws.fz[l];
-  }
+  const double fz_sum = detail::draw_bundle(f, proposal, y_star, ws.z.data(), ws.fz.data(), k - 1, rng, chain.fx, r);
 
   // 4. generalised Metropolis ratio; F_z ≥ f*(x) > 0 for a started chain
   const double a = fz_sum > 0.0 ? detail::min1(fy_sum / fz_sum) : 1.0;
@@ -221,13 +227,7 @@ StepResult mtm_step(Chain<State>& chain, const Target& f, const Proposal& propos
   }
 
   // 6. accept or reject
-  if (rng.uniform() < a) {
-    using std::swap;
-    swap(chain.x, ws.y[j]);
-    chain.fx = ws.fy[j];
-    r.moved = true;
-    r.chosen = static_cast<std::uint32_t>(j + 1);
-  }
+  if (rng.uniform() < a) detail::move_to(chain, ws.y[j], ws.fy[j], j, r);
   return r;
 }
 
@@ -258,13 +258,7 @@ StepResult bundle_step(Chain<State>& chain, const Target& f, const Proposal& pro
 
   // draw the bundle: centre around x, candidates around the centre
   proposal.sample(chain.x, ws.centre, rng);
-  double fy_sum = 0.0;
-  for (std::size_t l = 0; l < k; ++l) proposal.sample(ws.centre, ws.y[l], rng);
-  detail::prepare(f, ws.y.data(), k);
-  for (std::size_t l = 0; l < k; ++l) {
-    ws.fy[l] = detail::evaluate(f, ws.y[l], r);
-    fy_sum += ws.fy[l];
-  }
+  const double fy_sum = detail::draw_bundle(f, proposal, ws.centre, ws.y.data(), ws.fy.data(), k, rng, 0.0, r);
   const double total = chain.fx + fy_sum;
   if (!(total > 0.0)) {
     r.acceptance = 0.0;
@@ -281,11 +275,7 @@ StepResult bundle_step(Chain<State>& chain, const Target& f, const Proposal& pro
   const double t = rng.uniform() * total;
   if (t < chain.fx || !(fy_sum > 0.0)) return r;  // stay at x
   const std::size_t j = detail::select_by_target(ws.fy.data(), k, t - chain.fx);
-  using std::swap;
-  swap(chain.x, ws.y[j]);
-  chain.fx = ws.fy[j];
-  r.moved = true;
-  r.chosen = static_cast<std::uint32_t>(j + 1);
+  detail::move_to(chain, ws.y[j], ws.fy[j], j, r);
   return r;
 }
 

@@ -14,8 +14,10 @@
 ///   * a perturbation (perturbations.h) copies the overrides and overrides some
 ///     coordinates.
 /// Coordinates a path never reads stay at their key's values; that is a fixed (not
-/// re-drawn) part of the state, which is valid: they do not enter f*, and the
-/// perturbations leave them unchanged (δ, a symmetric kernel).
+/// re-drawn) part of the state, which is valid: they do not enter f*, and the lens,
+/// caustic and pixel-move perturbations leave them unchanged (δ, a symmetric kernel).
+/// The small step does not re-draw them either, which breaks its symmetry when a
+/// candidate reads one (perturbations.h).
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"

@@ -1,7 +1,11 @@
 #pragma once
-/// \file Coherent MLT (DESIGN.md §3): the perturbations of the inner chain — symmetric
-/// proposals on the chain state (cmlt_state.h), so mcmc's mtm_step and bundle_step apply
-/// unchanged; the kernel draws every candidate of a bundle from the same kernel.
+/// \file Coherent MLT (DESIGN.md §3): the perturbations of the inner chain — proposals
+/// on the chain state (cmlt_state.h) meant to be symmetric, so that mcmc's mtm_step and
+/// bundle_step apply unchanged; the kernel draws every candidate of a bundle from the
+/// same kernel. Lens, caustic and pixel move are symmetric on the whole point (they
+/// change two coordinates and keep every other, read or not). The small step is not
+/// exactly symmetric when a candidate's path reads coordinates the current path did not
+/// (see PerturbationProposal::sample).
 ///
 ///   * lens: wrapped Gaussian on the film position (camera stream, dimension 0), σ in
 ///     pixels converted to primary-sample units per axis (σ_pix / W, σ_pix / H). Every
@@ -98,10 +102,13 @@ struct PerturbationProposal {
         if (kind == Perturbation::small_step) {
             // Every materialised coordinate (overridden, or read by the path of `from`)
             // gets a wrapped Gaussian step; the technique slots stay (multiplexed MLT,
-            // mlt_sampler.h). A coordinate never materialised keeps its key value, a
-            // uniform independent of the chain's past — in law the value a perturbed
-            // fresh uniform would have (PSSMLT's lazy mutation, Kelemen et al. 2002), so
-            // the kernel is the symmetric all-coordinate step.
+            // mlt_sampler.h). A coordinate never materialised keeps its key value. That
+            // is not PSSMLT's lazy mutation (Kelemen et al. 2002: a number first read by
+            // the proposal is drawn afresh): a candidate whose path reads a coordinate
+            // `from`'s path did not sees the fixed key value, while the reverse move
+            // would perturb it, so T(x→y) ≠ T(y→x) on paths of different lengths (pass-
+            // through crossings, the pt sampler) and the chains drift from π (a toy
+            // target: tests/bench/results/cmlt_small_steps.md).
             for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k)
                 for (uint32_t slot = 0; slot < from.extent[k]; ++slot) {
                     const size_t i = MltSampler::index(k, slot);

@@ -91,6 +91,11 @@ inline void fill_frame_stats(RenderStats& st, const FrameCounters& c, const Cycl
     st.shade_s = st.busy_s - st.trace_s;
 }
 
+/// Seconds since `t0`.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 /// Worker threads of a frame: the setting, or every core for 0.
 int frame_threads(const RenderSettings& s);
 
@@ -121,16 +126,35 @@ inline constexpr int k_tile_size = 16;
 /// The image in tiles of k_tile_size², row by row.
 std::vector<Tile> image_tiles(int width, int height);
 
-/// Passes (pt, bdpt): how many sample passes to run next.
-class PassSchedule {
+/// The budgets of a frame as both schedules see them: `spp` and an optional time budget
+/// counted from the frame's start; progress is reported in `spp` units, or in
+/// milliseconds of the time budget when there is one.
+class FrameBudgetClock {
 public:
-    PassSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point start)
-        : m_spp(s.spp), m_seconds(s.time_budget), m_start(start), m_chunk(std::max(1, (s.spp + 15) / 16)) {}
+    FrameBudgetClock(const RenderSettings& s, std::chrono::steady_clock::time_point start)
+        : m_spp(s.spp), m_seconds(s.time_budget), m_start(start) {}
 
     bool timed() const { return m_seconds > 0.0; }
-    double elapsed() const {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+    double elapsed() const { return seconds_since(m_start); }
+    /// Progress (done, total) for the callback: `done` in spp units, or the milliseconds
+    /// elapsed of the time budget.
+    uint64_t progress_done(uint64_t done) const {
+        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0) : done;
     }
+    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+
+protected:
+    int m_spp;
+    double m_seconds;
+    std::chrono::steady_clock::time_point m_start;
+};
+
+/// Passes (pt, bdpt): how many sample passes to run next.
+class PassSchedule : public FrameBudgetClock {
+public:
+    PassSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point start)
+        : FrameBudgetClock(s, start), m_chunk(std::max(1, (s.spp + 15) / 16)) {}
+
     /// Passes to run after `done` of them (0: stop).
     int next(int done) const {
         if (done >= m_spp) return 0;
@@ -144,15 +168,9 @@ public:
         return int(std::max(1.0, std::min(n, double(m_spp - done))));
     }
     /// Progress as (done, total) for the callback: passes, or milliseconds when timed.
-    uint64_t progress_done(int done) const {
-        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0) : uint64_t(done);
-    }
-    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+    uint64_t progress_done(int done) const { return FrameBudgetClock::progress_done(uint64_t(done)); }
 
 private:
-    int m_spp;
-    double m_seconds;
-    std::chrono::steady_clock::time_point m_start;
     int m_chunk;
 };
 
@@ -179,26 +197,16 @@ int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, b
 RenderResult film_result(const Film& film, const FrameCounters& counters, const CycleRate& rate, double secs,
                          const RenderSettings& settings, int threads, int passes, bool cancelled);
 
-/// Seconds since `t0`.
-inline double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 /// Chain rounds (pssmlt, cmlt): the evaluation count each chain runs to in this round.
 /// Fixed budget: k_rounds slices of each chain's budget. Timed: a quota per chain per
 /// round, sized from the measured evaluation rate, until the time is up (or every
 /// chain has spent its budget).
-class ChainSchedule {
+class ChainSchedule : public FrameBudgetClock {
 public:
     static constexpr int k_rounds = 16;  ///< progress / cancel granularity of a fixed budget
 
     ChainSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point frame_start, uint64_t chains)
-        : m_seconds(s.time_budget), m_spp(s.spp), m_start(frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
-
-    bool timed() const { return m_seconds > 0.0; }
-    double elapsed() const {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
-    }
+        : FrameBudgetClock(s, frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
 
     /// Begin the next round; false when the frame is done. `evaluations_so_far`: every
     /// chain's evaluations summed (for the rate).
@@ -249,15 +257,10 @@ public:
     bool last_round() const { return !timed() && m_round >= k_rounds; }
 
     uint64_t progress_done() const {
-        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0)
-                       : uint64_t(m_spp) * uint64_t(m_round) / k_rounds;
+        return FrameBudgetClock::progress_done(uint64_t(m_spp) * uint64_t(m_round) / k_rounds);
     }
-    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
 
 private:
-    double m_seconds;
-    int m_spp;
-    std::chrono::steady_clock::time_point m_start;
     uint64_t m_chains;
     int m_round = 0;
     double m_rate_t0 = 0.0;

@@ -1,6 +1,8 @@
 #pragma once
-/// \file Per-chain path work of PSSMLT: turn the sampler's current primary samples into a
-/// path sample (film position, contribution, f*).
+/// \file The path function of primary-sample-space MLT, shared by both Metropolis
+/// integrators (pssmlt's MltSampler chains, cmlt's keyed states and bundles) and the
+/// temporal carry-over: turn a sampler's primary samples into a path sample (film
+/// position, contribution, f*).
 ///
 /// Two path samplers (RenderSettings::mlt_path_sampler):
 ///  * "bdpt" (default; multiplexed MLT, Hachisuka et al. 2014, DESIGN.md §2): the

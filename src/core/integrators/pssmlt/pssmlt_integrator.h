@@ -30,9 +30,10 @@
 ///   1. bootstrap: N independent large-step samples (parallel, deterministic), b̂ = mean f*;
 ///   2. chains start by resampling the bootstrap pool ∝ f* (no start-up bias,
 ///      mcmc/normalisation.h), replaying the chosen sample from its key;
-///   3. each chain takes its share of the M mutations left of spp·W·H (or runs to the
-///      time budget, frame_loop.h): a large step with
-///      probability `large_step_probability`, else a small wrapped-Gaussian step σ;
+///   3. each chain takes its share of the M mutations left of spp·W·H after the pilot,
+///      the direct pass and the bootstrap (or runs to the time budget, frame_loop.h): a
+///      large step with probability `large_step_probability`, else a small
+///      wrapped-Gaussian step σ;
 ///   4. the f* of every large-step proposal is an independent sample of b too: b is the
 ///      mean over the bootstrap and all large steps (NormalisationAccumulator, merged in
 ///      chain order).
@@ -47,8 +48,9 @@ class Scene;
 
 /// Render one frame with PSSMLT (integrator "pssmlt"). The scene must be committed and
 /// the settings validated (render() does both). `progress(done, total)` is called on
-/// the calling thread in mutations-per-pixel units; returning false stops the chains
-/// and the image is normalised by the mutations taken.
+/// the calling thread after each chain round, in units of `spp` (path evaluations per
+/// pixel; milliseconds with a time budget, frame_loop.h); returning false stops the
+/// chains and the image is normalised by the mutations taken.
 RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                            const ProgressCallback& progress = {});
 
