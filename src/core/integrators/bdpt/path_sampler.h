@@ -1,25 +1,14 @@
 #pragma once
-/// \file The random source of BDPT: three independent streams (camera subpath, light
-/// subpath, connections), as pbrt-v4's MLTSampler, so that a camera subpath that uses
-/// more or fewer numbers does not shift the light subpath's. PSSMLT drives the same
-/// code through its own implementation of this interface (primary samples).
+/// \file Independent numbers for BDPT's three streams (the BdptSampler interface,
+/// base/sampler.h): the pixel samples of the bdpt integrator. The Metropolis integrators
+/// drive the same code with their primary samples (BdptStreamAdapter, pssmlt_tracer.h).
+#include "base/sampler.h"
 #include "math/vec.h"
 #include "sampling/rng.h"
 
 #include <cstdint>
 
 namespace cmlt {
-
-class BdptSampler {
-public:
-    enum Stream : int { k_camera = 0, k_light = 1, k_connection = 2 };
-    virtual ~BdptSampler() = default;
-    /// Continue with stream `index` (0 camera, 1 light, 2 connection), from its start
-    /// the first time it is used in this sample.
-    virtual void start_stream(int index) = 0;
-    virtual float next1d() = 0;
-    virtual Vec2 next2d() = 0;
-};
 
 /// Independent numbers of one pixel sample: Philox keyed by the seed, counter
 /// (pixel, sample, dimension, RngStream::bdpt_camera + stream) (sampling/rng_domains.h);

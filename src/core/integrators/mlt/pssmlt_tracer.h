@@ -38,10 +38,12 @@ struct PathSample {
     int depth = -1, s = -1, t = -1;  ///< technique (bdpt sampler); -1 for the pt sampler
 };
 
-/// BdptSampler over an MltSampler-like sampler (start_stream, set_dimension, get1d,
-/// get2d): BDPT's connection stream starts after the technique dimensions.
+/// BdptSampler over a StreamSampler (base/sampler.h): BDPT's connection stream starts
+/// after the technique dimensions.
 template <class Sampler>
 class BdptStreamAdapter final : public BdptSampler {
+    static_assert(is_stream_sampler_v<Sampler>, "BdptStreamAdapter wraps a StreamSampler (base/sampler.h)");
+
 public:
     explicit BdptStreamAdapter(Sampler& s) : m_s(s) {}
     void start_stream(int index) override {
@@ -81,6 +83,7 @@ public:
     /// numbers read here, where evaluate's path sampling continues.
     template <class Sampler>
     Ray camera_ray(Sampler& sampler, uint32_t* pixel) const {
+        static_assert(is_stream_sampler_v<Sampler>, "a StreamSampler (base/sampler.h)");
         sampler.start_stream(MltSampler::camera);
         sampler.set_dimension(0);
         const Vec2 u = sampler.get2d();
@@ -93,8 +96,8 @@ public:
         return ray;
     }
 
-    /// Evaluate the sampler's current proposal. `Sampler`: MltSampler (or any sampler
-    /// with start_stream + the path_tracer.h interface). `first_hit`, if given, is what
+    /// Evaluate the sampler's current proposal. `Sampler`: a StreamSampler
+    /// (base/sampler.h): MltSampler, coherent::PointSampler. `first_hit`, if given, is what
     /// camera_ray(sampler) hits first (coherent MLT traces the camera rays of a bundle
     /// as one Embree packet, integrators/cmlt): the camera ray is then not traced again.
     /// The pt sampler only: the bdpt sampler's bundles are evaluated by

@@ -5,6 +5,7 @@
 #include "integrators/cmlt/cmlt_state.h"
 #include "integrators/cmlt/perturbations.h"
 #include "integrators/mlt/mlt_sampler.h"
+#include "sampling/rng.h"
 
 #include <gtest/gtest.h>
 
@@ -16,6 +17,17 @@ using namespace cmlt::coherent;
 namespace {
 
 constexpr uint64_t k_seed = 12345;
+
+// The samplers the path routines read (base/sampler.h).
+struct NoStreams {
+    void set_dimension(uint32_t) {}
+    float get1d() { return 0.f; }
+    Vec2 get2d() { return {}; }
+};
+static_assert(is_stream_sampler_v<PointSampler> && is_stream_sampler_v<MltSampler>);
+static_assert(is_path_sampler_v<PixelSampler> && !is_stream_sampler_v<PixelSampler>);
+static_assert(is_path_sampler_v<NoStreams> && !is_stream_sampler_v<NoStreams>);
+static_assert(!is_path_sampler_v<State>);
 
 }  // namespace
 
