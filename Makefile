@@ -3,6 +3,9 @@
 #   make demo   install what is missing, render sequences/cornell into renders/
 #   make test   install what is missing, run ctest (C++) and pytest (Python)
 #   make bench  run the benchmarks in tests/bench (not part of make test)
+#   make schema rewrite plugins/usd/cmltSchemas from the settings table
+#   make test-sanitize  ASan + UBSan build of the core and C++ tests in build/sanitize:
+#               ctest, then a few Python renders with the sanitized module
 #
 # Works as root on a fresh Debian 12 machine; elsewhere set SUDO=sudo or
 # install the APT_PKGS yourself.
@@ -15,12 +18,19 @@ BUILD    := build/py
 SUDO     ?=
 APT_PKGS := build-essential cmake ninja-build libembree-dev libtbb-dev libosd-dev \
             googletest libgtest-dev python3-dev python3-venv
-PY_PKGS  := scikit-build-core nanobind numpy usd-core openimageio "opencolorio>=2.2" \
-            materialx rich matplotlib pytest
+# pyproject.toml's [build-system] requires: the editable install builds without
+# isolation (incremental C++ builds in $(BUILD)), so they must be in the venv. The
+# package's own dependencies and its test extra come from pyproject.toml itself.
+BUILD_REQS := "scikit-build-core>=0.10" "nanobind>=2.0"
 THREADS  ?= 2
 DEMO_FRAMES ?= 1:24
 
-.PHONY: all demo test ctest pytest bench install apt-deps clean
+SAN_BUILD := build/sanitize
+# leaks: on for the C++ suite; off in Python, which keeps its memory until exit
+SAN_UBSAN := UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+SAN_ASAN  := ASAN_OPTIONS=abort_on_error=1:detect_stack_use_after_return=1
+
+.PHONY: all demo test ctest pytest bench install apt-deps schema clean test-sanitize
 
 all: install
 
@@ -31,16 +41,17 @@ apt-deps:
 	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing >/dev/null; \
 	fi
 
-$(VENV)/.deps-stamp: Makefile
+$(VENV)/.deps-stamp: Makefile pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q $(PY_PKGS)
+	$(PY) -m pip install -q $(BUILD_REQS)
 	@touch $@
 
-# Editable install: Python sources are used in place; the C++ core, the
-# nanobind module and the GoogleTest binary build incrementally in $(BUILD).
+# Editable install with the test extra (pytest, matplotlib): Python sources are used
+# in place; the C++ core, the nanobind module and the GoogleTest binary build
+# incrementally in $(BUILD).
 install: apt-deps $(VENV)/.deps-stamp
-	$(PY) -m pip install -q --no-build-isolation -e . \
+	$(PY) -m pip install -q --no-build-isolation -e '.[test]' \
 	  -C build-dir=$(BUILD) -C cmake.define.CMLT_BUILD_TESTS=ON
 
 ctest: install
@@ -57,8 +68,21 @@ demo: install
 	$(VENV)/bin/cmlt contact-sheet 'renders/cornell/cornell.####.exr' \
 	  --out renders/cornell/contact_sheet.png
 
+test-sanitize: install
+	cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMLT_SANITIZE=ON \
+	  -DCMLT_BUILD_TESTS=ON -DPython_EXECUTABLE=$(abspath $(PY)) >/dev/null
+	cmake --build $(SAN_BUILD) -j $(THREADS)
+	$(SAN_ASAN) $(SAN_UBSAN) ctest --test-dir $(SAN_BUILD) --no-tests=error --output-on-failure -j $(THREADS)
+	LD_PRELOAD=$$($(CXX) -print-file-name=libasan.so) $(SAN_ASAN):detect_leaks=0 $(SAN_UBSAN) \
+	  $(PY) tests/sanitize/renders.py $(SAN_BUILD)
+
 bench: install
 	$(PY) tests/bench/run_all.py
+
+# rewrite the USD schema files from the settings table (after editing
+# src/core/integrators/common/render_settings.h; make test fails while they are stale)
+schema: install
+	$(PY) -m cmlt.settings.usd_schema --write
 
 clean:
 	rm -rf build renders

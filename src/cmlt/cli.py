@@ -20,6 +20,7 @@
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
     cmlt compare A B [--json [OUT]]
+    cmlt accuracy SHOT [--seconds 1,2,4,8] [--integrators LIST] [--res WxH] ...  (cmlt.accuracy.cli)
     cmlt --version
 
 Exit codes: 0 done; 1 the shot or the render failed; 2 a bad flag or path;
@@ -35,7 +36,7 @@ import shlex
 import sys
 from typing import List, Optional, Sequence
 
-from . import __version__
+from ._version import __version__
 
 __all__ = ["main", "build_parser", "parse_resolution"]
 
@@ -59,8 +60,10 @@ def parse_resolution(text: str):
         w, h = int(parts[0]), int(parts[1])
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT, e.g. 640x480") from None
-    if w < 1 or h < 1 or w > 65536 or h > 65536:
-        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be 1..65536")
+    from .settings.table import RESOLUTION_RANGE
+    lo, hi = RESOLUTION_RANGE
+    if w < lo or h < lo or w > hi or h > hi:
+        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be {lo}..{hi}")
     return (w, h)
 
 
@@ -110,7 +113,8 @@ def parse_crop(text: str):
 
 def build_parser() -> argparse.ArgumentParser:
     from .io.exr import COMPRESSIONS
-    from .settings import RenderSettings as _Defaults
+    from .settings import DEFAULT_RESOLUTION
+    from .settings.flags import SEQUENCE_GROUP, add_setting_flags
 
     p = _Parser(prog="cmlt", description="Render animated USD shots with coherent "
                 "Metropolis light transport.")
@@ -129,67 +133,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output image; the frame number replaces #### (zero-padded to the "
                    "number of #), ####.### (decimals), $F4/$F or %%04d; fractional frames "
                    "get three decimals (0001.500); default renders/<shot>.####.exr")
-    stage_note = "the stage's cmlt:{} if authored, else {}"
-    r.add_argument("--spp", type=_int_at_least(1),
-                   help="samples per pixel; default: " + stage_note.format("spp", _Defaults.spp))
-    r.add_argument("--time", "--time-budget", type=float, metavar="SECONDS", dest="time_budget",
-                   help="render each frame for this many seconds instead of to a sample "
-                   "budget (with --spp too: whichever comes first); default: "
-                   + stage_note.format("timeBudget", "0 (off)"))
-    r.add_argument("--integrator", metavar="NAME",
-                   help="light transport algorithm; default: "
-                   + stage_note.format("integrator", _Defaults.integrator))
-    r.add_argument("--sigma", type=float, metavar="S",
-                   help="pssmlt small-step size in primary sample space, (0, 1]; default: "
-                   + stage_note.format("sigma", _Defaults.sigma))
-    r.add_argument("--large-step-probability", type=float, metavar="P",
-                   dest="large_step_probability",
-                   help="pssmlt probability of an independent (large) step, [0, 1]; default: "
-                   + stage_note.format("largeStepProbability", _Defaults.large_step_probability))
-    r.add_argument("--chains", type=_int_at_least(1), metavar="N",
-                   help="pssmlt Markov chains per frame (fixed, so images do not depend on "
-                   "the thread count); default: " + stage_note.format("chains", _Defaults.chains))
-    r.add_argument("--bootstrap-samples", type=_int_at_least(1), metavar="N",
-                   dest="bootstrap_samples",
-                   help="pssmlt large-step samples for the normalisation and chain starts, "
-                   "counted in the --spp budget (at most half of it); default: "
-                   + stage_note.format("bootstrapSamples", _Defaults.bootstrap_samples))
-    r.add_argument("--tries", type=_int_at_least(1), metavar="K",
-                   help="cmlt candidates per inner step (one coherent bundle), 1..64; default: "
-                   + stage_note.format("tries", _Defaults.tries))
-    r.add_argument("--inner-length", type=_int_at_least(1), metavar="M", dest="inner_length",
-                   help="cmlt inner steps after each outer (large) step; default: "
-                   + stage_note.format("innerLength", _Defaults.inner_length))
-    r.add_argument("--inner", choices=("seed", "mtm", "bundle"),
-                   help="cmlt inner rule: bundle (multiple-proposal MH, exact), mtm "
-                   "(multiple-try Metropolis, exact), seed (the seminar's 2k splats, biased; "
-                   "comparison only); default: " + stage_note.format("inner", _Defaults.inner))
-    r.add_argument("--importance", choices=("pixel", "luminance"),
-                   help="pssmlt/cmlt importance: pixel (luminance over a pilot image's pixel "
-                   "brightness: even coverage of the image) or luminance (classic MLT); "
-                   "default: " + stage_note.format("importance", _Defaults.importance))
-    r.add_argument("--direct-fraction", type=float, metavar="F", dest="direct_fraction",
-                   help="pssmlt/cmlt: share of the path evaluations for the path-traced direct "
-                   "pass (emitters seen directly, direct light), 0..0.9; 0 = the chains render "
-                   "everything; default: " + stage_note.format("directFraction", _Defaults.direct_fraction))
-    r.add_argument("--pilot-spp", type=_int_at_least(1), metavar="N", dest="pilot_spp",
-                   help="pssmlt/cmlt: path-traced samples per pixel of the pilot image of "
-                   "the pixel importance (at most spp/8); default: "
-                   + stage_note.format("pilotSpp", _Defaults.pilot_spp))
-    r.add_argument("--no-packets", action="store_false", dest="packets",
-                   help="cmlt: trace a bundle's rays one by one instead of as Embree "
-                   "packets (same image, bit for bit; for timing comparisons)")
-    r.add_argument("--seed", type=_int_at_least(0),
-                   help="shot seed, the same for every frame; default: "
-                   + stage_note.format("seed", _Defaults.seed))
-    r.add_argument("--threads", type=_int_at_least(0), default=0,
-                   help="worker threads, 0 = all cores (default 0)")
+    t = r.add_argument_group(SEQUENCE_GROUP)
+    add_setting_flags(r, sequence_group=t)    # every setting of the table that has a flag
     r.add_argument("--res", type=parse_resolution, metavar="WxH",
-                   help="resolution; default: the stage's render settings, else 640x480")
-    r.add_argument("--max-depth", type=_int_at_least(1), dest="max_depth",
-                   help="scattering events per path, 1 = direct light only; default: "
-                   + stage_note.format("maxDepth", _Defaults.max_depth)
-                   + " (paths end by Russian roulette long before)")
+                   help="resolution; default: the stage's render settings, else "
+                   f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}")
     r.add_argument("--camera", metavar="PATH", help="camera prim path (default: the "
                    "render settings' camera, else the stage's camera)")
     r.add_argument("--half", action="store_true", help="write 16-bit half floats")
@@ -204,7 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--aov", type=parse_aovs, metavar="LIST", dest="aov", default=(),
                    help="extra channels in the same EXR: albedo (albedo.R/G/B), normal "
                    "(N.X/Y/Z, world space), depth (Z, along the camera axis; 0 = no hit), "
-                   "variance (variance.R/G/B); comma-separated")
+                   "variance (variance.R/G/B), error (relMSE: the per-pixel relMSE estimate, "
+                   "pt and bdpt); comma-separated")
     r.add_argument("--aov-samples", type=_int_at_least(1), default=4, dest="aov_samples",
                    metavar="N", help="camera rays per pixel of the albedo/normal/depth pass "
                    "(default 4)")
@@ -223,16 +172,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="OCIO view of previews (default: the display's default view)")
     r.add_argument("--resume", action="store_true",
                    help="skip frames whose image already exists")
-    t = r.add_argument_group("sequences (DESIGN.md §4)")
-    t.add_argument("--seed-per-frame", action="store_true", default=None, dest="seed_per_frame",
-                   help="fold the frame number into the seed (independent noise per frame, "
-                   "for comparison; default: one seed for the shot, stored seeds)")
-    t.add_argument("--independent-frames", action="store_false", default=None,
-                   dest="carry_states",
-                   help="do not start each frame's chains from the previous frame's states")
-    t.add_argument("--no-smoothing", action="store_false", default=None,
-                   dest="smooth_normalization",
-                   help="normalise each frame by its own b (no smoothing over frames)")
     t.add_argument("--state-dir", metavar="DIR", dest="state_dir",
                    help="write DIR/state.####.bin per frame (chain states, normalisation "
                    "history) and continue from the state of the frame before the first one "
@@ -272,6 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="OpenColorIO config (default: $OCIO, else the built-in one)")
     from .metrics.cli import add_parsers as _add_metrics_parsers
     _add_metrics_parsers(sub)           # flicker, compare (cmlt.metrics.cli)
+    from .accuracy.cli import add_parser as _add_accuracy_parser
+    _add_accuracy_parser(sub)           # accuracy (cmlt.accuracy.cli; sets args.handler)
     return p
 
 
@@ -297,22 +238,14 @@ def _resume_command(argv: Sequence[str], state_dir: Optional[str] = None) -> str
 def _cmd_render(args, argv: Sequence[str]) -> int:
     from .shot import RenderCancelled, RenderError, RenderOptions, UsageError, render_sequence
 
-    opts = RenderOptions(spp=args.spp, time_budget=args.time_budget, importance=args.importance,
-                         direct_fraction=args.direct_fraction, pilot_spp=args.pilot_spp,
-                         integrator=args.integrator, seed=args.seed,
-                         threads=args.threads, resolution=args.res, max_depth=args.max_depth,
-                         sigma=args.sigma, large_step_probability=args.large_step_probability,
-                         chains=args.chains, bootstrap_samples=args.bootstrap_samples,
-                         tries=args.tries, inner_length=args.inner_length, inner=args.inner,
-                         packets=args.packets,
-                         camera=args.camera, half=args.half, compression=args.compression,
-                         output_colorspace=args.output_colorspace, ocio_config=args.ocio_config,
-                         aovs=tuple(args.aov), aov_samples=args.aov_samples, crop=args.crop,
-                         preview=args.preview, preview_format=args.preview_format,
-                         display=args.display, view=args.view,
-                         carry_states=args.carry_states,
-                         smooth_normalization=args.smooth_normalization,
-                         seed_per_frame=args.seed_per_frame, state_dir=args.state_dir,
+    from .shot.options import SETTING_NAMES
+    opts = RenderOptions(**{name: getattr(args, name) for name in SETTING_NAMES},
+                         resolution=args.res, camera=args.camera, half=args.half,
+                         compression=args.compression, output_colorspace=args.output_colorspace,
+                         ocio_config=args.ocio_config, aovs=tuple(args.aov),
+                         aov_samples=args.aov_samples, crop=args.crop, preview=args.preview,
+                         preview_format=args.preview_format, display=args.display,
+                         view=args.view, state_dir=args.state_dir,
                          fresh_start_on_bad_state=args.fresh_start_on_bad_state)
     log = None
     if args.log_json:
@@ -445,6 +378,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SystemExit as exc:           # --help, --version, usage errors
         return int(exc.code or 0)
     try:
+        if getattr(args, "handler", None) is not None:     # subcommands that bring their own
+            return args.handler(args)
         if args.command == "render":
             return _cmd_render(args, argv)
         if args.command == "inspect":

@@ -46,7 +46,8 @@ class Material:
     name: str                                   # material prim path
     diffuse: Tuple[float, float, float] = (0.18, 0.18, 0.18)
     emission: Tuple[float, float, float] = (0.0, 0.0, 0.0)
-    # Read now, used by the light-transport issue:
+    # the other UsdPreviewSurface inputs (the core's material parameters,
+    # cmlt.shot.bridge.MATERIAL_PARAM_COLUMNS)
     specular: Tuple[float, float, float] = (0.0, 0.0, 0.0)
     use_specular_workflow: bool = False
     metallic: float = 0.0

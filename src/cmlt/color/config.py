@@ -33,6 +33,7 @@ import PyOpenColorIO as ocio
 
 from .spaces import (ACESCG_LUMINANCE, USD_TOKEN_ALIASES, Chromaticities,
                      chromaticities_for_interop_id)
+from .stage_config import stage_config_path
 
 __all__ = [
     "ColorError", "ColorConfig", "load_config", "get_config", "set_config",
@@ -418,57 +419,6 @@ def _prim_text(prim) -> str:
 
 # -- loading ----------------------------------------------------------------------
 
-#: ``colorManagementSystem`` values meaning OpenColorIO (compared case-insensitively)
-OCIO_CMS_NAMES = ("ocio", "opencolorio")
-
-
-def _stage_cms(stage) -> str:
-    try:
-        return str(stage.GetColorManagementSystem() or "").strip()
-    except Exception:                                   # pragma: no cover (old USD)
-        return ""
-
-
-def stage_color_warnings(stage) -> list:
-    """Warnings about the stage's colour-management metadata cmlt cannot
-    honour: a ``colorManagementSystem`` other than OpenColorIO (cmlt manages
-    colour only with OCIO, so the stage's ``colorConfiguration`` is not used).
-    One line each, naming the stage."""
-    if stage is None:
-        return []
-    cms = _stage_cms(stage)
-    if not cms or cms.lower() in OCIO_CMS_NAMES:
-        return []
-    layer = stage.GetRootLayer()
-    where = layer.realPath or layer.identifier
-    asset = stage.GetColorConfiguration()
-    cfg = (asset.path if asset else "") or ""
-    ignored = f"; its colorConfiguration {cfg} is not used" if cfg else ""
-    return [f"{where}: colorManagementSystem is '{cms}', not OpenColorIO{ignored}; cmlt "
-            f"manages colour with OpenColorIO ($OCIO or the built-in config; see "
-            f"`cmlt inspect`)"]
-
-
-def _stage_config(stage) -> Optional[str]:
-    """The stage's ``colorConfiguration`` as a file path or URI, when the
-    stage says it is managed by OCIO (or does not say); otherwise None, and
-    :func:`stage_color_warnings` says so."""
-    if stage is None:
-        return None
-    cms = _stage_cms(stage)
-    if cms and cms.lower() not in OCIO_CMS_NAMES:
-        return None
-    asset = stage.GetColorConfiguration()
-    path = (asset.resolvedPath or asset.path) if asset else ""
-    if not path:
-        return None
-    if "://" not in path and not os.path.isabs(path):
-        layer = stage.GetRootLayer()
-        base = os.path.dirname(layer.realPath) if layer.realPath else os.getcwd()
-        path = os.path.join(base, path)
-    return path
-
-
 def load_config(path: Optional[Union[str, os.PathLike]] = None, *, stage=None) -> ColorConfig:
     """Load the OpenColorIO config cmlt renders with.
 
@@ -481,8 +431,8 @@ def load_config(path: Optional[Union[str, os.PathLike]] = None, *, stage=None) -
         location, source = str(path), "--ocio-config"
     elif os.environ.get(OCIO_ENV):
         location, source = os.environ[OCIO_ENV], f"${OCIO_ENV}"
-    elif _stage_config(stage):
-        location, source = _stage_config(stage), "stage colorConfiguration"
+    elif stage_config_path(stage):
+        location, source = stage_config_path(stage), "stage colorConfiguration"
     else:
         location, source = BUILTIN_CONFIG, "built-in"
     if "://" not in location and not Path(location).is_file():

@@ -22,7 +22,7 @@ ACES_WHITE = (0.32168, 0.33767)     # the ACES white, "about D60" (SMPTE ST 2065
 #: Primaries + white of the gamuts cmlt writes, keyed by the gamut token of
 #: the Color Interop Forum IDs (``lin_<gamut>_scene``, ``srgb_<gamut>_scene``).
 #: Sources: SMPTE ST 2065-1 (AP0), S-2014-004 (AP1), ITU-R BT.709 and BT.2020,
-#: SMPTE EG 432-1 (P3-D65), Adobe RGB (1998). tests/python/test_color.py
+#: SMPTE EG 432-1 (P3-D65), Adobe RGB (1998). tests/python/color/test_color.py
 #: checks each against the matrices OpenColorIO computes.
 GAMUT_CHROMATICITIES: Dict[str, Chromaticities] = {
     "ap1": (0.713, 0.293, 0.165, 0.830, 0.128, 0.044) + ACES_WHITE,

@@ -12,55 +12,36 @@ from __future__ import annotations
 import glob
 import math
 import os
-import re
 from typing import Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 import OpenImageIO as oiio
 
 from ..color import ColorConfig, get_config
+from .frame_pattern import format_frame, frame_of, has_frame_token, match_pattern, number_paths
+from .image import read_rgb
 from .preview import display_attributes, write_display_image, _check_extension
 
 __all__ = ["contact_sheet", "frame_paths", "frame_number", "draw_text_bitmap"]
 
-_FRAME_TOKEN = re.compile(r"(#+|%0?(\d*)d|\$F(\d*)|@+)")
-
-
-def _pattern_to_glob(pattern: str) -> Tuple[str, bool]:
-    """``shot.####.exr`` / ``%04d`` / ``$F4`` / ``@`` -> a glob; second item
-    says whether the pattern had a frame token."""
-    had = bool(_FRAME_TOKEN.search(pattern))
-
-    def repl(m):
-        token = m.group(0)
-        if token.startswith("#") or token.startswith("@"):
-            width = len(token)
-        else:
-            digits = m.group(2) if token.startswith("%") else m.group(3)
-            width = int(digits) if digits else 0
-        return "[0-9]" * width + "*" if width <= 1 else "[0-9]" * width
-    return _FRAME_TOKEN.sub(repl, pattern), had
-
-
-def frame_number(path: str) -> Optional[int]:
-    """The frame number in a file name: its last run of digits (``shot.1001.exr``
-    -> 1001), or ``None``."""
-    stem = os.path.splitext(os.path.basename(path))[0]
-    found = re.findall(r"-?\d+", stem)
-    return int(found[-1]) if found else None
+def frame_number(path: str) -> Optional[float]:
+    """The frame number in a file name (:func:`cmlt.io.frame_pattern.frame_of`:
+    its last number, ``shot.1001.exr`` -> 1001), or ``None``."""
+    return frame_of(path)
 
 
 def frame_paths(paths_or_pattern: Union[str, os.PathLike, Iterable]) -> List[str]:
-    """A list of paths as given, or the files matching a pattern (a glob, or a
-    frame pattern with ``####``, ``%04d``, ``$F4``), sorted by frame number."""
+    """A list of paths as given, or the files a frame pattern (``####``,
+    ``%04d``, ``$F4``; :mod:`cmlt.io.frame_pattern`) names exactly, or the
+    files a glob matches, sorted by frame number."""
     if isinstance(paths_or_pattern, (str, os.PathLike)):
         pattern = os.fspath(paths_or_pattern)
         if os.path.isfile(pattern):
             return [pattern]
-        globbed, _ = _pattern_to_glob(pattern)
-        found = glob.glob(globbed)
-        found = [p for p in found if ".tmp-" not in os.path.basename(p)]   # half-written frames
-        found.sort(key=lambda p: (frame_number(p) is None, frame_number(p) or 0, p))
+        if has_frame_token(pattern):
+            found = [p for _, p in sorted(match_pattern(pattern).items())]
+        else:
+            found = [p for _, p in number_paths(sorted(glob.glob(pattern)))]
         if not found:
             raise FileNotFoundError(f"contact sheet: no files match '{pattern}'")
         return found
@@ -71,22 +52,9 @@ def frame_paths(paths_or_pattern: Union[str, os.PathLike, Iterable]) -> List[str
 
 
 def _read_rgb(path: str, config: ColorConfig) -> np.ndarray:
-    """An image file -> float32 (H, W, 3) in the rendering space."""
-    buf = oiio.ImageBuf(path)
-    if buf.has_error:
-        raise OSError(f"contact sheet: cannot read '{path}': {buf.geterror()}")
-    spec = buf.spec()
-    pix = buf.get_pixels(oiio.FLOAT)
-    if pix is None or buf.has_error:
-        raise OSError(f"contact sheet: cannot read pixels of '{path}': {buf.geterror()}")
-    pix = np.asarray(pix, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    idx = [spec.channelindex(c) for c in ("R", "G", "B")]
-    if min(idx) >= 0:
-        rgb = pix[..., idx]
-    elif spec.nchannels >= 3:
-        rgb = pix[..., :3]
-    else:
-        rgb = np.repeat(pix[..., :1], 3, axis=2)
+    """An image file's colour (:mod:`cmlt.io.image`) -> float32 (H, W, 3) in the
+    rendering space, from the colour space its header declares."""
+    rgb, spec = read_rgb(path)
     src = config.colorspace_of_header(spec)
     return np.asarray(config.convert(rgb, src, config.rendering_space if src else None),
                       dtype=np.float32)
@@ -229,7 +197,7 @@ def contact_sheet(paths_or_pattern, out_path: str, columns: Optional[int] = None
         sheet[y:y + thumb.shape[0], x:x + thumb_width] = thumb
         if label:
             num = frame_number(p)
-            _label(sheet, x, y, str(num if num is not None else i), size, font)
+            _label(sheet, x, y, format_frame(num) if num is not None else str(i), size, font)
     pixels = np.rint(np.clip(sheet, 0.0, 1.0) * 255.0).astype(np.uint8)
     attrs = display_attributes(cfg, display, view)
     attrs["ImageDescription"] = f"cmlt contact sheet of {n} frames; " + attrs["ImageDescription"]

@@ -25,7 +25,7 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .atomic import atomic_path
+from .image import write_image
 
 __all__ = ["COMPRESSIONS", "AOV_CHANNELS", "ExrWriteError", "NonFiniteImageError", "write_exr",
            "read_exr", "check_crop", "read_header", "format_header"]
@@ -65,7 +65,10 @@ def _set_attribute(spec, name: str, value: Any) -> None:
     if isinstance(value, bool):
         spec.attribute(name, int(value))
     elif isinstance(value, (int, np.integer)):
-        spec.attribute(name, int(value))
+        # OIIO's int attribute is 32 bits; a larger count or seed goes in as its
+        # decimal text (the binding raises on it otherwise)
+        v = int(value)
+        spec.attribute(name, v if -2 ** 31 <= v < 2 ** 31 else str(v))
     elif isinstance(value, (float, np.floating)):
         # float32: OIIO's Python binding silently drops double attributes
         # (checked with OIIO 3.2); exact values live in the JSON sidecar
@@ -99,6 +102,7 @@ AOV_CHANNELS = {
     "normal": ("N", ("X", "Y", "Z")),
     "depth": ("Z", None),
     "variance": ("variance", ("R", "G", "B")),
+    "error": ("relMSE", None),          # per-pixel relMSE estimate (cmlt.metrics.error_estimate)
 }
 #: channels written as float even with ``half``
 FLOAT_ONLY_CHANNELS = ("Z",)
@@ -181,39 +185,18 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
     for key, value in (attributes or {}).items():
         _set_raw_attribute(spec, key, value)
 
-    with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(tmp)
-        if out is None:
-            raise ExrWriteError(f"{path}: no EXR writer: {oiio.geterror()}")
-        try:
-            if not out.open(tmp, spec):
-                raise ExrWriteError(f"{path}: cannot open for writing: {out.geterror()}")
-            if not out.write_image(pixels):
-                raise ExrWriteError(f"{path}: write failed: {out.geterror()}")
-        finally:
-            ok = out.close()
-        if not ok:
-            raise ExrWriteError(f"{path}: close failed: {out.geterror()}")
+    write_image(path, spec, pixels, path, error=ExrWriteError)
 
 
 def read_exr(path: str) -> Tuple[np.ndarray, Dict[str, Any]]:
-    """Read an image as float32 (H, W, C) plus all header attributes."""
-    import OpenImageIO as oiio
+    """Read an image as float32 (H, W, C) plus all header attributes
+    (:func:`cmlt.io.image.read_image`), ``channelnames`` and ``format``."""
+    from .image import header, read_image
 
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise OSError(f"{path}: cannot read: {oiio.geterror()}")
-    try:
-        spec = inp.spec()
-        pixels = inp.read_image(oiio.FLOAT)
-        if pixels is None:
-            raise OSError(f"{path}: cannot read pixels: {inp.geterror()}")
-        meta = {a.name: a.value for a in spec.extra_attribs}
-        meta["channelnames"] = tuple(spec.channelnames)
-        meta["format"] = str(spec.format)
-    finally:
-        inp.close()
-    img = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    img, spec = read_image(path)
+    meta = header(spec)
+    meta["channelnames"] = tuple(spec.channelnames)
+    meta["format"] = str(spec.format)
     return img, meta
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from ..color import ColorConfig, get_config
-from .atomic import atomic_path
+from .image import write_image
 
 __all__ = ["write_preview", "write_display_image", "display_attributes", "display_colorspace",
            "display_colorspace_tag", "PREVIEW_EXTENSIONS"]
@@ -59,17 +59,7 @@ def write_display_image(pixels: np.ndarray, path: str,
         spec.attribute(key, value)
     if ext in (".jpg", ".jpeg"):
         spec.attribute("Compression", f"jpeg:{int(jpeg_quality)}")
-    with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(tmp)
-        if out is None:
-            raise OSError(f"preview '{path}': OpenImageIO has no writer: {oiio.geterror()}")
-        try:
-            if not out.open(tmp, spec):
-                raise OSError(f"preview '{path}': cannot open for writing: {out.geterror()}")
-            if not out.write_image(pix):
-                raise OSError(f"preview '{path}': write failed: {out.geterror()}")
-        finally:
-            out.close()
+    write_image(path, spec, pix, f"preview '{path}'")
     return path
 
 

@@ -2,7 +2,7 @@
 
 ::
 
-    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png]
+    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png] [--cvvdp]
     cmlt compare A B [--json [OUT.json]]
 
 SEQUENCE is a frame pattern (``renders/shot.####.exr``, ``$F4``, ``%04d``)
@@ -20,8 +20,8 @@ import sys
 from typing import Optional
 
 from .flicker import FlickerReport, _finite_or_none, compare, flicker
-from .sequence import MetricsError, _GLOB_CHARS, load_image, load_sequence
-from ..shot.frames import has_frame_token
+from ..io.frame_pattern import has_frame_token, is_glob
+from .sequence import MetricsError, load_image, load_sequence
 
 __all__ = ["COMMANDS", "add_parsers", "run", "plot_report"]
 
@@ -44,7 +44,12 @@ def add_parsers(sub) -> None:
                    "with one reference per frame")
     f.add_argument("--json", metavar="PATH", dest="json_out",
                    help="write the report as JSON (- for stdout, instead of the table)")
-    f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (matplotlib)")
+    f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (needs matplotlib: the extra cmlt[plot])")
+    f.add_argument("--cvvdp", action="store_true",
+                   help="also ColorVideoVDP's JOD against the reference (optional package "
+                   "cvvdp; says why when it cannot run)")
+    f.add_argument("--fps", type=float, default=24.0,
+                   help="frame rate the sequence is shown at for --cvvdp (default 24)")
 
     c = sub.add_parser("compare", help="compare two images: relMSE, RMSE, mean ratio, "
                        "max abs diff, PSNR",
@@ -73,7 +78,7 @@ def _frame(f: float) -> str:
 
 
 def _is_sequence(text: str) -> bool:
-    return has_frame_token(text) or bool(_GLOB_CHARS.search(text))
+    return has_frame_token(text) or is_glob(text)
 
 
 def _write_json(path: str, data) -> None:
@@ -131,12 +136,23 @@ def print_report(report: FlickerReport, sequence: str, reference: Optional[str])
         sys.stderr.write(f"cmlt: warning: {w}\n")
 
 
+def _pyplot():
+    """matplotlib.pyplot on the Agg backend; matplotlib is the optional extra
+    ``plot`` (``pip install 'cmlt[plot]'``), so a missing one is a clear error."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise MetricsError("--plot needs matplotlib, which is not installed: "
+                           "pip install 'cmlt[plot]' (or pip install matplotlib)") from None
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    return plt
+
+
 def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
     """Per-frame plot: brightness, I/R (GF) and the frame-to-frame change
     (TF), and relMSE when there is a reference."""
-    import matplotlib
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     rows = 3 if report.mode == "reference" else 2
     fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True)
@@ -183,6 +199,8 @@ def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
 
 
 def _cmd_flicker(args) -> int:
+    if args.plot:
+        _pyplot()                       # before the work: a missing matplotlib fails fast
     frames, images = load_sequence(args.sequence)
     reference = None
     if args.reference:
@@ -213,8 +231,27 @@ def _cmd_flicker(args) -> int:
     data = report.to_dict()
     data["sequence"] = args.sequence
     data["reference"] = args.reference
+    jod_line = None
+    if getattr(args, "cvvdp", False):
+        from . import cvvdp
+        if reference is None:
+            raise MetricsError("--cvvdp needs --reference (ColorVideoVDP is a full-reference "
+                               "metric)")
+        refs = reference if isinstance(reference, list) else [reference] * len(images)
+        why = cvvdp.unavailable()
+        if why:
+            data["cvvdp"] = {"jod": None, "unavailable": why}
+            jod_line = f"ColorVideoVDP: not run: {why}"
+        else:
+            jod = cvvdp.video_jod(images, refs, fps=args.fps)
+            data["cvvdp"] = {"jod": jod, "fps": args.fps}
+            jod_line = f"ColorVideoVDP: {jod:.3f} JOD (10 = no visible difference), {args.fps:g} fps"
     if args.json_out != "-":
         print_report(report, args.sequence, args.reference)
+        if jod_line:
+            _console().print(jod_line, soft_wrap=True, markup=False)
+    elif jod_line and data["cvvdp"]["jod"] is None:
+        sys.stderr.write(f"cmlt: {jod_line}\n")
     if args.json_out:
         _write_json(args.json_out, data)
     if args.plot:

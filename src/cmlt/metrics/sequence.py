@@ -3,7 +3,7 @@
 A sequence is named by
 
 * a frame pattern (``shot.####.exr``, ``shot.$F4.exr``, ``shot.%04d.exr``;
-  the tokens of :mod:`cmlt.shot.frames`): every file on disk that the
+  the tokens of :mod:`cmlt.io.frame_pattern`): every file on disk that the
   pattern names, matched exactly (``shot.####.exr`` finds ``shot.0007.exr``,
   not ``shot.7.exr``);
 * a glob (``renders/shot.*.exr``): the frame number of each file is the last
@@ -14,52 +14,27 @@ A sequence is named by
 Frames are sorted by number. Integral frames must form a complete range with
 one stride (``1..24``, or ``1, 3, ..., 23``): a gap is a missing frame and an
 error that names the missing files. Images are float64 ``(H, W, 3)``: the
-``R, G, B`` channels of the file (other channels and layers of a
-multi-channel EXR are ignored; a one-channel image is repeated into RGB).
+colour of the file by the rule of :mod:`cmlt.io.image`.
 """
 from __future__ import annotations
 
 import glob
 import math
 import os
-import re
 from typing import Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from ..shot.frames import expand_pattern, format_frame, has_frame_token
+from ..io.frame_pattern import (expand_pattern, format_frame, frame_of, has_frame_token, is_glob,
+                                match_pattern, number_paths)
+from ..io.image import ImageReadError, read_rgb
 
 __all__ = ["MetricsError", "load_image", "load_sequence", "find_frames", "frame_of"]
-
-_GLOB_CHARS = re.compile(r"[*?\[]")
-_NUMBER = re.compile(r"(\d+(?:\.\d+)?)")
-_TOKEN = re.compile(r"(#+)(?:\.(#+))?|\$F(\d*)|%(0?\d*)d")
 
 
 class MetricsError(ValueError):
     """Bad input to the metrics: a missing frame, a size mismatch, an unreadable
     file. The message is one line and names the files."""
-
-
-def frame_of(path: str) -> Optional[float]:
-    """The frame number of a file name: its last number (``shot.0012.exr`` -> 12)."""
-    stem = os.path.basename(path)
-    for ext in (".exr", ".png", ".tif", ".tiff", ".hdr", ".jpg", ".jpeg"):
-        if stem.lower().endswith(ext):
-            stem = stem[: -len(ext)]
-            break
-    nums = _NUMBER.findall(stem)
-    return float(nums[-1]) if nums else None
-
-
-def _pattern_regex(pattern: str) -> "re.Pattern[str]":
-    out, pos = [], 0
-    for m in _TOKEN.finditer(pattern):
-        out.append(re.escape(pattern[pos:m.start()]))
-        out.append(r"(\d+(?:\.\d+)?)")
-        pos = m.end()
-    out.append(re.escape(pattern[pos:]))
-    return re.compile("".join(out) + r"\Z")
 
 
 def _check_complete(frames: List[float], describe) -> None:
@@ -84,26 +59,13 @@ def _check_complete(frames: List[float], describe) -> None:
 def find_frames(pattern: str) -> List[Tuple[float, str]]:
     """``(frame, path)`` of every file a pattern or glob names, sorted by frame."""
     if has_frame_token(pattern):
-        rx = _pattern_regex(pattern)
-        # glob.escape only touches * ? [, never a token; the candidates are then
-        # matched against the pattern itself
-        candidates = glob.glob(_TOKEN.sub("*", glob.escape(pattern)))
-        found = {}
-        for path in candidates:
-            m = rx.match(path)
-            if not m:
-                continue
-            frame = float(m.group(1))
-            # exact naming: the pattern must give this very name back
-            if expand_pattern(pattern, frame) != path:
-                continue
-            found[frame] = path
+        found = match_pattern(pattern)
         if not found:
             raise MetricsError(f"{pattern}: no files match the frame pattern")
         items = sorted(found.items())
         _check_complete([f for f, _ in items], lambda f: expand_pattern(pattern, f))
         return items
-    if _GLOB_CHARS.search(pattern):
+    if is_glob(pattern):
         paths = glob.glob(pattern)
         if not paths:
             raise MetricsError(f"{pattern}: no files match")
@@ -115,11 +77,7 @@ def find_frames(pattern: str) -> List[Tuple[float, str]]:
 
 
 def _number_paths(paths: Sequence[str], what: str) -> List[Tuple[float, str]]:
-    numbered = [(frame_of(p), p) for p in paths]
-    if any(f is None for f, _ in numbered):
-        items = [(float(i + 1), p) for i, p in enumerate(paths)]
-    else:
-        items = sorted(numbered)
+    items = number_paths(paths)
     seen = {}
     for f, p in items:
         if f in seen:
@@ -134,38 +92,18 @@ def _number_paths(paths: Sequence[str], what: str) -> List[Tuple[float, str]]:
 
 
 def load_image(path: str) -> np.ndarray:
-    """The RGB channels of an image file as float64 ``(H, W, 3)``."""
-    import OpenImageIO as oiio
-
-    if not os.path.exists(path):
-        raise MetricsError(f"{path}: no such file")
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise MetricsError(f"{path}: cannot read: {oiio.geterror().strip()}")
+    """The colour of an image file (:mod:`cmlt.io.image`) as float64 ``(H, W, 3)``;
+    a non-finite value is a :class:`MetricsError` naming the first pixel."""
     try:
-        spec = inp.spec()
-        names = list(spec.channelnames)
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
-        if pixels is None:
-            raise MetricsError(f"{path}: cannot read pixels: {inp.geterror().strip()}")
-    finally:
-        inp.close()
-    img = np.asarray(pixels, dtype=np.float64).reshape(spec.height, spec.width, spec.nchannels)
-    if all(c in names for c in ("R", "G", "B")):
-        rgb = img[:, :, [names.index("R"), names.index("G"), names.index("B")]]
-    elif spec.nchannels == 1:
-        rgb = np.repeat(img, 3, axis=2)
-    elif spec.nchannels >= 3 and all(n in ("", None) or n.startswith("channel")
-                                     for n in names[:3]):
-        rgb = img[:, :, :3]
-    else:
-        raise MetricsError(f"{path}: no R, G, B channels (channels: {', '.join(names)})")
+        rgb, _ = read_rgb(path, dtype=np.float64)
+    except ImageReadError as exc:
+        raise MetricsError(str(exc)) from None
     bad = ~np.isfinite(rgb)
     if bad.any():
         y, x, c = (int(v) for v in np.argwhere(bad)[0])
         raise MetricsError(f"{path}: {int(bad.sum())} non-finite pixel values "
                            f"(first at x={x}, y={y}, channel {'RGB'[c]})")
-    return np.ascontiguousarray(rgb)
+    return rgb
 
 
 PathsOrPattern = Union[str, os.PathLike, Iterable[Union[str, os.PathLike]]]

@@ -17,22 +17,12 @@ carry a sign in a way that sorts or pads sensibly, and husk/usdrecord users
 render negative pre-roll through an offset layer instead. A frame listed twice
 is rendered once (first occurrence wins; order is otherwise kept).
 
-Output patterns substitute the frame number for a token:
-
-==============  ==============================================
-``####``        zero-padded to the number of ``#`` (``0007``)
-``####.###``    fractional frames with fixed decimals (``0001.500``)
-``$F4``, ``$F`` Houdini: padded to 4 / unpadded
-``%04d``, ``%d``  printf style
-==============  ==============================================
-
-A fractional frame with a token that has no explicit decimals is written
-with three decimals (``cornell.0001.500.exr``); integral frames keep the plain
-form (``cornell.0001.exr``). So a frame's name depends only on the frame,
-never on the rest of the spec, and ``--resume`` works across specs. Two
-frames that would get the same name (``1.0001`` and ``1.0002`` at three
-decimals) are an error, as is a pattern without a token when more than one
-frame is rendered.
+Output patterns (``--out``) substitute the frame number for a token of
+:mod:`cmlt.io.frame_pattern` (``####``, ``####.###``, ``$F4``, ``%04d``). So a
+frame's name depends only on the frame, never on the rest of the spec, and
+``--resume`` works across specs. Two frames that would get the same name
+(``1.0001`` and ``1.0002`` at three decimals) are an error, as is a pattern
+without a token when more than one frame is rendered.
 """
 from __future__ import annotations
 
@@ -40,6 +30,8 @@ import math
 import re
 from typing import List, Optional, Sequence
 
+from ..io import frame_pattern as _pattern
+from ..io.frame_pattern import has_frame_token
 from .errors import UsageError
 
 __all__ = [
@@ -52,8 +44,6 @@ __all__ = [
     "expand_outputs",
 ]
 
-#: decimals used for fractional frames when the pattern does not say
-DEFAULT_DECIMALS = 3
 #: a frame within this distance of an integer counts as that integer
 _INTEGRAL_EPS = 1e-6
 #: upper bound on frames from one spec (a typo like 1:1e9 must not hang)
@@ -156,49 +146,22 @@ def default_frames(start: float) -> List[float]:
     return [_clean(float(start))]
 
 
-def _is_integral(frame: float) -> bool:
-    return abs(frame - round(frame)) < _INTEGRAL_EPS
-
-
 def format_frame(frame: float, width: int = 0, decimals: Optional[int] = None) -> str:
-    """Format one frame number: zero-padded integer part, then decimals.
-
-    ``decimals=None`` means: none for integral frames, three otherwise.
-    """
-    if frame < 0:
-        raise OutputPatternError(f"--out: negative frame {frame:g} cannot be named")
-    if decimals is None:
-        decimals = 0 if _is_integral(frame) else DEFAULT_DECIMALS
-    if decimals == 0:
-        return f"{int(round(frame)):0{width}d}"
-    text = f"{frame:.{decimals}f}"
-    whole, frac = text.split(".")
-    return f"{int(whole):0{width}d}.{frac}"
-
-
-# One regex for every token; alternatives are tried left to right.
-_TOKEN = re.compile(
-    r"(?P<hash>#+)(?:\.(?P<hdec>#+))?"     # #### or ####.###
-    r"|\$F(?P<fw>\d*)"                      # $F4, $F
-    r"|%(?P<pw>0?\d*)d"                     # %04d, %d
-)
-
-
-def has_frame_token(pattern: str) -> bool:
-    return _TOKEN.search(pattern) is not None
+    """:func:`cmlt.io.frame_pattern.format_frame`; a negative frame is an
+    :class:`OutputPatternError`."""
+    try:
+        return _pattern.format_frame(frame, width, decimals)
+    except ValueError as exc:
+        raise OutputPatternError(f"--out: {exc}") from None
 
 
 def expand_pattern(pattern: str, frame: float) -> str:
-    """Substitute ``frame`` for every frame token in ``pattern``."""
-    def repl(m: "re.Match[str]") -> str:
-        if m.group("hash") is not None:
-            width = len(m.group("hash"))
-            dec = len(m.group("hdec")) if m.group("hdec") else None
-            return format_frame(frame, width, dec)
-        if m.group("fw") is not None:
-            return format_frame(frame, int(m.group("fw") or 0))
-        return format_frame(frame, int(m.group("pw") or 0))
-    return _TOKEN.sub(repl, pattern)
+    """:func:`cmlt.io.frame_pattern.expand_pattern`; a negative frame is an
+    :class:`OutputPatternError`."""
+    try:
+        return _pattern.expand_pattern(pattern, frame)
+    except ValueError as exc:
+        raise OutputPatternError(f"--out: {exc}") from None
 
 
 def expand_outputs(pattern: str, frames: Sequence[float]) -> List[str]:

@@ -12,7 +12,7 @@ The core's progress callback runs on a render thread; it only stores numbers
 
 :class:`JsonReporter` (``--log-json``) has the same interface and prints one
 JSON object per line per event on stdout, nothing else: ``sequence_start``,
-``frame_start``, ``frame_done`` (time, rays, rays/s, path), ``warning``,
+``frame_start``, ``frame_done`` (time, rays, rays/s, path, relMSE estimate), ``warning``,
 ``info``, ``frame_aborted``, ``sequence_done`` (frames, time, mean time per
 frame, rays/s, flicker: see :func:`sequence_summary`). Every object has
 ``event`` and ``t`` (Unix time).
@@ -40,7 +40,23 @@ def format_rate(rays_per_s: Optional[float]) -> str:
     return f"{rays_per_s:.0f} rays/s"
 
 
-class Reporter:
+class _OnceWarnings:
+    """Each distinct warning is shown once (``warn`` shows one)."""
+
+    _seen_warnings: Set[str]
+
+    def warnings(self, texts: Iterable[str]) -> int:
+        """Show the warnings not shown before; returns how many were new."""
+        new = 0
+        for t in texts:
+            if t not in self._seen_warnings:
+                self._seen_warnings.add(t)
+                self.warn(t)
+                new += 1
+        return new
+
+
+class Reporter(_OnceWarnings):
     def __init__(self, *, show_progress: bool = True, quiet: bool = False, console=None):
         from rich.console import Console
 
@@ -84,16 +100,6 @@ class Reporter:
             return
         self.console.print(f"cmlt: warning: {text}", markup=False, highlight=False,
                            style="yellow", soft_wrap=True)
-
-    def warnings(self, texts: Iterable[str]) -> int:
-        """Print warnings not printed before; returns how many were new."""
-        new = 0
-        for t in texts:
-            if t not in self._seen_warnings:
-                self._seen_warnings.add(t)
-                self.warn(t)
-                new += 1
-        return new
 
     # -- bars ------------------------------------------------------------
     def start_sequence(self, total: int, skipped: int = 0) -> None:
@@ -148,7 +154,10 @@ class Reporter:
                                       rate=format_rate(stats.get("rays_per_s")))
         t = stats.get("time_s")
         t_text = f"{float(t):.2f} s" if t is not None else "-"
-        self.info(f"frame {frame:g}: {t_text}, {format_rate(stats.get('rays_per_s'))} -> {path}")
+        from ..metrics.error_estimate import estimate_text
+        err = estimate_text(stats.get("error_estimate"))
+        self.info(f"frame {frame:g}: {t_text}, {format_rate(stats.get('rays_per_s'))}"
+                  f"{', ' + err if err else ''} -> {path}")
 
     def abort_frame(self) -> None:
         if self._progress is not None and self._frame_task is not None:
@@ -229,7 +238,7 @@ def _json_safe(value: Any) -> Any:
     return str(value)
 
 
-class JsonReporter:
+class JsonReporter(_OnceWarnings):
     """``--log-json``: one JSON object per line per event on ``stream``
     (stdout), flushed at once so a farm's log collector sees it live."""
 
@@ -258,15 +267,6 @@ class JsonReporter:
     def warn(self, text: str) -> None:
         self.emit("warning", message=text)
 
-    def warnings(self, texts: Iterable[str]) -> int:
-        new = 0
-        for t in texts:
-            if t not in self._seen_warnings:
-                self._seen_warnings.add(t)
-                self.warn(t)
-                new += 1
-        return new
-
     def start_sequence(self, total: int, skipped: int = 0) -> None:
         self._total = int(total)
         self.emit("sequence_start", frames=int(total))
@@ -286,7 +286,8 @@ class JsonReporter:
         self.emit("frame_done", frame=float(frame), path=path,
                   time_s=stats.get("time_s"), wall_time_s=stats.get("wall_time_s"),
                   rays=stats.get("rays"), rays_per_s=stats.get("rays_per_s"),
-                  samples=stats.get("samples"), nan_samples=stats.get("nan_samples", 0))
+                  samples=stats.get("samples"), nan_samples=stats.get("nan_samples", 0),
+                  error_estimate=stats.get("error_estimate"))
 
     def abort_frame(self) -> None:
         self.emit("frame_aborted", index=self._index,

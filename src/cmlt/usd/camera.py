@@ -1,4 +1,4 @@
-"""UsdGeom.Camera -> :class:`cmlt.scene.Camera`, and the framing camera.
+"""UsdGeom.Camera -> :class:`cmlt.scene.Camera`, which camera, and the framing camera.
 
 Camera.transform is rigid (rotation + translation in metres); USD cameras
 look down local -Z with +Y up. Focal length and apertures are kept in their
@@ -6,6 +6,12 @@ authored lens unit (tenths of a scene unit, i.e. mm on a cm stage) -- only
 their ratios matter to a pinhole -- and ``Camera.lens_unit`` says how many
 metres one lens unit is (metersPerUnit / 10). Clipping range and
 focusDistance are converted to metres.
+
+A camera under a scaled transform sees a scaled world: its clipping range,
+focus distance and lens unit are lengths in the camera's own space, so they
+scale with it (by ``cbrt|det|`` of the camera-to-world matrix in metres, which
+is metersPerUnit for an unscaled camera); the rigid part of the transform is
+kept as the camera's pose.
 """
 from __future__ import annotations
 
@@ -13,10 +19,16 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from pxr import Gf, UsdGeom
+from pxr import Gf, Usd, UsdGeom
 
 from ..scene import Camera
+from .errors import UsdLoadError
 from .lights import rigid_and_scale
+from .stage import prim_at, stage_file
+
+
+#: largest float32: camera lengths beyond it would reach the core as inf
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def gf_to_np(m) -> np.ndarray:
@@ -41,7 +53,15 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         v = attr.Get(time) if attr else None
         return _finite(v, default) if v is not None else default
 
-    xf, _ = rigid_and_scale(world_m)
+    if not np.isfinite(np.asarray(world_m, dtype=np.float64)).all():
+        raise UsdLoadError(f"{path}: the camera's transform is not finite (time "
+                           f"{'default' if time.IsDefault() else f'{time.GetValue():g}'})")
+    xf, axes = rigid_and_scale(world_m)
+    # metres per camera-space unit: metersPerUnit times the transform's (uniform) scale
+    det = abs(float(np.linalg.det(np.asarray(world_m, dtype=np.float64)[:3, :3])))
+    unit = det ** (1.0 / 3.0) if math.isfinite(det) and det > 0 else float(mpu)
+    if abs(unit / float(mpu) - 1.0) < 1e-9:
+        unit = float(mpu)           # unscaled: exactly metersPerUnit (no rounding of the cube root)
     proj = cam.GetProjectionAttr().Get(time) or "perspective"
     near, far = 1.0, 1.0e6
     cr = cam.GetClippingRangeAttr().Get(time)
@@ -56,13 +76,13 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
         horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
         vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
-        near=near * mpu,
-        far=far * mpu,
+        near=near * unit,
+        far=far * unit,
         f_stop=get(cam.GetFStopAttr(), 0.0),
-        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * mpu,
+        focus_distance=get(cam.GetFocusDistanceAttr(), 0.0) * unit,
         shutter_open=get(cam.GetShutterOpenAttr(), 0.0),
         shutter_close=get(cam.GetShutterCloseAttr(), 0.0),
-        lens_unit=mpu / 10.0,
+        lens_unit=unit / 10.0,
     )
     if c.focal_length <= 0:
         warnings.append(f"{path}: focalLength is {c.focal_length:g}; using 50")
@@ -71,6 +91,18 @@ def read_camera(prim, time, mpu: float, world_m: np.ndarray, warnings: List[str]
         warnings.append(f"{path}: apertures must be > 0 ({c.horizontal_aperture:g}, "
                         f"{c.vertical_aperture:g}); using 20.955 x 15.2908")
         c.horizontal_aperture, c.vertical_aperture = 20.955, 15.2908
+    if not (0.0 <= c.f_stop < _FLOAT32_MAX):
+        warnings.append(f"{path}: fStop is {c.f_stop:g}; using 0 (a pinhole)")
+        c.f_stop = 0.0
+    if not (0.0 <= c.focus_distance < _FLOAT32_MAX):     # the core holds it in float32
+        warnings.append(f"{path}: focusDistance is {c.focus_distance:g} m; using 0 (no focus plane)")
+        c.focus_distance = 0.0
+    if not (c.lens_unit > 0.0 and c.lens_unit < _FLOAT32_MAX):
+        warnings.append(f"{path}: its transform's scale gives a lens unit of {c.lens_unit:g} m; "
+                        f"using metersPerUnit / 10")
+        c.lens_unit = mpu / 10.0
+    if c.far >= _FLOAT32_MAX:
+        c.far = 1.0e30
     if not (0 < c.near < c.far):
         warnings.append(f"{path}: clippingRange ({near:g}, {far:g}) is not 0 < near < far; "
                         f"using (0.01, 1e6) m")
@@ -108,3 +140,44 @@ def framing_camera(bounds: Optional[Tuple[np.ndarray, np.ndarray]], up_axis: str
     return Camera(name="<framing>", transform=m, focal_length=focal,
                   horizontal_aperture=hap, vertical_aperture=vap,
                   near=near, far=dist + 2.0 * radius, lens_unit=0.001)
+
+
+def camera_at_path(stage, path) -> "Usd.Prim":
+    """The Camera prim at ``path``; UsdLoadError naming the stage when there is
+    none or it is not a Camera."""
+    path = str(path)
+    prim = prim_at(stage, path)
+    if prim is None:
+        raise UsdLoadError(f"{stage_file(stage)}: camera {path} does not exist")
+    if not prim.IsA(UsdGeom.Camera):
+        raise UsdLoadError(f"{stage_file(stage)}: camera {path} is a "
+                           f"{prim.GetTypeName() or 'typeless prim'}, not a Camera")
+    return prim
+
+
+def stage_cameras(stage) -> List:
+    """Every Camera prim of the stage, instance proxies included, in traversal order."""
+    return [p for p in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies())
+            if p.IsA(UsdGeom.Camera)]
+
+
+def instance_bounds(meshes, instances) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """World-space bounds (lo, hi) of the points the instances use, or None."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    by_mesh: Dict[int, List[np.ndarray]] = {}
+    for inst in instances:
+        by_mesh.setdefault(inst.mesh, []).append(inst.transform)
+    for mi, xs in by_mesh.items():
+        p = meshes[mi].points
+        used = np.zeros(len(p), dtype=bool)
+        used[meshes[mi].indices.reshape(-1)] = True
+        p = p[used] if not used.all() else p
+        plo, phi = p.min(axis=0).astype(np.float64), p.max(axis=0).astype(np.float64)
+        corners = np.array([[x, y, z, 1.0] for x in (plo[0], phi[0])
+                            for y in (plo[1], phi[1]) for z in (plo[2], phi[2])])
+        X = np.asarray(xs)                                  # (k, 4, 4)
+        w = np.einsum("kij,cj->kci", X, corners)[..., :3].reshape(-1, 3)
+        lo, hi = np.minimum(lo, w.min(axis=0)), np.maximum(hi, w.max(axis=0))
+    if not np.isfinite(lo).all():
+        return None
+    return lo, hi

@@ -107,6 +107,9 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
     kind = SUPPORTED_LIGHT_TYPES.get(str(prim.GetTypeName()))
     if kind is None:
         return None
+    if not np.isfinite(np.asarray(world_m, dtype=np.float64)).all():
+        warnings.append(f"{path}: its transform is not finite (time {_t(time)}); not rendered")
+        return None
     xf, s = rigid_and_scale(world_m)
 
     def num(name, default):
@@ -172,15 +175,41 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
         if ies and ies.HasAuthoredValue() and ies.Get(time):
             warnings.append(f"{path}: inputs:shaping:ies:file (IES profile) is not "
                             f"supported; ignored")
+    for size in ("width", "height", "radius", "length"):
+        v = getattr(light, size)
+        with np.errstate(over="ignore"):
+            ok = bool(np.isfinite(np.float32(v)))   # the core holds sizes in float32
+        if not ok:
+            warnings.append(f"{path}: its {size} is not finite in world space ({v:g}, time "
+                            f"{_t(time)}); not rendered")
+            return None
+    if kind == "distant" and not math.isfinite(light.angle):     # pragma: no cover (num() checks)
+        light.angle = 0.53
+    if area is not None and not math.isfinite(area):
+        warnings.append(f"{path}: its area overflows (time {_t(time)}); not rendered")
+        return None
     if normalize and area is not None:
         if area > 0:
             radiance = radiance / area
         else:
             warnings.append(f"{path}: normalize is on but the light has zero size; "
                             f"radiance not normalised")
-    radiance = np.where(np.isfinite(radiance), radiance, 0.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        single = np.isfinite(radiance.astype(np.float32))   # the core holds it in float32
+    if not single.all():
+        warnings.append(f"{path}: its radiance is not finite in single precision "
+                        f"({_fmt(radiance)}, time {_t(time)}); those components set to 0")
+        radiance = np.where(single, radiance, 0.0)
+    if (radiance < 0).any():
+        warnings.append(f"{path}: its radiance has negative components ({_fmt(radiance)}, time "
+                        f"{_t(time)}: intensity, exposure and color multiplied); clamped to 0")
+        radiance = np.maximum(radiance, 0.0)
     light.radiance = (float(radiance[0]), float(radiance[1]), float(radiance[2]))
     return light
+
+
+def _fmt(v) -> str:
+    return ", ".join(f"{float(c):g}" for c in v)
 
 
 def _t(time) -> str:

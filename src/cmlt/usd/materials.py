@@ -5,6 +5,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
+import numpy as np
+
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
 
 from ..scene import Material
@@ -376,8 +378,18 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
             return tuple(float(x) for x in v[:3])
         attr = shader.GetInput(name)
         # the input's colorSpace metadata, else ColorSpaceAPI up namespace, else lin_rec709
-        return to_rendering_space(v[:3], attr.GetAttr() if attr else None,
-                                  prim=shader.GetPrim())
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = to_rendering_space(v[:3], attr.GetAttr() if attr else None,
+                                     prim=shader.GetPrim())
+        if not all(math.isfinite(float(c)) for c in out):
+            warnings.append(f"{path}: input {name} is not finite in the rendering space "
+                            f"({_fmt(v[:3])}); using the default")
+            return to_rendering_space(PREVIEW_DEFAULTS[name], None, prim=shader.GetPrim())
+        if min(float(c) for c in out) < 0.0:
+            warnings.append(f"{path}: input {name} has negative components in the rendering "
+                            f"space ({_fmt(out)}); clamped to 0")
+            out = tuple(max(0.0, float(c)) for c in out)
+        return out
 
     def scalar(name):
         v = values.get(name, PREVIEW_DEFAULTS[name])
@@ -387,7 +399,11 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
             f = float(v)
         except (TypeError, ValueError):
             f = float(PREVIEW_DEFAULTS[name])
-        return f if math.isfinite(f) else float(PREVIEW_DEFAULTS[name])
+        if not math.isfinite(f):
+            warnings.append(f"{path}: input {name} is {f}; using the default "
+                            f"{PREVIEW_DEFAULTS[name]}")
+            return float(PREVIEW_DEFAULTS[name])
+        return f
 
     return Material(
         name=path,
@@ -404,6 +420,10 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
         ior=scalar("ior"),
         inputs=inputs,
     )
+
+
+def _fmt(v) -> str:
+    return ", ".join(f"{float(c):g}" for c in v)
 
 
 def bound_material(prim):

@@ -1,14 +1,14 @@
-"""Opening a stage and describing it (``cmlt inspect``)."""
+"""Opening a stage, what the reader supports, and the per-stage state it keeps
+between frames (describing a stage: :mod:`cmlt.usd.info`)."""
 from __future__ import annotations
 
 import math
 import os
 import re
 import weakref
-from dataclasses import dataclass, field
-from typing import Dict, List, Tuple
+from typing import Dict, List
 
-from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux, UsdRender, UsdShade
+from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux
 
 from .diagnostics import capture_usd_diagnostics
 from .errors import UsdLoadError
@@ -27,14 +27,22 @@ SUPPORTED_LIGHT_TYPES = {
 _TF_PREFIX = re.compile(r"Error in '[^']*' at line \d+ in file \S+ : ")
 
 
-def _one_line(text: str) -> str:
+def one_line(text: str) -> str:
     """Collapse a (Tf) error text to one line, without C++ source locations."""
     text = _TF_PREFIX.sub("", str(text))
     parts = [p.strip().strip("'").strip() for p in text.replace("\t", " ").splitlines()]
     return "; ".join(p for p in parts if p)
 
 
-def _stage_file(stage) -> str:
+def prim_at(stage, path: str):
+    """The prim at an absolute prim path, or None (no prim, or not such a path)."""
+    ok = Sdf.Path.IsValidPathString(path) and Sdf.Path(path).IsAbsolutePath()
+    prim = stage.GetPrimAtPath(path) if ok else None
+    return prim if prim else None
+
+
+def stage_file(stage) -> str:
+    """The file of the stage's root layer (its identifier if it has none)."""
     layer = stage.GetRootLayer()
     return layer.realPath or layer.identifier
 
@@ -48,7 +56,7 @@ def composition_warnings(stage) -> List[str]:
     except Exception:                                   # pragma: no cover (old USD)
         errors = []
     for err in errors:
-        msg = _one_line(str(err))
+        msg = one_line(str(err))
         if msg and msg not in out:
             out.append(msg)
     return out
@@ -56,14 +64,14 @@ def composition_warnings(stage) -> List[str]:
 
 class StageState:
     """Per-stage state kept between calls: warnings from opening, and the
-    mesh caches of :mod:`cmlt.usd.frame`. Invalidated when the stage changes."""
+    mesh caches of :mod:`cmlt.usd.traversal`. Invalidated when the stage changes."""
 
     def __init__(self, stage):
         self.stage_ref = weakref.ref(stage)
         self.open_warnings: List[str] = []
         self.mesh_cache: Dict[object, object] = {}
         self.shape_cache: Dict[object, object] = {}
-        # (prim path, stop path) -> the transform might vary in time (frame.py)
+        # (prim path, stop path) -> the transform might vary in time (traversal.py)
         self.xform_anim: Dict[object, bool] = {}
         # (gprim key, material signature) -> (tri_face, material ids): one array
         # object per static mesh, so the bridge recognises it by identity
@@ -91,7 +99,7 @@ def stage_state(stage) -> StageState:
 
 def check_time_metadata(stage) -> None:
     """Raise :class:`UsdLoadError` for a time range cmlt cannot render."""
-    path = _stage_file(stage)
+    path = stage_file(stage)
     tcps = stage.GetTimeCodesPerSecond()
     if not (math.isfinite(tcps) and tcps > 0):
         raise UsdLoadError(f"{path}: timeCodesPerSecond is {tcps:g}; it must be > 0")
@@ -134,9 +142,9 @@ def open_stage(path) -> "Usd.Stage":
         try:
             stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
         except Tf.ErrorException as exc:
-            raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
+            raise UsdLoadError(f"{path}: cannot open the stage: {one_line(exc)}") from None
         except Exception as exc:                        # pragma: no cover
-            raise UsdLoadError(f"{path}: cannot open the stage: {_one_line(exc)}") from None
+            raise UsdLoadError(f"{path}: cannot open the stage: {one_line(exc)}") from None
         if stage is None:
             raise UsdLoadError(f"{path}: cannot open the stage")
         composed = composition_warnings(stage)
@@ -152,7 +160,7 @@ def usd_diagnostic_warnings(stage, diagnostics: List[str], known: List[str]) -> 
     already in ``known`` (which names the layer that introduced it) are
     dropped."""
     out: List[str] = []
-    layer = _stage_file(stage)
+    layer = stage_file(stage)
     for d in diagnostics:
         if any(k.rstrip(".") in d for k in known):
             continue
@@ -160,70 +168,6 @@ def usd_diagnostic_warnings(stage, diagnostics: List[str], known: List[str]) -> 
         if msg not in out:
             out.append(msg)
     return out
-
-
-@dataclass
-class StageInfo:
-    """What is in a stage, for ``cmlt inspect`` and for the frame loop."""
-
-    path: str
-    start: float
-    end: float
-    time_codes_per_second: float
-    fps: float
-    meters_per_unit: float
-    up_axis: str
-    has_authored_time_range: bool
-    prim_counts: Dict[str, int] = field(default_factory=dict)   # by type name
-    meshes: List[str] = field(default_factory=list)             # meshes and intrinsic gprims
-    lights: List[str] = field(default_factory=list)
-    materials: List[str] = field(default_factory=list)
-    cameras: List[str] = field(default_factory=list)
-    render_settings: List[str] = field(default_factory=list)
-    point_instancers: List[str] = field(default_factory=list)
-    ignored: List[Tuple[str, str, str]] = field(default_factory=list)  # (path, type, reason)
-    notes: List[str] = field(default_factory=list)
-    warnings: List[str] = field(default_factory=list)
-    motion_blur: str = ""            # "on: ..." / "off: ..." at the first frame, and why
-    #: the render settings' camera cannot be used (also in ``warnings``; moot with --camera)
-    settings_camera_warning: str = ""
-
-    @property
-    def frame_count(self) -> int:
-        return int(math.floor(self.end - self.start + 1e-9)) + 1
-
-    def format(self) -> str:
-        """A readable multi-line report."""
-        lines = [f"stage      {self.path}"]
-        rng = f"{self.start:g} .. {self.end:g}"
-        if not self.has_authored_time_range:
-            rng += " (not authored)"
-        lines.append(f"time       {rng}, {self.time_codes_per_second:g} time codes/s, {self.fps:g} fps")
-        lines.append(f"units      metersPerUnit {self.meters_per_unit:g}, upAxis {self.up_axis}")
-        if self.motion_blur:
-            lines.append(f"motion blur {self.motion_blur}")
-        if self.prim_counts:
-            counts = ", ".join(f"{k} {v}" for k, v in sorted(self.prim_counts.items()))
-            lines.append(f"prims      {counts}")
-        for title, items in (("meshes", self.meshes), ("lights", self.lights),
-                             ("materials", self.materials), ("cameras", self.cameras),
-                             ("render settings", self.render_settings),
-                             ("point instancers", self.point_instancers)):
-            lines.append(f"{title} ({len(items)})")
-            shown = items[:20]
-            lines.extend(f"  {p}" for p in shown)
-            if len(items) > len(shown):
-                lines.append(f"  ... and {len(items) - len(shown)} more")
-        if self.ignored:
-            lines.append(f"ignored ({len(self.ignored)})")
-            lines.extend(f"  {p} [{t}]: {r}" for p, t, r in self.ignored)
-        if self.notes:
-            lines.append(f"notes ({len(self.notes)})")
-            lines.extend(f"  {n}" for n in self.notes)
-        if self.warnings:
-            lines.append(f"warnings ({len(self.warnings)})")
-            lines.extend(f"  {w}" for w in self.warnings)
-        return "\n".join(lines)
 
 
 def _plural(type_name: str) -> str:
@@ -271,128 +215,24 @@ def ignored_reason(prim) -> str:
     return ""
 
 
-def _is_light(prim) -> bool:
-    return str(prim.GetTypeName()) in SUPPORTED_LIGHT_TYPES
-
-
-def subdivision_note(prim) -> str:
-    scheme = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get()
-    if scheme and scheme != UsdGeom.Tokens.none:
-        from .mesh import subdiv_level_of
-        level = subdiv_level_of(prim)
-        how = (f"refined with OpenSubdiv to level {level}" if level > 0
-               else "rendered as the control cage (level 0)")
-        return f"{prim.GetPath()}: subdivisionScheme is {scheme}; {how}"
-    return ""
-
-
-def settings_camera_problem(stage, settings) -> str:
-    """Why the ``camera`` relationship of a ``UsdRender.Settings`` cannot be
-    used ('' when it can, or when it is not authored): its target does not
-    exist, or is not a Camera. One line naming the settings prim and the
-    target; the frame loop then renders from another camera."""
-    if settings is None:
-        return ""
-    rs = settings if isinstance(settings, UsdRender.Settings) else UsdRender.Settings(settings)
-    targets = rs.GetCameraRel().GetForwardedTargets()
-    if not targets:
-        return ""
-    path = targets[0]
-    prim = stage.GetPrimAtPath(path)
-    if not prim:
-        why = "does not exist"
-    elif not prim.IsA(UsdGeom.Camera):
-        why = f"is a {prim.GetTypeName() or 'typeless prim'}, not a Camera"
+def time_code(stage, time) -> Usd.TimeCode:
+    """``time`` (a number, a Usd.TimeCode or None: the default time) as a time code;
+    UsdLoadError naming the stage if it is not a finite number."""
+    if isinstance(time, Usd.TimeCode):
+        tc = time
+    elif time is None:
+        tc = Usd.TimeCode.Default()
     else:
-        return ""
-    return f"{rs.GetPath()}: camera {path} {why}; rendering from another camera"
+        try:
+            t = float(time)
+        except (TypeError, ValueError):
+            raise UsdLoadError(f"{stage_file(stage)}: time {time!r} is not a number") from None
+        if not math.isfinite(t):
+            raise UsdLoadError(f"{stage_file(stage)}: time {t} is not finite")
+        tc = Usd.TimeCode(t)
+    return tc
 
 
-def _motion_blur_summary(stage, info) -> str:
-    """Motion blur at the first frame: cheap when no camera has an open
-    shutter (the common case); otherwise the frame is read to see whether
-    something moves within the shutter."""
-    open_shutter = False
-    for path in info.cameras:
-        cam = UsdGeom.Camera(stage.GetPrimAtPath(path))
-        o = cam.GetShutterOpenAttr().Get(info.start)
-        c = cam.GetShutterCloseAttr().Get(info.start)
-        if o is not None and c is not None and c > o:
-            open_shutter = True
-    if not info.cameras:
-        return "off: no camera (the framing camera has a closed shutter)"
-    if not open_shutter:
-        return "off: shutter closed (shutter:close <= shutter:open)"
-    from .frame import load_frame                     # noqa: E402 (cycle)
-    try:
-        return load_frame(stage, info.start).motion_blur_reason
-    except Exception as exc:                          # pragma: no cover
-        return f"unknown: {_one_line(str(exc))}"
-
-
-def stage_info(stage) -> StageInfo:
-    """Describe ``stage``: time range, units, what will and will not render."""
-    if stage is None:
-        raise UsdLoadError("stage_info: no stage")
-    check_time_metadata(stage)
-    state = stage_state(stage)
-    layer = stage.GetRootLayer()
-    info = StageInfo(
-        path=_stage_file(stage),
-        start=stage.GetStartTimeCode(),
-        end=stage.GetEndTimeCode(),
-        time_codes_per_second=stage.GetTimeCodesPerSecond(),
-        fps=stage.GetFramesPerSecond(),
-        meters_per_unit=UsdGeom.GetStageMetersPerUnit(stage),
-        up_axis=str(UsdGeom.GetStageUpAxis(stage)),
-        has_authored_time_range=bool(layer.HasStartTimeCode() and layer.HasEndTimeCode()),
-    )
-    warnings = list(state.open_warnings)
-    for w in composition_warnings(stage):
-        if w not in warnings:
-            warnings.append(w)
-    counts: Dict[str, int] = {}
-    for prim in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()):
-        if prim.IsPseudoRoot():
-            continue
-        t = str(prim.GetTypeName()) or "(typeless)"
-        counts[t] = counts.get(t, 0) + 1
-        path = str(prim.GetPath())
-        if t in MESH_TYPES or t in INTRINSIC_TYPES:
-            info.meshes.append(path)
-            if t == "Mesh":
-                note = subdivision_note(prim)
-                if note:
-                    info.notes.append(note)
-        elif _is_light(prim):
-            info.lights.append(path)
-        elif prim.IsA(UsdShade.Material):
-            info.materials.append(path)
-        elif prim.IsA(UsdGeom.Camera):
-            info.cameras.append(path)
-        elif prim.IsA(UsdRender.Settings):
-            info.render_settings.append(path)
-        elif prim.IsA(UsdGeom.PointInstancer):
-            info.point_instancers.append(path)
-        elif t == "SkelRoot":
-            info.notes.append(f"{path}: UsdSkel skinning is applied per frame with usd-core's "
-                              f"UsdSkel (skinning queries); blend shapes are not applied")
-        reason = ignored_reason(prim)
-        if reason:
-            info.ignored.append((path, t, reason))
-    info.prim_counts = counts
-    info.motion_blur = _motion_blur_summary(stage, info)
-    from .frame import _render_settings               # noqa: E402 (cycle)
-    try:
-        settings = _render_settings(stage, None)
-    except UsdLoadError:                               # pragma: no cover
-        settings = None
-    info.settings_camera_warning = settings_camera_problem(stage, settings)
-    if info.settings_camera_warning:
-        warnings.append(info.settings_camera_warning)
-    from ..color.config import stage_color_warnings     # noqa: E402 (PyOpenColorIO: lazily)
-    warnings.extend(w for w in stage_color_warnings(stage) if w not in warnings)
-    if info.meters_per_unit <= 0 or not math.isfinite(info.meters_per_unit):
-        warnings.append(f"{info.path}: metersPerUnit is {info.meters_per_unit:g}; using 0.01")
-    info.warnings = warnings
-    return info
+def tstr(tc) -> str:
+    """A time code in messages: ``default`` or its value."""
+    return "default" if tc.IsDefault() else f"{tc.GetValue():g}"

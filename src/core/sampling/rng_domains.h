@@ -2,7 +2,7 @@
 /// \file The registry of random-number streams: every Philox counter space the renderer
 /// draws from, in one place, so that no two consumers ever share a number by accident
 /// and a new one can see which spaces are taken. All are keyed by the shot seed
-/// (philox.h's seed_key; the temporal pool by its own pool seed) and never by the frame,
+/// (philox.h's seed_key) and never by the frame,
 /// so consecutive frames of a shot reuse the same numbers (DESIGN.md §4, stored seeds).
 ///
 /// Two counter layouts, told apart by the last word:
@@ -24,9 +24,10 @@
 ///    The tag byte starts at 0x10 (RngTag), so the last word is ≥ 2^28: these counters
 ///    never meet the pixel samples'. Within it:
 ///    * tag: which draw of a primary sample (RngTag: a large step's value, a small
-///      step's Gaussian) or the sequential stream of a chain;
+///      step's Gaussian), the sequential stream of a chain, or a keyed uniform of the
+///      carry-over;
 ///    * domain (8 bits, RngDomain): which population — bootstrap sample, chain,
-///      resampling, carry-over evaluation, carry-over pool, carry-over resampling;
+///      resampling, carry-over evaluation, carry-over keep tests and refresh draws;
 ///    * id: the index inside the domain (bootstrap sample i, chain c, ...);
 ///    * draw: the proposal number (MltSampler, coherent MLT's keys) or the draw count
 ///      (CounterRng), 48 bits;
@@ -73,6 +74,7 @@ enum class RngTag : uint32_t {
     point = 0,       ///< a primary sample's refresh and large-step values (MltSampler, keyed states)
     sequence = 1,    ///< a chain's sequential numbers (CounterRng)
     small_step = 2,  ///< a primary sample's small-step Gaussian (MltSampler)
+    keyed = 3,       ///< one keyed uniform (temporal::keyed_uniform)
 };
 
 /// Populations of the Metropolis counters (`id` is the index inside one).
@@ -81,8 +83,8 @@ enum class RngDomain : uint32_t {
     chain = 2,              ///< id = chain index
     resample = 3,           ///< id = 0: resampling the chains' start states
     carry_evaluate = 0x40,  ///< temporal/carry.h: id = carried state index
-    carry_pool = 0x41,      ///< temporal/carry.h: id = pool point index (keyed by the pool seed)
-    carry_resample = 0x42,  ///< temporal/carry.h: id = frame key, the resampling uniform
+    carry_keep = 0x43,      ///< temporal/carry.h: id = chain, draw = frame key: keep tests
+    carry_refresh = 0x44,   ///< temporal/carry.h: id = group, draw = frame key: refresh draws
     test = 0xFF,            ///< tests' own chains (tests/cpp)
 };
 

@@ -1,9 +1,8 @@
 // The RNG module's registry (sampling/rng_domains.h) and shared conversions
-// (sampling/rng.h): the counter spaces stay disjoint, the temporal carry-over's domains
-// are the registry's, and the conversions keep every primary sample in [0, 1).
+// (sampling/rng.h): the counter spaces stay disjoint and the conversions keep every
+// primary sample in [0, 1).
 #include "sampling/rng.h"
 #include "sampling/rng_domains.h"
-#include "temporal/carry.h"
 
 #include <gtest/gtest.h>
 
@@ -13,14 +12,9 @@
 
 using namespace cmlt;
 
-// temporal/carry.h keys its numbers with its own constants; they must be the registry's.
-static_assert(temporal::k_domain_evaluate == uint32_t(RngDomain::carry_evaluate));
-static_assert(temporal::k_domain_pool == uint32_t(RngDomain::carry_pool));
-static_assert(temporal::k_domain_carry == uint32_t(RngDomain::carry_resample));
-
 TEST(RngDomains, MetropolisDomainsAreDistinctAndFitTheirByte) {
     const RngDomain all[] = {RngDomain::bootstrap,      RngDomain::chain,      RngDomain::resample,
-                             RngDomain::carry_evaluate, RngDomain::carry_pool, RngDomain::carry_resample,
+                             RngDomain::carry_evaluate, RngDomain::carry_keep, RngDomain::carry_refresh,
                              RngDomain::test};
     std::set<uint32_t> seen;
     for (RngDomain d : all) {
@@ -35,7 +29,7 @@ TEST(RngDomains, PixelAndMetropolisCountersNeverMeet) {
     const RngStream streams[] = {RngStream::camera_path, RngStream::bdpt_camera, RngStream::bdpt_light,
                                  RngStream::bdpt_connection, RngStream::test};
     for (RngStream s : streams) EXPECT_LT(pixel_counter(1, 2, 3, s)[3], 1u << 16);
-    const RngTag tags[] = {RngTag::point, RngTag::sequence, RngTag::small_step};
+    const RngTag tags[] = {RngTag::point, RngTag::sequence, RngTag::small_step, RngTag::keyed};
     std::set<uint32_t> words;
     for (RngTag t : tags) {
         const uint32_t w = metropolis_counter(t, RngDomain::chain, 4, 0xFFFF00000005ull, 6)[3];

@@ -1,7 +1,16 @@
 #pragma once
 /// \file Render settings, results and statistics shared by all integrators.
+///
+/// The settings table below is the one source of every setting: the fields of
+/// RenderSettings, their defaults and ranges (RenderSettings::validate), the bindings
+/// (src/bindings/bind_render.cpp, which also export the table as
+/// `cmlt._core.settings_table()`), and from there the Python side: the command-line
+/// flags, the stage attribute lookup and its checks (cmlt.settings) and the USD schema
+/// (plugins/usd/cmltSchemas/resources/*.usda, written by `python -m
+/// cmlt.settings.usd_schema --write`; tests/python/settings checks they have not drifted).
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -12,66 +21,152 @@ namespace mlt {
 struct ChainStates;  // integrators/mlt/chain_state.h
 }
 
-/// Settings of one frame. Each field: default, valid range.
-struct RenderSettings {
-    int width = 640;               ///< image width in pixels, >= 1
-    int height = 480;              ///< image height in pixels, >= 1
-    int spp = 16;                  ///< samples per pixel, >= 1
-    double time_budget = 0.0;      ///< seconds, >= 0; > 0: the frame also stops when this
-                                   ///< much time has passed (integrators/common/frame_loop.h)
-    int max_depth = 64;            ///< max scattering events (pbrt): 1 = direct lighting, >= 1
-    uint64_t seed = 0;             ///< RNG seed; same seed -> same image at any thread count
-    int threads = 0;               ///< worker threads, 0 = all cores, >= 0
-    std::string integrator = "pt"; ///< "pt" (path tracing with NEE + MIS), "bdpt" (bidirectional),
-                                   ///< "pssmlt" (primary-sample-space MLT over PT's sampling;
-                                   ///< `spp` = mutations per pixel, bootstrap included),
-                                   ///< "cmlt" (coherent MLT; `spp` = path evaluations per pixel)
+namespace settings_limits {
+constexpr int k_int_max = std::numeric_limits<int>::max();
+constexpr double k_inf = std::numeric_limits<double>::infinity();
+}  // namespace settings_limits
 
-    // Metropolis (pssmlt). Defaults: pbrt-v4's published MLT defaults (shared/NOTES.md).
-    double sigma = 0.01;                  ///< small-step Gaussian σ per primary sample, (0, 1]
-    double large_step_probability = 0.3;  ///< probability of an independent (large) step, [0, 1]
-    int chains = 1000;                    ///< Markov chains per frame, >= 1 (fixed: the image
-                                          ///< does not depend on the thread count)
-    int bootstrap_samples = 100000;       ///< large-step samples for b and the chain starts,
-                                          ///< >= 1; at most half of spp·W·H is used
-    std::string mlt_path_sampler = "bdpt";  ///< pssmlt's path sampler: "bdpt" (multiplexed
-                                            ///< over depth and (s, t)) or "pt" (path tracer)
-    /// pssmlt: start the chains from these states instead of resampling the bootstrap
-    /// (one chain per state; integrators/mlt/chain_state.h). nullptr / empty: bootstrap.
+// The settings table. One row per setting, one macro per kind:
+//
+//   INT  (name, default, min, max,           attribute, flag, doc)   int, [min, max]
+//   REAL (name, default, min, max, min_open, attribute, flag, doc)   double, [min, max]
+//                                                                     or (min, max]; finite
+//   U64  (name, default,                     attribute, flag, doc)   uint64_t, any value
+//   BOOL (name, default,                     attribute, flag, doc)   bool
+//   TOKEN(name, default, allowed,            attribute, flag, doc)   std::string, one of the
+//                                                                     space-separated tokens
+//
+// attribute: the CmltRenderSettingsAPI attribute on a UsdRender.Settings prim ("": not a
+// stage setting). flag: the `cmlt render` flag, its aliases after '|', then its metavar
+// ("--time-budget|--time SECONDS"); a BOOL's flag sets the opposite of its default;
+// "": no flag. doc: one phrase, used by the schema, the flag's help and the bindings.
+//
+// Ranges, where the layers used to disagree (the table is now the only statement):
+// * seed: any uint64. The core keys its counter-based streams by all 64 bits and the
+//   frame loop's per-frame seeds (seed_per_frame) use them; the former 2^31 - 1 cap of
+//   the stage and the flags came only from the schema's `int` type (now uint64; stages
+//   authoring an int seed still read).
+// * tries 1..64, pilot_spp 1..64, max_depth 1..1024, inner_length 1..10^6: the stage's
+//   ranges, which the core already enforced for tries and pilot_spp; the flags checked
+//   only the lower bound and the core left max_depth and inner_length open. A value the
+//   stage refuses is now refused by every layer.
+// * width, height 1..65536 (the --res flag's limit; the stage and the core had none
+//   but the product's, which validate still checks).
+//
+// Defaults: pbrt-v4's published MLT defaults for sigma, large_step_probability, chains
+// and bootstrap_samples (shared/NOTES.md); tries and inner_length from the coherent-MLT
+// parameter study (README.md, tests/bench/cmlt_params.py).
+#define CMLT_RENDER_SETTINGS(INT, REAL, U64, BOOL, TOKEN)                                    \
+    TOKEN(integrator, "pt", "pt bdpt pssmlt cmlt", "cmlt:integrator", "--integrator",   \
+          "light transport: pt (path tracing, NEE + MIS), bdpt (bidirectional), pssmlt "     \
+          "(primary-sample-space MLT), cmlt (coherent MLT)")                                 \
+    INT(spp, 16, 1, settings_limits::k_int_max, "cmlt:spp", "--spp N",                       \
+        "samples per pixel (pt, bdpt) or path evaluations per pixel (pssmlt, cmlt: "         \
+        "mutations, bootstrap, pilot and direct pass included)")                             \
+    REAL(time_budget, 0.0, 0.0, settings_limits::k_inf, false, "cmlt:timeBudget",            \
+         "--time-budget|--time SECONDS",                                                     \
+         "wall-clock seconds per frame, 0 = off; with a sample budget too, whichever "       \
+         "comes first")                                                                      \
+    U64(seed, 0, "cmlt:seed", "--seed S",                                                    \
+        "shot seed, the same for every frame: random streams are keyed by (seed, chain or "  \
+        "pixel, dimension), never by thread")                                                \
+    INT(max_depth, 64, 1, 1024, "cmlt:maxDepth", "--max-depth N",                            \
+        "scattering events per path, counted as pbrt does (1 = direct light only); paths "   \
+        "end by Russian roulette long before")                                               \
+    REAL(sigma, 0.01, 0.0, 1.0, true, "cmlt:sigma", "--sigma S",                             \
+         "pssmlt/cmlt: standard deviation of the Gaussian small step in primary sample "     \
+         "space (cmlt's lens perturbation: sigma * max(width, height) pixels)")              \
+    INT(tries, 2, 1, 64, "cmlt:tries", "--tries K",                                          \
+        "cmlt: k, candidates per inner step, drawn and traced as one coherent bundle")       \
+    INT(inner_length, 4, 1, 1000000, "cmlt:innerLength", "--inner-length M",                 \
+        "cmlt: m, inner steps after each outer (large) step")                                \
+    REAL(large_step_probability, 0.3, 0.0, 1.0, false, "cmlt:largeStepProbability",          \
+         "--large-step-probability P",                                                       \
+         "pssmlt/cmlt: probability of an independent (large) step of the outer chain")       \
+    INT(chains, 1000, 1, settings_limits::k_int_max, "cmlt:chains", "--chains N",            \
+        "pssmlt/cmlt: Markov chains per frame (fixed, so that the image does not depend on " \
+        "the thread count)")                                                                 \
+    INT(bootstrap_samples, 100000, 1, settings_limits::k_int_max, "cmlt:bootstrapSamples",   \
+        "--bootstrap-samples N",                                                             \
+        "pssmlt/cmlt: large-step samples estimating the normalisation b and seeding the "    \
+        "chains, counted in the sample budget (at most half of it is used)")                 \
+    TOKEN(inner, "bundle", "seed mtm bundle", "cmlt:inner", "--inner",                  \
+          "cmlt inner rule: bundle (multiple-proposal MH, Calderhead 2014; exact), mtm "     \
+          "(multiple-try Metropolis, Liu et al. 2000; exact), seed (the seminar's 2k "       \
+          "splats; biased, for comparison only)")                                            \
+    TOKEN(importance, "pixel", "pixel luminance", "cmlt:importance", "--importance",    \
+          "pssmlt/cmlt importance: pixel (luminance over a smoothed pilot image's pixel "    \
+          "brightness: the chains cover the image about evenly) or luminance (classic MLT)") \
+    REAL(direct_fraction, 0.3, 0.0, 0.9, false, "cmlt:directFraction", "--direct-fraction F", \
+         "pssmlt/cmlt: share of the path evaluations spent on the path-traced direct pass "  \
+         "(emitters seen directly, direct light; the chains render longer paths); 0 = the "  \
+         "chains render everything")                                                         \
+    INT(pilot_spp, 1, 1, 64, "cmlt:pilotSpp", "--pilot-spp N",                               \
+        "pssmlt/cmlt: path-traced samples per pixel of the pixel importance's pilot image "  \
+        "(at most spp/8; counted in the budget)")                                            \
+    INT(width, 640, 1, 65536, "", "",                                                        \
+        "image width in pixels (the stage's UsdRender resolution or --res)")                 \
+    INT(height, 480, 1, 65536, "", "",                                                       \
+        "image height in pixels (the stage's UsdRender resolution or --res)")                \
+    INT(threads, 0, 0, settings_limits::k_int_max, "", "--threads N",                        \
+        "worker threads, 0 = all cores; the image does not depend on it")                    \
+    BOOL(packets, true, "", "--no-packets",                                                  \
+         "cmlt: trace a bundle's rays (camera rays, subpath bounces, shadow rays) as "       \
+         "Embree packets; off: one by one, the same image bit for bit (for timing "          \
+         "comparisons)")                                                                     \
+    TOKEN(mlt_path_sampler, "bdpt", "bdpt pt", "", "",                                       \
+          "pssmlt's path sampler: bdpt (multiplexed over depth and strategy (s, t)) or pt "  \
+          "(the path tracer)")
+
+// Settings of the sequence that the Python frame loop reads (DESIGN.md §4); the core
+// has no field for them. Same columns.
+#define CMLT_SEQUENCE_SETTINGS(INT, REAL, U64, BOOL, TOKEN)                                  \
+    BOOL(carry_states, true, "cmlt:temporal:carryStates", "--independent-frames",            \
+         "start each frame's chains where the previous frame's started, coupled: a start "   \
+         "moves only where its target changed (and follows the camera)")                    \
+    BOOL(smooth_normalization, true, "cmlt:temporal:smoothNormalization", "--no-smoothing",  \
+         "smooth the MLT normalisation b over neighbouring frames while the lighting does "  \
+         "not change")                                                                       \
+    BOOL(seed_per_frame, false, "cmlt:temporal:seedPerFrame", "--seed-per-frame",            \
+         "fold the frame number into the random streams (independent noise per frame, for "  \
+         "comparison; more flicker); off keeps stored seeds")
+
+/// Settings of one frame: the fields of the table above, plus inputs that the temporal
+/// driver hands over (not settings: no default, range or flag).
+struct RenderSettings {
+#define CMLT_DECLARE_INT(name, def, lo, hi, attr, flag, doc) int name = def;
+#define CMLT_DECLARE_REAL(name, def, lo, hi, lo_open, attr, flag, doc) double name = def;
+#define CMLT_DECLARE_U64(name, def, attr, flag, doc) uint64_t name = def;
+#define CMLT_DECLARE_BOOL(name, def, attr, flag, doc) bool name = def;
+#define CMLT_DECLARE_TOKEN(name, def, allowed, attr, flag, doc) std::string name = def;
+    CMLT_RENDER_SETTINGS(CMLT_DECLARE_INT, CMLT_DECLARE_REAL, CMLT_DECLARE_U64, CMLT_DECLARE_BOOL,
+                         CMLT_DECLARE_TOKEN)
+#undef CMLT_DECLARE_INT
+#undef CMLT_DECLARE_REAL
+#undef CMLT_DECLARE_U64
+#undef CMLT_DECLARE_BOOL
+#undef CMLT_DECLARE_TOKEN
+
+    /// pssmlt/cmlt: start the chains from these states instead of resampling the
+    /// bootstrap (one chain per state; integrators/mlt/chain_state.h). nullptr / empty:
+    /// bootstrap.
     std::shared_ptr<const mlt::ChainStates> mlt_initial_states;
-    /// Importance function of the chains (integrators/mlt/pixel_importance.h): "pixel"
-    /// (f* = luminance / smoothed pilot brightness of the pixel: chains cover the image
-    /// about uniformly) or "luminance" (f* = luminance, classic MLT).
-    std::string importance = "pixel";
-    /// Path-traced samples per pixel of the pilot image of the "pixel" importance, [1, 64];
-    /// they count against the budget of path evaluations.
-    int pilot_spp = 1;
-    /// pssmlt/cmlt: share of the frame's path evaluations spent on the direct pass,
-    /// [0, 0.9]. With f > 0, paths of 0 and 1 scattering events (emitters seen directly,
-    /// direct lighting) are rendered by ordinary Monte Carlo (NEE + MIS, keyed samples,
-    /// interleaved with the chains so it scales with a sample or a time budget) and the
-    /// chains render depth >= 2 only; 0 = the chains render all.
-    double direct_fraction = 0.3;
-    /// The pilot image (H, W, 3) to use instead of rendering one (the temporal driver
-    /// renders it once per frame for the render and its carry-over evaluations). Its
-    /// cost is counted as if rendered (pilot_spp · W·H evaluations).
+    /// pssmlt/cmlt: f* of the frame's bootstrap samples 0..n-1 to use instead of
+    /// evaluating them (the temporal driver evaluates them before the render, to choose
+    /// the chain starts: temporal/carry.h). Exactly the frame's bootstrap count; counted
+    /// in the budget as if evaluated. nullptr: the render evaluates them.
+    std::shared_ptr<const std::vector<double>> mlt_bootstrap_f;
+    /// pssmlt/cmlt: offset of the chains' film position on the torus, [0, 1) per axis
+    /// (pssmlt_tracer.h shift_film: the same target, reparametrised); the temporal driver
+    /// moves it with the camera. Default 0, 0.
+    double mlt_film_offset_x = 0.0, mlt_film_offset_y = 0.0;
+    /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
+    /// (the temporal driver renders it once per frame for the render and its carry-over
+    /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).
     std::shared_ptr<const std::vector<float>> pilot;
 
-    // Coherent MLT (cmlt, DESIGN.md §3): after each outer large step, `inner_length`
-    // inner steps of `tries` candidates each, drawn as one bundle by a lens / caustic
-    // perturbation (σ_lens = sigma · max(W, H) pixels) or a pixel move.
-    // Defaults: parameter study on sequences/cornell at equal time (see
-    // integrators/cmlt/cmlt_integrator.h).
-    int tries = 2;                 ///< k, candidates per inner step, [1, 64]
-    int inner_length = 4;          ///< m, inner steps per outer step, >= 1
-    std::string inner = "bundle";  ///< inner rule: "bundle" (multiple-proposal MH, exact),
-                                   ///< "mtm" (Liu et al., exact), "seed" (the seminar's
-                                   ///< 2k splats; biased, comparison only)
-    bool packets = true;           ///< trace a bundle's rays (camera, walk bounces, shadow
-                                   ///< rays) as Embree packets; off: one by one
-                                   ///< (bit-identical image, for comparison)
-
-    /// Throws SettingsError naming the bad field.
+    /// Every field against the table's range, and width · height <= 2^31. Throws
+    /// SettingsError "RenderSettings.<field>: ..." naming the field.
     void validate() const;
 };
 
@@ -136,7 +231,8 @@ struct RenderStats {
     std::string integrator;
     int spp = 0;
     uint64_t seed = 0;
-    MltStats mlt;                  ///< filled by "pssmlt" only (mlt.enabled)
+    MltStats mlt;                  ///< filled by the Metropolis integrators, pssmlt and cmlt
+                                   ///< (mlt.enabled)
 };
 
 struct RenderResult {
@@ -152,9 +248,10 @@ struct RenderResult {
     std::vector<float> bootstrap_f;
     bool cancelled = false;
     RenderStats stats;
-    /// pssmlt: the final state of every chain (integrators/mlt/chain_state.h).
+    /// pssmlt / cmlt: the final state of every chain (integrators/mlt/chain_state.h).
     std::shared_ptr<mlt::ChainStates> mlt_states;
-    /// pssmlt: the state every chain started the frame from (after resampling or import).
+    /// pssmlt / cmlt: the state every chain started the frame from (after resampling or
+    /// import).
     std::shared_ptr<mlt::ChainStates> mlt_start_states;
 };
 

@@ -4,7 +4,8 @@
 /// integrators differ only in what a chain is and how it steps; both run this.
 ///
 ///   1. bootstrap (`bootstrap`): N independent large-step samples, f* of each evaluated
-///      in parallel (keyed (seed, bootstrap, i): the same points in pssmlt and cmlt);
+///      in parallel (keyed (seed, bootstrap, i): the same points in pssmlt and cmlt), or
+///      given (RenderSettings::mlt_bootstrap_f, the temporal driver's coupled starts);
 ///      b̂ = their mean, accumulated in index order (deterministic);
 ///   2. chain starts (`start`), either
 ///      * resampled from the bootstrap pool ∝ f* (mcmc::resample_start_indices with the
@@ -85,22 +86,32 @@ public:
     size_t size() const { return m_chains.size(); }
     const Chain& operator[](size_t i) const { return *m_chains[i]; }
 
-    /// 1. f* of bootstrap samples 0..N−1: `eval(i, PathCounters&, bool& invalid) -> double`.
+    /// 1. f* of bootstrap samples 0..N−1: `eval(i, PathCounters&, bool& invalid) -> double`,
+    /// or RenderSettings::mlt_bootstrap_f if given (the temporal driver evaluated them
+    /// already; it must hold N values), which is not evaluated again.
     template <class Eval>
     void bootstrap(Eval&& eval) {
         MltFrame& fr = m_frame;
-        m_boot_f.assign(fr.budget.bootstrap, 0.0);
-        parallel_tasks(fr.arena, fr.counters, fr.budget.bootstrap, uint64_t(256),
-                       [&](const tbb::blocked_range<uint64_t>& r) {
-                           PathCounters c;
-                           uint64_t bad = 0;
-                           for (uint64_t i = r.begin(); i != r.end(); ++i) {
-                               bool invalid = false;
-                               m_boot_f[i] = eval(i, c, invalid);
-                               bad += invalid ? 1 : 0;
-                           }
-                           fr.counters.add(c, bad);
-                       });
+        const uint64_t n = fr.budget.bootstrap;
+        if (const auto& given = fr.settings.mlt_bootstrap_f) {
+            if (given->size() != n)
+                CMLT_THROW(SettingsError, "RenderSettings.mlt_bootstrap_f holds "
+                                              << given->size() << " values, the frame's bootstrap has " << n
+                                              << " samples");
+            m_boot_f = *given;
+        } else {
+            m_boot_f.assign(n, 0.0);
+            parallel_tasks(fr.arena, fr.counters, n, uint64_t(256), [&](const tbb::blocked_range<uint64_t>& r) {
+                PathCounters c;
+                uint64_t bad = 0;
+                for (uint64_t i = r.begin(); i != r.end(); ++i) {
+                    bool invalid = false;
+                    m_boot_f[i] = eval(i, c, invalid);
+                    bad += invalid ? 1 : 0;
+                }
+                fr.counters.add(c, bad);
+            });
+        }
         for (double f : m_boot_f) m_boot_acc.add(f);  // index order: deterministic
         m_b_boot = m_boot_acc.estimate();
     }

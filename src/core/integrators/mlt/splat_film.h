@@ -1,6 +1,6 @@
 #pragma once
 /// \file Splat film of the Metropolis integrators: per-pixel sums of weighted colours,
-/// accumulated in 64-bit fixed point (32 fractional bits) with atomic integer adds.
+/// accumulated in 128-bit fixed point (32 fractional bits) with atomic integer adds.
 ///
 /// Why fixed point: integer addition is exact and commutative, so the sum does not
 /// depend on the order in which chains running on different threads splat — the image
@@ -8,8 +8,18 @@
 /// films would cost chains × image memory; per-thread ones depend on the scheduling).
 /// The resolution, 2^-32 ≈ 2.3e-10 per splat, is finer than a double's relative
 /// precision at the sums reached (the DESIGN.md §2 concern: float sums drift at high
-/// sample counts); the range, ±2^31 per pixel and channel, holds e.g. 10^7 mutations per
-/// pixel of splats up to 100. A single splat beyond ±2^30 is clamped and counted.
+/// sample counts). A single splat beyond ±2^30 is clamped and counted.
+///
+/// Range: one int64 word would hold ±2^31 per pixel and channel, which a bright pixel
+/// passes at high mutation counts (10^6 under the pixel importance at 4,000 mutations per
+/// pixel; the luminance target's L/Y of a saturated colour over 10^8 splats) — and wrap
+/// around silently. So each sum is a 128-bit two's-complement integer in two words:
+/// `lo` (unsigned, the fixed-point value mod 2^64) gets every splat q with fetch_add, and
+/// the carry out of that add (known exactly from the value fetch_add returns) plus q's
+/// sign extension go to `hi`. Each carry belongs to one add in lo's modification order,
+/// so the pair sums exactly whatever the order; hi is touched only when lo wraps (a sum
+/// crossing a multiple of 2^32 in value units or changing sign), so the common path is one
+/// atomic add as before, and sums inside the old range read back bit-identically.
 #include "math/vec.h"
 
 #include <atomic>
@@ -26,8 +36,12 @@ public:
     static constexpr double k_max_splat = 1073741824.0;  ///< 2^30
 
     SplatFilm(int width, int height)
-        : m_width(width), m_height(height), m_sums(new std::atomic<int64_t>[size_t(width) * height * 3]) {
-        for (size_t i = 0, n = size_t(width) * height * 3; i < n; ++i) m_sums[i].store(0, std::memory_order_relaxed);
+        : m_width(width), m_height(height), m_lo(new std::atomic<uint64_t>[size_t(width) * height * 3]),
+          m_hi(new std::atomic<int64_t>[size_t(width) * height * 3]) {
+        for (size_t i = 0, n = size_t(width) * height * 3; i < n; ++i) {
+            m_lo[i].store(0, std::memory_order_relaxed);
+            m_hi[i].store(0, std::memory_order_relaxed);
+        }
     }
 
     int width() const { return m_width; }
@@ -44,19 +58,28 @@ public:
                 m_clamped.fetch_add(1, std::memory_order_relaxed);
             }
             const int64_t q = std::llround(v * k_scale);
-            if (q != 0) m_sums[size_t(pixel) * 3 + k].fetch_add(q, std::memory_order_relaxed);
+            if (q == 0) continue;
+            const size_t i = size_t(pixel) * 3 + k;
+            const uint64_t uq = uint64_t(q);
+            const uint64_t old = m_lo[i].fetch_add(uq, std::memory_order_relaxed);
+            // 128-bit add of sign-extended q: hi gets the carry out of lo, minus 1 for q < 0
+            const int64_t dh = int64_t(old + uq < old) - int64_t(q < 0);
+            if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
         }
     }
 
     /// Sum of pixel i, channel k, as a double.
     double sum(size_t i, int k) const {
-        return double(m_sums[i * 3 + k].load(std::memory_order_relaxed)) / k_scale;
+        const unsigned __int128 lo = m_lo[i * 3 + k].load(std::memory_order_relaxed);
+        const __int128 v = __int128((unsigned __int128)(m_hi[i * 3 + k].load(std::memory_order_relaxed)) << 64 | lo);
+        return double(v) / k_scale;  // rounds once, as the one-word conversion did
     }
     uint64_t clamped() const { return m_clamped.load(); }
 
 private:
     int m_width, m_height;
-    std::unique_ptr<std::atomic<int64_t>[]> m_sums;
+    std::unique_ptr<std::atomic<uint64_t>[]> m_lo;  ///< fixed-point sums mod 2^64
+    std::unique_ptr<std::atomic<int64_t>[]> m_hi;   ///< their high words (carries, signs)
     std::atomic<uint64_t> m_clamped{0};
 };
 

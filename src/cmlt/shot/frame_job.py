@@ -1,0 +1,227 @@
+"""One frame's job: load the frame, update the core scene, render it on a
+worker thread (so that Ctrl-C reaches the main thread), let the temporal
+driver rescale it, and write preview, state, sidecar and EXR — the image last,
+so that a finished image always has its sidecar (and preview and state).
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Dict, Optional, Tuple
+
+import numpy as np
+
+from .._version import __version__
+from ..color import ColorError
+from ..io.exr import check_crop, write_exr
+from ..io.preview import write_preview
+from ..io.sidecar import write_sidecar
+from .bridge import BridgeError, SceneBridge
+from .core_settings import settings_message
+from .errors import RenderError, UsageError
+from .options import preview_path
+from .output import aov_images, header_metadata, to_output
+from .progress import Reporter
+
+__all__ = ["ShotJob", "render_frame", "render_interruptible"]
+
+
+@dataclass
+class ShotJob:
+    """What every frame of a sequence shares, and what the frames so far left."""
+
+    shot: str
+    stage: Any
+    info: Any                           # cmlt.usd.StageInfo
+    opts: Any                           # RenderOptions
+    core: Any                           # the cmlt._core module
+    st: Any                             # core.RenderSettings (width, height set per frame)
+    resolved: Any                       # cmlt.settings.RenderSettings
+    sources: Dict[str, str]
+    color_attrs: Dict[str, Any]         # EXR colour-space attributes
+    display: Optional[str]
+    view: Optional[str]
+    aovs: Tuple[str, ...]
+    settings_record: Dict[str, Any]     # the sidecar's "settings"
+    reporter: Reporter
+    result: Any                         # SequenceResult
+    bridge: SceneBridge = None
+    temporal: Any = None                # TemporalDriver, made on the first frame
+    make_temporal: Any = None           # (width, height) -> TemporalDriver
+
+    def __post_init__(self):
+        if self.bridge is None:
+            self.bridge = SceneBridge(self.core)
+        self.shot_abs = os.path.abspath(self.shot)
+
+    def warn(self, texts) -> None:
+        """Show warnings and keep the distinct ones in the result."""
+        self.reporter.warnings(texts)
+        for w in texts:
+            if w not in self.result.warnings:
+                self.result.warnings.append(w)
+
+
+def render_interruptible(core, scene, st, reporter: Reporter):
+    """Run core.render on a worker thread so that Ctrl-C reaches the main
+    thread promptly; the progress callback then asks the core to stop.
+    Returns (result, interrupted, units_total)."""
+    cancel = threading.Event()
+    box: dict = {}
+    last_total = [None]
+
+    def progress(done, total):
+        last_total[0] = total
+        reporter.frame_progress(done, total)
+        return not cancel.is_set()
+
+    finished = threading.Event()
+
+    def work():
+        try:
+            box["result"] = core.render(scene, st, progress=progress)
+        except BaseException as exc:          # re-raised on the main thread
+            box["error"] = exc
+        finally:
+            finished.set()
+
+    worker = threading.Thread(target=work, name="cmlt-render", daemon=True)
+    worker.start()
+    interrupted = False
+    # Wait on an Event, not Thread.join: an interrupted join can leave the
+    # thread looking finished while it still runs.
+    while not finished.is_set():
+        try:
+            finished.wait(0.05)
+        except KeyboardInterrupt:
+            if interrupted:
+                reporter.warn("still cancelling; waiting for the render threads to stop")
+            interrupted = True
+            cancel.set()
+    if "error" in box:
+        raise box["error"]
+    return box["result"], interrupted, last_total[0]
+
+
+def _load(job: ShotJob, frame: float):
+    from ..usd import UsdLoadError, load_frame
+
+    opts = job.opts
+    try:
+        fs = load_frame(job.stage, frame, camera=opts.camera, resolution=opts.resolution)
+    except (UsdLoadError, ColorError) as exc:
+        raise RenderError(f"{job.shot}: frame {frame:g}: {exc}"
+                          if isinstance(exc, ColorError) else str(exc)) from None
+    job.warn(fs.warnings)
+    return fs
+
+
+def _settings_error(job: ShotJob, exc) -> Exception:
+    msg, usage = settings_message(str(exc), job.resolved, job.sources)
+    return (UsageError if usage else RenderError)(msg)
+
+
+def _render(job: ShotJob, scene, frame: float, width: int, height: int):
+    """The core's render of the frame (the temporal driver around it), checked
+    finite; returns (result, stats, image, temporal record, state bytes, units)."""
+    core, resolved = job.core, job.resolved
+    try:
+        trec = job.temporal.prepare(scene, job.st, frame)
+    except core.SettingsError as exc:
+        raise _settings_error(job, exc) from None
+    budget = getattr(job.reporter, "frame_budget", None)
+    if budget is not None:          # the live rate of the frame bar
+        timed = float(getattr(resolved, "time_budget", 0.0) or 0.0) > 0.0
+        budget(None if timed else float(width) * float(height) * float(resolved.spp))
+    try:
+        r, interrupted, units = render_interruptible(core, scene, job.st, job.reporter)
+    except core.SettingsError as exc:
+        raise _settings_error(job, exc) from None
+    except core.SceneError as exc:
+        raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
+    if interrupted or r.cancelled:
+        raise KeyboardInterrupt
+    stats = dict(r.stats)
+    image = np.asarray(r.image)
+    if not np.isfinite(image).all():
+        raise RenderError(f"{job.shot}: frame {frame:g}: the core returned "
+                          f"{int((~np.isfinite(image)).sum())} non-finite pixel values")
+    from ..metrics.error_estimate import estimate_record
+    stats["error_estimate"] = estimate_record(r, stats)     # relMSE without a reference
+    image, trec, state_bytes = job.temporal.finish(r, stats, image, frame, trec)
+    return r, stats, image, trec, state_bytes, units
+
+
+def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record, metadata,
+           aovs, state_bytes):
+    """Preview, state and sidecar, then the EXR; returns (state file, preview)."""
+    opts = job.opts
+    pv = state_file = None
+    try:
+        if opts.preview:
+            # before the EXR: a finished image always has its preview
+            pv = preview_path(path, opts.preview_format)
+            shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
+            write_preview(shown, pv, job.display, job.view)
+            record["preview"] = os.path.basename(pv)
+        if opts.state_dir:
+            # before the image: a finished frame always has its state
+            from ..temporal.state import state_path, write_state
+            state_file = write_state(state_path(opts.state_dir, frame), state_bytes)
+            record["temporal"]["state_out"] = os.path.abspath(state_file)
+        write_sidecar(path, record)
+        write_exr(path, out_image, half=opts.half, compression=opts.compression,
+                  colorspace=None, metadata=metadata, attributes=job.color_attrs,
+                  aovs=aovs, crop=crop)
+    except OSError as exc:
+        where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
+        raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") from None
+    return state_file, pv
+
+
+def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dict[str, Any]:
+    """Render ``frame`` of the job's shot to ``path``. ``prepare_temporal()``
+    runs once the frame is loaded and the temporal driver exists (it loads the
+    state of the frame before when the sequence does not continue in memory).
+    Returns the frame's output (``out_image``: the image as written, ``stats``,
+    ``state_bytes``, ``state_file``, ``preview``, ``units``: the progress
+    total). KeyboardInterrupt means the frame was cancelled, nothing written."""
+    opts, core = job.opts, job.core
+    t0 = time.perf_counter()
+    fs = _load(job, frame)
+    width, height = opts.resolution or fs.resolution
+    job.st.width, job.st.height = int(width), int(height)
+    crop = None
+    if opts.crop is not None:
+        try:
+            crop = check_crop(opts.crop, int(width), int(height))
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+    try:
+        scene = job.bridge.update(fs)
+    except (core.SceneError, BridgeError) as exc:
+        raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
+    if job.temporal is None:
+        job.temporal = job.make_temporal(int(width), int(height))
+    prepare_temporal()
+    r, stats, image, trec, state_bytes, units = _render(job, scene, frame, width, height)
+    aovs = aov_images(core, scene, job.st, r, job.aovs, opts, stats)
+    stats["wall_time_s"] = time.perf_counter() - t0
+    camera = fs.camera.name if fs.camera is not None else None
+    record = {
+        "image": os.path.basename(path), "shot": job.shot_abs, "frame": frame,
+        "time_code": float(fs.time), "camera": camera,
+        "resolution": [int(width), int(height)],
+        "settings": job.settings_record, "settings_sources": dict(job.sources),
+        "stats": stats, "scene_update": job.bridge.last_update.as_dict(),
+        "warnings": list(fs.warnings), "cmlt_version": __version__, "temporal": trec,
+    }
+    metadata = header_metadata(frame, fs, job.shot_abs, camera, job.resolved, stats,
+                               temporal=trec)
+    out_image = to_output(image, opts.output_colorspace)
+    state_file, pv = _write(job, path, frame, image, out_image, crop, record, metadata, aovs,
+                            state_bytes)
+    return {"out_image": out_image, "stats": stats, "state_bytes": state_bytes,
+            "state_file": state_file, "preview": pv, "units": units}
