@@ -122,7 +122,7 @@ TEST(Accel, PacketsMatchScalar) {
 
 namespace {
 
-/// test_mlt.py's Cornell box (2 m, open at +z, each quad its own instance), a lamp just
+/// tests/python/integrators/test_pssmlt.py's Cornell box (2 m, open at +z, each quad its own instance), a lamp just
 /// under the ceiling, and a large quad across the box at y = 1.6 (a cut-out in the
 /// Python test that found the problem below).
 void add_box_with_lamp(Accel& accel) {

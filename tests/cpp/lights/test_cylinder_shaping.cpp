@@ -95,7 +95,7 @@ void shaped_box(Scene& s) {
     // Disk on the ceiling pointing down with a soft 35 degree cone and focus; a shaped
     // sphere; a coned cylinder in view. (The cylinder used to make PT and BDPT disagree by
     // ~4.5-9%: analytic lights stopped camera / BSDF rays but not shadow rays or BDPT
-    // connections; tests/python/test_analytic_light_occlusion.py.)
+    // connections; tests/python/integrators/test_analytic_light_occlusion.py.)
     LightDesc disk;
     disk.kind = LightDesc::Kind::disk;
     disk.transform = Mat4::translate(0, 0.99, -0.2) * Mat4::rotate(-90, 1, 0, 0);

@@ -1,7 +1,7 @@
 // PSSMLT integrator (integrators/pssmlt/): determinism over thread counts, the furnace
 // (image mean = b for a grey scene, checked against b's standard error), no NaN/Inf,
 // no stuck chain on a mostly black scene (light through a slit), budget accounting,
-// settings errors. Convergence to PT on a Cornell-like box: tests/python/test_mlt.py.
+// settings errors. Convergence to PT on a Cornell-like box: tests/python/integrators/test_pssmlt.py.
 #include "test_util.h"
 
 #include "integrators/common/render.h"
@@ -171,7 +171,7 @@ TEST(Pssmlt, BudgetAndStats) {
 TEST(Pssmlt, FurnaceMeanIsBWithinItsStandardError) {
     // Grey furnace: every splat carries L/f* = (1,1,1) (ACEScg weights sum to 1), so the
     // image mean is exactly b; b must match Le/(1-a) = 2 within 4.5 standard errors
-    // (two-sided false-alarm rate 7e-6). (Pixel-block agreement: tests/python/test_mlt.py.)
+    // (two-sided false-alarm rate 7e-6). (Pixel-block agreement: tests/python/integrators/test_pssmlt.py.)
     Scene s;
     furnace_scene(s, 0.5f, 1.f);
     RenderSettings st = mlt_settings(16, 16, 64);
