@@ -6,6 +6,7 @@
 #include "integrators/common/render.h"
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/direct_pass.h"
 #include "integrators/mlt/pixel_importance.h"
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"
@@ -452,7 +453,7 @@ void bind_settings(nb::module_& m) {
 void bind_render(nb::module_& m) {
     nb::class_<mlt::ChainStates>(
         m, "MltStates",
-        "Final states of a pssmlt render's chains (RenderResult.mlt_states), to start the "
+        "Final states of a pssmlt or cmlt render's chains (RenderResult.mlt_states), to start the "
         "next render's chains from (RenderSettings.mlt_initial_states). Opaque; "
         "to_bytes()/from_bytes() serialise it (integrators/mlt/chain_state.h).")
         .def("__len__", [](const mlt::ChainStates& s) { return s.chains.size(); })

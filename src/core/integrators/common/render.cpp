@@ -1,168 +1,49 @@
+// render() and the integrator table; see render.h.
 #include "integrators/common/render.h"
 
-#include "cameras/camera.h"
-#include "film/film.h"
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
-#include "integrators/common/frame_loop.h"
 #include "integrators/mlt/mlt_frame.h"
-#include "integrators/mlt/pssmlt_integrator.h"
-#include "integrators/path/path_tracer.h"
-#include "sampling/rng.h"
+#include "integrators/path/path_integrator.h"
+#include "integrators/pssmlt/pssmlt_integrator.h"
 #include "util/error.h"
-#include "util/fp_mode.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/info.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
-#include <algorithm>
-#include <atomic>
-#include <chrono>
+#include <cstring>
+#include <iterator>
 
 namespace cmlt {
 
 namespace {
 
-constexpr int k_tile_size = 16;
-
-struct Tile {
-    int x0, y0, x1, y1;
+constexpr IntegratorEntry k_integrators[] = {
+    {"pt", render_pt},
+    {"bdpt", render_bdpt},
+    {"pssmlt", render_pssmlt},
+    {"cmlt", render_cmlt},
 };
 
 }  // namespace
+
+const IntegratorEntry* integrator_table(size_t* count) {
+    *count = std::size(k_integrators);
+    return k_integrators;
+}
 
 RenderResult render(Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
     settings.validate();
     if (!scene.has_camera()) throw SceneError("render: the scene has no camera (call set_camera)");
     if (scene.dirty()) scene.commit();
-    if (settings.integrator == "bdpt") {
-        if (settings.partial)
-            throw SettingsError("RenderSettings.partial: bdpt frames do not split (its light-tracing "
-                                "splats reach every pixel of a pass); render them whole");
-        return render_bdpt(scene, settings, progress);
-    }
-    if (settings.integrator == "pssmlt") return render_pssmlt(scene, settings, progress);
-    if (settings.integrator == "cmlt") return render_cmlt(scene, settings, progress);
-
-    const int W = settings.width, H = settings.height;
-    Camera camera(scene.camera_desc(), W, H);
-    Film film(W, H);
-    PathTracer tracer(scene, settings.max_depth);
-    const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
-
-    std::vector<Tile> tiles;
-    // rows: all, or a part's (RenderSettings::partial; the other rows stay 0)
-    const int row0 = settings.partial ? settings.part_row_begin : 0;
-    const int row1 = settings.partial ? settings.part_row_end : H;
-    for (int y = row0; y < row1; y += k_tile_size)
-        for (int x = 0; x < W; x += k_tile_size)
-            tiles.push_back({x, y, std::min(x + k_tile_size, W), std::min(y + k_tile_size, row1)});
-
-    int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
-    tbb::task_arena arena(threads);
-
-    // Chunks of samples per pixel: about 16 progress calls per frame (frame_loop.h).
-    FrameCounters counters;
-    const CycleRate rate;
-    const auto t0 = std::chrono::steady_clock::now();
-    const PassSchedule schedule(settings, t0);
-    bool cancelled = false;
-    int done = 0;
-    while (const int n = schedule.next(done)) {
-        const int s0 = done, s1 = done + n;
-        arena.execute([&] {
-            tbb::parallel_for(
-                tbb::blocked_range<size_t>(0, tiles.size(), 1),
-                [&](const tbb::blocked_range<size_t>& r) {
-                    ScopedFtzDaz ftz;
-                    const TaskTimer timer(counters);
-                    PathCounters c;
-                    for (size_t ti = r.begin(); ti != r.end(); ++ti) {
-                        const Tile& tile = tiles[ti];
-                        for (int y = tile.y0; y < tile.y1; ++y)
-                            for (int x = tile.x0; x < tile.x1; ++x)
-                                for (int s = s0; s < s1; ++s) {
-                                    const Spectrum L = tracer.pixel_sample(camera, motion_blur, settings.seed,
-                                                                           x, y, W, uint32_t(s), c);
-                                    film.add_sample(x, y, uint32_t(s), L);
-                                }
-                    }
-                    counters.add(c);
-                },
-                tbb::simple_partitioner());
-        });
-        done = s1;
-        if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
-            schedule.next(done) > 0) {
-            cancelled = true;
-            break;
-        }
-    }
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-
-    RenderResult res;
-    res.width = W;
-    res.height = H;
-    res.image.resize(size_t(W) * H * 3);
-    res.variance.resize(size_t(W) * H * 3);
-    film.develop(res.image.data(), res.variance.data());
-    res.cancelled = cancelled;
-    RenderStats& st = res.stats;
-    fill_frame_stats(st, counters, rate, secs);
-    st.nan_samples = film.nan_samples();
-    int fx, fy;
-    uint32_t fs;
-    if (film.first_nan(&fx, &fy, &fs)) {
-        st.first_nan_x = fx;
-        st.first_nan_y = fy;
-        st.first_nan_sample = fs;
-    }
-    st.threads = threads;
-    st.integrator = settings.integrator;
-    st.spp = done;
-    st.seed = settings.seed;
-    return res;
+    if (settings.partial && settings.integrator == "bdpt")
+        throw SettingsError("RenderSettings.partial: bdpt frames do not split (its light-tracing "
+                            "splats reach every pixel of a pass); render them whole");
+    for (const IntegratorEntry& e : k_integrators)
+        if (settings.integrator == e.name) return e.render(scene, settings, progress);
+    CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '" << settings.integrator << "'");
 }
 
 RenderResult combine_mlt_parts(int width, int height, const std::vector<const MltPart*>& parts,
                                const std::vector<float>& direct) {
-    const size_t n = size_t(width) * size_t(height) * 3;
-    if (parts.empty()) throw SettingsError("combine_mlt_parts: no parts");
-    if (!direct.empty() && direct.size() != n)
-        CMLT_THROW(SettingsError, "combine_mlt_parts: the direct image has " << direct.size()
-                                      << " values, the frame " << n);
-    mlt::SplatFilm film(width, height);
-    mlt::NormalisationAccumulator b_acc;
-    uint64_t steps = 0;
-    for (size_t p = 0; p < parts.size(); ++p) {
-        const MltPart& part = *parts[p];
-        if (part.splat_lo.size() != n || part.splat_hi.size() != n || part.norm_counts.size() < 2 ||
-            part.norm_counts.size() != part.norm_moments.size())
-            CMLT_THROW(SettingsError, "combine_mlt_parts: part " << p << " is not a part of a "
-                                          << width << " x " << height << " frame");
-        film.add_words(part.splat_lo.data(), part.splat_hi.data());
-        // the bootstrap (the same in every part) once, then the chains in chain order,
-        // as the single-process frame merges them
-        const size_t first = p == 0 ? 0 : 1;
-        for (size_t i = first; i < part.norm_counts.size() / 2; ++i)
-            b_acc.merge(mlt::NormalisationAccumulator::from_raw(&part.norm_counts[2 * i], &part.norm_moments[2 * i]));
-        steps += part.steps;
-    }
-    const mlt::NormalisationEstimate b = b_acc.estimate();
-    RenderResult res;
-    res.width = width;
-    res.height = height;
-    PtPassImage d;
-    d.mean = direct;
-    mlt::develop_image(res, film, b.mean, steps, d);
-    res.stats.mlt.enabled = true;
-    res.stats.mlt.b = b.mean;
-    res.stats.mlt.b_stderr = b.std_error;
-    res.stats.mlt.mutations = steps;
-    res.stats.mlt.clamped_splats = film.clamped();
-    return res;
+    return mlt::combine_parts(width, height, parts, direct);
 }
 
 }  // namespace cmlt
