@@ -1,6 +1,7 @@
 // BDPT multiple importance sampling: the per-vertex area densities, the power-heuristic
 // weight of a strategy by the ratio walk (pbrt-v4's MISWeight), and the debug weights of
 // every strategy of one path (strategy_weights); see bdpt_tracer.h.
+#include "integrators/bdpt/bdpt_detail.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 
 #include "materials/bsdf.h"
@@ -18,29 +19,6 @@ namespace {
 inline float remap0(float f) { return f != 0.f ? f : 1.f; }
 
 }  // namespace
-
-bool BdptTracer::is_delta_light(const PathVertex& v) const {
-    return v.light_index >= 0 && m_scene.light(size_t(v.light_index)).is_delta();
-}
-
-bool BdptTracer::connectible(const PathVertex& v) const {
-    switch (v.type) {
-        case VertexType::surface: return v.bsdf && v.bsdf->has_non_delta();
-        case VertexType::camera: return m_importance.connectable();
-        case VertexType::light: return true;
-    }
-    return false;
-}
-
-float BdptTracer::convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const {
-    if (to.infinite) return pdf_sa;
-    Vec3 w = to.p - from.p;
-    float d2 = length_squared(w);
-    if (!(d2 > 0.f)) return 0.f;
-    float pdf = pdf_sa / d2;
-    if (to.on_surface()) pdf *= std::fabs(dot(to.ng, w)) / std::sqrt(d2);
-    return pdf;
-}
 
 float BdptTracer::pdf_light(const PathVertex& v, const PathVertex& next) const {
     if (v.infinite) {

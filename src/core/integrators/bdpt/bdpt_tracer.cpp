@@ -2,6 +2,7 @@
 // Metropolis integrators (evaluate_strategy), and that strategy as a resumable
 // computation (begin_strategy / resume_strategy); see bdpt_tracer.h. The subpaths,
 // connections and MIS weights are in bdpt_subpaths.cpp, bdpt_connect.cpp, bdpt_mis.cpp.
+#include "integrators/bdpt/bdpt_detail.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 
 #include "scene/scene.h"
@@ -62,23 +63,29 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     return L;
 }
 
+bool BdptTracer::start_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,
+                                Vec2* p_raster, BdptCounters& c) const {
+    if (t < 1 || s < 0 || s + t != depth + 2 || (s == 1 && t == 1)) return false;
+    if (int(ws.camera.size()) < t) ws.camera.resize(size_t(t));
+    if (int(ws.light.size()) < std::max(s, 1)) ws.light.resize(size_t(std::max(s, 1)));
+    c.samples += 1;
+    sampler.start_stream(BdptSampler::k_camera);
+    const Vec2 u = sampler.next2d();
+    *p_raster = Vec2(u.x * float(m_width), u.y * float(m_height));
+    return true;
+}
+
 Spectrum BdptTracer::evaluate_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,
                                        Vec2* p_raster, BdptCounters& c, bool mis) const {
-    // the resumable strategy with the scalar answers to its ray queries
-    BdptStrategyLane lane;
-    BdptQuery q = begin_strategy(lane, depth, s, t, sampler, ws, mis);
-    while (q != BdptQuery::none) {
-        if (q == BdptQuery::intersect) {
-            q = resume_strategy(lane, m_scene.intersect(lane.walk.ray));
-        } else {
-            float pass_pdf = 1.f;  // crossings of the connection segment (Scene::transmittance)
-            const float tr = m_scene.transmittance(lane.conn.shadow, &pass_pdf);
-            q = resume_strategy(lane, tr, pass_pdf);
-        }
-    }
-    c += lane.counters;
-    *p_raster = lane.p_raster;
-    return lane.result;
+    // the scalar form of the resumable strategy below (the same steps, the queries answered
+    // inline; the hot path of pssmlt)
+    if (!start_strategy(depth, s, t, sampler, ws, p_raster, c)) return Spectrum(0.f);
+    if (generate_camera_subpath(*p_raster, sampler, t, false, ws.camera.data(), c) != t) return Spectrum(0.f);
+    sampler.start_stream(BdptSampler::k_light);
+    if (s > 0 && generate_light_subpath(sampler, s, false, ws.light.data(), c, ws.camera[0].time) != s)
+        return Spectrum(0.f);
+    sampler.start_stream(BdptSampler::k_connection);
+    return connect(ws.light.data(), s, ws.camera.data(), t, sampler, p_raster, mis, c);
 }
 
 Spectrum BdptTracer::evaluate_strategy_unweighted(int depth, int s, int t, BdptSampler& sampler,
@@ -101,13 +108,7 @@ BdptQuery BdptTracer::begin_strategy(BdptStrategyLane& lane, int depth, int s, i
     lane.p_raster = Vec2();  // as evaluate_strategy's caller's, for a technique it rejects
     lane.counters = BdptCounters();
     lane.stage = BdptStrategyLane::Stage::done;
-    if (t < 1 || s < 0 || s + t != depth + 2 || (s == 1 && t == 1)) return BdptQuery::none;
-    if (int(ws.camera.size()) < t) ws.camera.resize(size_t(t));
-    if (int(ws.light.size()) < std::max(s, 1)) ws.light.resize(size_t(std::max(s, 1)));
-    lane.counters.samples += 1;
-    sampler.start_stream(BdptSampler::k_camera);
-    const Vec2 u = sampler.next2d();
-    lane.p_raster = Vec2(u.x * float(m_width), u.y * float(m_height));
+    if (!start_strategy(depth, s, t, sampler, ws, &lane.p_raster, lane.counters)) return BdptQuery::none;
     if (begin_camera_subpath(lane.p_raster, sampler, t, false, ws.camera.data(), lane.counters,
                              lane.walk)) {
         lane.stage = BdptStrategyLane::Stage::camera_walk;

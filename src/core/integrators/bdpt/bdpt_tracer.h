@@ -172,7 +172,7 @@ public:
     /// roulette). Returns the MIS-weighted contribution and its raster position:
     /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
     /// It is the resumable strategy below with Scene::intersect and
-    /// Scene::transmittance answering its queries.
+    /// Scene::transmittance answering its queries inline (tested bit for bit).
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,
                                Vec2* p_raster, BdptCounters& c, bool mis = true) const;
     /// Resumable evaluate_strategy (BdptStrategyLane: coherent MLT answers its ray
@@ -250,6 +250,11 @@ private:
     /// The end of connect shared by every strategy: the pass-through scattering
     /// probabilities of the subpath ends and the MIS weight.
     Spectrum connect_tail(BdptConnection& conn, float conn_pass_pdf) const;
+    /// What evaluate_strategy and begin_strategy start with: false if (s, t) is no
+    /// strategy of `depth`; else the workspace sized, the sample counted, the film position
+    /// (the camera stream's first 2D) in *p_raster.
+    bool start_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws, Vec2* p_raster,
+                        BdptCounters& c) const;
     /// Stages of the resumable strategy (BdptStrategyLane) after a walk ends.
     BdptQuery strategy_after_camera(BdptStrategyLane& lane) const;
     BdptQuery strategy_after_light(BdptStrategyLane& lane) const;
@@ -260,17 +265,19 @@ private:
     float mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,
                      const PathVertex& sampled, float conn_pass_pdf = 1.f,
                      const PathVertex* pt_override = nullptr) const;
-    // Densities (area measure unless `to` is an infinite light).
-    float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
+    // Densities (area measure unless `to` is an infinite light). convert_density,
+    // is_delta_light and connectible are inline (bdpt_detail.h: every unit calls them per
+    // vertex).
+    inline float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
     float pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const;
     float pdf_light(const PathVertex& v, const PathVertex& next) const;
     float pdf_light_origin(const PathVertex& v, const PathVertex& next) const;
-    bool is_delta_light(const PathVertex& v) const;
+    inline bool is_delta_light(const PathVertex& v) const;
     /// Probability that a walk arriving at v from neighbour `toward` scatters there
     /// (makes a vertex) instead of crossing a pass-through surface: 1 - the pass-through
     /// lobe's probability; 1 for vertices that cannot pass rays.
     float scatter_probability(const PathVertex& v, const PathVertex& toward) const;
-    bool connectible(const PathVertex& v) const;
+    inline bool connectible(const PathVertex& v) const;
     /// BSDF value times the cosine at v toward direction w (unit), for radiance
     /// (camera-subpath) or importance (light-subpath, with the shading-normal correction).
     Spectrum scatter(const PathVertex& v, const Vec3& w, bool importance) const;

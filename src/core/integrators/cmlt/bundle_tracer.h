@@ -60,9 +60,7 @@ struct BundleCounters {
 
 /// Fewer pending queries than this are answered one ray at a time: a packet query costs
 /// about as much with few active lanes as with all, and more than a few scalar queries.
-/// Measured with tests/bench/packets.py (Cornell box, 96², AVX2) when the threshold was
-/// 2: the bundles' BVH queries took 0.62× the speed of scalar ones at k = 2 (the
-/// whole frame 0.80×), 0.93× at k = 3, and 1.07–1.22× from k = 4 up.
+/// Measurements: tests/bench/results/packets.md.
 inline constexpr size_t k_min_packet_lanes = 4;
 
 /// Refine a mesh hit of `ray` by a double-precision Möller–Trumbore intersection with

@@ -417,6 +417,52 @@ TEST(Bdpt, MisWeightsSumToOneDiracDomeDistant) {
 
 // ---- each strategy on its own --------------------------------------------------------------
 
+TEST(Bdpt, ResumableStrategyIsEvaluateStrategyBitForBit) {
+    // begin_strategy / resume_strategy answered by Scene::intersect and
+    // Scene::transmittance (as coherent MLT's lanes are, with refined hits) give
+    // evaluate_strategy's contribution, film position and ray counts exactly, weighted
+    // and unweighted, on a scene with pass-through surfaces, a point light and emitters.
+    Scene s;
+    pass_through_box(s);
+    const int W = 16, H = 16, max_depth = 5;
+    const Camera cam(s.camera_desc(), W, H);
+    const BdptTracer tr(s, cam, W, H, max_depth);
+    BdptWorkspace ws_a, ws_b;
+    int nonzero = 0;
+    for (uint32_t i = 0; i < 3000; ++i) {
+        const int depth = int(i % uint32_t(max_depth + 1));
+        const int sl = int((i / 7) % uint32_t(depth + 2)), tl = depth + 2 - sl;
+        const bool mis = i % 5 != 0;
+        PixelStreamSampler a(11, i, 0), b(11, i, 0);
+        BdptCounters ca, cb;
+        Vec2 pa;
+        const Spectrum la = tr.evaluate_strategy(depth, sl, tl, a, ws_a, &pa, ca, mis);
+        BdptStrategyLane lane;
+        BdptQuery q = tr.begin_strategy(lane, depth, sl, tl, b, ws_b, mis);
+        while (q != BdptQuery::none) {
+            if (q == BdptQuery::intersect) {
+                q = tr.resume_strategy(lane, s.intersect(lane.walk.ray));
+            } else {
+                float pass_pdf = 1.f;
+                const float t = s.transmittance(lane.conn.shadow, &pass_pdf);
+                q = tr.resume_strategy(lane, t, pass_pdf);
+            }
+        }
+        cb += lane.counters;
+        ASSERT_EQ(std::memcmp(&la, &lane.result, sizeof(Spectrum)), 0)
+            << "sample " << i << " (" << sl << ", " << tl << "): " << la.x << " vs " << lane.result.x;
+        if (!(sl == 1 && tl == 1)) {
+            EXPECT_EQ(pa.x, lane.p_raster.x) << i;
+            EXPECT_EQ(pa.y, lane.p_raster.y) << i;
+        }
+        EXPECT_EQ(ca.rays, cb.rays) << i;
+        EXPECT_EQ(ca.shadow_rays, cb.shadow_rays) << i;
+        EXPECT_EQ(ca.samples, cb.samples) << i;
+        nonzero += luminance(la) > 0.f ? 1 : 0;
+    }
+    EXPECT_GT(nonzero, 300);
+}
+
 TEST(Bdpt, UnweightedStrategiesAgreeWithMis) {
     // Depth 2 (paths camera - 2 scattering vertices - light) in the Cornell box: every
     // strategy (s, 4 - s), s = 0..3, alone estimates the image mean of that path length;
