@@ -311,7 +311,7 @@ void bind_render(nb::module_& m) {
             st["b_stderr"] = res.stats.mlt.b_stderr;
             st["mutations"] = res.stats.mlt.mutations;
             st["clamped_splats"] = res.stats.mlt.clamped_splats;
-            return nb::make_tuple(to_numpy(std::move(res.image), height, width), st);
+            return nb::make_tuple(rgb_to_numpy(std::move(res.image), height, width), st);
         },
         "width"_a, "height"_a, "parts"_a, "direct"_a.none(),
         "The image (float32 (H, W, 3)) of a pssmlt/cmlt frame rendered in parts "
