@@ -41,7 +41,22 @@ struct PyRenderResult {
     nb::dict stats;
     std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt / cmlt, else None
     std::shared_ptr<mlt::ChainStates> mlt_start_states;
+    nb::object mlt_part;  ///< dict of numpy arrays with RenderSettings.partial, else None
 };
+
+template <class T>
+nb::object vec_to_numpy(std::vector<T>&& v) {
+    auto* heap = new std::vector<T>(std::move(v));
+    nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+    size_t shape[1] = {heap->size()};
+    return nb::ndarray<nb::numpy, T>(heap->data(), 1, shape, owner).cast();
+}
+
+template <class T>
+std::vector<T> numpy_to_vec(nb::handle part, const char* key) {
+    auto a = nb::cast<nb::ndarray<const T, nb::ndim<1>, nb::c_contig, nb::device::cpu>>(part[key]);
+    return std::vector<T>(a.data(), a.data() + a.shape(0));
+}
 
 /// One chain state as a dict (inspection and tests).
 nb::dict chain_state_dict(const mlt::ChainState& c) {
@@ -124,6 +139,17 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     out.cancelled = res.cancelled;
     out.mlt_states = std::move(res.mlt_states);
     out.mlt_start_states = std::move(res.mlt_start_states);
+    out.mlt_part = nb::none();
+    if (res.mlt_part) {
+        MltPart& p = *res.mlt_part;
+        nb::dict d;
+        d["splat_lo"] = vec_to_numpy(std::move(p.splat_lo));
+        d["splat_hi"] = vec_to_numpy(std::move(p.splat_hi));
+        d["norm_counts"] = vec_to_numpy(std::move(p.norm_counts));
+        d["norm_moments"] = vec_to_numpy(std::move(p.norm_moments));
+        d["steps"] = p.steps;
+        out.mlt_part = d;
+    }
     const RenderStats& st = res.stats;
     nb::dict d;
     d["time_s"] = st.time_s;
@@ -249,7 +275,50 @@ void bind_render(nb::module_& m) {
         .def_ro("mlt_start_states", &PyRenderResult::mlt_start_states,
                 "pssmlt/cmlt: MltStates every chain started the frame from; None otherwise")
         .def_ro("mlt_states", &PyRenderResult::mlt_states,
-                "pssmlt/cmlt: MltStates, the final state of every chain; None otherwise");
+                "pssmlt/cmlt: MltStates, the final state of every chain; None otherwise")
+        .def_ro("mlt_part", &PyRenderResult::mlt_part,
+                "pssmlt/cmlt with settings.partial: the part's raw sums, a dict of numpy arrays "
+                "(splat_lo uint64, splat_hi int64: the splat film's 128-bit words; norm_counts "
+                "uint64, norm_moments float64: the bootstrap's and each chain's normalisation "
+                "accumulator) and steps; None otherwise");
+
+    m.def(
+        "combine_mlt_parts",
+        [](int width, int height, nb::list parts, nb::object direct) {
+            std::vector<MltPart> owned(parts.size());
+            std::vector<const MltPart*> ptrs;
+            for (size_t i = 0; i < parts.size(); ++i) {
+                nb::handle p = parts[i];
+                owned[i].splat_lo = numpy_to_vec<uint64_t>(p, "splat_lo");
+                owned[i].splat_hi = numpy_to_vec<int64_t>(p, "splat_hi");
+                owned[i].norm_counts = numpy_to_vec<uint64_t>(p, "norm_counts");
+                owned[i].norm_moments = numpy_to_vec<double>(p, "norm_moments");
+                owned[i].steps = nb::cast<uint64_t>(p["steps"]);
+                ptrs.push_back(&owned[i]);
+            }
+            std::vector<float> d;
+            if (!direct.is_none()) {
+                auto a = nb::cast<nb::ndarray<const float, nb::c_contig, nb::device::cpu>>(direct);
+                d.assign(a.data(), a.data() + a.size());
+            }
+            RenderResult res;
+            {
+                nb::gil_scoped_release release;
+                res = combine_mlt_parts(width, height, ptrs, d);
+            }
+            nb::dict st;
+            st["b"] = res.stats.mlt.b;
+            st["b_stderr"] = res.stats.mlt.b_stderr;
+            st["mutations"] = res.stats.mlt.mutations;
+            st["clamped_splats"] = res.stats.mlt.clamped_splats;
+            return nb::make_tuple(rgb_to_numpy(std::move(res.image), height, width), st);
+        },
+        "width"_a, "height"_a, "parts"_a, "direct"_a.none(),
+        "The image (float32 (H, W, 3)) of a pssmlt/cmlt frame rendered in parts "
+        "(RenderResult.mlt_part of each, sorted by first chain, covering every chain once) "
+        "and {b, b_stderr, mutations, clamped_splats}: the splat sums added exactly, b merged "
+        "in chain order, `direct` (the direct pass's image assembled from the parts' rows, "
+        "or None) added — bit for bit the single-process frame.");
 
     m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
           "Render one frame. progress(done, total) is called between chunks of samples per "

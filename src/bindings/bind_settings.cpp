@@ -210,6 +210,15 @@ void bind_settings(nb::module_& m) {
         nb::arg("value").none(),
         "the pilot image (float32 (H, W, 3)) of the 'pixel' importance to use instead of "
         "rendering one; None (default) = render it");
+    cls.def_rw("partial", &RenderSettings::partial,
+               "render one part of the frame (cmlt.shot.distributed): pt the rows part_row_begin.."
+               "part_row_end, pssmlt/cmlt the chains part_chain_begin..part_chain_end (and their "
+               "direct pass on those rows) with RenderResult.mlt_part the raw sums "
+               "(combine_mlt_parts); default False");
+    cls.def_rw("part_row_begin", &RenderSettings::part_row_begin, "first row of the part");
+    cls.def_rw("part_row_end", &RenderSettings::part_row_end, "row after the part's last");
+    cls.def_rw("part_chain_begin", &RenderSettings::part_chain_begin, "first chain of the part");
+    cls.def_rw("part_chain_end", &RenderSettings::part_chain_end, "chain after the part's last");
     cls.def("validate", &RenderSettings::validate,
             "Check every field against the settings table (render does it too); raises "
             "SettingsError naming the field.");

@@ -15,6 +15,7 @@
                      [--display NAME] [--view NAME]
                      [--seed-per-frame] [--independent-frames] [--no-smoothing]
                      [--state-dir DIR [--fresh-start-on-bad-state]]
+                     [--dask local:N|tcp://HOST:8786 [--dask-parts N]]
                      [--resume] [--quiet | --log-json]
     cmlt inspect SHOT | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
@@ -180,6 +181,13 @@ def build_parser() -> argparse.ArgumentParser:
                    dest="fresh_start_on_bad_state",
                    help="a corrupted, truncated or mismatched state file: warn and start "
                    "fresh instead of failing")
+    r.add_argument("--dask", metavar="SCHEDULER",
+                   help="render each frame's parts (chain groups of pssmlt/cmlt, row bands "
+                   "of pt, whole bdpt frames) as Dask tasks: local:N starts N worker "
+                   "processes here, else a scheduler address (tcp://host:8786); the images "
+                   "are bit-identical to one process")
+    r.add_argument("--dask-parts", metavar="N", type=int, default=0, dest="dask_parts",
+                   help="tasks per frame with --dask (default: twice the workers)")
     loud = r.add_mutually_exclusive_group()
     loud.add_argument("--quiet", "-q", action="store_true",
                       help="print nothing but errors")
@@ -246,7 +254,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          aov_samples=args.aov_samples, crop=args.crop, preview=args.preview,
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,
-                         fresh_start_on_bad_state=args.fresh_start_on_bad_state)
+                         fresh_start_on_bad_state=args.fresh_start_on_bad_state,
+                         dask=args.dask, dask_parts=args.dask_parts)
     log = None
     if args.log_json:
         from .shot.progress import JsonReporter

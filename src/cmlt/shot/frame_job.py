@@ -50,6 +50,7 @@ class ShotJob:
     bridge: SceneBridge = None
     temporal: Any = None                # TemporalDriver, made on the first frame
     make_temporal: Any = None           # (width, height) -> TemporalDriver
+    distributed: Any = None             # cmlt.shot.distributed.DaskRenderer (--dask), or None
 
     def __post_init__(self):
         if self.bridge is None:
@@ -136,7 +137,11 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
         timed = float(getattr(resolved, "time_budget", 0.0) or 0.0) > 0.0
         budget(None if timed else float(width) * float(height) * float(resolved.spp))
     try:
-        r, interrupted, units = render_interruptible(core, scene, job.st, job.reporter)
+        if job.distributed is not None:     # the frame's parts as Dask tasks
+            r, interrupted, units = job.distributed.render(core, job.st, frame, job.reporter), \
+                False, None
+        else:
+            r, interrupted, units = render_interruptible(core, scene, job.st, job.reporter)
     except core.SettingsError as exc:
         raise _settings_error(job, exc) from None
     except core.SceneError as exc:

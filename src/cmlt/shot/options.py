@@ -66,6 +66,11 @@ class _FrameOptions:
     state_dir: Optional[str] = None
     #: a bad state file: warn and start fresh instead of failing
     fresh_start_on_bad_state: bool = False
+    #: render the frames' parts as Dask tasks: a scheduler address or local:N
+    #: (cmlt.shot.distributed); None renders in this process
+    dask: Optional[str] = None
+    #: tasks per frame with --dask (0: twice the number of workers)
+    dask_parts: int = 0
 
     def check(self) -> None:
         """Checks that need neither the stage nor the core: every setting
@@ -84,6 +89,9 @@ class _FrameOptions:
             if name not in AOV_NAMES:
                 raise UsageError(f"--aov {name!r}: unknown AOV; choose from "
                                  f"{', '.join(AOV_NAMES)}")
+        if int(self.dask_parts) < 0:
+            raise UsageError(f"--dask-parts {self.dask_parts}: must be 0 (twice the workers) "
+                             "or more")
         if int(self.aov_samples) < 1:
             raise UsageError(f"--aov-samples {self.aov_samples}: must be at least 1")
         if self.preview_format not in PREVIEW_FORMATS:

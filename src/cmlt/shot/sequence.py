@@ -170,13 +170,19 @@ def _open(shot: str, core):
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
-                    reporter: Optional[Reporter] = None, core=None) -> SequenceResult:
+                    reporter: Optional[Reporter] = None, core=None,
+                    client=None, on_part=None) -> SequenceResult:
     """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
     :mod:`cmlt.shot.frames`).
 
     ``frames``: None (the stage's start frame), a ``--frames`` spec, or a
     list of time codes. Raises :class:`UsageError`, :class:`RenderError` or
     :class:`RenderCancelled`.
+
+    ``client``: a ``distributed.Client``; the frames' parts then run as Dask tasks
+    (:mod:`cmlt.shot.distributed`; ``options.dask`` = ``local:N`` or a scheduler address
+    makes one for the call). ``on_part(done, total, futures)``: called after each
+    part arrives (with a client).
     """
     opts = options or RenderOptions()
     opts.check()
@@ -214,11 +220,58 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
                   result=result)
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
+    own_client = None
+    if client is None and opts.dask:
+        client, own_client = _dask_client(opts.dask)
+    if client is not None:
+        if float(getattr(resolved, "time_budget", 0.0) or 0.0) > 0.0:
+            _close(own_client)
+            raise UsageError("--dask: a time budget (--time-budget) does not split over "
+                             "workers (a timed frame depends on the machine); give --spp")
+        from .distributed import DaskRenderer
+        job.distributed = DaskRenderer(client, shot, camera=opts.camera,
+                                       resolution=opts.resolution, parts=int(opts.dask_parts),
+                                       threads=0, on_part=on_part,
+                                       address=opts.dask or "")
+        result.settings["dask"] = opts.dask or "client"
+        try:
+            job.distributed.warm()
+        except Exception as exc:         # a worker cannot open the shot: say so once
+            _close(own_client)
+            raise RenderError(f"{shot}: --dask: a worker cannot open the shot: {exc}") from None
     stage_warnings = [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
     if cold:
         stage_warnings.append(cold)
+    try:
+        _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start)
+    finally:
+        _close(own_client)
+    return result
+
+
+def _dask_client(address: str):
+    """(client, (client, cluster)) for ``--dask ADDRESS``; the second closes them."""
+    from .distributed import DistributedError, connect
+    try:
+        client, cluster = connect(address)
+    except DistributedError as exc:
+        raise UsageError(str(exc)) from None
+    return client, (client, cluster)
+
+
+def _close(own) -> None:
+    if own is None:
+        return
+    client, cluster = own
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start) -> None:
+    """The frame loop of render_sequence."""
     last_rendered = None
     with rep:
         rep.warnings(stage_warnings)
@@ -258,4 +311,3 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                 raise RenderCancelled(frame, result.written, len(todo) - k) from None
         result.elapsed_s = time.perf_counter() - t_start
         rep.end_sequence(result)
-    return result

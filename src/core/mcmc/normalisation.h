@@ -59,6 +59,23 @@ class NormalisationAccumulator {
     m_nonzero += o.m_nonzero;
   }
 
+  /// The accumulator as numbers ((count, nonzero), (mean, m2)) and back: a part of a
+  /// frame rendered elsewhere merges into the frame's bit for bit.
+  void raw(std::uint64_t* counts, double* moments) const {
+    counts[0] = m_count;
+    counts[1] = m_nonzero;
+    moments[0] = m_mean;
+    moments[1] = m_m2;
+  }
+  static NormalisationAccumulator from_raw(const std::uint64_t* counts, const double* moments) {
+    NormalisationAccumulator a;
+    a.m_count = counts[0];
+    a.m_nonzero = counts[1];
+    a.m_mean = moments[0];
+    a.m_m2 = moments[1];
+    return a;
+  }
+
   NormalisationEstimate estimate() const {
     NormalisationEstimate e;
     e.samples = m_count;

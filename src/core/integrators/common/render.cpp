@@ -3,6 +3,7 @@
 
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/path/path_integrator.h"
 #include "integrators/pssmlt/pssmlt_integrator.h"
 #include "util/error.h"
@@ -32,9 +33,17 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     settings.validate();
     if (!scene.has_camera()) throw SceneError("render: the scene has no camera (call set_camera)");
     if (scene.dirty()) scene.commit();
+    if (settings.partial && settings.integrator == "bdpt")
+        throw SettingsError("RenderSettings.partial: bdpt frames do not split (its light-tracing "
+                            "splats reach every pixel of a pass); render them whole");
     for (const IntegratorEntry& e : k_integrators)
         if (settings.integrator == e.name) return e.render(scene, settings, progress);
     CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '" << settings.integrator << "'");
+}
+
+RenderResult combine_mlt_parts(int width, int height, const std::vector<const MltPart*>& parts,
+                               const std::vector<float>& direct) {
+    return mlt::combine_parts(width, height, parts, direct);
 }
 
 }  // namespace cmlt

@@ -16,4 +16,13 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
 /// The integrators by name ("pt", "bdpt", "pssmlt", "cmlt"), `count` rows.
 const IntegratorEntry* integrator_table(size_t* count);
 
+/// The image of a pssmlt/cmlt frame rendered in parts (RenderSettings::partial): the
+/// parts' splat sums added exactly, b merged from the bootstrap and the chains in chain
+/// order (parts sorted by their first chain, covering every chain once), developed with
+/// `direct` (the direct pass's mean (H, W, 3) assembled from the parts' rows; empty
+/// without one) — bit for bit the image of the frame rendered in one process.
+/// stats.mlt.{b, b_stderr, mutations, clamped_splats} are set.
+RenderResult combine_mlt_parts(int width, int height, const std::vector<const MltPart*>& parts,
+                               const std::vector<float>& direct);
+
 }  // namespace cmlt

@@ -61,6 +61,11 @@ void RenderSettings::validate() const {
           mlt_film_offset_y < 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.mlt_film_offset must be in [0, 1) per axis, got "
                                       << mlt_film_offset_x << ", " << mlt_film_offset_y);
+    if (partial && !(part_row_begin >= 0 && part_row_begin <= part_row_end && part_row_end <= height &&
+                     part_chain_begin <= part_chain_end))
+        CMLT_THROW(SettingsError, "RenderSettings.part_*: rows [" << part_row_begin << ", " << part_row_end
+                                      << ") must lie in [0, height = " << height << "] and chains ["
+                                      << part_chain_begin << ", " << part_chain_end << ") be a range");
 }
 
 }  // namespace cmlt

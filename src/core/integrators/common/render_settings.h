@@ -165,6 +165,17 @@ struct RenderSettings {
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).
     std::shared_ptr<const std::vector<float>> pilot;
 
+    /// One part of a frame split over processes (cmlt.shot.distributed): with `partial`,
+    /// pt renders only rows [part_row_begin, part_row_end) (the other rows stay 0);
+    /// pssmlt/cmlt run only chains [part_chain_begin, part_chain_end) of the frame's
+    /// chains and their direct pass only on those rows, and return the raw sums
+    /// (RenderResult::partial) that combine_mlt_parts adds up exactly into the image
+    /// of the whole frame. The parts' images are not the frame's. Not settings: the
+    /// distributed frame loop sets them per task.
+    bool partial = false;
+    int part_row_begin = 0, part_row_end = 0;
+    uint64_t part_chain_begin = 0, part_chain_end = 0;
+
     /// Every field against the table's range, and width · height <= 2^31. Throws
     /// SettingsError "RenderSettings.<field>: ..." naming the field.
     void validate() const;
@@ -235,6 +246,17 @@ struct RenderStats {
                                    ///< (mlt.enabled)
 };
 
+/// pssmlt/cmlt with RenderSettings::partial: what a part of a frame adds to it.
+struct MltPart {
+    std::vector<uint64_t> splat_lo;  ///< SplatFilm words (W·H·3): the 128-bit sums' low
+    std::vector<int64_t> splat_hi;   ///< and high words (splat_film.h)
+    /// NormalisationAccumulator of the bootstrap, then of each chain of the part in chain
+    /// order: (count, nonzero) pairs and (mean, m2) pairs.
+    std::vector<uint64_t> norm_counts;
+    std::vector<double> norm_moments;
+    uint64_t steps = 0;  ///< kernel steps of the part's chains
+};
+
 struct RenderResult {
     int width = 0, height = 0;
     std::vector<float> image;     ///< (H, W, 3), row 0 at the top
@@ -253,6 +275,8 @@ struct RenderResult {
     /// pssmlt / cmlt: the state every chain started the frame from (after resampling or
     /// import).
     std::shared_ptr<mlt::ChainStates> mlt_start_states;
+    /// pssmlt / cmlt with RenderSettings::partial: the part's raw sums; else null.
+    std::shared_ptr<MltPart> mlt_part;
 };
 
 /// Called from the calling thread between chunks with (done, total) samples per pixel;

@@ -172,11 +172,12 @@ public:
         MltFrame& fr = m_frame;
         ChainSchedule schedule(fr.settings, fr.t0, m_chains.size());
         uint64_t evaluations = 0;
+        const std::pair<size_t, size_t> run = part_chains(fr.settings, m_chains.size());  // all, or a part's
         while (!m_chains.empty() && schedule.begin_round(evaluations)) {
             fr.direct.before_round(schedule, evaluations);
-            parallel_tasks(fr.arena, fr.counters, m_chains.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
+            parallel_tasks(fr.arena, fr.counters, run.second - run.first, size_t(1), [&](const tbb::blocked_range<size_t>& r) {
                 auto tracer = make_tracer();
-                for (size_t k = r.begin(); k != r.end(); ++k) {
+                for (size_t k = run.first + r.begin(); k != run.first + r.end(); ++k) {
                     Chain& chain = *m_chains[k];
                     tracer.run(chain, schedule.round_end(chain.budget, chain.evaluations));
                 }
@@ -211,6 +212,12 @@ public:
         out.cancelled = m_cancelled;
         out.states = export_states(export_chain);
         out.start_states = std::move(m_start_states);
+        if (m_frame.settings.partial) {
+            // a part of the frame: the bootstrap's accumulator, then its chains' in order
+            const auto run = part_chains(m_frame.settings, m_chains.size());
+            out.part_norms.push_back(m_boot_acc);
+            for (size_t k = run.first; k < run.second; ++k) out.part_norms.push_back(m_chains[k]->large);
+        }
         return out;
     }
 

@@ -21,9 +21,10 @@ uint64_t PtPass::evaluations() const {
 void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counters) {
     if (total <= m_passes) return;
     const int s0 = m_passes, s1 = total, W = m_settings.width;
-    parallel_tasks(arena, counters, m_settings.height, 2, [&](const tbb::blocked_range<int>& r) {
+    const int y0 = m_row0, y1 = m_row1 < 0 ? m_settings.height : m_row1;
+    parallel_tasks(arena, counters, std::max(0, y1 - y0), 2, [&](const tbb::blocked_range<int>& r) {
         PathCounters c;
-        for (int y = r.begin(); y != r.end(); ++y)
+        for (int y = y0 + r.begin(); y != y0 + r.end(); ++y)
             for (int x = 0; x < W; ++x)
                 for (int k = s0; k < s1; ++k) {
                     const uint32_t index = m_sample_base + uint32_t(k);
@@ -59,7 +60,9 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 }
 
 DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
-    : PtPass(scene, s, k_direct_sample_base, std::min(1, s.max_depth)), m_enabled(s.direct_fraction > 0.0) {}
+    : PtPass(scene, s, k_direct_sample_base, std::min(1, s.max_depth)), m_enabled(s.direct_fraction > 0.0) {
+    if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
+}
 
 int DirectPass::passes_for(uint64_t chain_evaluations) const {
     const double f = m_settings.direct_fraction;

@@ -48,6 +48,12 @@ public:
     void render_to(tbb::task_arena& arena, int total, FrameCounters& counters);
     /// Mean and variance of the mean (H, W, 3); empty before the first pass.
     PtPassImage develop() const;
+    /// Render only rows [y0, y1) (a part of a frame, RenderSettings::partial; the other
+    /// rows stay 0). Default: every row.
+    void set_rows(int y0, int y1) {
+        m_row0 = y0;
+        m_row1 = y1;
+    }
 
 protected:
     const RenderSettings& m_settings;
@@ -59,6 +65,7 @@ private:
     Film m_film;
     uint32_t m_sample_base;
     int m_passes = 0;
+    int m_row0 = 0, m_row1 = -1;  ///< rows rendered (-1: the image's height)
 };
 
 /// The pilot image: `spp` samples per pixel at full depth, keyed from

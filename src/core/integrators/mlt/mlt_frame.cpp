@@ -2,6 +2,7 @@
 #include "integrators/mlt/mlt_frame.h"
 
 #include "scene/scene.h"
+#include "util/error.h"
 
 #include <algorithm>
 
@@ -94,6 +95,59 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.imported_chains = chains.imported ? chains.chains : 0;
     m.clamped_splats = film.clamped();
     m.path_evaluations = budget.pilot + direct_pass.evaluations() + budget.bootstrap + chains.evaluations;
+    if (settings.partial) {
+        // a part of the frame: its raw sums, which combine_parts adds up exactly
+        auto part = std::make_shared<MltPart>();
+        film.export_words(part->splat_lo, part->splat_hi);
+        const size_t n = chains.part_norms.size();
+        part->norm_counts.resize(2 * n);
+        part->norm_moments.resize(2 * n);
+        for (size_t i = 0; i < n; ++i) chains.part_norms[i].raw(&part->norm_counts[2 * i], &part->norm_moments[2 * i]);
+        if (n == 0) {  // no chains ran (none needed): an empty bootstrap accumulator
+            part->norm_counts.assign(2, 0);
+            part->norm_moments.assign(2, 0.0);
+        }
+        part->steps = chains.steps;
+        res.mlt_part = std::move(part);
+    }
+    return res;
+}
+
+RenderResult combine_parts(int width, int height, const std::vector<const MltPart*>& parts,
+                           const std::vector<float>& direct) {
+    const size_t n = size_t(width) * size_t(height) * 3;
+    if (parts.empty()) throw SettingsError("combine_mlt_parts: no parts");
+    if (!direct.empty() && direct.size() != n)
+        CMLT_THROW(SettingsError, "combine_mlt_parts: the direct image has " << direct.size()
+                                      << " values, the frame " << n);
+    SplatFilm film(width, height);
+    mcmc::NormalisationAccumulator b_acc;
+    uint64_t steps = 0;
+    for (size_t p = 0; p < parts.size(); ++p) {
+        const MltPart& part = *parts[p];
+        if (part.splat_lo.size() != n || part.splat_hi.size() != n || part.norm_counts.size() < 2 ||
+            part.norm_counts.size() != part.norm_moments.size())
+            CMLT_THROW(SettingsError, "combine_mlt_parts: part " << p << " is not a part of a "
+                                          << width << " x " << height << " frame");
+        film.add_words(part.splat_lo.data(), part.splat_hi.data());
+        // the bootstrap (the same in every part) once, then the chains in chain order,
+        // as the single-process frame merges them
+        for (size_t i = p == 0 ? 0 : 1; i < part.norm_counts.size() / 2; ++i)
+            b_acc.merge(mcmc::NormalisationAccumulator::from_raw(&part.norm_counts[2 * i], &part.norm_moments[2 * i]));
+        steps += part.steps;
+    }
+    const mcmc::NormalisationEstimate b = b_acc.estimate();
+    RenderResult res;
+    res.width = width;
+    res.height = height;
+    PtPassImage d;
+    d.mean = direct;
+    develop_image(res, film, b.mean, steps, d);
+    res.stats.mlt.enabled = true;
+    res.stats.mlt.b = b.mean;
+    res.stats.mlt.b_stderr = b.std_error;
+    res.stats.mlt.mutations = steps;
+    res.stats.mlt.clamped_splats = film.clamped();
     return res;
 }
 

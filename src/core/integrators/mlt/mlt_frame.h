@@ -30,6 +30,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace cmlt {
@@ -37,6 +38,13 @@ namespace cmlt {
 class Scene;
 
 namespace mlt {
+
+/// Chains [first, second) of a frame's n that this render runs: all, or a part's
+/// (RenderSettings::partial).
+inline std::pair<size_t, size_t> part_chains(const RenderSettings& s, size_t n) {
+    if (!s.partial) return {0, n};
+    return {size_t(std::min<uint64_t>(s.part_chain_begin, n)), size_t(std::min<uint64_t>(s.part_chain_end, n))};
+}
 
 struct FrameBudget {
     uint64_t pilot = 0, direct = 0, bootstrap = 0, chains = 0;
@@ -56,6 +64,9 @@ struct PopulationResult {
     bool imported = false;   ///< the chains started from given states
     bool cancelled = false;  ///< progress stopped the frame
     std::shared_ptr<ChainStates> states, start_states;
+    /// RenderSettings::partial: the bootstrap's accumulator, then those of the part's
+    /// chains in chain order (RenderResult::mlt_part)
+    std::vector<mcmc::NormalisationAccumulator> part_norms;
 };
 
 /// One Metropolis frame's machinery, built in this order: the thread arena and the
@@ -90,6 +101,10 @@ public:
     SplatFilm film;
     DirectSchedule direct;
 };
+
+/// The image of a frame rendered in parts (render.h combine_mlt_parts).
+RenderResult combine_parts(int width, int height, const std::vector<const MltPart*>& parts,
+                           const std::vector<float>& direct);
 
 }  // namespace mlt
 }  // namespace cmlt

@@ -76,6 +76,26 @@ public:
     }
     uint64_t clamped() const { return m_clamped.load(); }
 
+    /// The raw sums: low and high words of every pixel and channel (W·H·3 each).
+    void export_words(std::vector<uint64_t>& lo, std::vector<int64_t>& hi) const {
+        const size_t n = size_t(m_width) * m_height * 3;
+        lo.resize(n);
+        hi.resize(n);
+        for (size_t i = 0; i < n; ++i) {
+            lo[i] = m_lo[i].load(std::memory_order_relaxed);
+            hi[i] = m_hi[i].load(std::memory_order_relaxed);
+        }
+    }
+    /// Add another film's raw sums (export_words), exactly: 128-bit integer adds, so
+    /// films of disjoint sets of splats sum to the film that received them all.
+    void add_words(const uint64_t* lo, const int64_t* hi) {
+        for (size_t i = 0, n = size_t(m_width) * m_height * 3; i < n; ++i) {
+            const uint64_t old = m_lo[i].fetch_add(lo[i], std::memory_order_relaxed);
+            const int64_t dh = hi[i] + int64_t(old + lo[i] < old);
+            if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
+        }
+    }
+
 private:
     int m_width, m_height;
     std::unique_ptr<std::atomic<uint64_t>[]> m_lo;  ///< fixed-point sums mod 2^64

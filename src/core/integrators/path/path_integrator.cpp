@@ -7,6 +7,7 @@
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"
 
+#include <algorithm>
 #include <chrono>
 
 namespace cmlt {
@@ -17,7 +18,17 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     Film film(W, H);
     const PathTracer tracer(scene, settings.max_depth);
     const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
-    const std::vector<Tile> tiles = image_tiles(W, H);
+    std::vector<Tile> tiles = image_tiles(W, H);
+    if (settings.partial) {
+        // a part of the frame: only rows [part_row_begin, part_row_end); the rest stay 0
+        std::vector<Tile> part;
+        for (Tile t : tiles) {
+            t.y0 = std::max(t.y0, settings.part_row_begin);
+            t.y1 = std::min(t.y1, settings.part_row_end);
+            if (t.y0 < t.y1) part.push_back(t);
+        }
+        tiles = std::move(part);
+    }
     const int threads = frame_threads(settings);
     tbb::task_arena arena(threads);
 
