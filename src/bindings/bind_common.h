@@ -39,5 +39,6 @@ void bind_scene(nb::module_& m);
 void bind_render(nb::module_& m);
 void bind_temporal(nb::module_& m);
 void bind_geometry(nb::module_& m);
+void bind_analysis(nb::module_& m);
 
 }  // namespace cmlt::bindings

@@ -39,6 +39,8 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     if (settings.integrator == "bdpt") return render_bdpt(scene, settings, progress);
     if (settings.integrator == "pssmlt") return render_pssmlt(scene, settings, progress);
     if (settings.integrator == "cmlt") return render_cmlt(scene, settings, progress);
+    // "pt", and "auto": the frame loop resolves auto from the shot's effects before the
+    // core sees it; called on its own the core has no shot to analyse (the table's doc)
 
     const int W = settings.width, H = settings.height;
     Camera camera(scene.camera_desc(), W, H);
@@ -111,7 +113,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
         st.first_nan_sample = fs;
     }
     st.threads = threads;
-    st.integrator = settings.integrator;
+    st.integrator = "pt";
     st.spp = done;
     st.seed = settings.seed;
     return res;
