@@ -53,7 +53,7 @@ def test01_every_effect_is_reported_as_a_boolean(stages):
         assert list(rep["effects"]) == list(EFFECT_NAMES), name
         assert all(isinstance(v, bool) for v in rep["effects"].values()), name
         assert set(rep["details"]) == set(EFFECT_NAMES)
-        assert rep["integrator_auto"]["name"] in ("pt", "cmlt")
+        assert rep["integrator_auto"]["name"] in ("pt", "bdpt")
         assert rep["integrator_auto"]["reason"]
 
 
@@ -186,4 +186,4 @@ def test17_the_text_form_is_the_same_table(tmp_path, capsys):
     assert list(rows) == list(EFFECT_NAMES)
     assert {n for n, v in rows.items() if v == "yes"} == {"caustics", "transmission",
                                                           "depth_of_field"}
-    assert "integrator auto: cmlt (caustics" in out
+    assert "integrator auto: bdpt (caustics" in out

@@ -15,10 +15,10 @@ EXPECTED = {
     # animated boxes, but the shutter is closed; a rect light; diffuse materials
     "cornell": (set(), "pt"),
     # a smooth glass ball lit by a small sphere light: the caustic on the floor
-    "caustic_glass": ({"caustics", "transmission"}, "cmlt"),
+    "caustic_glass": ({"caustics", "transmission"}, "bdpt"),
     # a room lit through the gap of a door: light samples at what the camera sees
     # almost never reach the light
-    "door_ajar": (set(), "cmlt"),
+    "door_ajar": (set(), "bdpt"),
     "moving_light": (set(), "pt"),
     "static_flicker": (set(), "pt"),
     # a sun-lit chrome ball is a caustic, but it carries a tiny share of the light

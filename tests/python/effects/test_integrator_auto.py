@@ -29,13 +29,13 @@ def test01_the_rule():
     assert choose_integrator([fake(1), fake(2)]).name == "pt"
     # caustics that matter in one frame decide for the shot
     c = choose_integrator([fake(1), fake(2, caustic=2 * CAUSTIC_SHARE)])
-    assert c.name == "cmlt" and "caustics: at frame 2" in c.reason and c.frames == [1, 2]
+    assert c.name == "bdpt" and "caustics: at frame 2" in c.reason and c.frames == [1, 2]
     # caustics below the share do not
     c = choose_integrator([fake(1, caustic=0.5 * CAUSTIC_SHARE)])
     assert c.name == "pt" and "caustics carry at most" in c.reason
     # hard visibility needs both the direct and the one-bounce fractions small
     c = choose_integrator([fake(1, direct=0.5 * HARD_DIRECT, bounce=0.5 * HARD_BOUNCE)])
-    assert c.name == "cmlt" and "hard visibility: at frame 1" in c.reason
+    assert c.name == "bdpt" and "hard visibility: at frame 1" in c.reason
     assert choose_integrator([fake(1, direct=0.5 * HARD_DIRECT, bounce=2 * HARD_BOUNCE)]).name \
         == "pt"
     assert choose_integrator([fake(1, direct=2 * HARD_DIRECT, bounce=0.5 * HARD_BOUNCE)]).name \
@@ -68,7 +68,7 @@ def test03_auto_is_the_default_and_the_sidecar_says_what_it_chose(tmp_path):
     assert rec["settings_sources"]["integrator"].startswith("auto (default): ")
     glass = build(tmp_path / "glass.usda", sphere=GLASS)
     rec = _render(tmp_path, glass, "--frames", "1", "--integrator", "auto")
-    assert rec["settings"]["integrator"] == "cmlt"
+    assert rec["settings"]["integrator"] == "bdpt"
     assert rec["settings_sources"]["integrator"].startswith("auto (flag --integrator): caustics")
 
 
@@ -92,7 +92,7 @@ def test05_the_choice_is_printed_with_its_reason(tmp_path, capsys):
                  "--spp", "2", "--res", "16x12", "--threads", "2"])
     assert code == 0
     err = capsys.readouterr().err
-    assert "cmlt: integrator auto: cmlt (caustics: at frame 1," in err
+    assert "cmlt: integrator auto: bdpt (caustics: at frame 1," in err
 
 
 def test06_sidecars_record_the_effects_of_each_frame(tmp_path):
