@@ -2,11 +2,13 @@
 // analysis (cmlt/analysis/effects.py) asks for caustic paths and visibility.
 #include "bind_common.h"
 
+#include "analysis/kernel_select.h"
 #include "analysis/scene_probes.h"
 #include "scene/scene.h"
 #include "util/error.h"
 
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
 
 namespace cmlt::bindings {
 
@@ -56,6 +58,12 @@ nb::dict probe_py(Scene& scene, int width, int height, uint64_t seed, uint32_t l
     return d;
 }
 
+std::vector<bool> lambert_kernel_py(const Scene& scene) {
+    std::vector<bool> out(scene.material_count());
+    for (size_t i = 0; i < out.size(); ++i) out[i] = exact_lambertian(scene.material(uint32_t(i)));
+    return out;
+}
+
 }  // namespace
 
 void bind_analysis(nb::module_& m) {
@@ -65,6 +73,9 @@ void bind_analysis(nb::module_& m) {
           "Probe paths for the scene analysis (analysis/scene_probes.h): caustic paths L S+ D "
           "the camera sees (counts and flux estimates) and how often light samples at the "
           "camera's first diffuse hits and one bounce further reach a light. A dict.");
+    m.def("lambert_kernel_materials", &lambert_kernel_py, "scene"_a,
+          "Per material of the scene: whether RenderSettings.kernel = 'auto' renders it with "
+          "the diffuse-only kernel (an exact Lambertian, analysis/kernel_select.h).");
 }
 
 }  // namespace cmlt::bindings

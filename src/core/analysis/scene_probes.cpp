@@ -13,6 +13,7 @@
 #include <cmath>
 #include <sstream>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 namespace cmlt {
@@ -66,6 +67,7 @@ public:
     ProbeResult run() {
         ProbeResult r;
         build_candidates(&r);
+        visibility(&r);  // first: it finds the triangles seen through specular chains
         if (m_scene.light_count() > 0) {
             for (uint32_t i = 0; i < m_o.light_paths; ++i) emitted_path(i, &r);
             if (m_candidates.size() > 0)
@@ -76,7 +78,6 @@ public:
             r.caustic_flux_emitted /= double(m_o.light_paths);
         }
         if (r.targeted_paths > 0) r.caustic_flux_targeted /= double(r.targeted_paths);
-        visibility(&r);
         return r;
     }
 
@@ -137,9 +138,17 @@ private:
         return inst.xf.m.transform_point(p0 * (1.f - b1 - b2) + p1 * b1 + p2 * b2);
     }
 
+    /// (instance, triangle, side of the geometric normal) as one key.
+    static uint64_t side_key(const SurfaceInteraction& si, bool front) {
+        return (uint64_t(si.instance_id) << 33) | (uint64_t(si.prim_id) << 1) | (front ? 1u : 0u);
+    }
+
     /// The camera sees `si` directly, on the side light arrives from (`w_in`, pointing
     /// away from the surface toward where the light came from).
     bool camera_sees(const SurfaceInteraction& si, const Vec3& w_in) const {
+        if (!m_seen_via_specular.empty() &&
+            m_seen_via_specular.count(side_key(si, dot(w_in, si.ng) >= 0.f)))
+            return true;
         Vec2 raster;
         if (!m_camera.world_to_raster(si.p, &raster)) return false;
         if (!(raster.x >= 0.f && raster.y >= 0.f && raster.x < float(m_o.width) &&
@@ -348,6 +357,7 @@ private:
                 }
                 si = end;
                 r->camera_specular_first += 1;
+                m_seen_via_specular.insert(side_key(si, dot(si.wo, si.ng) >= 0.f));
             }
             r->camera_diffuse_hits += 1;
             uint32_t l1 = lit_samples(si, s);
@@ -375,6 +385,9 @@ private:
     Camera m_camera;
     Vec3 m_cam_pos;
     std::vector<uint8_t> m_may_specular;
+    /// Sides of triangles a camera probe reached through a specular chain (visibility()):
+    /// the camera sees them, though not directly.
+    std::unordered_set<uint64_t> m_seen_via_specular;
     std::vector<Candidate> m_candidates;
     DiscreteDistribution m_candidate_dist;
 };

@@ -15,9 +15,11 @@
 /// legacy Lambert material never are. Pass-through crossings (cut-outs, ior-1 surfaces)
 /// are no vertices: the probes step through them as the integrators do.
 ///
-/// **Caustic paths** are light paths L S+ D whose diffuse vertex D the camera sees
+/// **Caustic paths** are light paths L S+ D whose diffuse vertex D the camera sees:
 /// directly (D inside the image, an unoccluded segment to the camera on the lit side of
-/// D): the paths a path tracer can only find by hitting a light through the specular
+/// D), or through a specular chain (D on the lit side of a triangle where a visibility
+/// probe's camera path ended after a specular vertex: a caustic seen through glass or in
+/// a mirror; triangle granularity, so a large triangle counts as a whole): the paths a path tracer can only find by hitting a light through the specular
 /// chain, which the caustic perturbation of DESIGN.md §3 and BDPT's light tracing
 /// handle. Two estimators of the flux they carry onto camera-visible diffuse surfaces:
 ///  * `light_paths` emitted light paths (light chosen by power, Light::sample_le; for
@@ -32,7 +34,8 @@
 /// `caustic_flux` is the targeted one when there are candidate triangles.
 ///
 /// **Visibility probes.** `camera_paths` camera rays on a stratified grid over the image
-/// find their first diffuse vertex x1 (through specular chains); `light_samples` light
+/// find their first diffuse vertex x1 (through specular chains; they run first, and mark
+/// the triangles seen through a chain); `light_samples` light
 /// samples at x1 give `direct_visible` (the fraction that reach a light unoccluded, on
 /// the lit side); one cosine-sampled bounce from x1 to x2 and the same light samples at
 /// x2 give `bounce_visible`. A room lit through a narrow gap has both small.

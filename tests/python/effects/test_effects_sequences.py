@@ -23,12 +23,44 @@ EXPECTED = {
     "static_flicker": (set(), "pt"),
     # a sun-lit chrome ball is a caustic, but it carries a tiny share of the light
     "textured_dome": ({"caustics", "textures", "dome_light"}, "pt"),
+    # the camera moves (a time sample per frame), its shutter is closed; the glossy
+    # floor is a dielectric of roughness 0.1 (F0 4 %), not a caustic-capable surface
+    "camera_pan": (set(), "pt"),
+    # a key sphere light (radius 3 cm, not a point) fades under a rect fill
+    "fading_light": (set(), "pt"),
+}
+
+#: the hard cases (sequences/hard/notes.md): one static frame each; auto's choice
+HARD = {
+    "scale_unit": (set(), "pt"),
+    "scale_1e-4": (set(), "pt"),
+    "scale_1e5": (set(), "pt"),
+    "degenerate": (set(), "pt"),
+    # a 0.5 mm sphere light is tiny, not a delta light (treatAsPoint is off)
+    "tiny_sphere_light": (set(), "pt"),
+    "point_light": ({"delta_lights"}, "pt"),
+    "caustic_lsdse": ({"caustics", "transmission"}, "bdpt"),
+    # the caustic is seen only through the glass slab (L S S D S S E)
+    "caustic_sds": ({"caustics", "transmission"}, None),
+    "slit": (set(), "bdpt"),
+    # the distant light is 0.5 degrees wide: not a delta light
+    "grazing": (set(), "pt"),
+    # mirrors and a glass ball, no diffuse surface: no L S+ D path, nothing to probe from
+    "specular_only": ({"transmission"}, "pt"),
+    # the only light is sealed in a box: no light sample reaches it
+    "all_black": (set(), "bdpt"),
+    # all the light leaves through the glass block around it
+    "light_behind_glass": ({"caustics", "transmission"}, "bdpt"),
+    # the bulb is seen in a mirror and through a glass slab
+    "bulb_room": ({"caustics", "transmission"}, "bdpt"),
 }
 
 
 def test01_every_sequence_is_covered():
     assert sorted(p.name for p in SEQUENCES.iterdir() if (p / "shot.usda").exists()) == \
         sorted(EXPECTED)
+    assert sorted(p.parent.name for p in (SEQUENCES / "hard").glob("*/shot.usda")) == \
+        sorted(HARD)
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
@@ -57,3 +89,12 @@ def test03_motion_of_the_cornell_boxes_is_not_blur_with_the_shutter_closed():
     assert rep["frames"] == [1.0, 24.0]
     assert [f["effects"]["motion_blur"] for f in rep["per_frame"]] == [False, False]
     assert "shutter closed" in rep["details"]["motion_blur"]["reason"]
+
+
+@pytest.mark.parametrize("name", sorted(HARD))
+def test04_hard_cases(name):
+    rep = inspect(SEQUENCES / "hard" / name / "shot.usda")
+    want, integrator = HARD[name]
+    assert {n for n, v in rep["effects"].items() if v} == want, rep["details"]
+    if integrator is not None:
+        assert rep["integrator_auto"]["name"] == integrator, rep["integrator_auto"]["reason"]

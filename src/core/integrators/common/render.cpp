@@ -36,6 +36,12 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     settings.validate();
     if (!scene.has_camera()) throw SceneError("render: the scene has no camera (call set_camera)");
     if (scene.dirty()) scene.commit();
+    // the material kernels of this render (analysis/kernel_select.h); auto again after it
+    struct KernelScope {
+        Scene& scene;
+        ~KernelScope() { scene.select_kernels(false); }
+    } kernels{scene};
+    scene.select_kernels(settings.kernel == "general");
     if (settings.integrator == "bdpt") return render_bdpt(scene, settings, progress);
     if (settings.integrator == "pssmlt") return render_pssmlt(scene, settings, progress);
     if (settings.integrator == "cmlt") return render_cmlt(scene, settings, progress);

@@ -117,6 +117,10 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "cmlt: trace a bundle's rays (camera rays, subpath bounces, shadow rays) as "       \
          "Embree packets; off: one by one, the same image bit for bit (for timing "          \
          "comparisons)")                                                                     \
+    TOKEN(kernel, "auto", "auto general", "", "--kernel",                                   \
+          "material kernels: auto (materials that are exact Lambertians on the frame take "  \
+          "the diffuse-only kernel; the same image to float rounding, fewer instructions) "  \
+          "or general (the full UsdPreviewSurface model everywhere, the reference)")         \
     TOKEN(mlt_path_sampler, "bdpt", "bdpt pt", "", "",                                       \
           "pssmlt's path sampler: bdpt (multiplexed over depth and strategy (s, t)) or pt "  \
           "(the path tracer)")
