@@ -43,5 +43,6 @@ void bind_settings(nb::module_& m);  ///< RenderSettings: before bind_render
 void bind_render(nb::module_& m);
 void bind_temporal(nb::module_& m);
 void bind_geometry(nb::module_& m);
+void bind_analysis(nb::module_& m);
 
 }  // namespace cmlt::bindings

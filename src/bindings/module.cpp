@@ -115,4 +115,5 @@ NB_MODULE(_core, m) {
     bind_render(m);
     bind_temporal(m);
     bind_geometry(m);
+    bind_analysis(m);
 }

@@ -17,7 +17,7 @@
                      [--state-dir DIR [--fresh-start-on-bad-state]]
                      [--dask local:N|tcp://HOST:8786 [--dask-parts N]]
                      [--resume] [--quiet | --log-json]
-    cmlt inspect SHOT | --image FILE.exr
+    cmlt inspect SHOT [--frames SPEC] [--json] | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
     cmlt compare A B [--json [OUT]]
@@ -200,6 +200,10 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("shot", metavar="SHOT", nargs="?", help="USD stage")
     i.add_argument("--image", metavar="FILE", help="print the header of an EXR (or any "
                    "image OpenImageIO reads): channels, windows, colour space, cmlt metadata")
+    i.add_argument("--frames", metavar="SPEC", help="frames whose effects are analysed "
+                   "(as for render; default: the stage's start time code)")
+    i.add_argument("--json", action="store_true", help="print the effects analysis and the "
+                   "--integrator auto choice as one JSON object instead of the report")
 
     c = sub.add_parser("contact-sheet", help="tile a sequence of frames into one "
                        "display-referred image with frame numbers",
@@ -287,6 +291,9 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
 
         n = len(res.written)
         skipped = f", {len(res.skipped)} skipped (already rendered)" if res.skipped else ""
+        auto = res.settings.get("integrator_auto")
+        if auto:                            # --integrator auto (cmlt.analysis.auto)
+            sys.stderr.write(f"cmlt: integrator auto: {auto['name']} ({auto['reason']})\n")
         sys.stderr.write(f"cmlt: {n} frame(s) written{skipped}\n")
         if n:
             Console(stderr=True, highlight=False).print(summary_table(res))
@@ -354,6 +361,16 @@ def _cmd_inspect(args) -> int:
         report = info.format()
     except UsdLoadError as exc:
         return _error(str(exc), EXIT_RENDER)
+    from .shot import RenderError, UsageError
+    from .shot.analyse import inspect_effects
+    try:                                    # the effects of the frames (cmlt.analysis)
+        effects, table = inspect_effects(stage, info, args.frames)
+    except (UsageError, RenderError) as exc:
+        return _error(str(exc), EXIT_USAGE if isinstance(exc, UsageError) else EXIT_RENDER)
+    if args.json:
+        import json
+        sys.stdout.write(json.dumps(effects, indent=2) + "\n")
+        return EXIT_OK
     sys.stdout.write(report.rstrip("\n") + "\n")
     try:
         settings, sources = resolve_settings(stage)
@@ -374,7 +391,7 @@ def _cmd_inspect(args) -> int:
     except ColorError as exc:
         sys.stdout.flush()
         return _error(str(exc), EXIT_RENDER)
-    sys.stdout.write(f"colour: {cfg.describe()}\n")
+    sys.stdout.write(f"colour: {cfg.describe()}\n{table}\n")
     return EXIT_OK
 
 

@@ -18,6 +18,7 @@ from ..color import ColorError
 from ..io.exr import check_crop, write_exr
 from ..io.preview import write_preview
 from ..io.sidecar import write_sidecar
+from .analyse import frame_effects
 from .bridge import BridgeError, SceneBridge
 from .core_settings import settings_message
 from .errors import RenderError, UsageError
@@ -51,6 +52,7 @@ class ShotJob:
     temporal: Any = None                # TemporalDriver, made on the first frame
     make_temporal: Any = None           # (width, height) -> TemporalDriver
     distributed: Any = None             # cmlt.shot.distributed.DaskRenderer (--dask), or None
+    effects_cache: Any = None           # time -> FrameEffects (cmlt.shot.analyse)
 
     def __post_init__(self):
         if self.bridge is None:
@@ -222,6 +224,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         "settings": job.settings_record, "settings_sources": dict(job.sources),
         "stats": stats, "scene_update": job.bridge.last_update.as_dict(),
         "warnings": list(fs.warnings), "cmlt_version": __version__, "temporal": trec,
+        "effects": frame_effects(fs, scene, core, opts.resolution, job.effects_cache),
     }
     metadata = header_metadata(frame, fs, job.shot_abs, camera, job.resolved, stats,
                                temporal=trec)

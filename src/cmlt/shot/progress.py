@@ -192,6 +192,7 @@ def sequence_summary(result) -> Dict[str, Any]:
         "flicker": flick.get("flicker"),
         "global_flicker": flick.get("global_flicker"),
         "flicker_pairs": int(flick.get("flicker_pairs") or 0),
+        "integrator_auto": (getattr(result, "settings", None) or {}).get("integrator_auto"),
     }
 
 

@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Union
 
+from .analyse import resolve_auto_setting
 from .core_settings import core_settings, resolve
 from .errors import RenderCancelled, RenderError, UsageError
 from .frame_job import ShotJob, render_frame
@@ -188,19 +189,24 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     opts.check()
     stage, info, core = _open(shot, core)
     resolved, sources = resolve(stage, opts)
+    if opts.camera:
+        _check_camera(stage, opts.camera, shot)
+    frame_list = _frame_list(frames, info)
+    effects_cache: dict = {}                # time -> FrameEffects (cmlt.analysis)
+    auto = resolve_auto_setting(stage, info, core, frame_list, opts, resolved, sources,
+                                effects_cache)
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
     check_aovs_for(aovs, resolved.integrator)
     t_start = time.perf_counter()
-    frame_list = _frame_list(frames, info)
     outputs = expand_outputs(out or default_output(shot), frame_list)
-    if opts.camera:
-        _check_camera(stage, opts.camera, shot)
 
     result = SequenceResult(frames=list(frame_list), sources=dict(sources),
                             settings=_settings_record(resolved, opts, colorspace_name,
                                                       display, view, aovs))
+    if auto is not None:
+        result.settings["integrator_auto"] = auto.as_dict()
     todo = []
     for f, path in zip(frame_list, outputs):
         if resume and os.path.isfile(path):
@@ -218,7 +224,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     job = ShotJob(shot=shot, stage=stage, info=info, opts=opts, core=core, st=st,
                   resolved=resolved, sources=sources, color_attrs=color_attrs, display=display,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
-                  result=result)
+                  result=result, effects_cache=effects_cache)
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
     own_client = None
     if client is None and opts.dask:

@@ -49,6 +49,11 @@ struct Material {
     int8_t pv_diffuse = -1, pv_specular = -1, pv_metallic = -1, pv_roughness = -1,
            pv_clearcoat = -1, pv_clearcoat_roughness = -1, pv_opacity = -1;
 
+    /// Rendered by the diffuse-only kernel: a preview material that is an exact
+    /// Lambertian on this frame (analysis/kernel_select.h); set per render by the core,
+    /// never by the caller. The image is the preview model's to float rounding.
+    bool lambert_kernel = false;
+
     bool is_emissive() const { return max_component(emission) > 0.f || tex_emission >= 0; }
 };
 

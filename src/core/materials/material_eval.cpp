@@ -30,6 +30,14 @@ float scalar_input(float constant, int32_t tex, uint8_t channel, int8_t pv, cons
     return constant;
 }
 
+/// diffuseColor as the preview model sanitises it (PreviewSurfaceBsdf's constructor):
+/// each channel clamped to [0, 1], a non-finite one the spec default.
+Spectrum preview_colour(const Spectrum& c) {
+    const Spectrum def = PreviewSurfaceParams().diffuse;
+    auto ch = [](float v, float d) { return std::isfinite(v) ? std::clamp(v, 0.f, 1.f) : d; };
+    return Spectrum(ch(c.x, def.x), ch(c.y, def.y), ch(c.z, def.z));
+}
+
 PreviewSurfaceParams constant_params(const Material& mat) {
     PreviewSurfaceParams p;
     p.diffuse = mat.diffuse;
@@ -81,6 +89,7 @@ PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
 
 Bsdf Bsdf::from_material(const Material& mat, const Vec3& ns, const Vec3& ng) {
     if (!mat.preview) return Bsdf(LambertianBsdf(mat.diffuse), ns, ng);
+    if (mat.lambert_kernel) return Bsdf(LambertianBsdf(preview_colour(mat.diffuse)), ns, ng);
     PreviewSurfaceParams p = constant_params(mat);
     apply_cutout(&p, mat.opacity_threshold);
     return Bsdf(PreviewSurfaceBsdf(p), ns, ng);
@@ -111,6 +120,12 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
     if (!mat.preview) {
         return Bsdf(LambertianBsdf(colour_input(mat.diffuse, mat.tex_diffuse, -1, si.uv, textures,
                                                 nullptr, 0)),
+                    ns, si.ng);
+    }
+    if (mat.lambert_kernel) {  // the diffuse-only kernel: only the colour varies
+        return Bsdf(LambertianBsdf(preview_colour(colour_input(
+                        mat.diffuse, mat.tex_diffuse, mat.pv_diffuse, si.uv, textures,
+                        si.primvars, si.primvars ? si.n_primvars : 0))),
                     ns, si.ng);
     }
     return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures, si.primvars, si.n_primvars)),

@@ -1,5 +1,7 @@
 #include "scene/scene.h"
 
+#include "analysis/kernel_select.h"
+
 #include "lights/area_lights.h"
 #include "lights/cylinder_light.h"
 #include "lights/infinite_lights.h"
@@ -172,7 +174,17 @@ void Scene::set_materials(std::vector<Material> materials) {
             CMLT_THROW(SceneError, "set_materials: emission[" << i << "] must be finite and >= 0");
     }
     m_materials = std::move(materials);
+    select_kernels(false);
     m_dirty = true;
+}
+
+int Scene::select_kernels(bool general) {
+    int n = 0;
+    for (Material& m : m_materials) {
+        m.lambert_kernel = !general && exact_lambertian(m);
+        n += m.lambert_kernel ? 1 : 0;
+    }
+    return n;
 }
 
 uint32_t Scene::add_texture(TextureDesc desc, const std::string& name) {

@@ -76,6 +76,10 @@ public:
     bool motion_blur() const;
     /// K >= 1 rows; material_ids index these.
     void set_materials(std::vector<Material> materials);
+    /// The material kernels of the next renders (analysis/kernel_select.h): `general`
+    /// renders every preview material through the full UsdPreviewSurface model; otherwise
+    /// the exact Lambertians go through the diffuse-only kernel. Returns how many do.
+    int select_kernels(bool general);
     /// Registers an image texture (zero copy; `desc.owner` keeps it alive); returns its id,
     /// which material texture slots and textured lights refer to.
     uint32_t add_texture(TextureDesc desc, const std::string& name = "texture");

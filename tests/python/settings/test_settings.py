@@ -94,7 +94,7 @@ def test03_apply_has_and_fallbacks():
     assert prim.ApplyAPI(SCHEMA_NAME)
     assert prim.HasAPI(SCHEMA_NAME)
     assert prim.GetAttribute("cmlt:spp").Get() == 16
-    assert prim.GetAttribute("cmlt:integrator").Get() == "pt"
+    assert prim.GetAttribute("cmlt:integrator").Get() == "auto"
     assert not prim.GetAttribute("cmlt:spp").HasAuthoredValue()
     # only RenderSettings prims take it
     xform = UsdGeom.Xform.Define(stage, "/x").GetPrim()
@@ -200,7 +200,7 @@ def test11_out_of_range_stage_values(line, pattern):
 @pytest.mark.parametrize("overrides,pattern", [
     ({"spp": 0}, r"flag --spp = 0 is out of range"),
     ({"integrator": "mlt"}, r"flag --integrator = 'mlt' is not an allowed value; "
-                            r"allowed: pt, bdpt, pssmlt, cmlt"),
+                            r"allowed: auto, pt, bdpt, pssmlt, cmlt"),
     ({"large_step_probability": 2.0}, r"flag --large-step-probability = 2.0"),
     ({"max_dept": 3}, r"unknown setting 'max_dept' \(flag --max-dept\); did you mean max_depth"),
     ({"resolution": "wide"}, r"flag --res"),

@@ -36,8 +36,24 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     if (settings.partial && settings.integrator == "bdpt")
         throw SettingsError("RenderSettings.partial: bdpt frames do not split (its light-tracing "
                             "splats reach every pixel of a pass); render them whole");
+    // the material kernels of this render (analysis/kernel_select.h); auto again after it
+    struct KernelScope {
+        Scene& scene;
+        ~KernelScope() { scene.select_kernels(false); }
+    } kernels{scene};
+    scene.select_kernels(settings.kernel == "general");
+    // "auto" is not an integrator: the frame loop resolves it from the shot's effects
+    // before the core sees it; called on its own the core has no shot to analyse and
+    // renders auto as pt (the settings table's doc)
+    const RenderSettings* use = &settings;
+    RenderSettings as_pt;
+    if (settings.integrator == "auto") {
+        as_pt = settings;
+        as_pt.integrator = "pt";
+        use = &as_pt;
+    }
     for (const IntegratorEntry& e : k_integrators)
-        if (settings.integrator == e.name) return e.render(scene, settings, progress);
+        if (use->integrator == e.name) return e.render(scene, *use, progress);
     CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '" << settings.integrator << "'");
 }
 

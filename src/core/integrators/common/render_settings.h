@@ -57,8 +57,11 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
 // and bootstrap_samples (shared/NOTES.md); tries and inner_length from the coherent-MLT
 // parameter study (README.md, tests/bench/cmlt_params.py).
 #define CMLT_RENDER_SETTINGS(INT, REAL, U64, BOOL, TOKEN)                                    \
-    TOKEN(integrator, "pt", "pt bdpt pssmlt cmlt", "cmlt:integrator", "--integrator",   \
-          "light transport: pt (path tracing, NEE + MIS), bdpt (bidirectional), pssmlt "     \
+    TOKEN(integrator, "auto", "auto pt bdpt pssmlt cmlt", "cmlt:integrator",                \
+          "--integrator",                                                                    \
+          "light transport: auto (chosen per shot from the effects of its frames, "         \
+          "cmlt.analysis.auto; the core alone, with no shot to analyse, renders it as pt), " \
+          "pt (path tracing, NEE + MIS), bdpt (bidirectional), pssmlt "                      \
           "(primary-sample-space MLT), cmlt (coherent MLT)")                                 \
     INT(spp, 16, 1, settings_limits::k_int_max, "cmlt:spp", "--spp N",                       \
         "samples per pixel (pt, bdpt) or path evaluations per pixel (pssmlt, cmlt: "         \
@@ -114,6 +117,10 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "cmlt: trace a bundle's rays (camera rays, subpath bounces, shadow rays) as "       \
          "Embree packets; off: one by one, the same image bit for bit (for timing "          \
          "comparisons)")                                                                     \
+    TOKEN(kernel, "auto", "auto general", "", "--kernel",                                   \
+          "material kernels: auto (materials that are exact Lambertians on the frame take "  \
+          "the diffuse-only kernel; the same image to float rounding, fewer instructions) "  \
+          "or general (the full UsdPreviewSurface model everywhere, the reference)")         \
     TOKEN(mlt_path_sampler, "bdpt", "bdpt pt", "", "",                                       \
           "pssmlt's path sampler: bdpt (multiplexed over depth and strategy (s, t)) or pt "  \
           "(the path tracer)")

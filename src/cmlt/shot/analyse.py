@@ -1,0 +1,131 @@
+"""Frames -> their effects (:mod:`cmlt.analysis`), and ``--integrator auto`` resolved for
+a shot before its first frame renders.
+
+The analysis of a frame needs its core scene (the probes trace it): the frame loop hands
+in the scene it just built; :func:`analyse_frames` builds its own, one
+:class:`SceneBridge` for all the frames it is given, so consecutive frames update the
+scene in place as a render does.
+"""
+from __future__ import annotations
+
+from typing import Dict, List, Optional, Sequence
+
+from ..analysis import AutoChoice, FrameEffects, analyse_frame, choose_integrator, sample_frames
+from .bridge import BridgeError, SceneBridge
+from .errors import RenderError
+
+__all__ = ["analyse_frames", "resolve_auto", "auto_frames", "resolve_auto_setting",
+           "frame_effects", "inspect_effects"]
+
+
+def analyse_frames(stage, frames: Sequence[float], core, camera: Optional[str] = None,
+                   resolution=None, cache: Optional[Dict[float, FrameEffects]] = None
+                   ) -> List[FrameEffects]:
+    """The effects of each of ``frames`` (time codes) of ``stage``; ``cache`` (time ->
+    FrameEffects) is read and filled. Raises RenderError naming the frame when the frame
+    cannot be loaded or the core refuses its scene."""
+    from ..color import ColorError
+    from ..usd import UsdLoadError, load_frame
+
+    out: List[FrameEffects] = []
+    bridge = None
+    for f in frames:
+        f = float(f)
+        if cache is not None and f in cache:
+            out.append(cache[f])
+            continue
+        try:
+            fs = load_frame(stage, f, camera=camera, resolution=resolution)
+        except (UsdLoadError, ColorError) as exc:
+            raise RenderError(f"frame {f:g}: {exc}") from None
+        if bridge is None:
+            bridge = SceneBridge(core)
+        try:
+            scene = bridge.update(fs) if fs.camera is not None else None
+        except (core.SceneError, BridgeError) as exc:
+            raise RenderError(f"frame {f:g}: {exc}") from None
+        fe = analyse_frame(fs, scene, core=core, resolution=resolution)
+        if cache is not None:
+            cache[f] = fe
+        out.append(fe)
+    return out
+
+
+def auto_frames(info, frames: Sequence[float]) -> List[float]:
+    """The frames ``auto`` decides from: the stage's first, middle and last time codes
+    when it authors a range, else those of ``frames``."""
+    if info is not None and getattr(info, "has_authored_time_range", False):
+        return sample_frames(frames, info.start, info.end)
+    return sample_frames(frames)
+
+
+def resolve_auto(stage, info, core, frames: Sequence[float], camera: Optional[str] = None,
+                 resolution=None, cache: Optional[Dict[float, FrameEffects]] = None
+                 ) -> AutoChoice:
+    """The integrator ``auto`` means for this shot (:mod:`cmlt.analysis.auto`)."""
+    picks = auto_frames(info, frames)
+    return choose_integrator(analyse_frames(stage, picks, core, camera, resolution, cache))
+
+
+def resolve_auto_setting(stage, info, core, frame_list: Sequence[float], opts, resolved,
+                         sources, cache: Dict[float, FrameEffects]) -> Optional[AutoChoice]:
+    """``--integrator auto`` in the frame loop: the integrator for the whole shot written
+    into ``resolved`` and ``sources`` (``auto (<where auto came from>): <reason>``); the
+    AutoChoice, or None when the integrator is not auto. ``frame_list``: the frames to
+    render (time codes); ``opts.camera`` already checked."""
+    if str(resolved.integrator) != "auto":
+        return None
+    auto = resolve_auto(stage, info, core, frame_list, opts.camera, opts.resolution, cache)
+    sources["integrator"] = f"auto ({sources.get('integrator', 'default')}): {auto.reason}"
+    resolved.integrator = auto.name
+    return auto
+
+
+def frame_effects(fs, scene, core, resolution, cache: Optional[Dict[float, FrameEffects]]
+                  ) -> dict:
+    """The sidecar's ``effects``: what the frame calls for (cmlt.analysis.effects), from
+    ``cache`` when ``auto`` already analysed the frame."""
+    fe = cache.get(float(fs.time)) if cache is not None else None
+    if fe is None:
+        fe = analyse_frame(fs, scene, core=core, resolution=resolution)
+    return fe.as_dict()
+
+
+def inspect_effects(stage, info, frames_spec: Optional[str] = None, camera: Optional[str] = None,
+                    resolution=None, core=None):
+    """What ``cmlt inspect`` reports: (object for ``--json``, text table). The frames are
+    ``frames_spec`` (a ``--frames`` spec; default: the stage's start frame, as a render);
+    the ``effects`` of the object are on when they are on in any of them; the auto
+    choice comes from the frames :func:`auto_frames` picks, as a render makes it."""
+    from ..analysis.effects import EFFECT_NAMES, format_effects_table
+    from .frames import default_frames, parse_frames
+
+    if core is None:
+        try:
+            import cmlt._core as core           # noqa: F811 - lazily
+        except ImportError as exc:
+            raise RenderError(f"the C++ core cmlt._core is not built: {exc}") from None
+    if frames_spec is None:
+        frames = default_frames(info.start)
+    else:
+        frames = parse_frames(frames_spec, info.start, info.end, info.has_authored_time_range)
+    cache: Dict[float, FrameEffects] = {}
+    per_frame = analyse_frames(stage, frames, core, camera, resolution, cache)
+    auto = resolve_auto(stage, info, core, frames, camera, resolution, cache)
+    details = {}
+    for name in EFFECT_NAMES:
+        fe = next((e for e in per_frame if e[name]), per_frame[0])
+        details[name] = fe.as_dict()["details"][name]
+    unsupported: List[str] = []
+    for fe in per_frame:
+        unsupported += [u for u in fe.unsupported if u not in unsupported]
+    obj = {
+        "shot": info.path,
+        "frames": [float(f) for f in frames],
+        "effects": {n: any(fe[n] for fe in per_frame) for n in EFFECT_NAMES},
+        "details": details,
+        "unsupported": unsupported,
+        "integrator_auto": auto.as_dict(),
+        "per_frame": [fe.as_dict() for fe in per_frame],
+    }
+    return obj, format_effects_table(per_frame, auto)
