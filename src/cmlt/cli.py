@@ -8,7 +8,7 @@
                      [--bootstrap-samples N] [--tries K] [--inner-length M]
                      [--inner seed|mtm|bundle] [--no-packets]
                      [--seed S] [--threads N] [--res WxH] [--max-depth N]
-                     [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
+                     [--camera PATH] [--variant [/PRIM:]SET=VALUE ...] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
@@ -16,7 +16,7 @@
                      [--seed-per-frame] [--independent-frames] [--no-smoothing]
                      [--state-dir DIR [--fresh-start-on-bad-state]]
                      [--resume] [--quiet | --log-json]
-    cmlt inspect SHOT | --image FILE.exr
+    cmlt inspect SHOT [--variant [/PRIM:]SET=VALUE ...] | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
     cmlt compare A B [--json [OUT]]
@@ -95,6 +95,17 @@ def parse_aovs(text: str):
     return tuple(dict.fromkeys(names))
 
 
+def parse_variant_flag(text: str) -> str:
+    """``--variant`` text checked for its form (:func:`cmlt.usd.variants.parse_variant`);
+    whether the stage has that set is checked once it is open."""
+    from .usd.variants import parse_variant
+    try:
+        parse_variant(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text.strip()
+
+
 def parse_crop(text: str):
     """``x0,y0,x1,y1`` (pixels, x1/y1 exclusive) -> a tuple of 4 ints."""
     parts = text.replace(" ", "").split(",")
@@ -140,6 +151,11 @@ def build_parser() -> argparse.ArgumentParser:
                    f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}")
     r.add_argument("--camera", metavar="PATH", help="camera prim path (default: the "
                    "render settings' camera, else the stage's camera)")
+    r.add_argument("--variant", type=parse_variant_flag, action="append", default=[],
+                   dest="variants", metavar="[/PRIM:]SET=VALUE",
+                   help="variant selection applied in the session layer before the shot is "
+                   "read (repeatable, in order): SET=VALUE on every prim with that variant "
+                   "set, /PRIM:SET=VALUE on one prim; `cmlt inspect` lists the sets")
     r.add_argument("--half", action="store_true", help="write 16-bit half floats")
     r.add_argument("--compression", choices=COMPRESSIONS, default="zip",
                    help="EXR compression (default zip)")
@@ -190,6 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("inspect", help="describe a shot (time range, cameras, lights, "
                        "settings) or an image's header (--image)")
     i.add_argument("shot", metavar="SHOT", nargs="?", help="USD stage")
+    i.add_argument("--variant", type=parse_variant_flag, action="append", default=[],
+                   dest="variants", metavar="[/PRIM:]SET=VALUE",
+                   help="describe the shot with these variant selections (as cmlt render)")
     i.add_argument("--image", metavar="FILE", help="print the header of an EXR (or any "
                    "image OpenImageIO reads): channels, windows, colour space, cmlt metadata")
 
@@ -246,7 +265,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          aov_samples=args.aov_samples, crop=args.crop, preview=args.preview,
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,
-                         fresh_start_on_bad_state=args.fresh_start_on_bad_state)
+                         fresh_start_on_bad_state=args.fresh_start_on_bad_state,
+                         variants=tuple(args.variants))
     log = None
     if args.log_json:
         from .shot.progress import JsonReporter
@@ -330,6 +350,7 @@ def _cmd_contact_sheet(args) -> int:
 def _cmd_inspect(args) -> int:
     from .settings import SettingsError, format_settings, resolve_settings
     from .usd import UsdLoadError, open_stage, stage_info
+    from .usd.variants import VariantError
 
     if args.image:
         if args.shot:
@@ -340,9 +361,11 @@ def _cmd_inspect(args) -> int:
     if not os.path.exists(args.shot):
         return _error(f"{args.shot}: no such file", EXIT_USAGE)
     try:
-        stage = open_stage(args.shot)
+        stage = open_stage(args.shot, variants=args.variants)
         info = stage_info(stage)
         report = info.format()
+    except VariantError as exc:
+        return _error(str(exc), EXIT_USAGE)
     except UsdLoadError as exc:
         return _error(str(exc), EXIT_RENDER)
     sys.stdout.write(report.rstrip("\n") + "\n")

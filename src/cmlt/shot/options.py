@@ -66,6 +66,10 @@ class _FrameOptions:
     state_dir: Optional[str] = None
     #: a bad state file: warn and start fresh instead of failing
     fresh_start_on_bad_state: bool = False
+    #: variant selections applied in the session layer before anything is read:
+    #: ``SET=VALUE`` (every prim with the set) or ``/prim:SET=VALUE``, in order
+    #: (:mod:`cmlt.usd.variants`)
+    variants: Tuple[str, ...] = ()
 
     def check(self) -> None:
         """Checks that need neither the stage nor the core: every setting
@@ -89,6 +93,12 @@ class _FrameOptions:
         if self.preview_format not in PREVIEW_FORMATS:
             raise UsageError(f"--preview-format {self.preview_format!r}: choose one of "
                              f"{', '.join(PREVIEW_FORMATS)}")
+        from ..usd.variants import parse_variant
+        for v in self.variants:
+            try:
+                parse_variant(v)
+            except ValueError as exc:
+                raise UsageError(f"--variant {exc}") from None
         if self.crop is not None:
             c = tuple(self.crop)
             if len(c) != 4 or c[0] < 0 or c[1] < 0 or c[2] <= c[0] or c[3] <= c[1]:

@@ -136,6 +136,8 @@ def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> di
         record.update(preview=opts.preview_format, display=display, view=view)
     if opts.state_dir:
         record["state_dir"] = os.path.abspath(opts.state_dir)
+    if opts.variants:
+        record["variants"] = [str(v) for v in opts.variants]
     return record
 
 
@@ -147,21 +149,24 @@ def _frame_list(frames, info) -> List[float]:
     return [float(f) for f in frames]
 
 
-def _open(shot: str, core):
+def _open(shot: str, core, variants=()):
     """(stage, info, core) of a shot that exists; the core imported if not given."""
     if not os.path.exists(shot):
         raise UsageError(f"{shot}: no such file")
     if os.path.isdir(shot):
         raise UsageError(f"{shot}: is a directory, not a USD file")
     from ..usd import UsdLoadError, open_stage, stage_info
+    from ..usd.variants import VariantError
     if core is None:
         try:
             import cmlt._core as core
         except ImportError as exc:
             raise RenderError(f"the C++ core cmlt._core is not built: {exc}") from None
     try:
-        stage = open_stage(shot)
+        stage = open_stage(shot, variants=variants)
         info = stage_info(stage)
+    except VariantError as exc:
+        raise UsageError(str(exc)) from None
     except UsdLoadError as exc:
         raise RenderError(str(exc)) from None
     return stage, info, core
@@ -180,7 +185,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     """
     opts = options or RenderOptions()
     opts.check()
-    stage, info, core = _open(shot, core)
+    stage, info, core = _open(shot, core, opts.variants)
     resolved, sources = resolve(stage, opts)
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)

@@ -12,6 +12,7 @@ from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux
 
 from .diagnostics import capture_usd_diagnostics
 from .errors import UsdLoadError
+from .variants import apply_variants
 
 # Gprim types the reader turns into triangles.
 MESH_TYPES = ("Mesh",)
@@ -69,6 +70,10 @@ class StageState:
     def __init__(self, stage):
         self.stage_ref = weakref.ref(stage)
         self.open_warnings: List[str] = []
+        #: the --variant specs applied when opening, and the (prim, set, variant)
+        #: selections they authored in the session layer (cmlt.usd.variants)
+        self.variant_specs: List[str] = []
+        self.variant_selections: List[tuple] = []
         self.mesh_cache: Dict[object, object] = {}
         self.shape_cache: Dict[object, object] = {}
         # (prim path, stop path) -> the transform might vary in time (traversal.py)
@@ -113,8 +118,13 @@ def check_time_metadata(stage) -> None:
         raise UsdLoadError(f"{path}: startTimeCode {start:g} is after endTimeCode {end:g}")
 
 
-def open_stage(path) -> "Usd.Stage":
+def open_stage(path, variants=()) -> "Usd.Stage":
     """Open a stage (.usd, .usda, .usdc, .usdz) with all payloads loaded.
+
+    ``variants``: ``--variant`` specs (``SET=VALUE``, ``/prim:SET=VALUE``,
+    :mod:`cmlt.usd.variants`) applied in order in the stage's session layer;
+    a spec that does not fit the stage raises
+    :class:`cmlt.usd.variants.VariantError` (a UsdLoadError).
 
     Raises :class:`UsdLoadError` (one line, naming the file) for a missing
     file, an unreadable root layer, ``timeCodesPerSecond <= 0`` or
@@ -147,10 +157,13 @@ def open_stage(path) -> "Usd.Stage":
             raise UsdLoadError(f"{path}: cannot open the stage: {one_line(exc)}") from None
         if stage is None:
             raise UsdLoadError(f"{path}: cannot open the stage")
+        applied = apply_variants(stage, variants, where=path) if variants else []
         composed = composition_warnings(stage)
     check_time_metadata(stage)
     state = stage_state(stage)
     state.open_warnings = composed + usd_diagnostic_warnings(stage, diags, composed)
+    state.variant_specs = [str(v) for v in variants or ()]
+    state.variant_selections = applied
     return stage
 
 
