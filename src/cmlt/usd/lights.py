@@ -5,6 +5,12 @@ scale of the light's world transform, metersPerUnit included, is taken out)
 and the sizes (width, height, radius, length) are world sizes in metres, the
 authored local sizes times the scale along the matching axes. Normalised
 lights divide by the world area in square metres.
+
+Dome lights: the core's lat-long dome has its top pole on light-space +Y. A
+``DomeLight_1`` whose ``poleAxis`` is ``Z`` (or ``scene``, its default, on a
+Z-up stage) gets a 90 degree rotation about X first (:func:`dome_pole_axis`),
+the one ``UsdLuxDomeLight.OrientToStageUpAxis`` authors; a ``DomeLight`` keeps
++Y, as UsdLux specifies.
 """
 from __future__ import annotations
 
@@ -12,7 +18,7 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from pxr import Sdf, Usd, UsdLux
+from pxr import Sdf, Usd, UsdGeom, UsdLux
 
 from ..scene import Light
 from .color import to_rendering_space
@@ -100,6 +106,33 @@ def _asset(v, path: str, warnings: List[str]) -> Optional[str]:
     return str(v) if v else None
 
 
+#: light space with its pole on +Z from the core's +Y-pole dome: a rotation of 90
+#: degrees about X, the one UsdLuxDomeLight.OrientToStageUpAxis authors on Z-up stages
+_Y_POLE_TO_Z = np.array([[1.0, 0.0, 0.0, 0.0],
+                         [0.0, 0.0, -1.0, 0.0],
+                         [0.0, 1.0, 0.0, 0.0],
+                         [0.0, 0.0, 0.0, 1.0]])
+
+
+def dome_pole_axis(prim, warnings: Optional[List[str]] = None) -> str:
+    """The axis of a dome light's top pole in its own space: ``Y`` for a
+    ``DomeLight`` (the OpenEXR lat-long convention; Z-up stages rotate the light
+    themselves), ``poleAxis`` for a ``DomeLight_1`` (``scene``, the default, is the
+    stage's up axis; not inherited by children)."""
+    if str(prim.GetTypeName()) != "DomeLight_1":
+        return "Y"
+    attr = prim.GetAttribute("poleAxis")
+    value = str(attr.Get()) if attr and attr.Get() is not None else "scene"
+    if value == "scene":
+        return str(UsdGeom.GetStageUpAxis(prim.GetStage()))
+    if value not in ("Y", "Z"):
+        if warnings is not None:
+            warnings.append(f"{prim.GetPath()}: poleAxis {value!r} is not scene, Y or Z; "
+                            "using the stage's up axis")
+        return str(UsdGeom.GetStageUpAxis(prim.GetStage()))
+    return value
+
+
 def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional[Light]:
     """Read a supported UsdLux light. ``world_m`` is its light->world matrix
     (column convention) already in metres."""
@@ -160,6 +193,9 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
         area = 2.0 * math.pi * (1.0 - math.cos(half))        # solid angle of the cone
     elif kind == "dome":
         light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
+        pole = dome_pole_axis(prim, warnings)
+        if pole == "Z":
+            light.transform = xf @ _Y_POLE_TO_Z
     if kind in ("rect", "disk", "sphere", "cylinder"):
         light.cone_angle = num("shaping:cone:angle", 180.0)
         light.cone_softness = num("shaping:cone:softness", 0.0)
