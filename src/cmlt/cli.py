@@ -8,7 +8,8 @@
                      [--bootstrap-samples N] [--tries K] [--inner-length M]
                      [--inner seed|mtm|bundle] [--no-packets]
                      [--seed S] [--threads N] [--res WxH] [--max-depth N]
-                     [--camera PATH] [--variant [/PRIM:]SET=VALUE ...] [--half] [--compression zip|piz|dwaa|none]
+                     [--camera PATH] [--variant [/PRIM:]SET=VALUE ...]
+                     [--default-light dome|headlight|dome-key] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
@@ -156,6 +157,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="variant selection applied in the session layer before the shot is "
                    "read (repeatable, in order): SET=VALUE on every prim with that variant "
                    "set, /PRIM:SET=VALUE on one prim; `cmlt inspect` lists the sets")
+    from .usd.lights import DEFAULT_LIGHTS
+    r.add_argument("--default-light", choices=DEFAULT_LIGHTS,
+                   default="dome", dest="default_light",
+                   help="what lights a stage that has no lights and no emissive materials: "
+                   "dome (white, radiance 1: a furnace; the default), headlight (a distant "
+                   "light along the camera's view, as usdrecord/Storm), dome-key (a dim fill "
+                   "dome and a key light from the camera's upper left)")
     r.add_argument("--half", action="store_true", help="write 16-bit half floats")
     r.add_argument("--compression", choices=COMPRESSIONS, default="zip",
                    help="EXR compression (default zip)")
@@ -266,7 +274,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,
                          fresh_start_on_bad_state=args.fresh_start_on_bad_state,
-                         variants=tuple(args.variants))
+                         variants=tuple(args.variants), default_light=args.default_light)
     log = None
     if args.log_json:
         from .shot.progress import JsonReporter

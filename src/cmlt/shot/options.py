@@ -70,6 +70,9 @@ class _FrameOptions:
     #: ``SET=VALUE`` (every prim with the set) or ``/prim:SET=VALUE``, in order
     #: (:mod:`cmlt.usd.variants`)
     variants: Tuple[str, ...] = ()
+    #: what lights a stage without lights or emissive materials: dome (white, radiance
+    #: 1), headlight or dome-key (:func:`cmlt.usd.lights.default_lights`)
+    default_light: str = "dome"
 
     def check(self) -> None:
         """Checks that need neither the stage nor the core: every setting
@@ -93,6 +96,10 @@ class _FrameOptions:
         if self.preview_format not in PREVIEW_FORMATS:
             raise UsageError(f"--preview-format {self.preview_format!r}: choose one of "
                              f"{', '.join(PREVIEW_FORMATS)}")
+        from ..usd.lights import DEFAULT_LIGHTS
+        if self.default_light not in DEFAULT_LIGHTS:
+            raise UsageError(f"--default-light {self.default_light!r}: choose one of "
+                             f"{', '.join(DEFAULT_LIGHTS)}")
         from ..usd.variants import parse_variant
         for v in self.variants:
             try:

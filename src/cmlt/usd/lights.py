@@ -256,3 +256,69 @@ def default_dome() -> Light:
     """White dome light of radiance 1, for stages without any light."""
     return Light(name="<default dome>", kind="dome", transform=np.eye(4),
                  radiance=(1.0, 1.0, 1.0))
+
+
+#: ``--default-light`` choices: what a stage without lights (and without emissive
+#: materials) is lit by
+DEFAULT_LIGHTS = ("dome", "headlight", "dome-key")
+
+#: the sun's angular diameter of the default distant lights, degrees
+_DEFAULT_SUN_ANGLE = 1.0
+
+
+def _looking_along(d) -> np.ndarray:
+    """A rotation (column-vector 4x4) whose local -Z is the unit direction ``d``
+    (a distant light travels along its -Z)."""
+    z = -np.asarray(d, np.float64) / np.linalg.norm(d)
+    helper = np.array([0.0, 1.0, 0.0]) if abs(z[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x, y, z
+    return m
+
+
+def _sun(name: str, travel, irradiance: float) -> Light:
+    """A distant light travelling along ``travel`` whose irradiance at normal
+    incidence is ``irradiance`` (its radiance times the solid angle of its cone)."""
+    half = math.radians(_DEFAULT_SUN_ANGLE) / 2.0
+    omega = 2.0 * math.pi * (1.0 - math.cos(half))
+    L = irradiance / omega
+    return Light(name=name, kind="distant", transform=_looking_along(travel),
+                 radiance=(L, L, L), angle=_DEFAULT_SUN_ANGLE)
+
+
+def default_lights(kind: str, camera_transform) -> List[Light]:
+    """The lights of a stage that has none (``--default-light``):
+
+    * ``dome``: a white dome of radiance 1 (a white diffuse surface comes out 1
+      wherever it sees the whole sky: a furnace, which hides shape and material);
+    * ``headlight``: a distant light travelling along the camera's view, as
+      usdrecord and Storm light a stage without lights; irradiance pi at normal
+      incidence (a white diffuse surface facing the camera comes out 1);
+    * ``dome-key``: a dome of radiance 0.25 for fill plus a key light from the
+      camera's upper left, behind it (irradiance 0.8 pi), so that shading, shadows and
+      highlights show.
+
+    ``camera_transform``: the camera's rigid camera -> world matrix (column vectors).
+    """
+    if kind not in DEFAULT_LIGHTS:
+        raise ValueError(f"default light {kind!r}: choose one of {', '.join(DEFAULT_LIGHTS)}")
+    if kind == "dome":
+        return [default_dome()]
+    rot = np.asarray(camera_transform, np.float64)[:3, :3]
+    if kind == "headlight":
+        return [_sun("<default headlight>", rot @ np.array([0.0, 0.0, -1.0]), math.pi)]
+    fill = Light(name="<default fill dome>", kind="dome", transform=np.eye(4),
+                 radiance=(0.25, 0.25, 0.25))
+    key = _sun("<default key light>", rot @ np.array([1.0, -1.0, -1.0]), 0.8 * math.pi)
+    return [fill, key]
+
+
+def default_lights_note(kind: str) -> str:
+    """What the warning about a lightless stage says was added."""
+    return {"dome": "adding a white dome light (radiance 1)",
+            "headlight": "adding a headlight (a distant light along the camera's view)",
+            "dome-key": "adding a fill dome (radiance 0.25) and a key light from the "
+                        "camera's upper left"}[kind]
