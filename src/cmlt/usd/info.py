@@ -9,6 +9,7 @@ from pxr import Usd, UsdGeom, UsdRender, UsdShade
 
 from .errors import UsdLoadError
 from .frame import load_frame
+from .materialx import mtlx_references
 from .mesh import subdiv_level_of
 from .render_settings import find_settings_prim, settings_camera_problem
 from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, one_line,
@@ -176,6 +177,10 @@ def stage_info(stage) -> StageInfo:
         elif t == "SkelRoot":
             info.notes.append(f"{path}: UsdSkel skinning is applied per frame with usd-core's "
                               f"UsdSkel (skinning queries); blend shapes are not applied")
+        if prim.HasAuthoredReferences():
+            for doc, _, _ in mtlx_references(prim):
+                info.notes.append(f"{path}: references the MaterialX document {doc}, read by "
+                                  "cmlt's MaterialX reader (usd-core composes no .mtlx)")
         reason = ignored_reason(prim)
         if reason:
             info.ignored.append((path, t, reason))

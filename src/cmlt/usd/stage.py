@@ -48,9 +48,26 @@ def stage_file(stage) -> str:
     return layer.realPath or layer.identifier
 
 
+#: an asset path of a MaterialX document in a USD message (``@look.mtlx@``, with
+#: the file-format arguments USD appends when it looks for a plugin)
+_MTLX_ASSET = re.compile(r"@[^@]*\.mtlx(?::SDF_FORMAT_ARGS:[^@]*)?@", re.IGNORECASE)
+
+
+def is_mtlx_composition_error(msg: str) -> bool:
+    """USD's complaint that a reference to a ``.mtlx`` document does not compose
+    (usd-core has no MaterialX file-format plugin). cmlt's MaterialX reader reads
+    such documents itself and names the material and the file when it cannot, so
+    the raw USD line is not repeated as a warning (a ``.mtlx`` payload or sublayer,
+    which the reader does not read, still warns)."""
+    return ("Could not open asset" in msg and "for reference" in msg
+            and bool(_MTLX_ASSET.search(msg)))
+
+
 def composition_warnings(stage) -> List[str]:
     """Non-fatal composition problems (unresolved references, payloads,
-    sublayers), one line each, naming the layer that introduced them."""
+    sublayers), one line each, naming the layer that introduced them; those
+    about ``.mtlx`` documents are left to the MaterialX reader
+    (:func:`is_mtlx_composition_error`)."""
     out: List[str] = []
     try:
         errors = stage.GetCompositionErrors()
@@ -58,7 +75,7 @@ def composition_warnings(stage) -> List[str]:
         errors = []
     for err in errors:
         msg = one_line(str(err))
-        if msg and msg not in out:
+        if msg and msg not in out and not is_mtlx_composition_error(msg):
             out.append(msg)
     return out
 
@@ -175,7 +192,7 @@ def usd_diagnostic_warnings(stage, diagnostics: List[str], known: List[str]) -> 
     out: List[str] = []
     layer = stage_file(stage)
     for d in diagnostics:
-        if any(k.rstrip(".") in d for k in known):
+        if any(k.rstrip(".") in d for k in known) or is_mtlx_composition_error(d):
             continue
         msg = f"{layer}: USD: {d}"
         if msg not in out:
