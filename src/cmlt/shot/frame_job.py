@@ -165,6 +165,8 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
             # before the EXR: a finished image always has its preview
             pv = preview_path(path, opts.preview_format)
             shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
+            if opts.exposure:                 # previews only: the EXR stays as rendered
+                shown = shown * (2.0 ** float(opts.exposure))
             write_preview(shown, pv, job.display, job.view)
             record["preview"] = os.path.basename(pv)
         if opts.state_dir:

@@ -59,6 +59,8 @@ class _FrameOptions:
     #: write a display-referred preview beside each EXR (png or jpg)
     preview: bool = False
     preview_format: str = "png"
+    #: stops of exposure applied to previews only (the EXR is not scaled)
+    exposure: float = 0.0
     #: OCIO display / view of previews (None: sRGB display, its default view)
     display: Optional[str] = None
     view: Optional[str] = None
@@ -66,6 +68,9 @@ class _FrameOptions:
     state_dir: Optional[str] = None
     #: a bad state file: warn and start fresh instead of failing
     fresh_start_on_bad_state: bool = False
+    #: a UsdRender.Settings prim path to use (husk's -R): authored as the stage's
+    #: renderSettingsPrimPath in the session layer (None: the stage's own choice)
+    render_settings: Optional[str] = None
     #: variant selections applied in the session layer before anything is read:
     #: ``SET=VALUE`` (every prim with the set) or ``/prim:SET=VALUE``, in order
     #: (:mod:`cmlt.usd.variants`)
@@ -93,6 +98,10 @@ class _FrameOptions:
                                  f"{', '.join(AOV_NAMES)}")
         if int(self.aov_samples) < 1:
             raise UsageError(f"--aov-samples {self.aov_samples}: must be at least 1")
+        import math
+        if not math.isfinite(float(self.exposure)) or abs(float(self.exposure)) > 64:
+            raise UsageError(f"--exposure {self.exposure}: must be a finite number of stops "
+                             "within -64..64")
         if self.preview_format not in PREVIEW_FORMATS:
             raise UsageError(f"--preview-format {self.preview_format!r}: choose one of "
                              f"{', '.join(PREVIEW_FORMATS)}")

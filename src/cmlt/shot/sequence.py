@@ -141,6 +141,20 @@ def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> di
     return record
 
 
+def _outside_range_warning(frame_list, info) -> str:
+    """A warning when frames lie outside the stage's authored time range (USD
+    holds the first/last samples there), '' otherwise."""
+    if not info.has_authored_time_range:
+        return ""
+    out = [f for f in frame_list if f < info.start - 1e-9 or f > info.end + 1e-9]
+    if not out:
+        return ""
+    shown = ", ".join(f"{f:g}" for f in out[:5]) + (f" and {len(out) - 5} more"
+                                                     if len(out) > 5 else "")
+    return (f"{info.path}: frame(s) {shown} outside the stage's time range "
+            f"{info.start:g}..{info.end:g}; time samples are held there")
+
+
 def _frame_list(frames, info) -> List[float]:
     if frames is None:
         return default_frames(info.start)
@@ -149,7 +163,7 @@ def _frame_list(frames, info) -> List[float]:
     return [float(f) for f in frames]
 
 
-def _open(shot: str, core, variants=()):
+def _open(shot: str, core, variants=(), render_settings=None):
     """(stage, info, core) of a shot that exists; the core imported if not given."""
     if not os.path.exists(shot):
         raise UsageError(f"{shot}: no such file")
@@ -163,7 +177,7 @@ def _open(shot: str, core, variants=()):
         except ImportError as exc:
             raise RenderError(f"the C++ core cmlt._core is not built: {exc}") from None
     try:
-        stage = open_stage(shot, variants=variants)
+        stage = open_stage(shot, variants=variants, render_settings=render_settings)
         info = stage_info(stage)
     except VariantError as exc:
         raise UsageError(str(exc)) from None
@@ -185,7 +199,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     """
     opts = options or RenderOptions()
     opts.check()
-    stage, info, core = _open(shot, core, opts.variants)
+    stage, info, core = _open(shot, core, opts.variants, opts.render_settings)
     resolved, sources = resolve(stage, opts)
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
@@ -221,6 +235,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
     stage_warnings = [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
+    outside = _outside_range_warning(frame_list, info)
+    if outside:
+        stage_warnings.append(outside)
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
     if cold:
         stage_warnings.append(cold)

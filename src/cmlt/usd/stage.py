@@ -12,7 +12,7 @@ from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux
 
 from .diagnostics import capture_usd_diagnostics
 from .errors import UsdLoadError
-from .variants import apply_variants
+from .variants import apply_variants, select_render_settings
 
 # Gprim types the reader turns into triangles.
 MESH_TYPES = ("Mesh",)
@@ -135,13 +135,17 @@ def check_time_metadata(stage) -> None:
         raise UsdLoadError(f"{path}: startTimeCode {start:g} is after endTimeCode {end:g}")
 
 
-def open_stage(path, variants=()) -> "Usd.Stage":
+def open_stage(path, variants=(), render_settings=None) -> "Usd.Stage":
     """Open a stage (.usd, .usda, .usdc, .usdz) with all payloads loaded.
 
     ``variants``: ``--variant`` specs (``SET=VALUE``, ``/prim:SET=VALUE``,
     :mod:`cmlt.usd.variants`) applied in order in the stage's session layer;
     a spec that does not fit the stage raises
     :class:`cmlt.usd.variants.VariantError` (a UsdLoadError).
+    ``render_settings``: a ``UsdRender.Settings`` prim path authored as the
+    stage's ``renderSettingsPrimPath`` in the session layer (after the
+    variants), so every reader of the settings uses it; VariantError if it
+    names no RenderSettings prim.
 
     Raises :class:`UsdLoadError` (one line, naming the file) for a missing
     file, an unreadable root layer, ``timeCodesPerSecond <= 0`` or
@@ -175,6 +179,8 @@ def open_stage(path, variants=()) -> "Usd.Stage":
         if stage is None:
             raise UsdLoadError(f"{path}: cannot open the stage")
         applied = apply_variants(stage, variants, where=path) if variants else []
+        if render_settings:
+            select_render_settings(stage, render_settings, where=path)
         composed = composition_warnings(stage)
     check_time_metadata(stage)
     state = stage_state(stage)

@@ -1,5 +1,6 @@
-"""Variant selections chosen at render time (``--variant``), and the variant
-sets a stage offers (``cmlt inspect``).
+"""Variant selections chosen at render time (``--variant``), the variant sets a
+stage offers (``cmlt inspect``), and the render settings prim chosen at render
+time (``-R``/``--settings``, :func:`select_render_settings`).
 
 A selection is authored in the stage's session layer, the strongest layer
 of the stage and one that is never saved, so the shot's own files are not
@@ -24,11 +25,12 @@ import re
 from dataclasses import dataclass
 from typing import Iterable, List, Optional, Tuple
 
-from pxr import Sdf, Usd
+from pxr import Sdf, Usd, UsdRender
 
 from .errors import UsdLoadError
 
-__all__ = ["VariantError", "VariantSpec", "parse_variant", "apply_variants", "variant_sets"]
+__all__ = ["VariantError", "VariantSpec", "parse_variant", "apply_variants", "variant_sets",
+           "select_render_settings"]
 
 #: passes of an unqualified SET=VALUE over the stage: each may reveal prims of
 #: the variant just selected that carry the same set
@@ -38,8 +40,8 @@ _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
 class VariantError(UsdLoadError):
-    """A ``--variant`` spec that cannot be applied (a usage error: the message
-    names the spec and what the stage offers instead)."""
+    """A ``--variant`` spec (or ``--settings`` path) that cannot be applied (a
+    usage error: the message names the flag and what the stage offers instead)."""
 
 
 @dataclass(frozen=True)
@@ -190,3 +192,19 @@ def variant_sets(stage) -> List[Tuple[str, str, str, List[str]]]:
             out.append((str(prim.GetPath()), name, vsets.GetVariantSelection(name),
                         _names(prim, name)))
     return out
+
+
+def select_render_settings(stage, path: str, where: str = "the stage") -> None:
+    """Make ``path`` the stage's render settings (``-R``/``--settings``): author
+    ``renderSettingsPrimPath`` in the session layer, which every reader of the
+    settings honours; :class:`VariantError` (a usage error) naming the path and
+    listing the stage's RenderSettings prims if it is not one of them."""
+    ok = Sdf.Path.IsValidPathString(path) and Sdf.Path(path).IsAbsolutePath()
+    prim = stage.GetPrimAtPath(path) if ok else None
+    if not prim or not prim.IsA(UsdRender.Settings):
+        found = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdRender.Settings)]
+        what = "no prim" if not prim else f"a {prim.GetTypeName() or 'typeless'} prim"
+        raise VariantError(f"--settings {path}: {what} at that path in {where}, not "
+                           f"RenderSettings (RenderSettings prims: {', '.join(found) or 'none'})")
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        stage.SetMetadata("renderSettingsPrimPath", str(prim.GetPath()))
