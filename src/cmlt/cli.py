@@ -10,7 +10,7 @@
                      [--inner seed|mtm|bundle] [--no-packets]
                      [--seed S] [--threads N] [--res WxH | --res W H] [--max-depth N]
                      [--camera PATH] [--variant [/PRIM:]SET=VALUE ...]
-                     [--default-light dome|headlight|dome-key] [--half] [--compression zip|piz|dwaa|none]
+                     [--default-light dome|headlight|dome-key] [--purpose LIST] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
@@ -108,6 +108,21 @@ def parse_variant_flag(text: str) -> str:
     return text.strip()
 
 
+def parse_purposes(text: str):
+    """``render,proxy`` -> ("render", "proxy"); ``geometry`` (husk's name for
+    the default purpose) is accepted and means ``default``."""
+    names = [t.strip().lower() for t in text.split(",") if t.strip()]
+    names = ["default" if n == "geometry" else n for n in names]
+    allowed = ("default", "render", "proxy", "guide")
+    for n in names:
+        if n not in allowed:
+            raise argparse.ArgumentTypeError(f"unknown purpose {n!r}; choose from "
+                                             "render, proxy, guide (comma-separated)")
+    if not names:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one or more of render, proxy, guide")
+    return tuple(dict.fromkeys(names))
+
+
 def parse_crop(text: str):
     """``x0,y0,x1,y1`` (pixels, x1/y1 exclusive) -> a tuple of 4 ints."""
     parts = text.replace(" ", "").split(",")
@@ -163,6 +178,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-R", "--settings", metavar="PRIM", dest="render_settings",
                    help="the UsdRender.Settings prim to render with (default: the stage's "
                    "renderSettingsPrimPath, else its first RenderSettings prim)")
+    r.add_argument("--purpose", type=parse_purposes, metavar="LIST", default=(),
+                   dest="purposes",
+                   help="purposes rendered besides default, comma-separated from render, "
+                   "proxy, guide (as husk's --purpose; 'geometry' means default); default: "
+                   "render, and proxy where no sibling subtree has render")
     r.add_argument("--list-cameras", action="store_true", dest="list_cameras",
                    help="print the stage's cameras (the one a render would use first) and exit")
     r.add_argument("--exposure", type=float, default=0.0, metavar="STOPS",
@@ -290,7 +310,8 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          view=args.view, state_dir=args.state_dir,
                          fresh_start_on_bad_state=args.fresh_start_on_bad_state,
                          variants=tuple(args.variants), default_light=args.default_light,
-                         render_settings=args.render_settings, exposure=args.exposure)
+                         render_settings=args.render_settings, exposure=args.exposure,
+                         purposes=tuple(args.purposes))
     log = None
     if args.log_json:
         from .shot.progress import JsonReporter

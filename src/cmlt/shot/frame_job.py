@@ -111,7 +111,8 @@ def _load(job: ShotJob, frame: float):
     opts = job.opts
     try:
         fs = load_frame(job.stage, frame, camera=opts.camera, resolution=opts.resolution,
-                        default_light=opts.default_light)
+                        default_light=opts.default_light,
+                        purposes=opts.purposes if opts.purposes else None)
     except (UsdLoadError, ColorError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}"
                           if isinstance(exc, ColorError) else str(exc)) from None

@@ -78,6 +78,9 @@ class _FrameOptions:
     #: what lights a stage without lights or emissive materials: dome (white, radiance
     #: 1), headlight or dome-key (:func:`cmlt.usd.lights.default_lights`)
     default_light: str = "dome"
+    #: purposes rendered besides default (husk's --purpose); () = cmlt's rule
+    #: (render always, proxy where no render sibling, guide never)
+    purposes: Tuple[str, ...] = ()
 
     def check(self) -> None:
         """Checks that need neither the stage nor the core: every setting
@@ -109,6 +112,10 @@ class _FrameOptions:
         if self.default_light not in DEFAULT_LIGHTS:
             raise UsageError(f"--default-light {self.default_light!r}: choose one of "
                              f"{', '.join(DEFAULT_LIGHTS)}")
+        from ..usd.frame import PURPOSES
+        for p in self.purposes:
+            if p not in PURPOSES:
+                raise UsageError(f"--purpose {p!r}: choose from {', '.join(PURPOSES)}")
         from ..usd.variants import parse_variant
         for v in self.variants:
             try:

@@ -23,11 +23,14 @@ from .render_settings import (default_resolution, find_settings_prim, settings_c
 from .stage import check_time_metadata, composition_warnings, stage_file, stage_state, time_code
 from .traversal import FrameReader
 
-__all__ = ["load_frame", "static_signature"]
+__all__ = ["load_frame", "static_signature", "PURPOSES"]
+
+#: the UsdGeom purposes ``--purpose`` may list (``default`` always renders)
+PURPOSES = ("default", "render", "proxy", "guide")
 
 
 def load_frame(stage, time, camera=None, resolution=None, render_settings=None,
-               default_light="dome") -> FrameScene:
+               default_light="dome", purposes=None) -> FrameScene:
     """Read the render scene of ``stage`` at the time code ``time``.
 
     ``camera``: a camera prim path (UsdLoadError if it is not a Camera);
@@ -38,12 +41,15 @@ def load_frame(stage, time, camera=None, resolution=None, render_settings=None,
     ``renderSettingsPrimPath`` metadata, else the first RenderSettings prim
     (:mod:`cmlt.usd.render_settings`). ``default_light``: what lights a stage
     without lights and emissive materials, one of ``DEFAULT_LIGHTS``
-    (:func:`cmlt.usd.lights.default_lights`). Non-fatal problems are listed in
+    (:func:`cmlt.usd.lights.default_lights`). ``purposes``: None (guide never,
+    proxy where no render sibling), else the purposes rendered besides
+    ``default`` (a subset of ``PURPOSES``). Non-fatal problems are listed in
     ``FrameScene.warnings``, each naming its prim; fatal ones raise
     :class:`UsdLoadError`.
     """
     try:
-        return _load_frame(stage, time, camera, resolution, render_settings, default_light)
+        return _load_frame(stage, time, camera, resolution, render_settings, default_light,
+                           purposes)
     except Tf.ErrorException as exc:          # USD refused the data outside any one prim
         msg = " ".join(str(exc).split())
         raise UsdLoadError(f"{stage_file(stage)}: time {time}: {msg}") from None
@@ -63,7 +69,8 @@ def _resolution(stage, settings, tc, resolution) -> Tuple[int, int]:
     return res
 
 
-def _load_frame(stage, time, camera, resolution, render_settings, default_light) -> FrameScene:
+def _load_frame(stage, time, camera, resolution, render_settings, default_light,
+                purposes) -> FrameScene:
     if stage is None:
         raise UsdLoadError("load_frame: no stage")
     if default_light not in DEFAULT_LIGHTS:
@@ -76,7 +83,11 @@ def _load_frame(stage, time, camera, resolution, render_settings, default_light)
     for w in state.open_warnings + composition_warnings(stage):
         if w not in warnings:
             warnings.append(w)
-    fr = FrameReader(stage, tc, warnings)
+    if purposes is not None:
+        bad = [p for p in purposes if p not in PURPOSES]
+        if bad:
+            raise UsdLoadError(f"purpose {bad[0]!r}: choose from {', '.join(PURPOSES)}")
+    fr = FrameReader(stage, tc, warnings, purposes)
     up = str(UsdGeom.GetStageUpAxis(stage))
 
     # settings, camera path (validated before the expensive traversal)

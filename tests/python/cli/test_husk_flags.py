@@ -130,3 +130,39 @@ def test06_flag_errors(tiny_shot, tmp_path, capsys):
     assert "not both" in capsys.readouterr().err
     assert main(["render", tiny_shot, "-n", "3"]) == 2
     assert "need -f/--frame" in capsys.readouterr().err
+
+
+def _purpose_shot(tmp_path):
+    from pxr import Usd, UsdGeom
+    path = str(tmp_path / "purposes.usda")
+    st = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    cam = UsdGeom.Camera.Define(st, "/World/Cam")
+    cam.AddTranslateOp().Set((0, 0, 10))
+    for name, purpose, x in (("Plain", None, -3), ("Hi", "render", -1), ("Lo", "proxy", 1),
+                             ("Guide", "guide", 3)):
+        s = UsdGeom.Sphere.Define(st, f"/World/Asset/{name}")
+        s.AddTranslateOp().Set((x, 0, 0))
+        if purpose:
+            s.CreatePurposeAttr(purpose)
+    st.GetRootLayer().Save()
+    return path
+
+
+def test07_purpose(tmp_path, capsys):
+    from cmlt.usd import load_frame, open_stage
+    shot = _purpose_shot(tmp_path)
+
+    def names(purposes):
+        fs = load_frame(open_stage(shot), None, resolution=(8, 8), purposes=purposes)
+        return sorted(i.name.rsplit("/", 1)[-1] for i in fs.instances)
+
+    assert names(None) == ["Hi", "Plain"]             # proxy has a render sibling; no guide
+    assert names(("proxy",)) == ["Lo", "Plain"]
+    assert names(("render", "proxy", "guide")) == ["Guide", "Hi", "Lo", "Plain"]
+    out = str(tmp_path / "p.exr")
+    assert main(["render", shot, "-o", out, "--res", "8x8", "--spp", "1", "--purpose",
+                 "geometry,proxy", "--quiet"]) == 0
+    assert json.loads((tmp_path / "p.exr.json").read_text())["stats"] is not None
+    assert main(["render", shot, "-o", out, "--purpose", "preview"]) == 2
+    assert "unknown purpose 'preview'" in capsys.readouterr().err
