@@ -12,8 +12,8 @@ from typing import List, Tuple
 from pxr import Tf, UsdGeom
 
 from ..scene import FrameScene
-from .camera import camera_at_path, framing_camera, gf_to_np, instance_bounds, read_camera, \
-    stage_cameras
+from .camera import camera_at_path, conform_aperture, framing_camera, gf_to_np, \
+    instance_bounds, read_camera, stage_cameras
 from .errors import UsdLoadError
 from .instancing import drop_prototype_placements, prototype_roots
 from .lights import DEFAULT_LIGHTS, default_lights, default_lights_note
@@ -123,6 +123,13 @@ def _load_frame(stage, time, camera, resolution, render_settings, default_light,
     if cam_prim is not None:
         world = fr.S @ gf_to_np(fr.xc.GetLocalToWorldTransform(cam_prim))
         cam = read_camera(cam_prim, tc, fr.mpu, world, warnings)
+        if settings is not None:
+            # a UsdRender pipeline: its aspectRatioConformPolicy (fallback expandAperture);
+            # without render settings the horizontal aperture spans the width (camera.h)
+            from pxr import UsdRender
+            policy = str(UsdRender.Settings(settings).GetAspectRatioConformPolicyAttr()
+                         .Get(tc) or "expandAperture")
+            conform_aperture(cam, res, policy, warnings, where=str(settings.GetPath()))
     else:
         cam = framing_camera(instance_bounds(fr.meshes, fr.instances), up, res)
         warnings.append(f"{stage_file(stage)}: no camera; using a framing camera "
