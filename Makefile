@@ -3,6 +3,7 @@
 #   make demo   install what is missing, render sequences/cornell into renders/
 #   make test   install what is missing, run ctest (C++) and pytest (Python)
 #   make bench  run the benchmarks in tests/bench (not part of make test)
+#   make gallery  build the gallery's assets and render docs/gallery/ (not part of make test)
 #   make schema rewrite plugins/usd/cmltSchemas from the settings table
 #   make test-sanitize  ASan + UBSan build of the core and C++ tests in build/sanitize:
 #               ctest, then a few Python renders with the sanitized module
@@ -31,7 +32,7 @@ SAN_BUILD := build/sanitize
 SAN_UBSAN := UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 SAN_ASAN  := ASAN_OPTIONS=abort_on_error=1:detect_stack_use_after_return=1
 
-.PHONY: all demo test ctest pytest bench install apt-deps schema clean test-sanitize
+.PHONY: all demo test ctest pytest bench gallery install apt-deps schema clean test-sanitize
 
 all: install
 
@@ -79,6 +80,10 @@ test-sanitize: install
 
 bench: install
 	$(PY) tests/bench/run_all.py
+
+# assets written by docs/gallery/build_gallery.py (nothing downloaded), rendered small
+gallery: install
+	$(PY) docs/gallery/build_gallery.py --threads $(THREADS)
 
 # rewrite the USD schema files from the settings table (after editing
 # src/core/integrators/common/render_settings.h; make test fails while they are stale)

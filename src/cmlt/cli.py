@@ -2,13 +2,15 @@
 
 ::
 
-    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N]
+    cmlt render SHOT [--frames SPEC | -f START [-n COUNT] [-i STEP]] [--out|-o PATTERN]
+                     [--spp N] [-R|--settings PRIM] [--list-cameras] [--exposure STOPS]
                      [--integrator pt|bdpt|pssmlt|cmlt]
                      [--sigma S] [--large-step-probability P] [--chains N]
                      [--bootstrap-samples N] [--tries K] [--inner-length M]
                      [--inner seed|mtm|bundle] [--no-packets]
-                     [--seed S] [--threads N] [--res WxH] [--max-depth N]
-                     [--camera PATH] [--half] [--compression zip|piz|dwaa|none]
+                     [--seed S] [--threads N] [--res WxH | --res W H] [--max-depth N]
+                     [--camera PATH] [--variant [/PRIM:]SET=VALUE ...]
+                     [--default-light dome|headlight|dome-key] [--purpose LIST] [--half] [--compression zip|piz|dwaa|none]
                      [--output-colorspace NAME] [--ocio-config PATH]
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
@@ -17,7 +19,7 @@
                      [--state-dir DIR [--fresh-start-on-bad-state]]
                      [--dask local:N|tcp://HOST:8786 [--dask-parts N]]
                      [--resume] [--quiet | --log-json]
-    cmlt inspect SHOT [--frames SPEC] [--json] | --image FILE.exr
+    cmlt inspect SHOT [--frames SPEC] [--json] [--variant [/PRIM:]SET=VALUE ...] | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
     cmlt compare A B [--json [OUT]]
@@ -96,6 +98,32 @@ def parse_aovs(text: str):
     return tuple(dict.fromkeys(names))
 
 
+def parse_variant_flag(text: str) -> str:
+    """``--variant`` text checked for its form (:func:`cmlt.usd.variants.parse_variant`);
+    whether the stage has that set is checked once it is open."""
+    from .usd.variants import parse_variant
+    try:
+        parse_variant(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text.strip()
+
+
+def parse_purposes(text: str):
+    """``render,proxy`` -> ("render", "proxy"); ``geometry`` (husk's name for
+    the default purpose) is accepted and means ``default``."""
+    names = [t.strip().lower() for t in text.split(",") if t.strip()]
+    names = ["default" if n == "geometry" else n for n in names]
+    allowed = ("default", "render", "proxy", "guide")
+    for n in names:
+        if n not in allowed:
+            raise argparse.ArgumentTypeError(f"unknown purpose {n!r}; choose from "
+                                             "render, proxy, guide (comma-separated)")
+    if not names:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one or more of render, proxy, guide")
+    return tuple(dict.fromkeys(names))
+
+
 def parse_crop(text: str):
     """``x0,y0,x1,y1`` (pixels, x1/y1 exclusive) -> a tuple of 4 ints."""
     parts = text.replace(" ", "").split(",")
@@ -130,17 +158,48 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--frames", metavar="SPEC",
                    help="time codes: 7, 1.5, 1:24, 1:24x2 (stride), 1,5,9, all "
                    "(the stage's range); default: the stage's start time code")
-    r.add_argument("--out", metavar="PATTERN",
+    r.add_argument("--out", "-o", metavar="PATTERN",
                    help="output image; the frame number replaces #### (zero-padded to the "
                    "number of #), ####.### (decimals), $F4/$F or %%04d; fractional frames "
                    "get three decimals (0001.500); default renders/<shot>.####.exr")
+    r.add_argument("-f", "--frame", type=float, metavar="START", dest="frame_start",
+                   help="husk style: the first frame (with -n/--frame-count and "
+                   "-i/--frame-inc; instead of --frames)")
+    r.add_argument("-n", "--frame-count", type=_int_at_least(1), metavar="N",
+                   dest="frame_count", help="husk style: how many frames from -f (default 1)")
+    r.add_argument("-i", "--frame-inc", type=float, metavar="STEP", dest="frame_inc",
+                   help="husk style: the step between frames from -f (default 1)")
     t = r.add_argument_group(SEQUENCE_GROUP)
     add_setting_flags(r, sequence_group=t)    # every setting of the table that has a flag
     r.add_argument("--res", type=parse_resolution, metavar="WxH",
-                   help="resolution; default: the stage's render settings, else "
+                   help="resolution, WxH or W H; default: the stage's render settings, else "
                    f"{DEFAULT_RESOLUTION[0]}x{DEFAULT_RESOLUTION[1]}")
     r.add_argument("--camera", metavar="PATH", help="camera prim path (default: the "
                    "render settings' camera, else the stage's camera)")
+    r.add_argument("-R", "--settings", metavar="PRIM", dest="render_settings",
+                   help="the UsdRender.Settings prim to render with (default: the stage's "
+                   "renderSettingsPrimPath, else its first RenderSettings prim)")
+    r.add_argument("--purpose", type=parse_purposes, metavar="LIST", default=(),
+                   dest="purposes",
+                   help="purposes rendered besides default, comma-separated from render, "
+                   "proxy, guide (as husk's --purpose; 'geometry' means default); default: "
+                   "render, and proxy where no sibling subtree has render")
+    r.add_argument("--list-cameras", action="store_true", dest="list_cameras",
+                   help="print the stage's cameras (the one a render would use first) and exit")
+    r.add_argument("--exposure", type=float, default=0.0, metavar="STOPS",
+                   help="scale previews by 2^STOPS (--preview; the EXR is not changed)")
+    r.add_argument("--variant", type=parse_variant_flag, action="append", default=[],
+                   dest="variants", metavar="[/PRIM:]SET=VALUE",
+                   help="variant selection applied in the session layer before the shot is "
+                   "read (repeatable, in order): SET=VALUE on every prim with that variant "
+                   "set, /PRIM:SET=VALUE on one prim; `cmlt inspect` lists the sets")
+    from .usd.lights import DEFAULT_LIGHTS
+    r.add_argument("--default-light", choices=DEFAULT_LIGHTS,
+                   default="dome", dest="default_light",
+                   help="what lights a stage that has no lights and no emissive materials: "
+                   "dome (white, radiance 1: a furnace; the default), headlight (a distant "
+                   "light along the camera's view, as usdrecord/Storm), dome-key (a dim fill "
+                   "dome and a key light from the camera's upper left)")
     r.add_argument("--half", action="store_true", help="write 16-bit half floats")
     r.add_argument("--compression", choices=COMPRESSIONS, default="zip",
                    help="EXR compression (default zip)")
@@ -198,6 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("inspect", help="describe a shot (time range, cameras, lights, "
                        "settings) or an image's header (--image)")
     i.add_argument("shot", metavar="SHOT", nargs="?", help="USD stage")
+    i.add_argument("--variant", type=parse_variant_flag, action="append", default=[],
+                   dest="variants", metavar="[/PRIM:]SET=VALUE",
+                   help="describe the shot with these variant selections (as cmlt render)")
     i.add_argument("--image", metavar="FILE", help="print the header of an EXR (or any "
                    "image OpenImageIO reads): channels, windows, colour space, cmlt metadata")
     i.add_argument("--frames", metavar="SPEC", help="frames whose effects are analysed "
@@ -259,7 +321,10 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,
                          fresh_start_on_bad_state=args.fresh_start_on_bad_state,
-                         dask=args.dask, dask_parts=args.dask_parts)
+                         dask=args.dask, dask_parts=args.dask_parts,
+                         variants=tuple(args.variants), default_light=args.default_light,
+                         render_settings=args.render_settings, exposure=args.exposure,
+                         purposes=tuple(args.purposes))
     log = None
     if args.log_json:
         from .shot.progress import JsonReporter
@@ -270,8 +335,23 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
             log.emit("error", message=message, exit_code=code)
         return _error(message, code)
 
+    frames = args.frames
+    if args.frame_start is not None or args.frame_count is not None \
+            or args.frame_inc is not None:
+        if args.frames is not None:
+            return fail("give --frames or -f/-n/-i, not both", EXIT_USAGE)
+        if args.frame_start is None:
+            return fail("-n/--frame-count and -i/--frame-inc need -f/--frame START",
+                        EXIT_USAGE)
+        inc = 1.0 if args.frame_inc is None else args.frame_inc
+        if not inc > 0:
+            return fail(f"-i/--frame-inc {args.frame_inc:g}: must be positive", EXIT_USAGE)
+        n = args.frame_count or 1
+        frames = [args.frame_start + k * inc for k in range(n)]
+    if args.list_cameras:
+        return _list_cameras(args.shot, opts)
     try:
-        res = render_sequence(args.shot, args.frames, args.out, opts, resume=args.resume,
+        res = render_sequence(args.shot, frames, args.out, opts, resume=args.resume,
                               progress=not (args.quiet or args.log_json), quiet=args.quiet,
                               reporter=log)
     except UsageError as exc:
@@ -298,6 +378,55 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
         if n:
             Console(stderr=True, highlight=False).print(summary_table(res))
     return EXIT_OK
+
+
+def _list_cameras(shot: str, opts) -> int:
+    """``cmlt render SHOT --list-cameras``: the stage's cameras, one per line, the
+    one a render would use marked with ``*`` (--camera, else the render settings',
+    else the first)."""
+    from .usd import UsdLoadError, open_stage
+    from .usd.camera import stage_cameras
+    from .usd.render_settings import find_settings_prim, settings_camera
+    from .usd.variants import VariantError
+
+    if not os.path.exists(shot):
+        return _error(f"{shot}: no such file", EXIT_USAGE)
+    try:
+        stage = open_stage(shot, variants=opts.variants, render_settings=opts.render_settings)
+        cams = [str(c.GetPath()) for c in stage_cameras(stage)]
+        settings = find_settings_prim(stage)
+    except VariantError as exc:
+        return _error(str(exc), EXIT_USAGE)
+    except UsdLoadError as exc:
+        return _error(str(exc), EXIT_RENDER)
+    chosen = opts.camera
+    sc = settings_camera(settings) if settings is not None else None
+    if chosen is None and sc is not None and str(sc) in cams:
+        chosen = str(sc)
+    if chosen is None and cams:
+        chosen = cams[0]
+    for c in cams:
+        sys.stdout.write(f"{'*' if c == chosen else ' '} {c}\n")
+    if not cams:
+        sys.stdout.write("(no cameras: a render frames the stage with a camera of its own)\n")
+    return EXIT_OK
+
+
+def _husk_argv(argv: Sequence[str]) -> List[str]:
+    """husk/usdrecord spellings argparse cannot take as they are: ``--res W H``
+    becomes ``--res WxH``."""
+    out, k = [], 0
+    argv = list(argv)
+    while k < len(argv):
+        a = argv[k]
+        if a == "--res" and k + 2 < len(argv) and argv[k + 1].isdigit() \
+                and argv[k + 2].isdigit():
+            out += ["--res", f"{argv[k + 1]}x{argv[k + 2]}"]
+            k += 3
+            continue
+        out.append(a)
+        k += 1
+    return out
 
 
 def _cmd_inspect_image(path: str) -> int:
@@ -346,6 +475,7 @@ def _cmd_contact_sheet(args) -> int:
 def _cmd_inspect(args) -> int:
     from .settings import SettingsError, format_settings, resolve_settings
     from .usd import UsdLoadError, open_stage, stage_info
+    from .usd.variants import VariantError
 
     if args.image:
         if args.shot:
@@ -356,9 +486,11 @@ def _cmd_inspect(args) -> int:
     if not os.path.exists(args.shot):
         return _error(f"{args.shot}: no such file", EXIT_USAGE)
     try:
-        stage = open_stage(args.shot)
+        stage = open_stage(args.shot, variants=args.variants)
         info = stage_info(stage)
         report = info.format()
+    except VariantError as exc:
+        return _error(str(exc), EXIT_USAGE)
     except UsdLoadError as exc:
         return _error(str(exc), EXIT_RENDER)
     from .shot import RenderError, UsageError
@@ -397,10 +529,16 @@ def _cmd_inspect(args) -> int:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of the ``cmlt`` console script; returns the exit code."""
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = _husk_argv(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:                       # point at the subcommand's own help
+            sub = getattr(args, "command", None)
+            where = f"cmlt {sub}" if sub else "cmlt"
+            sys.stderr.write(f"cmlt: error: unrecognized arguments: {' '.join(extra)} "
+                             f"(see `{where} --help`)\n")
+            return EXIT_USAGE
     except SystemExit as exc:           # --help, --version, usage errors
         return int(exc.code or 0)
     try:

@@ -87,39 +87,49 @@ _WORKER: Dict[str, Any] = {}
 _WORKER_LOCK = threading.Lock()
 
 
-def _worker_stage(shot: str) -> dict:
-    """This worker's cache of ``shot``: the stage, opened once, and its scene bridge."""
+def _worker_stage(shot: str, stage_options: Optional[dict] = None) -> dict:
+    """This worker's cache of ``shot``: the stage, opened once (with the client's
+    ``stage_options``: variants, render settings prim), and its scene bridge."""
     import cmlt._core as core
 
     from ..usd import open_stage
     from .bridge import SceneBridge
 
+    so = stage_options or {}
+    variants = tuple(so.get("variants") or ())
+    render_settings = so.get("render_settings")
+    ident = (shot, variants, render_settings)
     c = _WORKER.get("shot")
-    if c is None or c["shot"] != shot:
-        c = {"shot": shot, "stage": open_stage(shot), "bridge": SceneBridge(core), "key": None}
+    if c is None or c["ident"] != ident:
+        c = {"shot": shot, "ident": ident, "bridge": SceneBridge(core), "key": None,
+             "stage": open_stage(shot, variants=variants, render_settings=render_settings)}
         _WORKER["shot"] = c
     return c
 
 
-def open_shot(shot: str) -> bool:
+def open_shot(shot: str, stage_options: Optional[dict] = None) -> bool:
     """Open ``shot`` on this worker ahead of its first task (DaskRenderer.warm)."""
     with _WORKER_LOCK:
-        _worker_stage(shot)
+        _worker_stage(shot, stage_options)
     return True
 
 
-def _worker_scene(shot: str, frame: float, camera, resolution):
+def _worker_scene(shot: str, frame: float, camera, resolution,
+                  stage_options: Optional[dict] = None):
     """(core, scene) of ``frame`` on this worker: the stage opened once per shot, the
     core scene updated with what changed since the worker's previous frame."""
     import cmlt._core as core
 
     from ..usd import load_frame
 
-    c = _worker_stage(shot)
+    so = stage_options or {}
+    c = _worker_stage(shot, so)
     key = (float(frame), camera, tuple(resolution) if resolution else None)
     if c["key"] != key:
         c["key"] = None
-        fs = load_frame(c["stage"], frame, camera=camera, resolution=resolution)
+        fs = load_frame(c["stage"], frame, camera=camera, resolution=resolution,
+                        default_light=so.get("default_light") or "dome",
+                        purposes=tuple(so["purposes"]) if so.get("purposes") else None)
         c["scene"] = c["bridge"].update(fs)
         c["key"] = key
     return core, c["scene"]
@@ -132,7 +142,7 @@ def render_part(spec: dict, shared: dict) -> dict:
     with _WORKER_LOCK:                   # one render per worker process at a time
         t0, c0 = time.perf_counter(), time.process_time()
         core, scene = _worker_scene(spec["shot"], spec["frame"], spec["camera"],
-                                    spec["resolution"])
+                                    spec["resolution"], spec.get("stage_options"))
         t_scene = time.perf_counter() - t0
         st = core.RenderSettings()
         for name, value in spec["settings"].items():
@@ -200,7 +210,8 @@ class DaskRenderer:
     progress bar; tests use it to kill a worker mid-frame)."""
 
     def __init__(self, client, shot: str, camera=None, resolution=None, parts: int = 0,
-                 threads: int = 0, on_part=None, address: str = ""):
+                 threads: int = 0, on_part=None, address: str = "",
+                 stage_options: Optional[dict] = None):
         self.client = client
         self.shot = os.path.abspath(shot)
         self.camera = camera
@@ -209,6 +220,9 @@ class DaskRenderer:
         self.threads = int(threads)
         self.on_part = on_part
         self.address = address
+        #: how the workers open and read the stage, as the client does: variants,
+        #: render_settings (prim path), default_light, purposes
+        self.stage_options = dict(stage_options or {})
         self._fields = None
         self.warm_s = 0.0
 
@@ -217,7 +231,7 @@ class DaskRenderer:
         first frame's tasks do not each pay for it; returns the seconds it took. A worker
         that joins later opens it with its first task."""
         t0 = time.perf_counter()
-        self.client.run(open_shot, self.shot)
+        self.client.run(open_shot, self.shot, self.stage_options)
         self.warm_s = time.perf_counter() - t0
         return self.warm_s
 
@@ -266,6 +280,7 @@ class DaskRenderer:
         for k in range(n_parts):
             spec = {"shot": self.shot, "frame": float(frame), "camera": self.camera,
                     "resolution": self.resolution, "settings": settings,
+                    "stage_options": self.stage_options,
                     "threads": self.threads,
                     "film_offset": (float(getattr(st, "mlt_film_offset_x", 0.0)),
                                     float(getattr(st, "mlt_film_offset_y", 0.0))),

@@ -113,7 +113,9 @@ def _load(job: ShotJob, frame: float):
 
     opts = job.opts
     try:
-        fs = load_frame(job.stage, frame, camera=opts.camera, resolution=opts.resolution)
+        fs = load_frame(job.stage, frame, camera=opts.camera, resolution=opts.resolution,
+                        default_light=opts.default_light,
+                        purposes=opts.purposes if opts.purposes else None)
     except (UsdLoadError, ColorError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}"
                           if isinstance(exc, ColorError) else str(exc)) from None
@@ -171,6 +173,8 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
             # before the EXR: a finished image always has its preview
             pv = preview_path(path, opts.preview_format)
             shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
+            if opts.exposure:                 # previews only: the EXR stays as rendered
+                shown = shown * (2.0 ** float(opts.exposure))
             write_preview(shown, pv, job.display, job.view)
             record["preview"] = os.path.basename(pv)
         if opts.state_dir:

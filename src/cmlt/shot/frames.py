@@ -5,7 +5,7 @@ Frame specs follow usdrecord's ``--frames`` syntax:
 ==============  ==============================================
 ``7``           one frame (time code 7)
 ``1.5``         one fractional frame (time code 1.5)
-``1:24``        24 frames, both ends included
+``1:24``        24 frames, both ends included (``1-24`` too, as husk writes it)
 ``1:24x2``      every second frame: 1, 3, ..., 23
 ``1:2x0.25``    sub-frames: 1, 1.25, 1.5, 1.75, 2
 ``1,5,9``       a comma list; each item may itself be a range
@@ -100,6 +100,11 @@ def _item(item: str, spec: str, start: float, end: float, has_range: bool) -> Li
             return [_clean(start)]
         return _range(start, end, 1.0, spec)
     stride = 1.0
+    # husk's / usdrecord's habit START-END for START:END (frames are not negative,
+    # so a '-' after the first character separates the ends)
+    dash = re.match(r"^\s*([0-9][0-9.]*)\s*-\s*([0-9][0-9.]*)\s*((?:[xX].*)?)$", text)
+    if dash and ":" not in text:
+        text = f"{dash.group(1)}:{dash.group(2)}{dash.group(3)}"
     if "x" in text.lower():
         if ":" not in text:
             raise FrameSpecError(f"--frames {spec!r}: a stride (x) needs a range, as in 1:24x2")

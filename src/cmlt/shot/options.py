@@ -59,6 +59,8 @@ class _FrameOptions:
     #: write a display-referred preview beside each EXR (png or jpg)
     preview: bool = False
     preview_format: str = "png"
+    #: stops of exposure applied to previews only (the EXR is not scaled)
+    exposure: float = 0.0
     #: OCIO display / view of previews (None: sRGB display, its default view)
     display: Optional[str] = None
     view: Optional[str] = None
@@ -71,6 +73,19 @@ class _FrameOptions:
     dask: Optional[str] = None
     #: tasks per frame with --dask (0: twice the number of workers)
     dask_parts: int = 0
+    #: a UsdRender.Settings prim path to use (husk's -R): authored as the stage's
+    #: renderSettingsPrimPath in the session layer (None: the stage's own choice)
+    render_settings: Optional[str] = None
+    #: variant selections applied in the session layer before anything is read:
+    #: ``SET=VALUE`` (every prim with the set) or ``/prim:SET=VALUE``, in order
+    #: (:mod:`cmlt.usd.variants`)
+    variants: Tuple[str, ...] = ()
+    #: what lights a stage without lights or emissive materials: dome (white, radiance
+    #: 1), headlight or dome-key (:func:`cmlt.usd.lights.default_lights`)
+    default_light: str = "dome"
+    #: purposes rendered besides default (husk's --purpose); () = cmlt's rule
+    #: (render always, proxy where no render sibling, guide never)
+    purposes: Tuple[str, ...] = ()
 
     def check(self) -> None:
         """Checks that need neither the stage nor the core: every setting
@@ -94,9 +109,27 @@ class _FrameOptions:
                              "or more")
         if int(self.aov_samples) < 1:
             raise UsageError(f"--aov-samples {self.aov_samples}: must be at least 1")
+        import math
+        if not math.isfinite(float(self.exposure)) or abs(float(self.exposure)) > 64:
+            raise UsageError(f"--exposure {self.exposure}: must be a finite number of stops "
+                             "within -64..64")
         if self.preview_format not in PREVIEW_FORMATS:
             raise UsageError(f"--preview-format {self.preview_format!r}: choose one of "
                              f"{', '.join(PREVIEW_FORMATS)}")
+        from ..usd.lights import DEFAULT_LIGHTS
+        if self.default_light not in DEFAULT_LIGHTS:
+            raise UsageError(f"--default-light {self.default_light!r}: choose one of "
+                             f"{', '.join(DEFAULT_LIGHTS)}")
+        from ..usd.frame import PURPOSES
+        for p in self.purposes:
+            if p not in PURPOSES:
+                raise UsageError(f"--purpose {p!r}: choose from {', '.join(PURPOSES)}")
+        from ..usd.variants import parse_variant
+        for v in self.variants:
+            try:
+                parse_variant(v)
+            except ValueError as exc:
+                raise UsageError(f"--variant {exc}") from None
         if self.crop is not None:
             c = tuple(self.crop)
             if len(c) != 4 or c[0] < 0 or c[1] < 0 or c[2] <= c[0] or c[3] <= c[1]:

@@ -137,7 +137,23 @@ def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> di
         record.update(preview=opts.preview_format, display=display, view=view)
     if opts.state_dir:
         record["state_dir"] = os.path.abspath(opts.state_dir)
+    if opts.variants:
+        record["variants"] = [str(v) for v in opts.variants]
     return record
+
+
+def _outside_range_warning(frame_list, info) -> str:
+    """A warning when frames lie outside the stage's authored time range (USD
+    holds the first/last samples there), '' otherwise."""
+    if not info.has_authored_time_range:
+        return ""
+    out = [f for f in frame_list if f < info.start - 1e-9 or f > info.end + 1e-9]
+    if not out:
+        return ""
+    shown = ", ".join(f"{f:g}" for f in out[:5]) + (f" and {len(out) - 5} more"
+                                                     if len(out) > 5 else "")
+    return (f"{info.path}: frame(s) {shown} outside the stage's time range "
+            f"{info.start:g}..{info.end:g}; time samples are held there")
 
 
 def _frame_list(frames, info) -> List[float]:
@@ -148,21 +164,24 @@ def _frame_list(frames, info) -> List[float]:
     return [float(f) for f in frames]
 
 
-def _open(shot: str, core):
+def _open(shot: str, core, variants=(), render_settings=None):
     """(stage, info, core) of a shot that exists; the core imported if not given."""
     if not os.path.exists(shot):
         raise UsageError(f"{shot}: no such file")
     if os.path.isdir(shot):
         raise UsageError(f"{shot}: is a directory, not a USD file")
     from ..usd import UsdLoadError, open_stage, stage_info
+    from ..usd.variants import VariantError
     if core is None:
         try:
             import cmlt._core as core
         except ImportError as exc:
             raise RenderError(f"the C++ core cmlt._core is not built: {exc}") from None
     try:
-        stage = open_stage(shot)
+        stage = open_stage(shot, variants=variants, render_settings=render_settings)
         info = stage_info(stage)
+    except VariantError as exc:
+        raise UsageError(str(exc)) from None
     except UsdLoadError as exc:
         raise RenderError(str(exc)) from None
     return stage, info, core
@@ -187,7 +206,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     """
     opts = options or RenderOptions()
     opts.check()
-    stage, info, core = _open(shot, core)
+    stage, info, core = _open(shot, core, opts.variants, opts.render_settings)
     resolved, sources = resolve(stage, opts)
     if opts.camera:
         _check_camera(stage, opts.camera, shot)
@@ -238,7 +257,12 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
         job.distributed = DaskRenderer(client, shot, camera=opts.camera,
                                        resolution=opts.resolution, parts=int(opts.dask_parts),
                                        threads=0, on_part=on_part,
-                                       address=opts.dask or "")
+                                       address=opts.dask or "",
+                                       stage_options={
+                                           "variants": tuple(opts.variants),
+                                           "render_settings": opts.render_settings,
+                                           "default_light": opts.default_light,
+                                           "purposes": tuple(opts.purposes)})
         result.settings["dask"] = opts.dask or "client"
         try:
             job.distributed.warm()
@@ -247,6 +271,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             raise RenderError(f"{shot}: --dask: a worker cannot open the shot: {exc}") from None
     stage_warnings = [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
+    outside = _outside_range_warning(frame_list, info)
+    if outside:
+        stage_warnings.append(outside)
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
     if cold:
         stage_warnings.append(cold)

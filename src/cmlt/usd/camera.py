@@ -181,3 +181,54 @@ def instance_bounds(meshes, instances) -> Optional[Tuple[np.ndarray, np.ndarray]
     if not np.isfinite(lo).all():
         return None
     return lo, hi
+
+
+#: UsdRender.Settings.aspectRatioConformPolicy values cmlt honours
+CONFORM_POLICIES = ("expandAperture", "cropAperture", "adjustApertureWidth",
+                    "adjustApertureHeight", "adjustPixelAspectRatio")
+
+
+def conform_aperture(cam: Camera, resolution, policy: str = "expandAperture",
+                     warnings: Optional[List[str]] = None, where: str = "") -> Camera:
+    """Fit the camera's aperture to the image aspect as UsdRender's
+    ``aspectRatioConformPolicy`` says (the core frames the image by the horizontal
+    aperture, the vertical extent following the image aspect A = width / height):
+
+    * ``expandAperture`` (UsdRender's default): the authored aperture stays whole in
+      the image, the other direction grows: ha' = max(ha, va A);
+    * ``cropAperture``: the image stays inside the aperture: ha' = min(ha, va A);
+    * ``adjustApertureWidth``: va kept, ha' = va A;
+    * ``adjustApertureHeight``: ha kept (va' = ha / A);
+    * ``adjustPixelAspectRatio``: cmlt's pixels are square; warned, treated as
+      ``expandAperture``.
+
+    The vertical aperture is set to the extent the image shows (ha' / A). Applied
+    when the stage has render settings (:func:`cmlt.usd.load_frame`)."""
+    w, h = resolution
+    aspect = float(w) / float(h)
+    ha, va = float(cam.horizontal_aperture), float(cam.vertical_aperture)
+    if policy not in CONFORM_POLICIES or policy == "adjustPixelAspectRatio":
+        if warnings is not None:
+            warnings.append(f"{where or cam.name}: aspectRatioConformPolicy {policy!r} is not "
+                            "supported (square pixels); using expandAperture")
+        policy = "expandAperture"
+    if policy == "expandAperture":
+        ha_new = max(ha, va * aspect)
+    elif policy == "cropAperture":
+        ha_new = min(ha, va * aspect)
+    elif policy == "adjustApertureWidth":
+        ha_new = va * aspect
+    else:
+        ha_new = ha
+    with np.errstate(over="ignore"):
+        ok = bool(np.isfinite(np.float32(ha_new)) and np.isfinite(np.float32(ha_new / aspect))
+                  and ha_new > 0)
+    if not ok:                          # the core holds apertures in float32
+        if warnings is not None:
+            warnings.append(f"{cam.name}: the aperture conformed by {policy} is not finite in "
+                            f"single precision ({ha:g} x {va:g}); the horizontal aperture "
+                            "spans the width instead")
+        return cam
+    cam.horizontal_aperture = ha_new
+    cam.vertical_aperture = ha_new / aspect
+    return cam

@@ -12,21 +12,25 @@ from typing import List, Tuple
 from pxr import Tf, UsdGeom
 
 from ..scene import FrameScene
-from .camera import camera_at_path, framing_camera, gf_to_np, instance_bounds, read_camera, \
-    stage_cameras
+from .camera import camera_at_path, conform_aperture, framing_camera, gf_to_np, \
+    instance_bounds, read_camera, stage_cameras
 from .errors import UsdLoadError
 from .instancing import drop_prototype_placements, prototype_roots
-from .lights import default_dome
+from .lights import DEFAULT_LIGHTS, default_lights, default_lights_note
 from .motion import shutter_motion
 from .render_settings import (default_resolution, find_settings_prim, settings_camera,
                               settings_camera_problem, settings_resolution)
 from .stage import check_time_metadata, composition_warnings, stage_file, stage_state, time_code
 from .traversal import FrameReader
 
-__all__ = ["load_frame", "static_signature"]
+__all__ = ["load_frame", "static_signature", "PURPOSES"]
+
+#: the UsdGeom purposes ``--purpose`` may list (``default`` always renders)
+PURPOSES = ("default", "render", "proxy", "guide")
 
 
-def load_frame(stage, time, camera=None, resolution=None, render_settings=None) -> FrameScene:
+def load_frame(stage, time, camera=None, resolution=None, render_settings=None,
+               default_light="dome", purposes=None) -> FrameScene:
     """Read the render scene of ``stage`` at the time code ``time``.
 
     ``camera``: a camera prim path (UsdLoadError if it is not a Camera);
@@ -35,12 +39,17 @@ def load_frame(stage, time, camera=None, resolution=None, render_settings=None) 
     overriding the RenderSettings resolution (default: the core's, 640x480).
     ``render_settings``: a RenderSettings prim path; default: the stage's
     ``renderSettingsPrimPath`` metadata, else the first RenderSettings prim
-    (:mod:`cmlt.usd.render_settings`). Non-fatal problems are listed in
+    (:mod:`cmlt.usd.render_settings`). ``default_light``: what lights a stage
+    without lights and emissive materials, one of ``DEFAULT_LIGHTS``
+    (:func:`cmlt.usd.lights.default_lights`). ``purposes``: None (guide never,
+    proxy where no render sibling), else the purposes rendered besides
+    ``default`` (a subset of ``PURPOSES``). Non-fatal problems are listed in
     ``FrameScene.warnings``, each naming its prim; fatal ones raise
     :class:`UsdLoadError`.
     """
     try:
-        return _load_frame(stage, time, camera, resolution, render_settings)
+        return _load_frame(stage, time, camera, resolution, render_settings, default_light,
+                           purposes)
     except Tf.ErrorException as exc:          # USD refused the data outside any one prim
         msg = " ".join(str(exc).split())
         raise UsdLoadError(f"{stage_file(stage)}: time {time}: {msg}") from None
@@ -60,9 +69,13 @@ def _resolution(stage, settings, tc, resolution) -> Tuple[int, int]:
     return res
 
 
-def _load_frame(stage, time, camera, resolution, render_settings) -> FrameScene:
+def _load_frame(stage, time, camera, resolution, render_settings, default_light,
+                purposes) -> FrameScene:
     if stage is None:
         raise UsdLoadError("load_frame: no stage")
+    if default_light not in DEFAULT_LIGHTS:
+        raise UsdLoadError(f"default light {default_light!r}: choose one of "
+                           f"{', '.join(DEFAULT_LIGHTS)}")
     check_time_metadata(stage)
     tc = time_code(stage, time)
     warnings: List[str] = []
@@ -70,7 +83,11 @@ def _load_frame(stage, time, camera, resolution, render_settings) -> FrameScene:
     for w in state.open_warnings + composition_warnings(stage):
         if w not in warnings:
             warnings.append(w)
-    fr = FrameReader(stage, tc, warnings)
+    if purposes is not None:
+        bad = [p for p in purposes if p not in PURPOSES]
+        if bad:
+            raise UsdLoadError(f"purpose {bad[0]!r}: choose from {', '.join(PURPOSES)}")
+    fr = FrameReader(stage, tc, warnings, purposes)
     up = str(UsdGeom.GetStageUpAxis(stage))
 
     # settings, camera path (validated before the expensive traversal)
@@ -93,10 +110,7 @@ def _load_frame(stage, time, camera, resolution, render_settings) -> FrameScene:
     if proto_roots:
         drop_prototype_placements(fr, proto_roots)
 
-    if not fr.lights and not fr.materials.has_emission():
-        fr.lights.append(default_dome())
-        warnings.append(f"{stage_file(stage)}: the stage has no lights and no emissive "
-                        f"materials; adding a white dome light (radiance 1)")
+    lightless = not fr.lights and not fr.materials.has_emission()
 
     # camera
     if cam_prim is None:
@@ -109,10 +123,23 @@ def _load_frame(stage, time, camera, resolution, render_settings) -> FrameScene:
     if cam_prim is not None:
         world = fr.S @ gf_to_np(fr.xc.GetLocalToWorldTransform(cam_prim))
         cam = read_camera(cam_prim, tc, fr.mpu, world, warnings)
+        if settings is not None:
+            # a UsdRender pipeline: its aspectRatioConformPolicy (fallback expandAperture);
+            # without render settings the horizontal aperture spans the width (camera.h)
+            from pxr import UsdRender
+            policy = str(UsdRender.Settings(settings).GetAspectRatioConformPolicyAttr()
+                         .Get(tc) or "expandAperture")
+            conform_aperture(cam, res, policy, warnings, where=str(settings.GetPath()))
     else:
         cam = framing_camera(instance_bounds(fr.meshes, fr.instances), up, res)
         warnings.append(f"{stage_file(stage)}: no camera; using a framing camera "
                         f"({'+Y' if up == 'Z' else '-Z'} view of the stage bounds)")
+
+    if lightless:          # after the camera: a headlight and a key light follow it
+        fr.lights.extend(default_lights(default_light, cam.transform))
+        warnings.append(f"{stage_file(stage)}: the stage has no lights and no emissive "
+                        f"materials; {default_lights_note(default_light)} (--default-light "
+                        f"{'|'.join(DEFAULT_LIGHTS)})")
 
     blur, blur_reason, blur_times = shutter_motion(fr, cam, tc)
     ftime = float(stage.GetStartTimeCode()) if tc.IsDefault() else float(tc.GetValue())

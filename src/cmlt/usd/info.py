@@ -9,11 +9,13 @@ from pxr import Usd, UsdGeom, UsdRender, UsdShade
 
 from .errors import UsdLoadError
 from .frame import load_frame
+from .materialx import mtlx_references
 from .mesh import subdiv_level_of
 from .render_settings import find_settings_prim, settings_camera_problem
 from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, one_line,
                     check_time_metadata, composition_warnings, ignored_reason, stage_file,
                     stage_state)
+from .variants import variant_sets
 
 __all__ = ["StageInfo", "stage_info"]
 
@@ -43,6 +45,10 @@ class StageInfo:
     motion_blur: str = ""            # "on: ..." / "off: ..." at the first frame, and why
     #: the render settings' camera cannot be used (also in ``warnings``; moot with --camera)
     settings_camera_warning: str = ""
+    #: (prim, variant set, selection or '', variant names) of the composed stage
+    variant_sets: List[Tuple[str, str, str, List[str]]] = field(default_factory=list)
+    #: the --variant specs the stage was opened with
+    variant_specs: List[str] = field(default_factory=list)
 
     @property
     def frame_count(self) -> int:
@@ -70,6 +76,13 @@ class StageInfo:
             lines.extend(f"  {p}" for p in shown)
             if len(items) > len(shown):
                 lines.append(f"  ... and {len(items) - len(shown)} more")
+        lines.append(f"variant sets ({len(self.variant_sets)})"
+                     + (f", opened with --variant {' --variant '.join(self.variant_specs)}"
+                        if self.variant_specs else ""))
+        for prim, vset, sel, names in self.variant_sets[:40]:
+            lines.append(f"  {prim}: {vset} = {sel or '(none)'}  [{', '.join(names)}]")
+        if len(self.variant_sets) > 40:
+            lines.append(f"  ... and {len(self.variant_sets) - 40} more")
         if self.ignored:
             lines.append(f"ignored ({len(self.ignored)})")
             lines.extend(f"  {p} [{t}]: {r}" for p, t, r in self.ignored)
@@ -164,10 +177,16 @@ def stage_info(stage) -> StageInfo:
         elif t == "SkelRoot":
             info.notes.append(f"{path}: UsdSkel skinning is applied per frame with usd-core's "
                               f"UsdSkel (skinning queries); blend shapes are not applied")
+        if prim.HasAuthoredReferences():
+            for doc, _, _ in mtlx_references(prim):
+                info.notes.append(f"{path}: references the MaterialX document {doc}, read by "
+                                  "cmlt's MaterialX reader (usd-core composes no .mtlx)")
         reason = ignored_reason(prim)
         if reason:
             info.ignored.append((path, t, reason))
     info.prim_counts = counts
+    info.variant_sets = variant_sets(stage)
+    info.variant_specs = list(state.variant_specs)
     info.motion_blur = _motion_blur_summary(stage, info)
     try:
         settings = find_settings_prim(stage)

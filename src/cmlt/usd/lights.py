@@ -5,6 +5,12 @@ scale of the light's world transform, metersPerUnit included, is taken out)
 and the sizes (width, height, radius, length) are world sizes in metres, the
 authored local sizes times the scale along the matching axes. Normalised
 lights divide by the world area in square metres.
+
+Dome lights: the core's lat-long dome has its top pole on light-space +Y. A
+``DomeLight_1`` whose ``poleAxis`` is ``Z`` (or ``scene``, its default, on a
+Z-up stage) gets a 90 degree rotation about X first (:func:`dome_pole_axis`),
+the one ``UsdLuxDomeLight.OrientToStageUpAxis`` authors; a ``DomeLight`` keeps
++Y, as UsdLux specifies.
 """
 from __future__ import annotations
 
@@ -12,7 +18,7 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from pxr import Sdf, Usd, UsdLux
+from pxr import Sdf, Usd, UsdGeom, UsdLux
 
 from ..scene import Light
 from .color import to_rendering_space
@@ -100,6 +106,33 @@ def _asset(v, path: str, warnings: List[str]) -> Optional[str]:
     return str(v) if v else None
 
 
+#: light space with its pole on +Z from the core's +Y-pole dome: a rotation of 90
+#: degrees about X, the one UsdLuxDomeLight.OrientToStageUpAxis authors on Z-up stages
+_Y_POLE_TO_Z = np.array([[1.0, 0.0, 0.0, 0.0],
+                         [0.0, 0.0, -1.0, 0.0],
+                         [0.0, 1.0, 0.0, 0.0],
+                         [0.0, 0.0, 0.0, 1.0]])
+
+
+def dome_pole_axis(prim, warnings: Optional[List[str]] = None) -> str:
+    """The axis of a dome light's top pole in its own space: ``Y`` for a
+    ``DomeLight`` (the OpenEXR lat-long convention; Z-up stages rotate the light
+    themselves), ``poleAxis`` for a ``DomeLight_1`` (``scene``, the default, is the
+    stage's up axis; not inherited by children)."""
+    if str(prim.GetTypeName()) != "DomeLight_1":
+        return "Y"
+    attr = prim.GetAttribute("poleAxis")
+    value = str(attr.Get()) if attr and attr.Get() is not None else "scene"
+    if value == "scene":
+        return str(UsdGeom.GetStageUpAxis(prim.GetStage()))
+    if value not in ("Y", "Z"):
+        if warnings is not None:
+            warnings.append(f"{prim.GetPath()}: poleAxis {value!r} is not scene, Y or Z; "
+                            "using the stage's up axis")
+        return str(UsdGeom.GetStageUpAxis(prim.GetStage()))
+    return value
+
+
 def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional[Light]:
     """Read a supported UsdLux light. ``world_m`` is its light->world matrix
     (column convention) already in metres."""
@@ -160,6 +193,9 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
         area = 2.0 * math.pi * (1.0 - math.cos(half))        # solid angle of the cone
     elif kind == "dome":
         light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
+        pole = dome_pole_axis(prim, warnings)
+        if pole == "Z":
+            light.transform = xf @ _Y_POLE_TO_Z
     if kind in ("rect", "disk", "sphere", "cylinder"):
         light.cone_angle = num("shaping:cone:angle", 180.0)
         light.cone_softness = num("shaping:cone:softness", 0.0)
@@ -220,3 +256,69 @@ def default_dome() -> Light:
     """White dome light of radiance 1, for stages without any light."""
     return Light(name="<default dome>", kind="dome", transform=np.eye(4),
                  radiance=(1.0, 1.0, 1.0))
+
+
+#: ``--default-light`` choices: what a stage without lights (and without emissive
+#: materials) is lit by
+DEFAULT_LIGHTS = ("dome", "headlight", "dome-key")
+
+#: the sun's angular diameter of the default distant lights, degrees
+_DEFAULT_SUN_ANGLE = 1.0
+
+
+def _looking_along(d) -> np.ndarray:
+    """A rotation (column-vector 4x4) whose local -Z is the unit direction ``d``
+    (a distant light travels along its -Z)."""
+    z = -np.asarray(d, np.float64) / np.linalg.norm(d)
+    helper = np.array([0.0, 1.0, 0.0]) if abs(z[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x, y, z
+    return m
+
+
+def _sun(name: str, travel, irradiance: float) -> Light:
+    """A distant light travelling along ``travel`` whose irradiance at normal
+    incidence is ``irradiance`` (its radiance times the solid angle of its cone)."""
+    half = math.radians(_DEFAULT_SUN_ANGLE) / 2.0
+    omega = 2.0 * math.pi * (1.0 - math.cos(half))
+    L = irradiance / omega
+    return Light(name=name, kind="distant", transform=_looking_along(travel),
+                 radiance=(L, L, L), angle=_DEFAULT_SUN_ANGLE)
+
+
+def default_lights(kind: str, camera_transform) -> List[Light]:
+    """The lights of a stage that has none (``--default-light``):
+
+    * ``dome``: a white dome of radiance 1 (a white diffuse surface comes out 1
+      wherever it sees the whole sky: a furnace, which hides shape and material);
+    * ``headlight``: a distant light travelling along the camera's view, as
+      usdrecord and Storm light a stage without lights; irradiance pi at normal
+      incidence (a white diffuse surface facing the camera comes out 1);
+    * ``dome-key``: a dome of radiance 0.25 for fill plus a key light from the
+      camera's upper left, behind it (irradiance 0.8 pi), so that shading, shadows and
+      highlights show.
+
+    ``camera_transform``: the camera's rigid camera -> world matrix (column vectors).
+    """
+    if kind not in DEFAULT_LIGHTS:
+        raise ValueError(f"default light {kind!r}: choose one of {', '.join(DEFAULT_LIGHTS)}")
+    if kind == "dome":
+        return [default_dome()]
+    rot = np.asarray(camera_transform, np.float64)[:3, :3]
+    if kind == "headlight":
+        return [_sun("<default headlight>", rot @ np.array([0.0, 0.0, -1.0]), math.pi)]
+    fill = Light(name="<default fill dome>", kind="dome", transform=np.eye(4),
+                 radiance=(0.25, 0.25, 0.25))
+    key = _sun("<default key light>", rot @ np.array([1.0, -1.0, -1.0]), 0.8 * math.pi)
+    return [fill, key]
+
+
+def default_lights_note(kind: str) -> str:
+    """What the warning about a lightless stage says was added."""
+    return {"dome": "adding a white dome light (radiance 1)",
+            "headlight": "adding a headlight (a distant light along the camera's view)",
+            "dome-key": "adding a fill dome (radiance 0.25) and a key light from the "
+                        "camera's upper left"}[kind]

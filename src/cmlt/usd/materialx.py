@@ -62,8 +62,8 @@ from typing import Any, Dict, List, Optional, Tuple
 from ..scene import Material
 from .color import to_rendering_space
 
-__all__ = ["read_materialx_network", "mtlx_binding", "MtlxMaterialRef", "SURFACE_IDS",
-           "mtlx_library"]
+__all__ = ["read_materialx_network", "mtlx_binding", "mtlx_references", "MtlxMaterialRef",
+           "SURFACE_IDS", "mtlx_library"]
 
 #: MaterialX surface shaders mapped onto the core's model
 SURFACES = ("open_pbr_surface", "standard_surface", "UsdPreviewSurface")
@@ -1012,7 +1012,7 @@ class MtlxMaterialRef:
         return map_surface(DocNode(shader, self.doc_path), label, warnings)
 
 
-def _mtlx_references(prim):
+def mtlx_references(prim):
     """(resolved document path, prim path in it, layer) of every reference
     of ``prim`` to a ``.mtlx`` file, strongest first."""
     from pxr import Ar, Sdf
@@ -1041,7 +1041,7 @@ def mtlx_binding(stage, target) -> Optional[MtlxMaterialRef]:
     while p and p != Sdf.Path.absoluteRootPath:
         prim = stage.GetPrimAtPath(p)
         if prim:
-            refs = _mtlx_references(prim)
+            refs = mtlx_references(prim)
             if refs:
                 resolved, prim_path, _ = refs[0]
                 base = prim_path if prim_path and not prim_path.isEmpty else \

@@ -12,6 +12,7 @@ from pxr import Sdf, Tf, Usd, UsdGeom, UsdLux
 
 from .diagnostics import capture_usd_diagnostics
 from .errors import UsdLoadError
+from .variants import apply_variants, select_render_settings
 
 # Gprim types the reader turns into triangles.
 MESH_TYPES = ("Mesh",)
@@ -47,9 +48,26 @@ def stage_file(stage) -> str:
     return layer.realPath or layer.identifier
 
 
+#: an asset path of a MaterialX document in a USD message (``@look.mtlx@``, with
+#: the file-format arguments USD appends when it looks for a plugin)
+_MTLX_ASSET = re.compile(r"@[^@]*\.mtlx(?::SDF_FORMAT_ARGS:[^@]*)?@", re.IGNORECASE)
+
+
+def is_mtlx_composition_error(msg: str) -> bool:
+    """USD's complaint that a reference to a ``.mtlx`` document does not compose
+    (usd-core has no MaterialX file-format plugin). cmlt's MaterialX reader reads
+    such documents itself and names the material and the file when it cannot, so
+    the raw USD line is not repeated as a warning (a ``.mtlx`` payload or sublayer,
+    which the reader does not read, still warns)."""
+    return ("Could not open asset" in msg and "for reference" in msg
+            and bool(_MTLX_ASSET.search(msg)))
+
+
 def composition_warnings(stage) -> List[str]:
     """Non-fatal composition problems (unresolved references, payloads,
-    sublayers), one line each, naming the layer that introduced them."""
+    sublayers), one line each, naming the layer that introduced them; those
+    about ``.mtlx`` documents are left to the MaterialX reader
+    (:func:`is_mtlx_composition_error`)."""
     out: List[str] = []
     try:
         errors = stage.GetCompositionErrors()
@@ -57,7 +75,7 @@ def composition_warnings(stage) -> List[str]:
         errors = []
     for err in errors:
         msg = one_line(str(err))
-        if msg and msg not in out:
+        if msg and msg not in out and not is_mtlx_composition_error(msg):
             out.append(msg)
     return out
 
@@ -69,6 +87,10 @@ class StageState:
     def __init__(self, stage):
         self.stage_ref = weakref.ref(stage)
         self.open_warnings: List[str] = []
+        #: the --variant specs applied when opening, and the (prim, set, variant)
+        #: selections they authored in the session layer (cmlt.usd.variants)
+        self.variant_specs: List[str] = []
+        self.variant_selections: List[tuple] = []
         self.mesh_cache: Dict[object, object] = {}
         self.shape_cache: Dict[object, object] = {}
         # (prim path, stop path) -> the transform might vary in time (traversal.py)
@@ -113,8 +135,17 @@ def check_time_metadata(stage) -> None:
         raise UsdLoadError(f"{path}: startTimeCode {start:g} is after endTimeCode {end:g}")
 
 
-def open_stage(path) -> "Usd.Stage":
+def open_stage(path, variants=(), render_settings=None) -> "Usd.Stage":
     """Open a stage (.usd, .usda, .usdc, .usdz) with all payloads loaded.
+
+    ``variants``: ``--variant`` specs (``SET=VALUE``, ``/prim:SET=VALUE``,
+    :mod:`cmlt.usd.variants`) applied in order in the stage's session layer;
+    a spec that does not fit the stage raises
+    :class:`cmlt.usd.variants.VariantError` (a UsdLoadError).
+    ``render_settings``: a ``UsdRender.Settings`` prim path authored as the
+    stage's ``renderSettingsPrimPath`` in the session layer (after the
+    variants), so every reader of the settings uses it; VariantError if it
+    names no RenderSettings prim.
 
     Raises :class:`UsdLoadError` (one line, naming the file) for a missing
     file, an unreadable root layer, ``timeCodesPerSecond <= 0`` or
@@ -147,10 +178,15 @@ def open_stage(path) -> "Usd.Stage":
             raise UsdLoadError(f"{path}: cannot open the stage: {one_line(exc)}") from None
         if stage is None:
             raise UsdLoadError(f"{path}: cannot open the stage")
+        applied = apply_variants(stage, variants, where=path) if variants else []
+        if render_settings:
+            select_render_settings(stage, render_settings, where=path)
         composed = composition_warnings(stage)
     check_time_metadata(stage)
     state = stage_state(stage)
     state.open_warnings = composed + usd_diagnostic_warnings(stage, diags, composed)
+    state.variant_specs = [str(v) for v in variants or ()]
+    state.variant_selections = applied
     return stage
 
 
@@ -162,7 +198,7 @@ def usd_diagnostic_warnings(stage, diagnostics: List[str], known: List[str]) -> 
     out: List[str] = []
     layer = stage_file(stage)
     for d in diagnostics:
-        if any(k.rstrip(".") in d for k in known):
+        if any(k.rstrip(".") in d for k in known) or is_mtlx_composition_error(d):
             continue
         msg = f"{layer}: USD: {d}"
         if msg not in out:

@@ -8,6 +8,8 @@ Traversal rules
 * ``visibility``: an invisible prim hides its subtree. ``purpose``: ``guide``
   is never rendered; ``proxy`` is rendered only where no sibling subtree of the
   proxy scope carries ``render`` purpose; default and ``render`` always are.
+  ``--purpose LIST`` (``purposes``) replaces that rule: ``default`` and exactly
+  the purposes listed render (husk's ``--purpose``).
 * ``UsdGeom.PointInstancer``: see :mod:`cmlt.usd.instancing`.
 * Each rendered gprim is one :class:`Instance` of one :class:`Mesh` (object
   space, scene units); ``Instance.transform`` is object -> world in metres.
@@ -41,8 +43,11 @@ class FrameReader:
     """The traversal of one :func:`cmlt.usd.load_frame` call and what it found:
     meshes, instances, lights, materials, warnings."""
 
-    def __init__(self, stage, tc, warnings):
+    def __init__(self, stage, tc, warnings, purposes=None):
         self.stage = stage
+        #: None: the default purpose rules (module docstring); else the purposes
+        #: rendered besides ``default`` (``--purpose``), exactly
+        self.purposes = None if purposes is None else frozenset(purposes)
         self.tc = tc
         self.warnings = warnings
         self.state = stage_state(stage)
@@ -90,6 +95,8 @@ class FrameReader:
         pur = prim.GetAttribute("purpose")
         if pur and pur.HasAuthoredValue():
             p = pur.Get()
+            if self.purposes is not None:
+                return p != UsdGeom.Tokens.default_ and str(p) not in self.purposes
             if p == UsdGeom.Tokens.guide:
                 return True
             if p == UsdGeom.Tokens.proxy and self._has_render_sibling(prim):

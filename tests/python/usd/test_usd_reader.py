@@ -345,8 +345,10 @@ def test15_camera_and_render_settings():
     scene = load_frame(stage, 0)
     cam = scene.camera
     assert cam.name == "/World/cam" and scene.resolution == (320, 180)
+    # 36 x 24 authored, 16:9 image: aspectRatioConformPolicy's fallback expandAperture
+    # keeps the whole vertical aperture and widens the horizontal one to 24 * 16/9
     assert (cam.focal_length, cam.horizontal_aperture, cam.vertical_aperture) == \
-        pytest.approx((35, 36, 24))
+        pytest.approx((35, 24 * 320 / 180, 24))
     assert cam.horizontal_aperture_offset == pytest.approx(1.0)
     assert (cam.near, cam.far) == pytest.approx((0.1, 1000.0))
     assert cam.focus_distance == pytest.approx(5.0) and cam.f_stop == pytest.approx(2.8)
