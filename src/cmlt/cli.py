@@ -2,7 +2,7 @@
 
 ::
 
-    cmlt render SHOT [--frames SPEC] [--out PATTERN] [--spp N]
+    cmlt render SHOT [--frames SPEC [--force-frames]] [--out PATTERN] [--spp N]
                      [--integrator pt|bdpt|pssmlt|cmlt]
                      [--sigma S] [--large-step-probability P] [--chains N]
                      [--bootstrap-samples N] [--tries K] [--inner-length M]
@@ -126,8 +126,11 @@ def build_parser() -> argparse.ArgumentParser:
                        "with a JSON statistics sidecar (IMAGE.json) beside each image.")
     r.add_argument("shot", metavar="SHOT", help="USD stage (.usda, .usdc, .usd, .usdz)")
     r.add_argument("--frames", metavar="SPEC",
-                   help="time codes: 7, 1.5, 1:24, 1:24x2 (stride), 1,5,9, all "
-                   "(the stage's range); default: the stage's start time code")
+                   help="time codes: 7, 1.5, 1:24 or 1-24, 1:24x2 (stride), 1,5,9, all "
+                   "(the stage's range); default: the stage's start time code. Frames "
+                   "outside the stage's time range get a warning, far outside it an error")
+    r.add_argument("--force-frames", action="store_true", dest="force_frames",
+                   help="render --frames even far outside the stage's time range")
     r.add_argument("--out", metavar="PATTERN",
                    help="output image; the frame number replaces #### (zero-padded to the "
                    "number of #), ####.### (decimals), $F4/$F or %%04d; fractional frames "
@@ -256,7 +259,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
     try:
         res = render_sequence(args.shot, args.frames, args.out, opts, resume=args.resume,
                               progress=not (args.quiet or args.log_json), quiet=args.quiet,
-                              reporter=log)
+                              reporter=log, force_frames=args.force_frames)
     except UsageError as exc:
         return fail(str(exc), EXIT_USAGE)
     except RenderError as exc:

@@ -24,7 +24,7 @@ from typing import Dict, List, Optional, Sequence, Union
 from .core_settings import core_settings, resolve
 from .errors import RenderCancelled, RenderError, UsageError
 from .frame_job import ShotJob, render_frame
-from .frames import default_frames, expand_outputs, parse_frames
+from .frames import check_stage_range, default_frames, expand_outputs, parse_frames
 from .options import AOV_NAMES, PREVIEW_FORMATS, RenderOptions, default_output, preview_path
 from .output import color_setup
 from .progress import Reporter
@@ -169,13 +169,16 @@ def _open(shot: str, core):
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
-                    reporter: Optional[Reporter] = None, core=None) -> SequenceResult:
+                    reporter: Optional[Reporter] = None, core=None,
+                    force_frames: bool = False) -> SequenceResult:
     """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
     :mod:`cmlt.shot.frames`).
 
     ``frames``: None (the stage's start frame), a ``--frames`` spec, or a
-    list of time codes. Raises :class:`UsageError`, :class:`RenderError` or
-    :class:`RenderCancelled`.
+    list of time codes. Frames outside the stage's time range are a warning;
+    far outside it (:func:`cmlt.shot.frames.check_stage_range`) a UsageError
+    unless ``force_frames``. Raises :class:`UsageError`, :class:`RenderError`
+    or :class:`RenderCancelled`.
     """
     opts = options or RenderOptions()
     opts.check()
@@ -186,6 +189,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
     t_start = time.perf_counter()
     frame_list = _frame_list(frames, info)
+    range_warning = check_stage_range(frame_list, info.start, info.end,
+                                      info.has_authored_time_range, force=force_frames,
+                                      spec=frames if isinstance(frames, str) else None)
     outputs = expand_outputs(out or default_output(shot), frame_list)
     if opts.camera:
         _check_camera(stage, opts.camera, shot)
@@ -215,6 +221,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     stage_warnings = [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
+    if range_warning:
+        stage_warnings.append(range_warning)
     if cold:
         stage_warnings.append(cold)
     last_rendered = None
