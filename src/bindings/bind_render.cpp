@@ -13,6 +13,7 @@
 
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
 
 #include <cmath>
 #include <deque>
@@ -348,6 +349,27 @@ void bind_settings(nb::module_& m) {
         nb::arg("value").none(),
         "pssmlt/cmlt: MltStates to start the chains from (one chain per state) instead of "
         "resampling the bootstrap; None (default) = bootstrap");
+    cls.def_prop_rw(
+        "mlt_bootstrap_f",
+        [](const RenderSettings& s) -> nb::object {
+            if (!s.mlt_bootstrap_f) return nb::none();
+            return nb::cast(*s.mlt_bootstrap_f);
+        },
+        [](RenderSettings& s, nb::object v) {
+            if (v.is_none()) {
+                s.mlt_bootstrap_f.reset();
+                return;
+            }
+            s.mlt_bootstrap_f = std::make_shared<const std::vector<double>>(nb::cast<std::vector<double>>(v));
+        },
+        nb::arg("value").none(),
+        "pssmlt/cmlt: f* of the frame's bootstrap samples (list of float, exactly the "
+        "frame's bootstrap count) to use instead of evaluating them; None (default) = "
+        "evaluate");
+    cls.def_rw("mlt_film_offset_x", &RenderSettings::mlt_film_offset_x,
+               "pssmlt/cmlt: film offset of the chains' film position on the torus, [0, 1) "
+               "(a reparametrisation: the same image in expectation; default 0)");
+    cls.def_rw("mlt_film_offset_y", &RenderSettings::mlt_film_offset_y, "as mlt_film_offset_x");
     cls.def_prop_rw(
         "pilot",
         [](const RenderSettings& s) -> nb::object {

@@ -1,5 +1,5 @@
-// Bindings of the temporal carry-over (src/core/temporal/carry.h): evaluate carried chain
-// states in a new frame, sample the refresh pool, plan and gather the chain starts.
+// Bindings of the temporal carry-over (src/core/temporal/carry.h): the bootstrap points
+// of a frame, the coupled chain starts, screen anchors, and states evaluated in a frame.
 // The GIL is released while paths are traced.
 #include "bind_common.h"
 
@@ -38,16 +38,6 @@ void bind_temporal(nb::module_& m) {
         "Evaluate chain states (MltStates) in this frame's scene: the completed states with "
         "this frame's f_star and colour (temporal/carry.h).");
     m.def(
-        "temporal_sample_pool",
-        [](Scene& scene, const RenderSettings& settings, uint64_t pool_seed, uint64_t count) {
-            prepare(scene, settings, "temporal_sample_pool");
-            nb::gil_scoped_release release;
-            return temporal::sample_pool(scene, settings, pool_seed, count);
-        },
-        "scene"_a, "settings"_a, "pool_seed"_a, "count"_a,
-        "`count` independent uniform points keyed by (pool_seed, pool domain, j), evaluated "
-        "in this frame's scene, as MltStates.");
-    m.def(
         "temporal_f_star", [](const mlt::ChainStates& s) {
             std::vector<double> f;
             f.reserve(s.chains.size());
@@ -55,23 +45,6 @@ void bind_temporal(nb::module_& m) {
             return f;
         },
         "states"_a, "f_star of every state, in order (list of float).");
-    m.def(
-        "temporal_plan_carry",
-        [](const std::vector<double>& f_old, const std::vector<double>& f_new,
-           const std::vector<double>& pool_old, const std::vector<double>& pool_new, double b_old,
-           uint64_t n, double u0) {
-            const temporal::CarryPlan p = temporal::plan_carry(f_old, f_new, pool_old, pool_new, b_old, n, u0);
-            nb::dict d;
-            d["picks"] = p.picks;
-            d["from_carried"] = p.from_carried;
-            d["from_pool"] = p.from_pool;
-            d["weight_carried"] = p.weight_carried;
-            d["weight_pool"] = p.weight_pool;
-            return d;
-        },
-        "f_old"_a, "f_new"_a, "pool_old"_a, "pool_new"_a, "b_old"_a, "n"_a, "u0"_a,
-        "Deterministic-mixture weights of carried and pool particles and n systematic "
-        "resampling picks (temporal/carry.h).");
     m.def(
         "temporal_ratio_statistics",
         [](const std::vector<double>& f_old, const std::vector<double>& f_new) {
@@ -96,8 +69,84 @@ void bind_temporal(nb::module_& m) {
             return out;
         },
         "a"_a, "b"_a, "The states of a followed by those of b (ids kept).");
+    m.def("temporal_bootstrap_count", &temporal::bootstrap_count, "settings"_a,
+          "Bootstrap samples a render with these settings evaluates.");
+    m.def(
+        "temporal_bootstrap_states",
+        [](Scene& scene, const RenderSettings& settings, uint64_t count) {
+            prepare(scene, settings, "temporal_bootstrap_states");
+            PathCounters c;
+            std::shared_ptr<mlt::ChainStates> states;
+            {
+                nb::gil_scoped_release release;
+                states = temporal::bootstrap_states(scene, settings, count, &c);
+            }
+            nb::dict d;
+            d["rays"] = c.rays;
+            d["samples"] = c.samples;
+            return nb::make_tuple(states, d);
+        },
+        "scene"_a, "settings"_a, "count"_a,
+        "The render's bootstrap points 0..count-1 evaluated in this frame's scene: (MltStates "
+        "with f_star = f*, {'rays', 'samples'} traced; temporal/carry.h).");
+    m.def(
+        "temporal_couple_starts",
+        [](const std::vector<double>& f_old, const std::vector<double>& f_new,
+           const std::vector<uint64_t>& prev_picks, uint64_t n, uint64_t seed, uint32_t frame_key) {
+            const temporal::CoupledStarts c = temporal::couple_starts(f_old, f_new, prev_picks, n, seed, frame_key);
+            nb::dict d;
+            d["picks"] = c.picks;
+            d["kept"] = c.kept;
+            d["refreshed"] = c.refreshed;
+            d["fresh"] = c.fresh;
+            d["tv"] = c.tv;
+            return d;
+        },
+        "f_old"_a, "f_new"_a, "prev_picks"_a, "n"_a, "seed"_a, "frame_key"_a,
+        "Chain starts (bootstrap indices) of a frame coupled to the previous frame's "
+        "(temporal/carry.h couple_starts): dict picks, kept, refreshed, fresh, tv.");
+    m.def("temporal_keyed_uniform", &temporal::keyed_uniform, "seed"_a, "domain"_a, "id"_a, "counter"_a);
+    m.def(
+        "temporal_screen_anchors",
+        [](Scene& scene, const RenderSettings& settings, int n_x, int n_y) {
+            prepare(scene, settings, "temporal_screen_anchors");
+            std::vector<temporal::Anchor> a;
+            {
+                nb::gil_scoped_release release;
+                a = temporal::screen_anchors(scene, settings, n_x, n_y);
+            }
+            std::vector<double> flat;
+            flat.reserve(a.size() * 6);
+            for (const auto& x : a) {
+                flat.insert(flat.end(), {double(x.instance), double(x.p_object.x), double(x.p_object.y),
+                                         double(x.p_object.z), double(x.p_raster.x), double(x.p_raster.y)});
+            }
+            return flat;
+        },
+        "scene"_a, "settings"_a, "n_x"_a, "n_y"_a,
+        "First hits of an n_x x n_y grid of camera rays as a flat list of (instance or -1, "
+        "object-space x, y, z, raster x, y) per grid cell, row by row (temporal/carry.h).");
+    m.def(
+        "temporal_project_anchors",
+        [](Scene& scene, const RenderSettings& settings, const std::vector<double>& flat) {
+            prepare(scene, settings, "temporal_project_anchors");
+            if (flat.size() % 6) throw std::invalid_argument("temporal_project_anchors: 6 numbers per anchor");
+            std::vector<temporal::Anchor> a(flat.size() / 6);
+            for (size_t i = 0; i < a.size(); ++i) {
+                a[i].instance = int32_t(flat[6 * i]);
+                a[i].p_object = Vec3(float(flat[6 * i + 1]), float(flat[6 * i + 2]), float(flat[6 * i + 3]));
+                a[i].p_raster = Vec2(float(flat[6 * i + 4]), float(flat[6 * i + 5]));
+            }
+            const std::vector<Vec2> r = temporal::project_anchors(scene, settings, a);
+            std::vector<double> out;
+            out.reserve(2 * r.size());
+            for (const Vec2& v : r) out.insert(out.end(), {double(v.x), double(v.y)});
+            return out;
+        },
+        "scene"_a, "settings"_a, "anchors"_a,
+        "Raster positions (flat x, y per anchor; NaN: gone or behind the camera) of anchors "
+        "from temporal_screen_anchors in this frame's scene.");
     m.def("temporal_systematic_resample", &temporal::systematic_resample, "weights"_a, "n"_a, "u0"_a);
-    m.def("temporal_carry_uniform", &temporal::carry_uniform, "seed"_a, "key"_a);
     m.def("temporal_gather_states", &temporal::gather_states, "carried"_a, "pool"_a, "picks"_a,
           "pool_id_base"_a, "States picked from carried (index < len) and pool (index - len).");
 }

@@ -20,6 +20,7 @@
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
     cmlt compare A B [--json [OUT]]
+    cmlt accuracy SHOT [--seconds 1,2,4,8] [--integrators LIST] [--res WxH] ...  (cmlt.accuracy.cli)
     cmlt --version
 
 Exit codes: 0 done; 1 the shot or the render failed; 2 a bad flag or path;
@@ -154,7 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--aov", type=parse_aovs, metavar="LIST", dest="aov", default=(),
                    help="extra channels in the same EXR: albedo (albedo.R/G/B), normal "
                    "(N.X/Y/Z, world space), depth (Z, along the camera axis; 0 = no hit), "
-                   "variance (variance.R/G/B); comma-separated")
+                   "variance (variance.R/G/B), error (relMSE: the per-pixel relMSE estimate, "
+                   "pt and bdpt); comma-separated")
     r.add_argument("--aov-samples", type=_int_at_least(1), default=4, dest="aov_samples",
                    metavar="N", help="camera rays per pixel of the albedo/normal/depth pass "
                    "(default 4)")
@@ -212,6 +214,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="OpenColorIO config (default: $OCIO, else the built-in one)")
     from .metrics.cli import add_parsers as _add_metrics_parsers
     _add_metrics_parsers(sub)           # flicker, compare (cmlt.metrics.cli)
+    from .accuracy.cli import add_parser as _add_accuracy_parser
+    _add_accuracy_parser(sub)           # accuracy (cmlt.accuracy.cli; sets args.handler)
     return p
 
 
@@ -377,6 +381,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SystemExit as exc:           # --help, --version, usage errors
         return int(exc.code or 0)
     try:
+        if getattr(args, "handler", None) is not None:     # subcommands that bring their own
+            return args.handler(args)
         if args.command == "render":
             return _cmd_render(args, argv)
         if args.command == "inspect":

@@ -15,13 +15,10 @@ alike; absolute numbers still depend on the load.
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from equal_time import build_scene, relmse, settings, stage_start  # noqa: E402
+from cmlt.accuracy import ShotFrame, measure, parse_integrator, render_reference
 
 #: the default study: k (tries) and m (inner length) of cmlt's bundles, σ, the inner
 #: rule, the large-step probability; pssmlt and bdpt for scale
@@ -35,16 +32,6 @@ CONFIGS = [
 ]
 
 
-def parse(core, spec):
-    name, _, opts = spec.partition(":")
-    extra = {}
-    for kv in [x for x in opts.split(":") if x]:
-        k, v = kv.split("=")
-        default = getattr(core.RenderSettings(), k)
-        extra[k] = (v == "1") if isinstance(default, bool) else type(default)(v)
-    return name, extra
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("shot")
@@ -56,30 +43,18 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-spp", type=int, default=2048)
     args = ap.parse_args(argv)
     w, h = (int(v) for v in args.res.lower().split("x"))
-    core, _, _, scene, res = build_scene(args.shot, stage_start(args.shot), (w, h))
-    cache = Path("renders/bench")
-    cache.mkdir(parents=True, exist_ok=True)
-    ref_path = cache / f"{Path(args.shot).parent.name}_{w}x{h}_bdpt_{args.reference_spp}.npy"
-    if ref_path.exists():
-        ref = np.load(ref_path)
-    else:
-        print(f"reference: bdpt {args.reference_spp} spp ...", flush=True)
-        ref = np.asarray(core.render(scene, settings(core, "bdpt", args.reference_spp, res, 12345,
-                                                     args.threads, {})).image, np.float64)
-        np.save(ref_path, ref)
+    sf = ShotFrame(args.shot, None, (w, h), args.threads)
+    ref = render_reference(sf, "bdpt", args.reference_spp, "renders/bench").image
     configs = [c for c in (args.configs.split(",") if args.configs else CONFIGS) if c]
+    specs = {c: parse_integrator(c, sf.core) for c in configs}
     errs = {c: [] for c in configs}
     evals = {c: [] for c in configs}
     for seed in range(args.seeds):
         for spec in configs:
-            name, extra = parse(core, spec)
-            st = settings(core, name, 1 << 24, res, seed, args.threads, extra)
-            st.time_budget = args.seconds
-            r = core.render(scene, st)
-            errs[spec].append(relmse(np.asarray(r.image, np.float64), ref))
-            stats = dict(r.stats)
-            evals[spec].append(float(stats.get("path_evaluations", stats.get("samples", 0))) / (w * h))
-    print(f"\n{Path(args.shot).parent.name}, {w}x{h}, {args.seconds:g} s per render, {args.seeds} seeds, "
+            r = sf.render(specs[spec], seconds=args.seconds, seed=seed)
+            errs[spec].append(measure(r.image, ref)["relmse"])
+            evals[spec].append(r.samples)
+    print(f"\n{sf.name}, {w}x{h}, {args.seconds:g} s per render, {args.seeds} seeds, "
           f"{args.threads} threads; relMSE vs BDPT {args.reference_spp} spp\n")
     print("| configuration | evaluations / px | relMSE | ± (se) |")
     print("|---|---:|---:|---:|")

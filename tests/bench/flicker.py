@@ -1,14 +1,28 @@
-"""Flicker benchmark (issue 5): independent frames vs stored seeds vs seeds +
-carried states vs all three with smoothing, on static_flicker, moving_light and
-door_ajar — TF, GF, mean relMSE against per-frame PT references, time per frame.
+"""Flicker benchmark: independent frames vs stored seeds vs seeds + carried states
+vs all three with smoothing, per sequence — TF, GF and mean relMSE against
+per-frame converged references (DESIGN.md §4), at an equal sample budget per
+frame (``--spp``: path evaluations per pixel; never a time budget, so the
+numbers do not depend on the machine's load).
 
-    .venv/bin/python tests/bench/flicker.py [--res 48] [--frames 1:8] [--spp 16]
-        [--ref-spp 512] [--chains 256] [--out bench_out/flicker]
+    .venv/bin/python tests/bench/flicker.py [--sequences a,b] [--seeds 4] [--res 48]
+        [--frames SPEC] [--spp N] [--ref-spp N] [--chains 256] [--integrator cmlt]
+        [--configs independent,...] [--cvvdp] [--out bench_out/flicker]
 
-Writes OUT/flicker.md (markdown table) and OUT/flicker.png (TF and GF per
-configuration and sequence), and prints the table.
+Every configuration runs with ``--seeds`` shot seeds (1..N) and the table gives the
+mean over seeds and its standard error: one seed's relMSE is mostly that seed's luck
+(independent frames and stored seeds have the same per-frame error distribution, so
+their difference on one seed is noise). Per sequence the budget defaults to the
+table below (door_ajar needs 128 mutations per pixel to converge at all); ``--spp``
+and ``--ref-spp`` override it for every sequence. References are cached in
+OUT/SEQ/ref (reused when shot, size, frames, integrator and spp match).
+
+Writes OUT/flicker.md (markdown table), OUT/flicker.json (per-frame values: ratio of
+mean brightness to the reference, relMSE, TF terms, per seed) and OUT/flicker.png (TF
+and GF per configuration and sequence, log scale), and prints the table.
 """
 import argparse
+import json
+import math
 import os
 import sys
 import time
@@ -19,80 +33,259 @@ from cmlt.metrics import flicker, load_image
 from cmlt.shot import RenderOptions, render_sequence
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SEQUENCES = ("static_flicker", "moving_light", "door_ajar")
+#: sequence -> (spp, reference spp, frames) defaults (the budget where each converges
+#: well enough for flicker to mean something: door_ajar and camera_pan need more)
+SEQUENCES = {
+    "static_flicker": (16, 512, "1:8"),
+    "moving_light": (16, 512, "1:8"),
+    "door_ajar": (128, 4096, "1:8"),
+    "camera_pan": (64, 1024, "1:8"),
+    "fading_light": (16, 512, "1:24"),
+}
 CONFIGS = {
     "independent": dict(seed_per_frame=True, carry_states=False, smooth_normalization=False),
     "stored seeds": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False),
     "seeds + carried": dict(seed_per_frame=False, carry_states=True, smooth_normalization=False),
     "seeds + carried + smoothing": dict(seed_per_frame=False, carry_states=True,
                                         smooth_normalization=True),
+    # everything on but the chains' film offset kept at 0 (no camera reprojection)
+    "all but reprojection": dict(seed_per_frame=False, carry_states=True,
+                                        smooth_normalization=True, _reproject=False),
 }
+DEFAULT_CONFIGS = ("independent", "stored seeds", "seeds + carried", "seeds + carried + smoothing")
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--res", type=int, default=48)
-    ap.add_argument("--frames", default="1:8")
-    ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--ref-spp", type=int, default=512)
-    ap.add_argument("--chains", type=int, default=256)
-    ap.add_argument("--out", default=os.path.join("bench_out", "flicker"))
-    ap.add_argument("--sequences", default=",".join(SEQUENCES))
-    ap.add_argument("--integrator", default="pssmlt", help="pssmlt or cmlt")
-    ap.add_argument("--ref-integrator", default="bdpt",
-                    help="per-frame references (bdpt: light through the door's slit is what "
-                    "the path tracer finds slowly)")
-    a = ap.parse_args(argv)
-    res = (a.res, a.res)
-    rows = []
-    seqs = [x for x in a.sequences.split(",") if x]
-    for seq in seqs:
-        shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
-        ref = render_sequence(shot, a.frames, os.path.join(a.out, seq, "ref", "r.####.exr"),
-                              RenderOptions(integrator=a.ref_integrator, resolution=res, spp=a.ref_spp),
-                              progress=False, quiet=True)
-        refs = np.stack([load_image(p) for p in ref.written])
-        for name, kw in CONFIGS.items():
-            t0 = time.perf_counter()
-            r = render_sequence(shot, a.frames,
-                                os.path.join(a.out, seq, name.replace(" ", "_").replace("+", ""),
-                                             "f.####.exr"),
-                                RenderOptions(integrator=a.integrator, resolution=res, spp=a.spp,
-                                              chains=a.chains, bootstrap_samples=16 * a.chains,
-                                              **kw), progress=False, quiet=True)
-            dt = (time.perf_counter() - t0) / len(r.written)
-            rep = flicker(np.stack([load_image(p) for p in r.written]), refs)
-            rows.append((seq, name, rep.tf, rep.gf, rep.mean_rel_mse, dt))
-            print(f"{seq:15s} {name:28s} TF {rep.tf:.4f} GF {rep.gf:.5f} "
-                  f"relMSE {rep.mean_rel_mse:.4f} {dt:.2f} s/frame", file=sys.stderr)
-    lines = ["| sequence | configuration | TF | GF | mean relMSE | s / frame |",
-             "|---|---|---:|---:|---:|---:|"]
-    lines += [f"| {s} | {n} | {tf:.4f} | {gf:.5f} | {mse:.4f} | {dt:.2f} |"
-              for s, n, tf, gf, mse, dt in rows]
-    table = "\n".join(lines)
-    os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "flicker.md"), "w") as fh:
-        fh.write(f"`{' '.join(['tests/bench/flicker.py'] + (argv or sys.argv[1:]))}`\n\n"
-                 + table + "\n")
+def config_dir(name: str) -> str:
+    return name.replace(" + ", "_").replace(" ", "_")
+
+
+def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int):
+    """Per-frame references (F, H, W, 3), rendered once and cached in ``out``."""
+    key = {"shot": os.path.abspath(shot), "frames": frames, "integrator": integrator,
+           "res": list(res), "spp": int(spp)}
+    meta = os.path.join(out, "ref.json")
+    if os.path.exists(meta):
+        with open(meta) as fh:
+            old = json.load(fh)
+        if old.get("key") == key and all(os.path.exists(p) for p in old["written"]):
+            return np.stack([load_image(p) for p in old["written"]])
+    r = render_sequence(shot, frames, os.path.join(out, "r.####.exr"),
+                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp),
+                        progress=False, quiet=True)
+    os.makedirs(out, exist_ok=True)
+    with open(meta, "w") as fh:
+        json.dump({"key": key, "written": list(r.written)}, fh)
+    return np.stack([load_image(p) for p in r.written])
+
+
+def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: int, chains: int,
+                  seed: int, **kw):
+    """Render one configuration; returns (images (F, H, W, 3), temporal records,
+    seconds per frame)."""
+    from cmlt.temporal import driver
+    driver.REPROJECT = bool(kw.pop("_reproject", True))
+    t0 = time.perf_counter()
+    r = render_sequence(shot, frames, os.path.join(out, "f.####.exr"),
+                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
+                                      chains=chains, bootstrap_samples=16 * chains, seed=seed,
+                                      **kw), progress=False, quiet=True)
+    dt = (time.perf_counter() - t0) / len(r.written)
+    recs = []
+    for p in r.written:
+        with open(p + ".json") as fh:
+            recs.append(json.load(fh).get("temporal", {}))
+    return np.stack([load_image(p) for p in r.written]), recs, dt
+
+
+def screen_flow(shot: str, frames: str, res):
+    """Where each pixel centre's first hit is in the next frame: a list over frame pairs
+    of (H, W, 2) raster positions (NaN: nothing hit, or behind the camera), from the
+    core's screen anchors (the geometry and camera of each frame)."""
+    import cmlt._core as core
+    from cmlt.shot.bridge import SceneBridge
+    from cmlt.shot.frames import parse_frames
+    from cmlt.usd import load_frame, open_stage, stage_info
+    stage = open_stage(shot)
+    info = stage_info(stage)
+    times = parse_frames(frames, info.start, info.end, info.has_authored_time_range)
+    st = core.RenderSettings()
+    st.width, st.height = int(res[0]), int(res[1])
+    bridge = SceneBridge(core)
+    out, prev = [], None
+    for t in times:
+        scene = bridge.update(load_frame(stage, t, resolution=tuple(res)))
+        if prev is not None:
+            p = np.asarray(core.temporal_project_anchors(scene, st, prev), dtype=np.float64)
+            out.append(p.reshape(st.height, st.width, 2))
+        prev = core.temporal_screen_anchors(scene, st, st.width, st.height)
+    return out
+
+
+def motion_compensated_tf(images, refs, flow) -> float:
+    """TF with the error of frame f compared to frame f+1's error where that surface
+    point went (nearest pixel): mean |E_{f+1}(p') − E_f(p)| / mean R over the pixels
+    whose point stays in the image. On a static shot it is TF."""
+    E = np.asarray(images, np.float64) - np.asarray(refs, np.float64)
+    norm = float(np.asarray(refs, np.float64).mean())
+    H, W = E.shape[1:3]
+    terms = []
+    for k, fl in enumerate(flow):
+        x = np.floor(fl[..., 0])
+        y = np.floor(fl[..., 1])
+        ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (x < W) & (y >= 0) & (y < H)
+        yy, xx = np.nonzero(ok)
+        d = np.abs(E[k + 1][y[ok].astype(int), x[ok].astype(int)] - E[k][yy, xx])
+        terms.append(float(d.mean()) / norm if d.size else 0.0)
+    return float(np.mean(terms)) if terms else math.nan
+
+
+def plot(rows, seqs, configs, path, what):
+    """TF and GF per sequence and configuration, log scale; a value of 0 (a static
+    shot with stored seeds) is marked "0" at the axis floor."""
     try:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-        x = np.arange(len(seqs))
-        for k, name in enumerate(CONFIGS):
-            vals = [r for r in rows if r[1] == name]
-            ax[0].bar(x + 0.2 * k, [v[2] for v in vals], 0.2, label=name)
-            ax[1].bar(x + 0.2 * k, [v[3] for v in vals], 0.2, label=name)
-        for i, t in enumerate(("TF", "GF")):
-            ax[i].set_xticks(x + 0.3, seqs)
-            ax[i].set_yscale("log")
-            ax[i].set_title(f"{t} ({a.integrator}, {a.spp} mutations/px, lower is better)")
-        ax[0].legend(fontsize=7)
-        fig.tight_layout()
-        fig.savefig(os.path.join(a.out, "flicker.png"), dpi=100)
     except ImportError:
-        pass
+        return
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4))
+    x = np.arange(len(seqs))
+    width = 0.8 / max(1, len(configs))
+    for i, (t, col) in enumerate((("TF", 4), ("GF", 6))):
+        vals = [r[col][0] for r in rows if r[1] in configs]
+        positive = [v for v in vals if v > 0]
+        floor = 0.3 * min(positive) if positive else 1e-3
+        for k, name in enumerate(configs):
+            v = [next((r[col][0] for r in rows if r[0] == q and r[1] == name), math.nan)
+                 for q in seqs]
+            bars = ax[i].bar(x + width * k, [max(y, floor) for y in v], width, label=name,
+                             color=f"C{k}")
+            for bar, y in zip(bars, v):
+                if y == 0:
+                    ax[i].text(bar.get_x() + bar.get_width() / 2, floor * 1.15, "0",
+                               ha="center", va="bottom", fontsize=8, color=f"C{k}")
+        ax[i].set_xticks(x + 0.4 - width / 2, seqs, fontsize=8)
+        ax[i].set_yscale("log")
+        ax[i].set_ylim(bottom=floor)
+        ax[i].set_title(f"{t} ({what}; lower is better)", fontsize=9)
+    ax[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _mean_se(values):
+    v = np.asarray([x for x in values if x is not None], dtype=np.float64)
+    if v.size == 0:
+        return math.nan, math.nan
+    se = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan
+    return float(v.mean()), se
+
+
+def _fmt(m, se, digits):
+    if not math.isfinite(m):
+        return "-"
+    s = f"{m:.{digits}f}"
+    return s if not math.isfinite(se) else f"{s} ± {se:.{digits}f}"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--res", type=int, default=48)
+    ap.add_argument("--frames", default=None, help="every sequence (default: its own)")
+    ap.add_argument("--spp", type=int, default=None, help="every sequence (default: its own)")
+    ap.add_argument("--ref-spp", type=int, default=None, help="every sequence (default: its own)")
+    ap.add_argument("--chains", type=int, default=256)
+    ap.add_argument("--seeds", type=int, default=4, help="shot seeds 1..N per configuration")
+    ap.add_argument("--out", default=os.path.join("bench_out", "flicker"))
+    ap.add_argument("--sequences", default=",".join(SEQUENCES))
+    ap.add_argument("--configs", default=",".join(DEFAULT_CONFIGS),
+                    help=f"any of: {', '.join(CONFIGS)}")
+    ap.add_argument("--integrator", default="cmlt", help="pssmlt or cmlt")
+    ap.add_argument("--ref-integrator", default="bdpt",
+                    help="per-frame references (bdpt: light through the door's slit is what "
+                    "the path tracer finds slowly)")
+    ap.add_argument("--cvvdp", action="store_true",
+                    help="also ColorVideoVDP JOD against the references (cmlt.metrics.cvvdp; "
+                    "needs the optional cvvdp package)")
+    ap.add_argument("--cvvdp-seeds", type=int, default=1,
+                    help="seeds whose JOD is computed (it takes about a minute per video)")
+    a = ap.parse_args(argv)
+    res = (a.res, a.res)
+    seqs = [x for x in a.sequences.split(",") if x]
+    configs = [x for x in a.configs.split(",") if x]
+    for c in configs:
+        if c not in CONFIGS:
+            ap.error(f"--configs: unknown configuration {c!r} (one of {', '.join(CONFIGS)})")
+    jod = None
+    if a.cvvdp:
+        from cmlt.metrics.cvvdp import CvvdpUnavailable, video_jod
+        jod = video_jod
+    rows, dump = [], {"argv": argv if argv is not None else sys.argv[1:], "sequences": {}}
+    for seq in seqs:
+        spp, ref_spp, frames = SEQUENCES.get(seq, (16, 512, "1:8"))
+        spp = a.spp or spp
+        ref_spp = a.ref_spp or ref_spp
+        frames = a.frames or frames
+        shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
+        refs = reference(shot, frames, os.path.join(a.out, seq, "ref"), a.ref_integrator,
+                         res, ref_spp)
+        flow = screen_flow(shot, frames, res)
+        dseq = dump["sequences"].setdefault(seq, {"spp": spp, "ref_spp": ref_spp, "frames": frames,
+                                                  "reference_mean": refs.mean(axis=(1, 2, 3)).tolist(),
+                                                  "configs": {}})
+        for name in configs:
+            per_seed = []
+            for seed in range(1, a.seeds + 1):
+                out = os.path.join(a.out, seq, config_dir(name), f"seed{seed}")
+                imgs, recs, dt = render_config(shot, frames, out, a.integrator, res, spp,
+                                               a.chains, seed, **CONFIGS[name])
+                rep = flicker(imgs, refs)
+                tf_mc = motion_compensated_tf(imgs, refs, flow)
+                j = None
+                if jod is not None and seed <= a.cvvdp_seeds:
+                    try:
+                        j = jod(imgs, refs, fps=24.0)
+                    except CvvdpUnavailable as exc:
+                        print(f"cvvdp: {exc}", file=sys.stderr)
+                        jod = None
+                per_seed.append({"seed": seed, "tf": rep.tf, "tf_mc": tf_mc, "gf": rep.gf,
+                                 "rel_mse": rep.mean_rel_mse, "s_per_frame": dt,
+                                 "ratio": rep.ratio, "delta": rep.delta,
+                                 "frame_rel_mse": rep.rel_mse, "jod": j,
+                                 "b_used": [r.get("b_used") for r in recs],
+                                 "change": [r.get("change_detected") for r in recs]})
+                print(f"{seq:15s} {name:28s} seed {seed} TF {rep.tf:.4f} TFmc {tf_mc:.4f} GF {rep.gf:.5f} "
+                      f"relMSE {rep.mean_rel_mse:.4f}" + (f" JOD {j:.3f}" if j is not None else "")
+                      + f" {dt:.2f} s/frame", file=sys.stderr)
+            dseq["configs"][name] = per_seed
+            rows.append((seq, name, spp, frames) + tuple(
+                _mean_se([p[k] for p in per_seed]) for k in ("tf", "tf_mc", "gf", "rel_mse", "jod",
+                                                               "s_per_frame")))
+    head = "| sequence | configuration | spp | frames | TF | TF, motion-compensated | GF | mean relMSE |"
+    rule = "|---|---|---:|---|---:|---:|---:|---:|"
+    if a.cvvdp:
+        head += " JOD |"
+        rule += "---:|"
+    lines = [head + " s / frame |", rule + "---:|"]
+    for s, n, spp, fr, tf, tfmc, gf, mse, j, dt in rows:
+        line = (f"| {s} | {n} | {spp} | {fr} | {_fmt(*tf, 4)} | {_fmt(*tfmc, 4)} | {_fmt(*gf, 4)} "
+                f"| {_fmt(*mse, 4)} |")
+        if a.cvvdp:
+            line += f" {_fmt(*j, 3)} |"
+        lines.append(line + f" {dt[0]:.2f} |")
+    table = "\n".join(lines)
+    os.makedirs(a.out, exist_ok=True)
+    cmd = " ".join(["tests/bench/flicker.py"] + list(dump["argv"]))
+    with open(os.path.join(a.out, "flicker.md"), "w") as fh:
+        fh.write(f"`{cmd}` ({a.integrator}, {a.res}x{a.res}, {a.chains} "
+                 f"chains, seeds 1..{a.seeds}: mean ± standard error over seeds)\n\n"
+                 + table + "\n")
+    with open(os.path.join(a.out, "flicker.json"), "w") as fh:
+        json.dump(dump, fh, indent=1)
+    plot(rows, seqs, configs, os.path.join(a.out, "flicker.png"),
+         f"{a.integrator}, mean of {a.seeds} seeds")
     print(table)
 
 

@@ -20,26 +20,24 @@ load hits both alike.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from equal_time import build_scene, settings, stage_start  # noqa: E402
+from cmlt.accuracy import ShotFrame, parse_integrator
 
 
-def measure(core, scene, res, args, k):
+def measure(sf, args, k):
     """{packets: (best wall s, image, stats of that run)} for packets off and on."""
     out = {}
     for _ in range(args.repeats):
         for packets in (False, True):
-            st = settings(core, "cmlt", args.spp, res, args.seed, args.threads,
-                          {"tries": k, "inner": args.inner, "packets": packets,
-                           "inner_length": args.inner_length})
+            spec = parse_integrator(f"cmlt:tries={k}:inner={args.inner}:packets={int(packets)}"
+                                    f":inner_length={args.inner_length}", sf.core)
+            st = sf.settings(spec, spp=args.spp, seed=args.seed)
             t0 = time.perf_counter()
-            r = core.render(scene, st)
+            r = sf.core.render(sf.scene, st)
             dt = time.perf_counter() - t0
             if packets not in out or dt < out[packets][0]:
                 out[packets] = (dt, np.asarray(r.image), r.stats)
@@ -62,13 +60,14 @@ def main(argv=None) -> int:
     w, h = (int(v) for v in args.res.lower().split("x"))
     rows = []
     for shot in args.shot:
-        core, _, _, scene, res = build_scene(shot, stage_start(shot), (w, h))
+        sf = ShotFrame(shot, None, (w, h), args.threads)
+        core = sf.core
         print(f"# {shot} {w}x{h}, {args.spp} evaluations/pixel, inner {args.inner}, "
               f"m={args.inner_length}, {args.threads} threads, packet width "
               f"{core.max_packet_width() if hasattr(core, 'max_packet_width') else '?'}",
               flush=True)
         for k in (int(v) for v in args.tries.split(",")):
-            m = measure(core, scene, res, args, k)
+            m = measure(sf, args, k)
             (ts, a, sa), (tp, b, sb) = m[False], m[True]
             row = dict(
                 shot=Path(shot).parent.name or shot, k=k,

@@ -102,6 +102,7 @@ AOV_CHANNELS = {
     "normal": ("N", ("X", "Y", "Z")),
     "depth": ("Z", None),
     "variance": ("variance", ("R", "G", "B")),
+    "error": ("relMSE", None),          # per-pixel relMSE estimate (cmlt.metrics.error_estimate)
 }
 #: channels written as float even with ``half``
 FLOAT_ONLY_CHANNELS = ("Z",)

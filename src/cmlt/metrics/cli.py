@@ -2,7 +2,7 @@
 
 ::
 
-    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png]
+    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png] [--cvvdp]
     cmlt compare A B [--json [OUT.json]]
 
 SEQUENCE is a frame pattern (``renders/shot.####.exr``, ``$F4``, ``%04d``)
@@ -45,6 +45,11 @@ def add_parsers(sub) -> None:
     f.add_argument("--json", metavar="PATH", dest="json_out",
                    help="write the report as JSON (- for stdout, instead of the table)")
     f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (needs matplotlib: the extra cmlt[plot])")
+    f.add_argument("--cvvdp", action="store_true",
+                   help="also ColorVideoVDP's JOD against the reference (optional package "
+                   "cvvdp; says why when it cannot run)")
+    f.add_argument("--fps", type=float, default=24.0,
+                   help="frame rate the sequence is shown at for --cvvdp (default 24)")
 
     c = sub.add_parser("compare", help="compare two images: relMSE, RMSE, mean ratio, "
                        "max abs diff, PSNR",
@@ -226,8 +231,27 @@ def _cmd_flicker(args) -> int:
     data = report.to_dict()
     data["sequence"] = args.sequence
     data["reference"] = args.reference
+    jod_line = None
+    if getattr(args, "cvvdp", False):
+        from . import cvvdp
+        if reference is None:
+            raise MetricsError("--cvvdp needs --reference (ColorVideoVDP is a full-reference "
+                               "metric)")
+        refs = reference if isinstance(reference, list) else [reference] * len(images)
+        why = cvvdp.unavailable()
+        if why:
+            data["cvvdp"] = {"jod": None, "unavailable": why}
+            jod_line = f"ColorVideoVDP: not run: {why}"
+        else:
+            jod = cvvdp.video_jod(images, refs, fps=args.fps)
+            data["cvvdp"] = {"jod": jod, "fps": args.fps}
+            jod_line = f"ColorVideoVDP: {jod:.3f} JOD (10 = no visible difference), {args.fps:g} fps"
     if args.json_out != "-":
         print_report(report, args.sequence, args.reference)
+        if jod_line:
+            _console().print(jod_line, soft_wrap=True, markup=False)
+    elif jod_line and data["cvvdp"]["jod"] is None:
+        sys.stderr.write(f"cmlt: {jod_line}\n")
     if args.json_out:
         _write_json(args.json_out, data)
     if args.plot:

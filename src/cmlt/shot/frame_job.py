@@ -148,6 +148,8 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     if not np.isfinite(image).all():
         raise RenderError(f"{job.shot}: frame {frame:g}: the core returned "
                           f"{int((~np.isfinite(image)).sum())} non-finite pixel values")
+    from ..metrics.error_estimate import estimate_record
+    stats["error_estimate"] = estimate_record(r, stats)     # relMSE without a reference
     image, trec, state_bytes = job.temporal.finish(r, stats, image, frame, trec)
     return r, stats, image, trec, state_bytes, units
 

@@ -17,7 +17,7 @@ from ..settings import FIELDS, MACHINE_FIELDS, SettingsError, check_overrides
 from .errors import UsageError
 
 __all__ = ["RenderOptions", "AOV_NAMES", "PREVIEW_FORMATS", "preview_path", "default_output",
-           "SETTING_NAMES"]
+           "SETTING_NAMES", "check_aovs_for"]
 
 #: ``--aov`` names, in channel order
 AOV_NAMES = tuple(AOV_CHANNELS)
@@ -50,7 +50,7 @@ class _FrameOptions:
     output_colorspace: Optional[str] = None
     #: OpenColorIO config (None: $OCIO, the stage's, else the built-in one)
     ocio_config: Optional[str] = None
-    #: extra EXR channels: any of AOV_NAMES (albedo, normal, depth, variance)
+    #: extra EXR channels: any of AOV_NAMES (albedo, normal, depth, variance, error)
     aovs: Tuple[str, ...] = ()
     #: camera rays per pixel of the AOV pass (albedo, normal, depth)
     aov_samples: int = 4
@@ -101,6 +101,17 @@ class _FrameOptions:
         values = {f.name: getattr(self, f.name) for f in FIELDS}
         values.update(resolution=self.resolution, camera=self.camera)
         return values
+
+
+def check_aovs_for(aovs, integrator: str) -> None:
+    """The ``--aov`` checks that need the integrator in force (flag, else the
+    stage's, else the default), so run once the settings are resolved:
+    ``error`` needs an integrator whose samples are independent."""
+    from ..metrics.error_estimate import VARIANCE_INTEGRATORS
+    if "error" in aovs and integrator not in VARIANCE_INTEGRATORS:
+        raise UsageError(f"--aov error: a per-pixel error estimate needs integrator "
+                         f"{' or '.join(VARIANCE_INTEGRATORS)} (the {integrator} chains' samples "
+                         "are correlated; their estimate needs chain groups from the core)")
 
 
 #: the settings fields of RenderOptions, in the table's order

@@ -78,6 +78,9 @@ def aov_images(core, scene, st, r, aovs, opts,
             out["depth"] = np.asarray(a["Z"])
     if "variance" in aovs:
         out["variance"] = np.asarray(r.variance)
+    if "error" in aovs:                 # the per-pixel relMSE estimate (cmlt.metrics.error_estimate)
+        from ..metrics.error_estimate import estimate_render
+        out["error"] = estimate_render(r, stats, keep_pixels=True)[0].pixel.astype(np.float32)
     return {name: out[name] for name in aovs}
 
 
@@ -129,6 +132,8 @@ def header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
     for key, name in _MLT_STATS.items():
         if key in stats and stats[key] is not None:
             md[name] = stats[key]
+    from ..metrics.error_estimate import estimate_metadata
+    md.update(estimate_metadata(stats.get("error_estimate")))   # relMSEEstimate, ...
     rec = temporal or {}
     if rec.get("b_used") is not None and "b" in md:
         md["bCore"] = md["b"]                   # the core's b, before temporal smoothing

@@ -12,7 +12,7 @@ The core's progress callback runs on a render thread; it only stores numbers
 
 :class:`JsonReporter` (``--log-json``) has the same interface and prints one
 JSON object per line per event on stdout, nothing else: ``sequence_start``,
-``frame_start``, ``frame_done`` (time, rays, rays/s, path), ``warning``,
+``frame_start``, ``frame_done`` (time, rays, rays/s, path, relMSE estimate), ``warning``,
 ``info``, ``frame_aborted``, ``sequence_done`` (frames, time, mean time per
 frame, rays/s, flicker: see :func:`sequence_summary`). Every object has
 ``event`` and ``t`` (Unix time).
@@ -154,7 +154,10 @@ class Reporter(_OnceWarnings):
                                       rate=format_rate(stats.get("rays_per_s")))
         t = stats.get("time_s")
         t_text = f"{float(t):.2f} s" if t is not None else "-"
-        self.info(f"frame {frame:g}: {t_text}, {format_rate(stats.get('rays_per_s'))} -> {path}")
+        from ..metrics.error_estimate import estimate_text
+        err = estimate_text(stats.get("error_estimate"))
+        self.info(f"frame {frame:g}: {t_text}, {format_rate(stats.get('rays_per_s'))}"
+                  f"{', ' + err if err else ''} -> {path}")
 
     def abort_frame(self) -> None:
         if self._progress is not None and self._frame_task is not None:
@@ -283,7 +286,8 @@ class JsonReporter(_OnceWarnings):
         self.emit("frame_done", frame=float(frame), path=path,
                   time_s=stats.get("time_s"), wall_time_s=stats.get("wall_time_s"),
                   rays=stats.get("rays"), rays_per_s=stats.get("rays_per_s"),
-                  samples=stats.get("samples"), nan_samples=stats.get("nan_samples", 0))
+                  samples=stats.get("samples"), nan_samples=stats.get("nan_samples", 0),
+                  error_estimate=stats.get("error_estimate"))
 
     def abort_frame(self) -> None:
         self.emit("frame_aborted", index=self._index,

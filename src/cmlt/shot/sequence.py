@@ -25,7 +25,8 @@ from .core_settings import core_settings, resolve
 from .errors import RenderCancelled, RenderError, UsageError
 from .frame_job import ShotJob, render_frame
 from .frames import check_stage_range, default_frames, expand_outputs, parse_frames
-from .options import AOV_NAMES, PREVIEW_FORMATS, RenderOptions, default_output, preview_path
+from .options import (AOV_NAMES, PREVIEW_FORMATS, RenderOptions, check_aovs_for, default_output,
+                      preview_path)
 from .output import color_setup
 from .progress import Reporter
 
@@ -187,6 +188,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
+    check_aovs_for(aovs, resolved.integrator)
     t_start = time.perf_counter()
     frame_list = _frame_list(frames, info)
     range_warning = check_stage_range(frame_list, info.start, info.end,

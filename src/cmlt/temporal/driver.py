@@ -6,11 +6,17 @@ Before the render (:meth:`TemporalDriver.prepare`):
   are keyed by (seed, domain, chain, proposal, dimension), never by frame,
   so consecutive frames use the same numbers), or with ``seed_per_frame`` a
   per-frame seed mixed from (shot seed, frame) — for comparison;
-* with ``carry_states`` and a previous frame (in memory, or its state file):
-  the previous chain population is evaluated in this frame's scene, the
-  refresh pool is evaluated, and the chain starts are the deterministic-
-  mixture importance resampling of both (core ``temporal_*``,
-  ``src/core/temporal/carry.h`` explains why the start is unbiased).
+* with ``carry_states``: the frame's bootstrap points are evaluated here
+  (``temporal_bootstrap_states``; the render is given their f* and does not
+  evaluate them again) and the chain starts are chosen among them — the first
+  frame by systematic resampling ∝ f*, every later one *coupled* to the
+  previous frame's starts (core ``temporal_couple_starts``): chain k keeps its
+  start with probability min(1, q/p) (p, q: the start's resampling
+  probability in the previous and in this frame) and is otherwise refreshed
+  from the residual ∝ (q − p)^+. The starts are then distributed exactly as a
+  fresh frame's (``src/core/temporal/carry.h``), so the expected image is
+  unchanged; where the target did not change (q = p) every chain keeps its
+  start and, with the same numbers, retraces the previous frame's path.
 
 After it (:meth:`TemporalDriver.finish`): the normalisation record
 (:mod:`.normalization`), the image rescaled to the b it should use, and the
@@ -21,6 +27,7 @@ values bit for bit.
 from __future__ import annotations
 
 import math
+import time
 from typing import List, Optional, Tuple
 
 import numpy as np
@@ -40,17 +47,8 @@ CHAIN_SETTINGS = ("integrator", "spp", "max_depth", "sigma", "large_step_probabi
                   "seed_per_frame", "time_budget")
 #: integrators with a normalisation b (and bootstrap values, a pilot image)
 MLT_INTEGRATORS = ("pssmlt", "cmlt")
-#: share of the carried population taken from the states the chains *started* the
-#: previous frame from (replayed with the same numbers: where the scene did not change
-#: the chain retraces the previous frame's trajectory); the rest from the states they
-#: *ended* in (rejuvenated by the previous frame's mutations). See plan_refresh.
-#: Measured (tests/bench/flicker.py, 48x48, 16 evaluations/px, 8 frames, pssmlt): the
-#: static shot's TF 0.048 / 0.0066 / 0.0041 and GF 0.0006 / 0.0023 / 0.0003 at 0, 0.5,
-#: 0.75 (independent frames: TF 0.125, GF 0.0078); moving_light TF 0.094 / 0.081 and
-#: relMSE 0.046 / 0.049 at 0.5 / 0.75 (stored seeds alone: TF 0.119, relMSE 0.042).
-REPLAY_FRACTION = 0.75
-#: pool ids of gathered pool states start here (carried states keep theirs)
-_POOL_ID_BASE = 1 << 32
+#: Measurements behind the carry-over: tests/bench/results/flicker_baseline.md (the
+#: former carried population) and tests/bench/results/flicker.md.
 
 _M64 = (1 << 64) - 1
 
@@ -71,77 +69,45 @@ def frame_seed(seed: int, frame: float, per_frame: bool) -> int:
     return _splitmix64(_splitmix64(int(seed) & _M64) ^ key)
 
 
-def plan_refresh(core, f_old, f_new, pool_f, b_prev: float, n: int, u0: float,
-                 mix=None) -> dict:
-    """Chain starts of frame f+1: ``n − r`` resampled from the carried states
-    ∝ w_i = m_i f*_{f+1}(u_i)/f*_f(u_i) and ``r`` from the refresh pool ∝ f*_{f+1}
-    (both systematic, one keyed uniform). ``mix`` (m_i, default 1): mixture
-    weights of the carried groups — carried states may be the union of two
-    populations that both target π_f (the previous frame's start and end
-    states); weighting each group by its share α, 1 − α keeps the union a
-    sample of π_f (a mixture of two π_f samples), so the reweighted,
-    resampled starts target π_{f+1} as before.
-
-    Carried particles ~ π_f reweighted by w are an importance sample of
-    π_{f+1} restricted to the support of f*_f; the pool (uniform points
-    reweighted by f*_{f+1}) is one of all of π_{f+1}. ``r`` is the share of
-    π_{f+1} the carried population cannot see, estimated as
-    ``1 − b_ratio/b_pool`` (b_ratio/b_f = mean w, b_pool = mean pool f*),
-    used only where that deficit is significant (> 3 standard errors of the
-    pool mean), plus one start per carried state that lost its contribution
-    (w = 0). In a static scene r = 0 and every w = 1, so each chain continues
-    from its own state — which is what makes stored seeds + carried states
-    settle. (core.temporal_plan_carry is the deterministic-mixture variant:
-    exact for any overlap, but it replaces low-f* carried states by pool
-    points every frame, so chains never settle; measured worse flicker.)
-    """
-    r = core.temporal_ratio_statistics(f_old, f_new)
-    pool = np.asarray(pool_f, dtype=np.float64)
-    lost = int(r["zero"])
-    missing = 0.0
-    if pool.size > 1 and r["count"] > 0 and b_prev > 0:
-        b_pool = float(pool.mean())
-        se = float(pool.std(ddof=1)) / math.sqrt(pool.size)
-        b_ratio = b_prev * float(r["mean"])
-        if b_pool - b_ratio > 3.0 * se and b_pool > 0:
-            missing = min(1.0, (b_pool - b_ratio) / b_pool)
-    n_refresh = min(n, max(lost, int(round(missing * n))))
-    mix = [1.0] * len(f_old) if mix is None else list(mix)
-    carried_picks = core.temporal_systematic_resample(
-        [m * b / a if a > 0 and b > 0 else 0.0 for a, b, m in zip(f_old, f_new, mix)],
-        n - n_refresh, u0)
-    if not carried_picks:
-        n_refresh = n
-    pool_picks = core.temporal_systematic_resample(list(pool_f), n_refresh, u0) \
-        if n_refresh > 0 else []
-    picks = list(carried_picks) + [len(f_old) + j for j in pool_picks]
-    return {"picks": picks, "from_carried": len(carried_picks), "from_pool": len(pool_picks),
-            "missing": missing}
+def frame_key(frame: float) -> int:
+    """32-bit key of a frame (thousandths of a frame) for the keyed uniforms of the
+    chain-start coupling: a fresh keep test per chain and frame."""
+    return int(round(float(frame) * 1000.0)) & 0xFFFFFFFF
 
 
-def keep_chain_identity(picks: List[int], n_carried: int) -> List[int]:
-    """Assign the resampled starts to chain slots so that chain k starts from
-    its own carried particle k (with the union of start and end states, the
-    state chain k started the previous frame from) whenever that particle was
-    picked; the other picks fill the remaining slots in order.
+#: follow the image's screen motion with the chains' film offset (the flicker
+#: benchmark turns it off to measure what it does)
+REPROJECT = True
+#: screen-motion anchors per frame (a grid of camera rays: what they hit, followed
+#: into the next frame to measure how far the image moved)
+ANCHOR_GRID = (16, 16)
 
-    Only the assignment changes, not the set of starts: chain k's random
-    numbers are independent of which start it gets, so the population is
-    distributed as before. But with stored seeds chain k then replays the
-    numbers it used in the previous frame from where it stopped; in a static
-    scene its trajectory meets the previous one at the first large step both
-    accept, and from there on the frames agree (the flicker dies out).
-    """
-    n = len(picks)
-    slots: List[Optional[int]] = [None] * n
-    rest: List[int] = []
-    for p in picks:
-        if p < n_carried and p < n and slots[p] is None:
-            slots[p] = p
-        else:
-            rest.append(p)
-    it = iter(rest)
-    return [s if s is not None else next(it) for s in slots]
+
+def film_shift(anchors, projected, width: int, height: int) -> Tuple[float, float]:
+    """The image's screen motion from one frame to the next in film units (fractions
+    of the width and height): the median displacement of the anchors that are still
+    in front of the camera. (0, 0) when fewer than a quarter of them are."""
+    a = np.asarray(anchors, dtype=np.float64).reshape(-1, 6)
+    p = np.asarray(projected, dtype=np.float64).reshape(-1, 2)
+    ok = np.isfinite(p).all(axis=1) & (a[:, 0] >= 0)
+    if a.shape[0] == 0 or ok.sum() < max(1, a.shape[0] // 4):
+        return 0.0, 0.0
+    d = p[ok] - a[ok, 4:6]
+    return float(np.median(d[:, 0])) / width, float(np.median(d[:, 1])) / height
+
+
+def bootstrap_ratio(f_old, f_new) -> Optional[dict]:
+    """The ratio estimator of b_{f+1}/b_f over the bootstrap points (the same points
+    in both frames with stored seeds: common random numbers): R = Σ f_new / Σ f_old,
+    as a ``temporal_ratio_statistics``-like dict whose ``variance / count`` is R's
+    variance (delta method). None without a previous bootstrap of the same size."""
+    a = np.asarray(f_old, dtype=np.float64)
+    b = np.asarray(f_new, dtype=np.float64)
+    if a.size < 2 or a.shape != b.shape or not a.sum() > 0:
+        return None
+    r = float(b.sum() / a.sum())
+    var_r = float(np.sum((b - r * a) ** 2) / (a.size - 1) / a.size / a.mean() ** 2)
+    return {"mean": r, "variance": var_r * a.size, "count": int(a.size), "zero": 0}
 
 
 class TemporalDriver:
@@ -208,10 +174,13 @@ class TemporalDriver:
         st.seed = frame_seed(self.base_seed, frame, self.per_frame)
         if hasattr(st, "mlt_initial_states"):
             st.mlt_initial_states = None
+            st.mlt_bootstrap_f = None
+            st.mlt_film_offset_x = st.mlt_film_offset_y = 0.0
         rec = {"seed": int(st.seed), "seed_per_frame": self.per_frame,
                "carry_states": self.carry, "smooth_normalization": self.smooth,
                "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
-        self._pending = {"ratio": None, "pool_f": []}
+        self._pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
+                         "anchors": []}
         if self.integrator in MLT_INTEGRATORS and hasattr(st, "pilot"):
             # the pixel importance's pilot, rendered once for the render and for the
             # carry-over evaluations below (f* must be the same function in all of them)
@@ -220,39 +189,52 @@ class TemporalDriver:
                 st.pilot = core.render_pilot(scene, st)
         if not self.carry:
             return rec
-        n_pool = int(self.settings.chains)
-        pool = core.temporal_sample_pool(scene, st, self.base_seed, n_pool)
-        pool_f = list(core.temporal_f_star(pool))
-        self._pending["pool_f"] = pool_f
         prev = self.prev
-        if prev is not None and prev.chain_states and prev.last is not None:
-            end = core.MltStates.from_bytes(prev.chain_states)
-            start = core.MltStates.from_bytes(prev.start_states) if prev.start_states else None
-            alpha = REPLAY_FRACTION if start is not None and len(start) == len(end) else 0.0
-            if alpha >= 1.0:
-                carried, mix = start, [1.0] * len(start)
-            elif alpha > 0.0:
-                # slots 0..n-1: the start states (chain k's own first: keep_chain_identity)
-                carried = core.temporal_concat_states(start, end)
-                mix = [alpha] * len(start) + [1.0 - alpha] * len(end)
+        prev_ok = prev is not None and not self.per_frame
+        # the chains' film offset follows the image's screen motion (camera, moving
+        # geometry): a start kept from the previous frame then lands on the same surface
+        offset = (0.0, 0.0)
+        if REPROJECT and prev_ok and prev.anchors:
+            dx, dy = film_shift(prev.anchors, core.temporal_project_anchors(scene, st, prev.anchors),
+                                st.width, st.height)
+            offset = ((prev.film_offset[0] + dx) % 1.0, (prev.film_offset[1] + dy) % 1.0)
+        st.mlt_film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
+        st.mlt_film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
+        self._pending["film_offset"] = (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))
+        self._pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
+        n_boot = int(core.temporal_bootstrap_count(st))
+        t0 = time.perf_counter()
+        boot, traced = core.temporal_bootstrap_states(scene, st, n_boot)
+        f_new = list(core.temporal_f_star(boot))
+        # the render counts these evaluations in its budget but not their rays (as the
+        # pilot's): the record says what the frame loop traced for them
+        rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0)
+        # the render uses these values for b and does not evaluate the points again
+        st.mlt_bootstrap_f = f_new
+        self._pending["boot_f"] = f_new
+        f_old: List[float] = []
+        prev_picks: List[int] = []
+        if prev_ok and prev.boot_f and prev.start_picks:
+            f_old = list(np.frombuffer(prev.boot_f, dtype="<f8"))
+            if len(f_old) == n_boot:
+                prev_picks = list(prev.start_picks)
             else:
-                carried, mix = end, [1.0] * len(end)
-            ev = core.temporal_evaluate_states(scene, st, carried)
-            f_old = list(core.temporal_f_star(carried))
-            f_new = list(core.temporal_f_star(ev))
-            u0 = core.temporal_carry_uniform(int(st.seed), 0)
-            plan = plan_refresh(core, f_old, f_new, pool_f, float(prev.last.b_used),
-                                int(self.settings.chains), u0, mix=mix)
-            if plan["picks"]:
-                picks = keep_chain_identity(list(plan["picks"]), min(len(f_old), len(end)))
-                st.mlt_initial_states = core.temporal_gather_states(ev, pool, picks,
-                                                                    _POOL_ID_BASE)
-            self._pending["ratio"] = core.temporal_ratio_statistics(f_old, f_new)
-            rec.update(state_in=self.prev_source, carried_chains=int(plan["from_carried"]),
-                       refreshed_chains=int(plan["from_pool"]),
-                       ratio_mean=float(self._pending["ratio"]["mean"]),
-                       carried_lost=int(self._pending["ratio"]["zero"]),
-                       replay_fraction=alpha)
+                f_old = []
+        c = core.temporal_couple_starts(f_old, f_new, prev_picks, int(self.settings.chains),
+                                        self.base_seed, frame_key(frame))
+        picks = list(c["picks"])
+        if picks:
+            st.mlt_initial_states = core.temporal_gather_states(boot, boot, picks, 0)
+        self._pending["picks"] = picks
+        if f_old:
+            self._pending["ratio"] = bootstrap_ratio(f_old, f_new)
+        rec.update(state_in=self.prev_source if prev_picks else None,
+                   carried_chains=int(c["kept"]), refreshed_chains=int(c["refreshed"]),
+                   fresh_chains=int(c["fresh"]),
+                   start_tv=float(c["tv"]) if prev_picks else None,
+                   film_offset=list(self._pending["film_offset"]))
+        if self._pending["ratio"] is not None:
+            rec["ratio_mean"] = float(self._pending["ratio"]["mean"])
         return rec
 
     def finish(self, result, stats: dict, image: np.ndarray, frame: float,
@@ -265,13 +247,13 @@ class TemporalDriver:
         b = stats.get("b")
         history: List[NormRecord] = list(prev.history) if prev is not None else []
         boot = getattr(result, "bootstrap_f", None)
-        boot = np.asarray(boot, dtype=np.float32) if boot is not None else None
+        boot = np.asarray(boot, dtype=np.float64) if boot is not None else None
         if b is None:                           # no normalisation (pt, bdpt)
             norm = None
         else:
             paired = None
             if prev is not None and prev.boot_f and boot is not None and not self.per_frame:
-                paired = paired_difference(np.frombuffer(prev.boot_f, dtype="<f4"), boot)
+                paired = paired_difference(np.frombuffer(prev.boot_f, dtype="<f8"), boot)
             norm = update_normalization(frame, float(b), float(stats.get("b_stderr", 0.0)),
                                         prev=last, ratio=self._pending.get("ratio"),
                                         smooth=self.smooth, paired=paired)
@@ -288,17 +270,20 @@ class TemporalDriver:
                        b_combined=norm.b_combined, b_smoothed=norm.b_smoothed,
                        b_used=norm.b_used, change_detected=bool(norm.change),
                        b_delta=norm.delta, b_delta_stderr=norm.s_delta)
-        states = getattr(result, "mlt_states", None)
-        starts = getattr(result, "mlt_start_states", None)
-        chain_bytes = bytes(states.to_bytes()) if (self.carry and states is not None) else b""
-        start_bytes = bytes(starts.to_bytes()) if (self.carry and starts is not None) else b""
+        picks = list(self._pending.get("picks", []))
+        used = int(stats.get("chains") or 0)
+        picks = picks[:used] if used else []
+        boot_f = self._pending.get("boot_f")
+        if boot_f is None and boot is not None and not self.carry:
+            boot_f = boot                        # the paired change test only
         fs = FrameState(shot_hash=self.shot_hash, width=self.size[0], height=self.size[1],
                         integrator=self.integrator, seed=self.base_seed, frame=float(frame),
-                        settings_hash=self.settings_hash, chain_states=chain_bytes,
-                        start_states=start_bytes,
-                        chain_count=len(states) if (chain_bytes and states is not None) else 0,
-                        pool_f=list(self._pending.get("pool_f", [])),
-                        boot_f=boot.astype("<f4").tobytes() if boot is not None else b"",
+                        settings_hash=self.settings_hash, chain_count=len(picks),
+                        start_picks=picks,
+                        film_offset=tuple(self._pending.get("film_offset", (0.0, 0.0))),
+                        anchors=list(self._pending.get("anchors", [])),
+                        boot_f=np.asarray(boot_f, dtype="<f8").tobytes()
+                        if boot_f is not None else b"",
                         history=history)
         data = encode_state(fs)
         return image, rec, data

@@ -4,19 +4,24 @@ Per frame f+1 (DESIGN.md §4):
 
 * ``b_fresh`` — the core's own estimate (bootstrap + every large step of the
   frame; independent of the carried chains), with its standard error;
-* ``b_ratio = b_f · mean_i(f*_{f+1}(u_i) / f*_f(u_i))`` over the chain states
-  carried from frame f (``E_{π_f}[f*_{f+1}/f*_f] = b_{f+1}/b_f`` on the support
-  of f*_f), with ``σ²_ratio = (σ_f m)² + b_f² var(w)/n`` (b_f's own error
-  propagated, plus the sample mean's);
+* ``b_ratio = b_f · m`` with ``m`` the ratio estimate of ``b_{f+1}/b_f``: with
+  carried states (the driver) ``m = Σ_i f*_{f+1}(v_i) / Σ_i f*_f(v_i)`` over the
+  bootstrap points v_i, the same points in both frames (common random numbers),
+  its variance by the delta method; ``σ²_ratio = (σ_f m)² + b_f² var(m)``
+  (b_f's own error propagated, plus m's). (Given the mean of f*_{f+1}/f*_f over
+  states carried ∝ f*_f it estimates the same ratio on the support of f*_f.)
 * change detection, two signals, either one resets:
 
-  - paired: with stored seeds the bootstrap samples are the same points in
-    both frames, so ``Δ = mean_i(f*_{f+1}(u_i) − f*_f(u_i))`` estimates
-    ``b_{f+1} − b_f`` with common random numbers: its standard error ``σ_Δ``
-    is far below either frame's (0 in a static shot). A change is *real* if
-    ``|Δ| > z·σ_Δ`` and *matters* if ``|Δ| > σ_fresh`` (smaller steps are
-    below the frame's own noise: smoothing across them removes more error
-    than the lag adds);
+  - paired (without a ratio estimate): with stored seeds the bootstrap
+    samples are the same points in both frames, so ``Δ = mean_i(f*_{f+1}(u_i)
+    − f*_f(u_i))`` estimates ``b_{f+1} − b_f`` with common random numbers: its
+    standard error ``σ_Δ`` is far below either frame's (0 in a static shot).
+    A change is *real* if ``|Δ| > z·σ_Δ`` and *matters* if ``|Δ| > σ_fresh``
+    (smaller steps are below the frame's own noise: smoothing across them
+    removes more error than the lag adds). With carried states the ratio is
+    taken over these same points (``Σ f*_{f+1} / Σ f*_f``, which also sees
+    light where f*_f = 0) and transports the smoothed b, so the change is
+    followed instead;
   - ``|b_fresh − b_ratio| > z·sqrt(σ²_fresh + σ²_ratio)`` (the ratio
     estimator cannot see paths that were black in frame f — a light switched
     on — the fresh estimate can; their disagreement is the signal). Without
@@ -133,7 +138,9 @@ def update_normalization(frame: float, b_fresh: float, s_fresh: float,
     paired_change = False
     if paired is not None and have_prev:
         r.delta, r.s_delta = float(paired["mean"]), float(paired["stderr"])
-        paired_change = abs(r.delta) > z * r.s_delta and abs(r.delta) > s_fresh
+        # with a ratio over the same points the smoothed b is transported by it, so a
+        # change the pairs see (a fade, a light switched on) is followed, not a reset
+        paired_change = (m is None and abs(r.delta) > z * r.s_delta and abs(r.delta) > s_fresh)
     drift_change = False
     if have_prev and smooth and _ok(b_fresh) and s_fresh > 0 and _ok(prev.b_smoothed):
         pred = prev.b_smoothed * (m if m is not None and m > 0 else 1.0)

@@ -1,7 +1,8 @@
 """Per-frame state files: ``DIR/state.####.bin``.
 
-Everything frame f+1 needs from frame f, so that a sequence can continue in
-another job bit-identically (``cmlt render --frames 13:24 --state-dir DIR``
+Everything frame f+1 needs from frame f (its bootstrap f*, the bootstrap index
+each chain started from, the normalisation history), so that a sequence can
+continue in another job bit-identically (``cmlt render --frames 13:24 --state-dir DIR``
 reads ``state.0012.bin``). Little-endian::
 
     header   8s  magic  b"CMLTSTAT"
@@ -14,12 +15,13 @@ reads ``state.0012.bin``). Little-endian::
              f64 frame              (the frame that wrote it)
              u64 settings hash      (sha256 of every setting that changes the chains)
              u64 payload length
-    payload  u64 n | n bytes        chain states at the end of the frame (core
-                                    MltStates.to_bytes; 0 bytes: none)
-             u64 n | n bytes        chain states the frame started from (same format)
-             u64 m | m × f64        f* of the refresh pool points in this frame
-             u64 q | q × f32        f* of the bootstrap samples in this frame, by index
-                                    (the next frame's paired change test)
+    payload  u64 q | q × f64        f* of the bootstrap points in this frame, by index
+                                    (the next frame's chain-start coupling and paired
+                                    change test; stored seeds make them the same points)
+             u64 n | n × u32        bootstrap index each chain started this frame from
+             2 × f64                the chains' film offset (x, y) in this frame
+             u64 a | a × 6 × f64    screen anchors (instance, object-space x, y, z,
+                                    raster x, y): the next frame's screen motion
              u32 k | k × record     normalisation history, oldest first (see below)
     trailer  u32 CRC-32 (zlib) of header + payload
 
@@ -49,7 +51,7 @@ __all__ = ["STATE_MAGIC", "STATE_VERSION", "StateError", "FrameState", "encode_s
            "settings_hash", "HISTORY_LIMIT"]
 
 STATE_MAGIC = b"CMLTSTAT"
-STATE_VERSION = 2
+STATE_VERSION = 3
 #: normalisation records kept (oldest dropped)
 HISTORY_LIMIT = 256
 
@@ -74,12 +76,15 @@ class FrameState:
     seed: int
     frame: float
     settings_hash: int
-    chain_states: bytes = b""                 # core MltStates.to_bytes(), end of frame
-    start_states: bytes = b""                 # the states the frame's chains started from
     chain_count: int = 0
-    pool_f: List[float] = field(default_factory=list)
-    #: f* of the frame's bootstrap samples by index (float32)
+    #: bootstrap index of each chain's start this frame
+    start_picks: List[int] = field(default_factory=list)
+    #: f* of the frame's bootstrap points by index (float64, little-endian)
     boot_f: bytes = b""
+    #: the chains' film offset in this frame
+    film_offset: tuple = (0.0, 0.0)
+    #: flat screen anchors, 6 numbers each (core temporal_screen_anchors)
+    anchors: List[float] = field(default_factory=list)
     history: List[NormRecord] = field(default_factory=list)
 
     @property
@@ -110,13 +115,16 @@ def state_path(state_dir: str, frame: float) -> str:
 def encode_state(s: FrameState) -> bytes:
     hist = list(s.history)[-HISTORY_LIMIT:]
     payload = bytearray()
-    payload += struct.pack("<Q", len(s.chain_states)) + bytes(s.chain_states)
-    payload += struct.pack("<Q", len(s.start_states)) + bytes(s.start_states)
-    payload += struct.pack("<Q", len(s.pool_f))
-    payload += struct.pack(f"<{len(s.pool_f)}d", *s.pool_f)
-    if len(s.boot_f) % 4:
-        raise ValueError("FrameState.boot_f: not a float32 array")
-    payload += struct.pack("<Q", len(s.boot_f) // 4) + bytes(s.boot_f)
+    if len(s.boot_f) % 8:
+        raise ValueError("FrameState.boot_f: not a float64 array")
+    payload += struct.pack("<Q", len(s.boot_f) // 8) + bytes(s.boot_f)
+    payload += struct.pack("<Q", len(s.start_picks))
+    payload += struct.pack(f"<{len(s.start_picks)}I", *s.start_picks)
+    payload += struct.pack("<2d", float(s.film_offset[0]), float(s.film_offset[1]))
+    if len(s.anchors) % 6:
+        raise ValueError("FrameState.anchors: not 6 numbers per anchor")
+    payload += struct.pack("<Q", len(s.anchors) // 6)
+    payload += struct.pack(f"<{len(s.anchors)}d", *s.anchors)
     payload += struct.pack("<I", len(hist))
     for r in hist:
         payload += _RECORD.pack(*(float(getattr(r, k)) for k in _REC_FIELDS), 1 if r.change else 0)
@@ -152,18 +160,21 @@ def decode_state(data: bytes, path: str = "<state>") -> FrameState:
                      frame=frame, settings_hash=seth, chain_count=count)
     p = _HEADER.size
     try:
-        (n,) = struct.unpack_from("<Q", data, p); p += 8
-        out.chain_states = bytes(data[p:p + n]); p += n
-        (n,) = struct.unpack_from("<Q", data, p); p += 8
-        if p + n > len(data):
-            raise struct.error("start states run past the end")
-        out.start_states = bytes(data[p:p + n]); p += n
-        (m,) = struct.unpack_from("<Q", data, p); p += 8
-        out.pool_f = list(struct.unpack_from(f"<{m}d", data, p)); p += 8 * m
         (q,) = struct.unpack_from("<Q", data, p); p += 8
-        if p + 4 * q > len(data):
+        if p + 8 * q > len(data):
             raise struct.error("bootstrap values run past the end")
-        out.boot_f = bytes(data[p:p + 4 * q]); p += 4 * q
+        out.boot_f = bytes(data[p:p + 8 * q]); p += 8 * q
+        (n,) = struct.unpack_from("<Q", data, p); p += 8
+        if p + 4 * n > len(data):
+            raise struct.error("chain starts run past the end")
+        out.start_picks = list(struct.unpack_from(f"<{n}I", data, p)); p += 4 * n
+        if any(i >= q for i in out.start_picks):
+            raise struct.error("a chain start is not a bootstrap index")
+        out.film_offset = struct.unpack_from("<2d", data, p); p += 16
+        (a,) = struct.unpack_from("<Q", data, p); p += 8
+        if p + 48 * a > len(data):
+            raise struct.error("screen anchors run past the end")
+        out.anchors = list(struct.unpack_from(f"<{6 * a}d", data, p)); p += 48 * a
         (k,) = struct.unpack_from("<I", data, p); p += 4
         for _ in range(k):
             vals = _RECORD.unpack_from(data, p); p += _RECORD.size

@@ -4,6 +4,7 @@
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/path/path_tracer_impl.h"
@@ -17,6 +18,7 @@
 #include <tbb/task_arena.h>
 
 #include <cmath>
+#include <mutex>
 
 namespace cmlt::temporal {
 
@@ -57,14 +59,21 @@ void fill_state(mlt::ChainState& out, const MltSampler& smp, const mlt::PathSamp
 }
 
 template <class Fn>
-void parallel(const RenderSettings& s, uint64_t n, Fn&& fn) {
+void parallel(const RenderSettings& s, uint64_t n, Fn&& fn, PathCounters* total = nullptr) {
     const int threads = s.threads > 0 ? s.threads : tbb::info::default_concurrency();
     tbb::task_arena arena(threads);
+    std::mutex mutex;
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 16), [&](const tbb::blocked_range<uint64_t>& r) {
             ScopedFtzDaz ftz;  // as the render's chains: the same f* bit for bit
             PathCounters c;
             for (uint64_t i = r.begin(); i != r.end(); ++i) fn(i, c);
+            if (!total) return;
+            const std::lock_guard<std::mutex> lock(mutex);
+            total->camera_rays += c.camera_rays;
+            total->shadow_rays += c.shadow_rays;
+            total->rays += c.rays;
+            total->samples += c.samples;
         });
     });
 }
@@ -104,23 +113,130 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
     return out;
 }
 
-std::shared_ptr<mlt::ChainStates> sample_pool(const Scene& scene, const RenderSettings& settings,
-                                              uint64_t pool_seed, uint64_t count) {
-    check_settings(settings, "sample_pool");
+uint64_t bootstrap_count(const RenderSettings& settings) {
+    return mlt::FrameBudget::plan(settings).bootstrap;
+}
+
+std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
+                                                   uint64_t count, PathCounters* counters) {
+    check_settings(settings, "bootstrap_states");
     const Tracers tr(scene, settings);
     auto out = std::make_shared<mlt::ChainStates>();
     out->path_sampler = settings.mlt_path_sampler;
     out->chains.resize(size_t(count));
-    parallel(settings, count, [&](uint64_t j, PathCounters& c) {
-        MltSampler smp(pool_seed, settings.sigma, settings.large_step_probability,
-                       RngDomain(k_domain_pool), uint32_t(j));
+    parallel(settings, count, [&](uint64_t i, PathCounters& c) {
+        // as the render's bootstrap (pssmlt_integrator.cpp; cmlt's keys (bootstrap, i, 1)
+        // are the same point): one large step of the sampler keyed (bootstrap, i)
+        MltSampler smp(settings.seed, settings.sigma, settings.large_step_probability, RngDomain::bootstrap,
+                       uint32_t(i));
         smp.start_iteration(true);
         const mlt::PathSample x = tr.tracer.evaluate(smp, c);
         smp.accept();
-        mlt::ChainState& o = out->chains[j];
-        o.chain_id = j;
+        mlt::ChainState& o = out->chains[size_t(i)];
+        o.chain_id = i;
         fill_state(o, smp, x);
+        o.f_star = x.invalid ? 0.0 : x.f;
+    }, counters);
+    return out;
+}
+
+double keyed_uniform(uint64_t seed, uint32_t domain, uint32_t id, uint32_t counter) {
+    const Philox4x32Counter r =
+        philox4x32(mlt::detail::mlt_counter(3, RngDomain(domain), id, counter, 0), mlt::detail::mlt_key(seed));
+    return mlt::detail::bits_to_unit(r[0], r[1]);
+}
+
+CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<double>& f_new,
+                            const std::vector<uint64_t>& prev_picks, uint64_t n, uint64_t seed,
+                            uint32_t frame_key) {
+    const auto clean = [](double v) { return (std::isfinite(v) && v > 0.0) ? v : 0.0; };
+    double sum_new = 0.0, sum_old = 0.0;
+    for (double v : f_new) sum_new += clean(v);
+    for (double v : f_old) sum_old += clean(v);
+    CoupledStarts out;
+    if (!(sum_new > 0.0) || n == 0) return out;  // nothing to start from
+    const bool coupled = !prev_picks.empty() && f_old.size() == f_new.size() && sum_old > 0.0;
+    std::vector<int64_t> slot(size_t(n), -1);   // the chain's bootstrap index, -1: to draw
+    std::vector<uint8_t> residual(size_t(n), 0);  // 1: refreshed from the residual, 0: fresh
+    if (coupled) {
+        double tv = 0.0;
+        for (size_t i = 0; i < f_new.size(); ++i) tv += std::max(0.0, clean(f_new[i]) / sum_new - clean(f_old[i]) / sum_old);
+        out.tv = tv;
+        for (uint64_t k = 0; k < n; ++k) {
+            if (k >= prev_picks.size() || prev_picks[size_t(k)] >= f_new.size()) continue;  // fresh
+            const size_t i = size_t(prev_picks[size_t(k)]);
+            const double p = clean(f_old[i]) / sum_old, q = clean(f_new[i]) / sum_new;
+            // keep with probability min(1, q/p); p = 0 cannot have been picked (a
+            // start from a state file written with other values: refresh it)
+            const double a = p > 0.0 ? std::min(1.0, q / p) : 0.0;
+            if (a >= 1.0 || keyed_uniform(seed, k_domain_keep, uint32_t(k), frame_key) < a) {
+                slot[size_t(k)] = int64_t(i);
+                ++out.kept;
+            } else {
+                residual[size_t(k)] = 1;
+            }
+        }
+    }
+    // the draws: refreshed chains from the residual (q − p)^+, new chains from q; each group
+    // by systematic resampling with a keyed uniform, assigned in chain order
+    for (int group = 1; group >= 0; --group) {
+        std::vector<uint64_t> who;
+        for (uint64_t k = 0; k < n; ++k)
+            if (slot[size_t(k)] < 0 && residual[size_t(k)] == uint8_t(group)) who.push_back(k);
+        if (who.empty()) continue;
+        std::vector<double> w(f_new.size());
+        double total = 0.0;
+        for (size_t i = 0; i < f_new.size(); ++i) {
+            const double q = clean(f_new[i]) / sum_new;
+            w[i] = group == 1 ? std::max(0.0, q - clean(f_old[i]) / sum_old) : q;
+            total += w[i];
+        }
+        if (!(total > 0.0)) {  // rounding left no residual mass: draw from q
+            for (size_t i = 0; i < f_new.size(); ++i) w[i] = clean(f_new[i]) / sum_new;
+        }
+        const double u0 = keyed_uniform(seed, k_domain_refresh, uint32_t(group), frame_key);
+        const std::vector<uint64_t> picks = systematic_resample(w, who.size(), u0);
+        for (size_t j = 0; j < who.size() && j < picks.size(); ++j) slot[size_t(who[j])] = int64_t(picks[j]);
+        (group == 1 ? out.refreshed : out.fresh) += who.size();
+    }
+    out.picks.reserve(size_t(n));
+    for (int64_t s : slot) out.picks.push_back(uint64_t(s));
+    return out;
+}
+
+std::vector<Anchor> screen_anchors(const Scene& scene, const RenderSettings& settings, int n_x, int n_y) {
+    check_settings(settings, "screen_anchors");
+    if (n_x < 1 || n_y < 1) CMLT_THROW(SettingsError, "screen_anchors: grid " << n_x << "x" << n_y << " is empty");
+    const Camera camera(scene.camera_desc(), settings.width, settings.height);
+    std::vector<Anchor> out(size_t(n_x) * size_t(n_y));
+    parallel(settings, out.size(), [&](uint64_t i, PathCounters&) {
+        Anchor& a = out[size_t(i)];
+        const int gx = int(i % uint64_t(n_x)), gy = int(i / uint64_t(n_x));
+        a.p_raster = Vec2((float(gx) + 0.5f) * float(settings.width) / float(n_x),
+                          (float(gy) + 0.5f) * float(settings.height) / float(n_y));
+        Ray ray = camera.generate_ray(a.p_raster);
+        const SceneHit h = scene.intersect(ray);
+        if (h.kind != SceneHit::Kind::surface) return;
+        const Instance& inst = scene.instance(h.si.instance_id);
+        a.instance = int32_t(h.si.instance_id);
+        a.p_object = inst.matrix_at(h.si.time).inverse().transform_point(h.si.p);
     });
+    return out;
+}
+
+std::vector<Vec2> project_anchors(const Scene& scene, const RenderSettings& settings,
+                                  const std::vector<Anchor>& anchors) {
+    check_settings(settings, "project_anchors");
+    const Camera camera(scene.camera_desc(), settings.width, settings.height);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::vector<Vec2> out(anchors.size(), Vec2(nan, nan));
+    for (size_t i = 0; i < anchors.size(); ++i) {
+        const Anchor& a = anchors[i];
+        if (a.instance < 0 || size_t(a.instance) >= scene.instance_count()) continue;
+        const Vec3 p = scene.instance(uint32_t(a.instance)).matrix_at(0.f).transform_point(a.p_object);
+        Vec2 r;
+        if (camera.world_to_raster(p, &r) && std::isfinite(r.x) && std::isfinite(r.y)) out[i] = r;
+    }
     return out;
 }
 
@@ -152,11 +268,6 @@ std::vector<uint64_t> systematic_resample(const std::vector<double>& weights, ui
     return out;
 }
 
-double carry_uniform(uint64_t seed, uint32_t key) {
-    mlt::CounterRng rng(seed, RngDomain(k_domain_carry), key);
-    return rng.uniform();
-}
-
 RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<double>& f_new) {
     CMLT_CHECK_MSG(f_old.size() == f_new.size(), "ratio_statistics: size mismatch");
     RatioStats r;
@@ -173,43 +284,6 @@ RatioStats ratio_statistics(const std::vector<double>& f_old, const std::vector<
     r.mean = mean;
     r.variance = r.count > 1 ? m2 / double(r.count - 1) : 0.0;
     return r;
-}
-
-CarryPlan plan_carry(const std::vector<double>& f_old, const std::vector<double>& f_new,
-                     const std::vector<double>& pool_old, const std::vector<double>& pool_new,
-                     double b_old, uint64_t n, double u0) {
-    CMLT_CHECK_MSG(f_old.size() == f_new.size(), "plan_carry: carried f_old / f_new size mismatch");
-    CMLT_CHECK_MSG(pool_old.empty() || pool_old.size() == pool_new.size(),
-                   "plan_carry: pool_old / pool_new size mismatch");
-    const double nc = double(f_old.size()), np = double(pool_new.size());
-    const bool have_b = std::isfinite(b_old) && b_old > 0.0;
-    // mixture density (unnormalised): n · f*_f(x) / b_f + N · 1
-    const auto density = [&](double fo) {
-        const double carried = (have_b && std::isfinite(fo) && fo > 0.0) ? nc * fo / b_old : 0.0;
-        return carried + np;
-    };
-    const auto weight = [&](double fo, double fn) {
-        if (!(std::isfinite(fn) && fn > 0.0)) return 0.0;
-        const double q = density(fo);
-        return q > 0.0 ? fn / q : 0.0;
-    };
-    std::vector<double> w;
-    w.reserve(f_old.size() + pool_new.size());
-    CarryPlan plan;
-    for (size_t i = 0; i < f_old.size(); ++i) {
-        // a carried particle is a draw from π_f only if the previous frame had b_f > 0
-        const double wi = have_b ? weight(f_old[i], f_new[i]) : 0.0;
-        plan.weight_carried += wi;
-        w.push_back(wi);
-    }
-    for (size_t j = 0; j < pool_new.size(); ++j) {
-        const double wj = weight(pool_old.empty() ? 0.0 : pool_old[j], pool_new[j]);
-        plan.weight_pool += wj;
-        w.push_back(wj);
-    }
-    plan.picks = systematic_resample(w, n, u0);
-    for (uint64_t p : plan.picks) (p < f_old.size() ? plan.from_carried : plan.from_pool) += 1;
-    return plan;
 }
 
 std::shared_ptr<mlt::ChainStates> gather_states(const mlt::ChainStates& a, const mlt::ChainStates& b,

@@ -23,7 +23,8 @@ from cmlt.shot.options import SETTING_NAMES
 from pxr import Sdf, Usd  # noqa: E402
 
 #: RenderSettings properties that are inputs handed over per frame, not settings
-CORE_INPUTS = {"mlt_initial_states", "pilot"}
+CORE_INPUTS = {"mlt_initial_states", "pilot", "mlt_bootstrap_f", "mlt_film_offset_x",
+               "mlt_film_offset_y"}
 
 
 def _render_parser():

@@ -128,7 +128,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
 
     // 2. bootstrap: the points of PSSMLT's bootstrap, keys (bootstrap, i, 1)
     const std::vector<double> boot_f =
-        mlt::run_bootstrap(arena, budget.bootstrap, counters, [&](uint64_t i, PathCounters& c, bool& invalid) {
+        mlt::bootstrap_values(settings, arena, budget.bootstrap, counters, [&](uint64_t i, PathCounters& c, bool& invalid) {
             const coherent::Target f = make_target(&c, nullptr);
             State s;
             s.key = StateKey{RngDomain::bootstrap, uint32_t(i), 1};

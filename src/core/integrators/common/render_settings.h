@@ -122,8 +122,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
 // has no field for them. Same columns.
 #define CMLT_SEQUENCE_SETTINGS(INT, REAL, U64, BOOL, TOKEN)                                  \
     BOOL(carry_states, true, "cmlt:temporal:carryStates", "--independent-frames",            \
-         "start each frame's chains from the previous frame's states (reweighted and "       \
-         "resampled)")                                                                       \
+         "start each frame's chains where the previous frame's started, coupled: a start "   \
+         "moves only where its target changed (and follows the camera)")                    \
     BOOL(smooth_normalization, true, "cmlt:temporal:smoothNormalization", "--no-smoothing",  \
          "smooth the MLT normalisation b over neighbouring frames while the lighting does "  \
          "not change")                                                                       \
@@ -131,8 +131,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "fold the frame number into the random streams (independent noise per frame, for "  \
          "comparison; more flicker); off keeps stored seeds")
 
-/// Settings of one frame: the fields of the table above, plus two inputs that the
-/// temporal driver hands over (not settings: no default, range or flag).
+/// Settings of one frame: the fields of the table above, plus inputs that the temporal
+/// driver hands over (not settings: no default, range or flag).
 struct RenderSettings {
 #define CMLT_DECLARE_INT(name, def, lo, hi, attr, flag, doc) int name = def;
 #define CMLT_DECLARE_REAL(name, def, lo, hi, lo_open, attr, flag, doc) double name = def;
@@ -151,6 +151,15 @@ struct RenderSettings {
     /// bootstrap (one chain per state; integrators/mlt/chain_state.h). nullptr / empty:
     /// bootstrap.
     std::shared_ptr<const mlt::ChainStates> mlt_initial_states;
+    /// pssmlt/cmlt: f* of the frame's bootstrap samples 0..n-1 to use instead of
+    /// evaluating them (the temporal driver evaluates them before the render, to choose
+    /// the chain starts: temporal/carry.h). Exactly the frame's bootstrap count; counted
+    /// in the budget as if evaluated. nullptr: the render evaluates them.
+    std::shared_ptr<const std::vector<double>> mlt_bootstrap_f;
+    /// pssmlt/cmlt: offset of the chains' film position on the torus, [0, 1) per axis
+    /// (pssmlt_tracer.h shift_film: the same target, reparametrised); the temporal driver
+    /// moves it with the camera. Default 0, 0.
+    double mlt_film_offset_x = 0.0, mlt_film_offset_y = 0.0;
     /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
     /// (the temporal driver renders it once per frame for the render and its carry-over
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).

@@ -27,6 +27,7 @@ struct MltContext {
           tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s))
                                               : PssmltTracer(pt, camera, s.width, s.height)) {
         tracer.set_importance(importance.get());
+        tracer.set_film_offset(Vec2(float(s.mlt_film_offset_x), float(s.mlt_film_offset_y)));
     }
     MltContext(const MltContext&) = delete;
     MltContext& operator=(const MltContext&) = delete;

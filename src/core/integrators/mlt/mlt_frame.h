@@ -20,6 +20,7 @@
 #include "integrators/mlt/splat_film.h"
 #include "integrators/mlt_kernels/normalisation.h"
 #include "integrators/path/pt_pass.h"
+#include "util/error.h"
 #include "util/fp_mode.h"
 
 #include <tbb/blocked_range.h>
@@ -164,6 +165,18 @@ std::vector<double> run_bootstrap(tbb::task_arena& arena, uint64_t n, FrameCount
         });
     });
     return f;
+}
+
+/// The bootstrap's f*: settings.mlt_bootstrap_f if given (it must hold n values), else
+/// run_bootstrap(arena, n, counters, eval).
+template <class Eval>
+std::vector<double> bootstrap_values(const RenderSettings& s, tbb::task_arena& arena, uint64_t n,
+                                     FrameCounters& counters, Eval&& eval) {
+    if (!s.mlt_bootstrap_f) return run_bootstrap(arena, n, counters, std::forward<Eval>(eval));
+    if (s.mlt_bootstrap_f->size() != n)
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_bootstrap_f holds " << s.mlt_bootstrap_f->size()
+                                      << " values, the frame's bootstrap has " << n << " samples");
+    return *s.mlt_bootstrap_f;
 }
 
 /// How long chains sit in one state. A state is occupied for 1 + (rejections that

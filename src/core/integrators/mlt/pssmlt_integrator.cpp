@@ -129,7 +129,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
 
     // 2. bootstrap: N independent large-step samples, keyed (seed, bootstrap, i)
     const std::vector<double> boot_f =
-        mlt::run_bootstrap(arena, budget.bootstrap, counters, [&](uint64_t i, PathCounters& c, bool& invalid) {
+        mlt::bootstrap_values(settings, arena, budget.bootstrap, counters, [&](uint64_t i, PathCounters& c, bool& invalid) {
             MltSampler smp = make_sampler(RngDomain::bootstrap, uint32_t(i));
             smp.start_iteration(true);
             const PathSample s = tracer.evaluate(smp, c);

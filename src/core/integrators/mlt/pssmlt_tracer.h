@@ -23,6 +23,7 @@
 #include "integrators/path/path_tracer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 namespace cmlt::mlt {
@@ -36,21 +37,45 @@ struct PathSample {
     int depth = -1, s = -1, t = -1;  ///< technique (bdpt sampler); -1 for the pt sampler
 };
 
+/// The film position of primary samples u ∈ [0,1)^2 shifted by `offset` on the torus
+/// (RenderSettings::mlt_film_offset_x/y): a measure-preserving bijection of the film
+/// square, so the chains' target and every estimator stay what they are; the temporal
+/// driver moves it with the image's mean screen motion, so that chains replayed with the
+/// same numbers follow the surfaces under a moving camera (temporal/carry.h).
+inline Vec2 shift_film(const Vec2& u, const Vec2& offset) {
+    const auto wrap = [](float v) {
+        v -= std::floor(v);
+        return v < 1.f ? v : 0x1.fffffep-1f;
+    };
+    return offset.x == 0.f && offset.y == 0.f ? u : Vec2(wrap(u.x + offset.x), wrap(u.y + offset.y));
+}
+
 /// BdptSampler over an MltSampler-like sampler (start_stream, set_dimension, get1d,
-/// get2d): BDPT's connection stream starts after the technique dimensions.
+/// get2d): BDPT's connection stream starts after the technique dimensions; the camera
+/// stream's first 2-D sample (the film position) is shifted by the film offset.
 template <class Sampler>
 class BdptStreamAdapter final : public BdptSampler {
 public:
-    explicit BdptStreamAdapter(Sampler& s) : m_s(s) {}
+    explicit BdptStreamAdapter(Sampler& s, Vec2 film_offset = Vec2(0.f, 0.f)) : m_s(s), m_offset(film_offset) {}
     void start_stream(int index) override {
         m_s.start_stream(uint32_t(index));
+        m_film = index == BdptSampler::k_camera;
         if (index == BdptSampler::k_connection) m_s.set_dimension(k_technique_dimensions);
     }
-    float next1d() override { return m_s.get1d(); }
-    Vec2 next2d() override { return m_s.get2d(); }
+    float next1d() override {
+        m_film = false;
+        return m_s.get1d();
+    }
+    Vec2 next2d() override {
+        const bool film = m_film;
+        m_film = false;
+        return film ? shift_film(m_s.get2d(), m_offset) : m_s.get2d();
+    }
 
 private:
     Sampler& m_s;
+    Vec2 m_offset;
+    bool m_film = false;
 };
 
 class PssmltTracer {
@@ -63,6 +88,10 @@ public:
     PssmltTracer(const BdptTracer& bdpt, const Camera& camera, int width, int height, int min_depth = 0)
         : m_bdpt(&bdpt), m_camera(camera), m_width(width), m_height(height),
           m_technique(bdpt.max_depth(), min_depth) {}
+
+    /// Film offset of the camera stream's film position (shift_film); default none.
+    void set_film_offset(const Vec2& offset) { m_film_offset = offset; }
+    Vec2 film_offset() const { return m_film_offset; }
 
     /// The importance function of f* (pixel_importance.h); default: luminance.
     void set_importance(const PixelImportance* importance) { m_importance = importance; }
@@ -81,7 +110,7 @@ public:
     Ray camera_ray(Sampler& sampler, uint32_t* pixel) const {
         sampler.start_stream(MltSampler::camera);
         sampler.set_dimension(0);
-        const Vec2 u = sampler.get2d();
+        const Vec2 u = shift_film(sampler.get2d(), m_film_offset);
         const Vec2 p_raster(u.x * float(m_width), u.y * float(m_height));
         const int x = std::min(int(p_raster.x), m_width - 1);
         const int y = std::min(int(p_raster.y), m_height - 1);
@@ -162,7 +191,7 @@ private:
         const double pmf = m_technique.choose(ut.x, ut.y, &s.depth, &s.s, &s.t);
         thread_local BdptWorkspace ws;
         BdptCounters c;
-        BdptStreamAdapter<Sampler> adapter(sampler);
+        BdptStreamAdapter<Sampler> adapter(sampler, m_film_offset);
         Vec2 p_raster;
         const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c);
         finish_sample(s, pmf, C, p_raster, c, counters);
@@ -202,6 +231,7 @@ private:
     const Camera& m_camera;
     int m_width, m_height;
     TechniqueSampler m_technique;
+    Vec2 m_film_offset{0.f, 0.f};
 };
 
 }  // namespace cmlt::mlt

@@ -1,0 +1,280 @@
+"""A render's estimate of its own relMSE, without a reference.
+
+The error measure is the one ``cmlt accuracy`` measures against a reference::
+
+    relMSE(I) = mean over pixels p and channels of (I_p - R_p)^2 / (R_p^2 + eps),  eps = 1e-2
+
+Independent groups
+------------------
+A render that is the mean of G independent, unbiased group images Y_1..Y_G (group g from
+n_g of the N samples: pt/bdpt sample passes, pssmlt/cmlt chains split into G groups, or
+simply G renders with different seeds) has, per pixel and channel,
+
+    I     = sum_g n_g Y_g / N                             the image
+    v     = sum_g n_g (Y_g - I)^2 / ((G - 1) N)           unbiased for Var(I) = E[(I - R)^2]
+    e_p   = v / D_p                                       the pixel's relMSE estimate
+    E     = mean_p e_p                                    the image's
+
+The numerator is unbiased. The denominator D_p must stand in for R_p^2 + eps with R
+unknown, and no function of the groups does that without bias; ``denominator`` chooses:
+
+* ``plug-in``: I^2 + eps. E[I^2] = R^2 + Var(I), and positively skewed noise (most samples
+  small, a few large: rendering's) makes v and I large together, so a pixel's term is
+  under-estimated exactly where its error is large; a pixel whose mean is one rare bright
+  sample gets v ~ I^2 and e_p ~ 1 however wrong it is;
+* ``corrected``: max(I^2 - v, 0) + eps, unbiased for R^2 + eps before the clamp; but its
+  inverse is over-estimated (Jensen: 1/x is convex) by about 4 relMSE_p R^2 / (R^2 + eps)
+  relative, and without bound where the pixel's own relative error is of order one (the
+  clamp at 0 leaves eps): a pixel that caught a light's edge once in 16 samples;
+* ``geometric`` (the default): sqrt(plug-in x corrected). The two biases have opposite
+  signs where rendering noise lives and meet at the truth as the noise shrinks (both
+  denominators -> R^2 + eps; first-order difference v); their geometric mean was the
+  calibrated one in tests/bench/error_estimate.py (64x64 cornell, pt/bdpt/pssmlt/cmlt,
+  168 renders at 5 budgets: 97 % within 0.67-1.5x of the measured relMSE, plug-in 93 %,
+  corrected 67 %; caustic_glass bdpt: 85 %, 75 %, 55 %).
+
+What none of them sees: a render whose error is dominated by rare paths -- a firefly, a
+caustic path found once -- in pixels whose true value is far below the sample: I^2 - v
+keeps a cross term 2 R X / N for a single sample X, so all three denominators stay far
+above R^2 + eps and the estimate is low (5-30x in the caustic_glass renders with a
+firefly); pt on caustic_glass is made of such pixels. Nor does any estimate from
+independent groups see a bias common to all groups (MLT's start-up and normalisation
+bias at small budgets).
+
+Uncertainty
+-----------
+``stderr`` of :func:`estimate_from_groups` is the delete-one-group jackknife of E (each
+E_{-g} is the same estimator on the other G - 1 groups, scaled to the full N): it sees the
+noise of the variance estimates, heavy tails included (a group holding the only firefly
+of a pixel makes the E_{-g} differ a lot). It is the uncertainty of E as an estimate of
+the *expected* relMSE; the relMSE of one image scatters around its expectation too.
+
+Per-pass variance
+-----------------
+pt and bdpt already return the per-pixel variance of the mean (the film's Welford
+accumulators over passes, which are independent images): that is ``v`` with groups of
+one pass, so :func:`estimate_from_variance` needs no groups. Its uncertainty comes from
+splitting the pixels into k x k interleaved (polyphase) sub-images, whose estimates are
+nearly independent (pt pixels are; bdpt's light-tracing splats couple them a little)
+and see nearly the same content: stderr = sd over the k^2 sub-estimates / k.
+
+A shared scale
+--------------
+pssmlt and cmlt multiply the chains' image by one normalisation b shared by every chain
+group, so the groups do not see b's error. With b's relative variance ``scale_rel_var``
+((b_stderr / b)^2) and the part of the image it scales (the chains' part: image minus the
+direct pass), ``scale_rel_var * C_p^2`` is added to v per pixel.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .flicker import REL_MSE_EPS
+
+__all__ = ["REL_MSE_EPS", "DENOMINATORS", "DEFAULT_DENOMINATOR", "ErrorEstimate",
+           "estimate_from_groups", "estimate_from_variance", "pixel_terms", "estimate_render",
+           "estimate_record", "estimate_metadata", "estimate_text", "VARIANCE_INTEGRATORS"]
+
+@dataclass
+class ErrorEstimate:
+    """An image's relMSE estimate (``relmse``) with its standard error, and the per-pixel
+    estimate (``pixel``: (H, W), the mean over the channels of e_p)."""
+
+    relmse: float
+    stderr: float
+    groups: int
+    method: str                      # 'groups' | 'variance'
+    pixel: Optional[np.ndarray] = field(default=None, repr=False)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rel_stderr(self) -> float:
+        return self.stderr / self.relmse if self.relmse > 0 else math.inf
+
+    def as_dict(self) -> Dict[str, Any]:
+        """JSON-ready (no per-pixel array): what a sidecar records."""
+        d = {"relmse": float(self.relmse), "stderr": float(self.stderr),
+             "groups": int(self.groups), "method": self.method, "eps": REL_MSE_EPS}
+        d.update(self.extra)
+        return d
+
+    def metadata(self) -> Dict[str, Any]:
+        """``cmlt:*`` EXR header attributes (without the prefix)."""
+        return {"relMSEEstimate": float(self.relmse), "relMSEEstimateStderr": float(self.stderr),
+                "relMSEEstimateGroups": int(self.groups), "relMSEEstimateMethod": self.method}
+
+
+#: the denominators (R^2 + eps estimates) :func:`pixel_terms` knows
+DENOMINATORS = ("corrected", "plug-in", "geometric")
+#: the one renders use (tests/bench/error_estimate.py measured the three)
+DEFAULT_DENOMINATOR = "geometric"
+
+
+def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
+                scale_rel_var: float = 0.0, scaled: Optional[np.ndarray] = None,
+                denominator: str = DEFAULT_DENOMINATOR) -> np.ndarray:
+    """Per pixel and channel: e = v / D, v the variance of the mean (plus s C^2 with
+    s = scale_rel_var, C = scaled, default the image) and D one of DENOMINATORS:
+    ``corrected`` max(I^2 - v, 0) + eps, ``plug-in`` I^2 + eps, ``geometric`` the
+    geometric mean of the two (the module docstring says why)."""
+    image = np.asarray(image, np.float64)
+    v = np.maximum(np.asarray(var, np.float64), 0.0)
+    if scale_rel_var > 0.0:
+        c = image if scaled is None else np.asarray(scaled, np.float64)
+        v = v + float(scale_rel_var) * c * c
+    i2 = image * image
+    if denominator == "corrected":
+        d = np.maximum(i2 - v, 0.0) + eps
+    elif denominator == "plug-in":
+        d = i2 + eps
+    elif denominator == "geometric":
+        d = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
+    else:
+        raise ValueError(f"denominator {denominator!r}: choose one of {', '.join(DENOMINATORS)}")
+    return v / d
+
+
+def _check_groups(groups, weights) -> tuple:
+    Y = np.asarray(groups, dtype=np.float64)
+    if Y.ndim != 4 or Y.shape[-1] != 3:
+        raise ValueError(f"groups: expected (G, H, W, 3), got shape {Y.shape}")
+    G = Y.shape[0]
+    if G < 3:
+        raise ValueError(f"groups: need at least 3 groups for a variance and its jackknife, got {G}")
+    if not np.isfinite(Y).all():
+        raise ValueError("groups: non-finite values")
+    n = np.ones(G) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
+    if n.shape != (G,) or not (n > 0).all():
+        raise ValueError(f"weights: expected {G} positive sample counts, got {weights!r}")
+    return Y, n
+
+
+def _moments(S1, S2, N, G):
+    """Image and unbiased Var(image) from weighted sums S1 = sum n Y, S2 = sum n Y^2."""
+    I = S1 / N
+    ss = np.maximum(S2 - N * I * I, 0.0)        # sum n_g (Y_g - I)^2
+    return I, ss / ((G - 1) * N)
+
+
+def estimate_from_groups(groups, weights: Optional[Sequence[float]] = None,
+                         eps: float = REL_MSE_EPS, scale_rel_var: float = 0.0,
+                         scaled: Optional[np.ndarray] = None, keep_pixels: bool = True,
+                         denominator: str = DEFAULT_DENOMINATOR) -> ErrorEstimate:
+    """relMSE estimate of the mean of ``groups`` ((G, H, W, 3) independent unbiased images,
+    group g from ``weights[g]`` samples; default equal) with its jackknife standard error."""
+    Y, n = _check_groups(groups, weights)
+    G = Y.shape[0]
+    N = float(n.sum())
+    w = n[:, None, None, None]
+    S1 = (w * Y).sum(0)
+    S2 = (w * Y * Y).sum(0)
+    I, v = _moments(S1, S2, N, G)
+    e = pixel_terms(I, v, eps, scale_rel_var, scaled, denominator)
+    E = float(e.mean())
+    # delete-one-group jackknife: E_{-g} is the estimate of an image made of the other
+    # G - 1 groups (its own variance in the numerator and in the denominator's
+    # correction), scaled to the full sample count N
+    loo = np.empty(G)
+    for g in range(G):
+        Ng = N - n[g]
+        Ig, vg = _moments(S1 - n[g] * Y[g], S2 - n[g] * Y[g] * Y[g], Ng, G - 1)
+        loo[g] = float(pixel_terms(Ig, vg, eps, scale_rel_var, scaled, denominator).mean()) * (Ng / N)
+    se = float(math.sqrt((G - 1) / G * float(((loo - loo.mean()) ** 2).sum())))
+    return ErrorEstimate(E, se, G, "groups", e.mean(axis=2) if keep_pixels else None,
+                         {"denominator": denominator})
+
+
+def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: int = 0,
+                           split: int = 4, keep_pixels: bool = True,
+                           scale_rel_var: float = 0.0, scaled: Optional[np.ndarray] = None,
+                           denominator: str = DEFAULT_DENOMINATOR) -> ErrorEstimate:
+    """relMSE estimate of ``image`` from its per-pixel variance of the mean (pt, bdpt:
+    RenderResult.variance), standard error from ``split`` x ``split`` interleaved
+    sub-images. ``passes``: the sample passes behind the variance (recorded only)."""
+    I = np.asarray(image, np.float64)
+    V = np.asarray(variance, np.float64)
+    if I.ndim != 3 or I.shape[-1] != 3 or V.shape != I.shape:
+        raise ValueError(f"image and variance: expected two (H, W, 3) arrays, got {I.shape} "
+                         f"and {V.shape}")
+    if not (np.isfinite(I).all() and np.isfinite(V).all()):
+        raise ValueError("image or variance: non-finite values")
+    e = pixel_terms(I, V, eps, scale_rel_var, scaled, denominator)
+    E = float(e.mean())
+    H, W = I.shape[:2]
+    k = max(1, min(int(split), H, W))
+    subs = [float(e[i::k, j::k].mean()) for i in range(k) for j in range(k)]
+    se = float(np.std(subs, ddof=1) / k) if len(subs) > 1 else math.nan
+    return ErrorEstimate(E, se, int(passes), "variance", e.mean(axis=2) if keep_pixels else None,
+                         {"denominator": denominator})
+
+
+# ------------------------------------------------------------------ a render's estimate
+
+#: integrators whose RenderResult.variance is the per-pixel variance of the mean over
+#: independent sample passes (estimate_from_variance applies)
+VARIANCE_INTEGRATORS = ("pt", "bdpt")
+
+
+def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
+                    keep_pixels: bool = False) -> Tuple[Optional[ErrorEstimate], str]:
+    """The relMSE estimate a finished ``core.render`` result allows, and how it was made
+    (or why there is none).
+
+    * ``result.group_images`` ((G, H, W, 3), each an unbiased image of the frame from a
+      G-th of the work; ``result.group_weights`` their path evaluations): estimate_from_groups,
+      with the shared-normalisation term of pssmlt/cmlt (b_stderr / b, on the chains'
+      part: image minus ``result.direct``);
+    * pt, bdpt: estimate_from_variance on ``result.variance`` (passes are independent);
+    * otherwise (pssmlt, cmlt without groups): None.
+    """
+    stats = dict(result.stats) if stats is None else stats
+    integ = str(stats.get("integrator", ""))
+    image = np.asarray(result.image, dtype=np.float64)
+    groups = getattr(result, "group_images", None)
+    if groups is not None:
+        weights = getattr(result, "group_weights", None)
+        b, b_se = stats.get("b"), stats.get("b_stderr")
+        s = float(b_se) ** 2 / float(b) ** 2 if b and b_se else 0.0
+        direct = getattr(result, "direct", None)
+        chains = image if direct is None else image - np.asarray(direct, np.float64)
+        est = estimate_from_groups(np.asarray(groups), weights=weights, scale_rel_var=s,
+                                   scaled=chains, keep_pixels=keep_pixels,
+                                   denominator=DEFAULT_DENOMINATOR)
+        return est, "groups"
+    if integ in VARIANCE_INTEGRATORS:
+        est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
+                                     passes=int(stats.get("spp", 0) or 0),
+                                     keep_pixels=keep_pixels, denominator=DEFAULT_DENOMINATOR)
+        return est, "variance"
+    return None, (f"{integ or 'this integrator'}: no estimate (the chains' samples are "
+                  "correlated; it needs the core to split them into independent groups)")
+
+
+def estimate_record(result, stats: Optional[Dict[str, Any]] = None) -> Dict[str, Any]:
+    """The sidecar record of a render's estimate: ErrorEstimate.as_dict(), or
+    ``{"available": False, "reason": ...}``."""
+    est, how = estimate_render(result, stats)
+    if est is None:
+        return {"available": False, "reason": how}
+    return dict(est.as_dict(), available=True)
+
+
+def estimate_metadata(record: Optional[Dict[str, Any]]) -> Dict[str, Any]:
+    """``cmlt:*`` header attributes (without the prefix) of an :func:`estimate_record`."""
+    if not record or not record.get("available"):
+        return {}
+    return {"relMSEEstimate": float(record["relmse"]),
+            "relMSEEstimateStderr": float(record["stderr"]),
+            "relMSEEstimateGroups": int(record["groups"]),
+            "relMSEEstimateMethod": f"{record['method']}/{record.get('denominator', '')}"}
+
+
+def estimate_text(record: Optional[Dict[str, Any]]) -> str:
+    """``relMSE ~0.0031 ± 0.0002`` for the progress line; '' without an estimate."""
+    if not record or not record.get("available"):
+        return ""
+    return f"relMSE ~{record['relmse']:.2g} ± {record['stderr']:.1g}"

@@ -1,0 +1,52 @@
+"""`cmlt render` records the frame's relMSE estimate (no reference needed): in the
+sidecar, the EXR header (cmlt:relMSEEstimate, ...), the per-frame line, and per pixel
+as the `--aov error` channel (relMSE). pssmlt/cmlt say why they have none."""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from cmlt.cli import main
+from cmlt.io.exr import read_exr, read_header
+
+FAST = ["--spp", "8", "--threads", "2", "--res", "24x16"]
+
+
+@pytest.mark.parametrize("integrator", ["pt", "bdpt"])
+def test_estimate_in_sidecar_header_and_aov(tiny_shot, tmp_path, capsys, integrator):
+    out = tmp_path / "f.####.exr"
+    assert main(["render", tiny_shot, *FAST, "--integrator", integrator, "--aov", "error",
+                 "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    path = str(tmp_path / "f.0001.exr")
+    rec = json.load(open(path + ".json"))["stats"]["error_estimate"]
+    assert rec["available"] and rec["method"] == "variance" and rec["groups"] == 8
+    assert rec["relmse"] > 0 and 0 < rec["stderr"] < rec["relmse"]
+    meta = read_header(path)["cmlt"]
+    assert meta["relMSEEstimate"] == pytest.approx(rec["relmse"], rel=1e-6)
+    assert meta["relMSEEstimateStderr"] == pytest.approx(rec["stderr"], rel=1e-6)
+    assert meta["relMSEEstimateMethod"] == f"variance/{rec['denominator']}"
+    pixels, header = read_exr(path)
+    names = list(header["channelnames"])
+    assert "relMSE" in names
+    per_pixel = pixels[..., names.index("relMSE")].astype(np.float64)
+    assert (per_pixel >= 0).all() and np.isfinite(per_pixel).all()
+    assert per_pixel.mean() == pytest.approx(rec["relmse"], rel=1e-4)   # the image's = mean
+    assert "relMSE ~" in err
+
+
+def test_mlt_has_no_estimate_yet(tiny_shot, tmp_path, capsys):
+    out = tmp_path / "m.####.exr"
+    assert main(["render", tiny_shot, *FAST, "--integrator", "pssmlt", "--out", str(out)]) == 0
+    rec = json.load(open(str(tmp_path / "m.0001.exr") + ".json"))["stats"]["error_estimate"]
+    assert rec["available"] is False and "groups" in rec["reason"]
+    assert "relMSEEstimate" not in read_header(str(tmp_path / "m.0001.exr"))["cmlt"]
+    capsys.readouterr()
+    code = main(["render", tiny_shot, *FAST, "--integrator", "cmlt", "--aov", "error",
+                 "--out", str(tmp_path / "n.####.exr")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--aov error" in err and "pt or bdpt" in err
+    assert not os.path.exists(tmp_path / "n.0001.exr")
