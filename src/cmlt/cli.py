@@ -174,7 +174,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--view", metavar="NAME",
                    help="OCIO view of previews (default: the display's default view)")
     r.add_argument("--resume", action="store_true",
-                   help="skip frames whose image already exists")
+                   help="skip frames already finished (a complete, finite image of this render's "
+                   "size and channels with its sidecar); others are rendered again")
     t.add_argument("--state-dir", metavar="DIR", dest="state_dir",
                    help="write DIR/state.####.bin per frame (chain states, normalisation "
                    "history) and continue from the state of the frame before the first one "

@@ -20,9 +20,9 @@ import re
 import socket
 import stat
 import time
-from typing import Iterator, List, Optional, Tuple
+from typing import Iterator, List, Optional, Sequence, Tuple
 
-__all__ = ["temp_name", "atomic_path", "atomic_write_text", "TEMP_MARKER",
+__all__ = ["temp_name", "atomic_path", "staged_paths", "atomic_write_text", "TEMP_MARKER",
            "parse_temp_name", "remove_stale_temps"]
 
 #: every temporary name contains this (tests and cleanup look for it)
@@ -135,6 +135,32 @@ def atomic_path(path: str) -> Iterator[str]:
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.remove(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def staged_paths(paths: Sequence[str]) -> Iterator[List[str]]:
+    """:func:`atomic_path` for several files that belong together (a frame's
+    preview, state, sidecar and image): yields their temporary paths; once the
+    block has written all of them, renames them into place in the order given
+    (the last one last). On any exception in the block every temporary is
+    removed and no final name is touched. (The renames themselves are not one
+    atomic step: a failing rename, e.g. a full directory inode table, leaves
+    the earlier ones done and removes the rest.)"""
+    tmps = []
+    for path in paths:
+        directory = os.path.dirname(path)
+        if directory:
+            os.makedirs(directory, exist_ok=True)
+        tmps.append(temp_name(path))
+    try:
+        yield list(tmps)
+        for tmp, path in zip(tmps, paths):
+            os.replace(tmp, path)
+    except BaseException:
+        for tmp in tmps:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
         raise
 
 

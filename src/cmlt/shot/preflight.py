@@ -12,6 +12,9 @@
 * :func:`remove_stale_temporaries`: the hidden temporaries
   (:mod:`cmlt.io.atomic`) a killed render left in the directories this one
   writes to.
+* :func:`chain_memory_problem`: whether the Markov chains a pssmlt/cmlt frame
+  starts fit in memory, checked before anything is allocated (``--chains
+  100000000`` is refused with the flag's name instead of running out of memory).
 """
 from __future__ import annotations
 
@@ -23,7 +26,8 @@ from typing import Iterable, List, Optional, Sequence, Tuple
 from .errors import UsageError
 
 __all__ = ["IMAGE_EXTENSIONS", "check_output_paths", "check_state_dir",
-           "finished_frame_problem", "remove_stale_temporaries"]
+           "finished_frame_problem", "remove_stale_temporaries", "available_memory",
+           "chain_memory_problem", "CHAIN_BYTES"]
 
 #: the beauty's file extensions
 IMAGE_EXTENSIONS = (".exr",)
@@ -161,3 +165,46 @@ def finished_frame_problem(path: str, frame: float, *,
     if not same_frame:
         return f"its sidecar {os.path.basename(side)} is of frame {doc.get('frame')!r}"
     return None
+
+
+#: memory a chain costs, at least (bytes): its state in the integrator (primary
+#: samples with their backups, per stream) and its copy as a carried start (temporal
+#: driver). Measured (peak RSS, 1,000 against 400,000 chains asked, 128x96, spp 64,
+#: max_depth 6): 5.3 KiB per chain with pssmlt, 5.8 KiB with cmlt; deeper paths cost more
+CHAIN_BYTES = 4096
+#: the share of the machine's available memory the chains may take
+CHAIN_MEMORY_SHARE = 0.5
+
+
+def available_memory() -> Optional[int]:
+    """Bytes of memory available to a new allocation (``MemAvailable`` of
+    /proc/meminfo, else free physical pages), None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def chain_memory_problem(n_chains: int, where: str,
+                         available: Optional[int] = None) -> Optional[str]:
+    """Why ``n_chains`` chains cannot be allocated (None: they can): more than
+    :data:`CHAIN_MEMORY_SHARE` of the available memory at :data:`CHAIN_BYTES`
+    each. ``where`` names the setting (``--chains 100000000``)."""
+    avail = available_memory() if available is None else int(available)
+    if avail is None or n_chains <= 0:
+        return None
+    need = int(n_chains) * CHAIN_BYTES
+    if need <= CHAIN_MEMORY_SHARE * avail:
+        return None
+    gib = 1024.0 ** 3
+    fit = int(CHAIN_MEMORY_SHARE * avail // CHAIN_BYTES)
+    return (f"{where}: {n_chains} chains need at least {need / gib:.1f} GiB, more than "
+            f"{CHAIN_MEMORY_SHARE:.0%} of the {avail / gib:.1f} GiB available; use at most "
+            f"{fit} chains (the default is 1000)")
