@@ -296,7 +296,9 @@ def _cmd_inspect_image(path: str) -> int:
     try:
         header = read_header(path)
     except OSError as exc:
-        return _error(f"--image {path}: {exc}", EXIT_RENDER)
+        why = str(exc)
+        why = why[len(path) + 2:] if why.startswith(path + ": ") else why
+        return _error(f"--image {path}: {why}", EXIT_RENDER)
     sys.stdout.write(format_header(header))
     return EXIT_OK
 

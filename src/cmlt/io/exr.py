@@ -227,9 +227,11 @@ def read_header(path: str) -> Dict[str, Any]:
     (every other one). Raises OSError naming the path."""
     import OpenImageIO as oiio
 
+    from .image import read_error_reason
+
     inp = oiio.ImageInput.open(path)
     if inp is None:
-        raise OSError(f"{path}: cannot read: {oiio.geterror()}")
+        raise OSError(f"{path}: cannot read: {read_error_reason(path, oiio.geterror())}")
     try:
         spec = inp.spec()
         nparts = 1

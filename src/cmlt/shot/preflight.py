@@ -67,7 +67,7 @@ def _check_one(pattern: str, path: str) -> None:
         raise UsageError(f"{flag}: {what}; the beauty is written as OpenEXR: name it .exr")
     anchor = _first_existing(os.path.dirname(os.path.abspath(path)))
     if not os.path.isdir(anchor):
-        raise UsageError(f"{flag}: {anchor} is not a directory")
+        raise UsageError(f"{flag}: cannot write into {anchor}: not a directory")
     if not os.access(anchor, os.W_OK | os.X_OK):
         raise UsageError(f"{flag}: cannot write into {anchor} (permission denied)")
 
