@@ -15,7 +15,7 @@ import numpy as np
 
 from .._version import __version__
 from ..color import ColorError
-from ..io.exr import ExrWriteError, check_crop, write_exr
+from ..io.exr import ExrWriteError, NonFiniteImageError, check_crop, write_exr
 from ..io.preview import write_preview
 from ..io.sidecar import write_sidecar
 from .bridge import BridgeError, SceneBridge
@@ -204,9 +204,15 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
         record["temporal"]["state_out"] = os.path.abspath(state_file)
         finals.append(state_file)
     finals += [sidecar_path(path), path]
+    tmp = {}
+
+    def named(text: str) -> str:        # messages name the final files, not temporaries
+        for final, t in tmp.items():
+            text = text.replace(t, final)
+        return text
     try:
         with staged_paths(finals) as tmps:
-            tmp = dict(zip(finals, tmps))
+            tmp.update(zip(finals, tmps))
             if pv:
                 shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
                 write_preview(shown, tmp[pv], job.display, job.view)
@@ -225,10 +231,13 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
                 job.warn([msg])
             write_sidecar(path, record, to=tmp[sidecar_path(path)])
     except ExrWriteError as exc:            # its message starts with the path
-        raise RenderError(f"cannot write: {exc}") from None
+        raise RenderError(named(f"cannot write: {exc}")) from None
+    except NonFiniteImageError as exc:      # e.g. an overflow in the output colour space
+        raise RenderError(named(f"frame {frame:g}: {exc}")) from None
     except OSError as exc:
-        where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
-        raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") from None
+        name = named(str(exc.filename)) if exc.filename else ""
+        where = f" ({name})" if name and name != path else ""
+        raise RenderError(named(f"{path}: cannot write: {exc.strerror or exc}{where}")) from None
     return state_file, pv
 
 

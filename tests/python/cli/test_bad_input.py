@@ -384,3 +384,43 @@ def test18_negative_light_intensity_names_the_light(make_shot, tmp_path, capsys,
     assert len(warn) == 1 and warn[0].startswith("cmlt: warning: /World/Light: "), err
     assert "add_light" not in err
     assert np.isfinite(read_exr(str(tmp_path / "n.0001.exr"))[0]).all()
+
+
+# -- a frame that fails: the frames before it stay -----------------------------------
+
+def test19_a_bad_later_frame_keeps_the_finished_ones(make_shot, tmp_path, capsys):
+    # the box's points lose a vertex at frame 3: its faces then refer to a missing point
+    shot = make_shot("breaks.usda", {
+        "point3f[] points = [(-0.5, 0, -0.5)": "point3f[] points.timeSamples = {1: [(-0.5, 0, -0.5)",
+        "(0.5, 1, -0.5), (0.5, 1, 0.5)]":
+        "(0.5, 1, -0.5), (0.5, 1, 0.5)], 3: [(-0.5, 0, -0.5), (-0.5, 0, 0.5), (-0.5, 1, -0.5), "
+        "(-0.5, 1, 0.5), (0.5, 0, -0.5), (0.5, 0, 0.5), (0.5, 1, -0.5)]}"})
+    pattern = str(tmp_path / "b.####.exr")
+    code = _render(shot, pattern, "--frames", "1:3")
+    err = capsys.readouterr().err
+    assert code == 1
+    _one_error(err, "/World/Box")
+    for k in (1, 2):
+        p = str(tmp_path / f"b.000{k}.exr")
+        assert np.isfinite(read_exr(p)[0]).all() and os.path.isfile(p + ".json")
+    assert not glob.glob(str(tmp_path / "b.0003*"))
+    assert not [n for n in os.listdir(tmp_path) if TEMP_MARKER in n]
+
+
+def test20_non_finite_output_is_never_written(tiny_shot, tmp_path, capsys, monkeypatch):
+    import cmlt.shot.frame_job as frame_job
+
+    real = frame_job.to_output
+
+    def overflowing(image, colorspace):         # an overflow in the output colour space
+        out = np.array(real(image, colorspace), dtype=np.float32, copy=True)
+        out[3, 5, 1] = np.inf
+        return out
+
+    pattern = str(tmp_path / "i.####.exr")
+    assert _render(tiny_shot, pattern, "--frames", "1", "--seed", "1") == 0
+    good = _snapshot(tmp_path)
+    monkeypatch.setattr(frame_job, "to_output", overflowing)
+    assert _render(tiny_shot, pattern, "--frames", "1", "--seed", "2") == 1
+    _one_error(capsys.readouterr().err, "i.0001.exr", "non-finite", "x=5, y=3")
+    assert _snapshot(tmp_path) == good
