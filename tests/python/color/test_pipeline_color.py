@@ -9,7 +9,6 @@ that was rendered (float, zip).
 from __future__ import annotations
 
 import os
-
 import re
 
 import numpy as np
