@@ -71,6 +71,8 @@ void bind_temporal(nb::module_& m) {
         "a"_a, "b"_a, "The states of a followed by those of b (ids kept).");
     m.def("temporal_bootstrap_count", &temporal::bootstrap_count, "settings"_a,
           "Bootstrap samples a render with these settings evaluates.");
+    m.def("temporal_chain_count", &temporal::chain_count, "settings"_a,
+          "Chains a render with these settings starts (at most settings.chains; 0 for pt, bdpt).");
     m.def(
         "temporal_bootstrap_states",
         [](Scene& scene, const RenderSettings& settings, uint64_t count) {

@@ -2,7 +2,8 @@
 
 ::
 
-    cmlt render SHOT [--frames SPEC | -f START [-n COUNT] [-i STEP]] [--out|-o PATTERN]
+    cmlt render SHOT [--frames SPEC [--force-frames] | -f START [-n COUNT] [-i STEP]]
+                     [--out|-o PATTERN]
                      [--spp N] [-R|--settings PRIM] [--list-cameras] [--exposure STOPS]
                      [--integrator pt|bdpt|pssmlt|cmlt]
                      [--sigma S] [--large-step-probability P] [--chains N]
@@ -156,8 +157,11 @@ def build_parser() -> argparse.ArgumentParser:
                        "with a JSON statistics sidecar (IMAGE.json) beside each image.")
     r.add_argument("shot", metavar="SHOT", help="USD stage (.usda, .usdc, .usd, .usdz)")
     r.add_argument("--frames", metavar="SPEC",
-                   help="time codes: 7, 1.5, 1:24, 1:24x2 (stride), 1,5,9, all "
-                   "(the stage's range); default: the stage's start time code")
+                   help="time codes: 7, 1.5, 1:24 or 1-24, 1:24x2 (stride), 1,5,9, all "
+                   "(the stage's range); default: the stage's start time code. Frames "
+                   "outside the stage's time range get a warning, far outside it an error")
+    r.add_argument("--force-frames", action="store_true", dest="force_frames",
+                   help="render --frames even far outside the stage's time range")
     r.add_argument("--out", "-o", metavar="PATTERN",
                    help="output image; the frame number replaces #### (zero-padded to the "
                    "number of #), ####.### (decimals), $F4/$F or %%04d; fractional frames "
@@ -231,7 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--view", metavar="NAME",
                    help="OCIO view of previews (default: the display's default view)")
     r.add_argument("--resume", action="store_true",
-                   help="skip frames whose image already exists")
+                   help="skip frames already finished (a complete, finite image of this render's "
+                   "size and channels with its sidecar); others are rendered again")
     t.add_argument("--state-dir", metavar="DIR", dest="state_dir",
                    help="write DIR/state.####.bin per frame (chain states, normalisation "
                    "history) and continue from the state of the frame before the first one "
@@ -353,7 +358,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
     try:
         res = render_sequence(args.shot, frames, args.out, opts, resume=args.resume,
                               progress=not (args.quiet or args.log_json), quiet=args.quiet,
-                              reporter=log)
+                              reporter=log, force_frames=args.force_frames)
     except UsageError as exc:
         return fail(str(exc), EXIT_USAGE)
     except RenderError as exc:
@@ -437,7 +442,9 @@ def _cmd_inspect_image(path: str) -> int:
     try:
         header = read_header(path)
     except OSError as exc:
-        return _error(f"--image {path}: {exc}", EXIT_RENDER)
+        why = str(exc)
+        why = why[len(path) + 2:] if why.startswith(path + ": ") else why
+        return _error(f"--image {path}: {why}", EXIT_RENDER)
     sys.stdout.write(format_header(header))
     return EXIT_OK
 

@@ -1,6 +1,9 @@
 """Scene-linear RGB OpenEXR frames through OpenImageIO.
 
-* pixel type ``float`` (32-bit, default) or ``half`` (``--half``);
+* pixel type ``float`` (32-bit, default) or ``half`` (``--half``); half holds
+  magnitudes up to :data:`HALF_MAX` (65504), beyond which it has only Inf: a
+  value above it (a bright light seen directly) is clamped to it, and
+  :func:`write_exr` returns how many were, so the caller can warn;
 * compression ``zip`` (default, lossless), ``piz`` (lossless), ``dwaa``
   (lossy, small) or ``none``;
 * the colour space goes into ``oiio:ColorSpace`` (OIIO stores ``ACEScg`` as
@@ -27,10 +30,12 @@ import numpy as np
 
 from .image import write_image
 
-__all__ = ["COMPRESSIONS", "AOV_CHANNELS", "ExrWriteError", "NonFiniteImageError", "write_exr",
+__all__ = ["COMPRESSIONS", "HALF_MAX", "AOV_CHANNELS", "ExrWriteError", "NonFiniteImageError", "write_exr",
            "read_exr", "check_crop", "read_header", "format_header"]
 
 COMPRESSIONS = ("zip", "piz", "dwaa", "none")
+#: the largest finite half-float
+HALF_MAX = 65504.0
 #: prefix of cmlt's own header attributes
 META_PREFIX = "cmlt:"
 
@@ -128,8 +133,11 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
               metadata: Optional[Mapping[str, Any]] = None,
               attributes: Optional[Mapping[str, Any]] = None,
               aovs: Optional[Mapping[str, np.ndarray]] = None,
-              crop: Optional[Sequence[int]] = None) -> None:
+              crop: Optional[Sequence[int]] = None) -> Tuple[int, float]:
     """Write ``image`` (H, W, 3) float, top row first, to ``path`` atomically.
+    Returns ``(clamped, peak)``: with ``half``, how many stored values exceeded
+    :data:`HALF_MAX` in magnitude and were clamped to it, and the largest
+    magnitude among them (``(0, 0.0)`` otherwise).
 
     ``metadata`` keys are written as ``cmlt:<key>`` unless they already
     contain a ``:`` (then as given, e.g. ``oiio:Software``). ``attributes``
@@ -165,6 +173,16 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
         x0, y0, x1, y1 = check_crop(crop, w, h)
         pixels = np.ascontiguousarray(pixels[y0:y1, x0:x1])
     ph, pw, ptot = pixels.shape
+    clamped, peak = 0, 0.0
+    if half:
+        # half has no finite value above HALF_MAX: clamp rather than store Inf
+        chans = [i for i, n in enumerate(names) if n not in FLOAT_ONLY_CHANNELS]
+        over = np.abs(pixels[:, :, chans]) > HALF_MAX
+        if over.any():
+            clamped = int(over.sum())
+            peak = float(np.abs(pixels[:, :, chans])[over].max())
+            pixels = pixels.copy()             # never the caller's array
+            pixels[:, :, chans] = np.clip(pixels[:, :, chans], -HALF_MAX, HALF_MAX)
 
     spec = oiio.ImageSpec(pw, ph, ptot, oiio.HALF if half else oiio.FLOAT)
     spec.x, spec.y = x0, y0
@@ -186,6 +204,7 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
         _set_raw_attribute(spec, key, value)
 
     write_image(path, spec, pixels, path, error=ExrWriteError)
+    return clamped, peak
 
 
 def read_exr(path: str) -> Tuple[np.ndarray, Dict[str, Any]]:
@@ -208,9 +227,11 @@ def read_header(path: str) -> Dict[str, Any]:
     (every other one). Raises OSError naming the path."""
     import OpenImageIO as oiio
 
+    from .image import read_error_reason
+
     inp = oiio.ImageInput.open(path)
     if inp is None:
-        raise OSError(f"{path}: cannot read: {oiio.geterror()}")
+        raise OSError(f"{path}: cannot read: {read_error_reason(path, oiio.geterror())}")
     try:
         spec = inp.spec()
         nparts = 1

@@ -17,11 +17,38 @@ import numpy as np
 
 from .atomic import atomic_path
 
-__all__ = ["ImageReadError", "read_image", "read_rgb", "rgb_channels", "header", "write_image"]
+__all__ = ["ImageReadError", "read_error_reason", "read_image", "read_rgb", "rgb_channels", "header", "write_image"]
 
 
 class ImageReadError(OSError):
     """An image that cannot be read, or has no colour channels; names the file."""
+
+
+def read_error_reason(path: str, raw: str) -> str:
+    """One short line from OpenImageIO's error text for ``path``. OpenEXR's
+    reader reports a truncated file as several lines (``EXR Error (path):
+    EXR_ERR_READ_IO End of file attempting to read header``, then the same
+    again and ``... Unable to extract header byte``): keep the first, without
+    the repeated path and the error code, and say what it means."""
+    import re
+
+    try:
+        empty = os.path.getsize(path) == 0
+    except OSError:
+        empty = False
+    if empty:
+        return "the file is empty"
+    lines = [ln.strip() for ln in str(raw or "").splitlines() if ln.strip()]
+    if not lines:
+        return "OpenImageIO gave no reason"
+    first = re.sub(r"^EXR Error \(.*?\):\s*", "", lines[0])
+    code = re.match(r"^(EXR_ERR_\w+)\s*(.*)$", first)
+    if code:
+        first = code.group(2) or code.group(1)
+        if code.group(1) in ("EXR_ERR_READ_IO", "EXR_ERR_FILE_BAD_HEADER",
+                             "EXR_ERR_CORRUPT_CHUNK", "EXR_ERR_BAD_CHUNK_LEADER"):
+            first = f"truncated or corrupt OpenEXR file ({first[:1].lower() + first[1:]})"
+    return first
 
 
 def read_image(path: str) -> Tuple[np.ndarray, Any]:
@@ -33,12 +60,13 @@ def read_image(path: str) -> Tuple[np.ndarray, Any]:
         raise ImageReadError(f"{path}: no such file")
     inp = oiio.ImageInput.open(path)
     if inp is None:
-        raise ImageReadError(f"{path}: cannot read: {oiio.geterror().strip()}")
+        raise ImageReadError(f"{path}: cannot read: {read_error_reason(path, oiio.geterror())}")
     try:
         spec = inp.spec()
         pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
         if pixels is None:
-            raise ImageReadError(f"{path}: cannot read pixels: {inp.geterror().strip()}")
+            raise ImageReadError(f"{path}: cannot read pixels: "
+                                 f"{read_error_reason(path, inp.geterror())}")
     finally:
         inp.close()
     img = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)

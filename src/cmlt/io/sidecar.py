@@ -30,7 +30,8 @@ import numpy as np
 
 from .atomic import atomic_write_text
 
-__all__ = ["SIDECAR_FORMAT", "SIDECAR_VERSION", "sidecar_path", "write_sidecar", "read_sidecar"]
+__all__ = ["SIDECAR_FORMAT", "SIDECAR_VERSION", "sidecar_path", "sidecar_text", "write_sidecar",
+           "read_sidecar"]
 
 SIDECAR_FORMAT = "cmlt-frame-stats"
 SIDECAR_VERSION = 1
@@ -59,12 +60,18 @@ def _plain(value: Any) -> Any:
     return str(value)
 
 
-def write_sidecar(image_path: str, record: Mapping[str, Any]) -> str:
-    """Write ``record`` as the sidecar of ``image_path``; returns its path."""
+def sidecar_text(record: Mapping[str, Any]) -> str:
+    """The sidecar file's text for ``record`` (format and version first)."""
     doc: Dict[str, Any] = {"format": SIDECAR_FORMAT, "version": SIDECAR_VERSION}
     doc.update(_plain(dict(record)))
-    path = sidecar_path(image_path)
-    atomic_write_text(path, json.dumps(doc, indent=2, sort_keys=False, allow_nan=False) + "\n")
+    return json.dumps(doc, indent=2, sort_keys=False, allow_nan=False) + "\n"
+
+
+def write_sidecar(image_path: str, record: Mapping[str, Any], *, to: str = None) -> str:
+    """Write ``record`` as the sidecar of ``image_path`` (atomically); returns its
+    path. ``to``: write it there instead (a temporary the caller renames)."""
+    path = to or sidecar_path(image_path)
+    atomic_write_text(path, sidecar_text(record))
     return path
 
 

@@ -34,6 +34,8 @@ the sidecar and the tests.
 """
 from __future__ import annotations
 
+import contextlib
+
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
 
@@ -44,6 +46,43 @@ from .material_table import (IDENTITY_ST_TRANSFORM, BridgeError, material_params
                              primvar_layout, resolve_wrap_modes, texture_channel)
 
 __all__ = ["SceneBridge", "UpdateReport", "BridgeError"]
+
+
+@contextlib.contextmanager
+def _naming(core, prim: str, what: str):
+    """A core refusal (SceneError, or a binding's ValueError/TypeError) inside the
+    block becomes a BridgeError naming the prim: the core's messages name its call
+    (``add_light: radiance must be finite and >= 0``), which means nothing to a user
+    who authored ``/World/Lamp``."""
+    errors = tuple(e for e in (getattr(core, "SceneError", None), ValueError, TypeError) if e)
+    try:
+        yield
+    except BridgeError as exc:
+        if str(exc).startswith(prim + ":"):
+            raise
+        raise BridgeError(f"{prim}: {what}: {exc}") from None
+    except errors as exc:
+        msg = str(exc)
+        call, sep, rest = msg.partition(": ")
+        if sep and call.replace("_", "").isalpha():
+            msg = rest                          # the core call's name: said by `what`
+        raise BridgeError(f"{prim}: {what}: {msg}") from None
+
+
+def _material_error(core, materials, exc) -> "BridgeError":
+    """set_materials' refusal naming the material (``emission[3] must be ...``:
+    the 4th material of the frame)."""
+    import re
+    msg = str(exc)
+    call, sep, rest = msg.partition(": ")
+    if sep and call.replace("_", "").isalpha():
+        msg = rest
+    m = re.match(r"^(\w+)\[(\d+)\]\s*(.*)$", msg)
+    if m and materials and int(m.group(2)) < len(materials):
+        return BridgeError(f"{materials[int(m.group(2))].name}: material {m.group(1)} "
+                           f"{m.group(3)}")
+    return BridgeError(f"materials: {msg}")
+
 
 @dataclass
 class UpdateReport:
@@ -276,8 +315,9 @@ class SceneBridge:
                     np.ascontiguousarray(np.asarray(mesh.material_ids, dtype=np.uint32).reshape(-1)))
             pv = primvar_array(mesh, self._layout)
             kwargs = {} if pv is None else {"primvars": pv}
-            mesh_ids.append(scene.add_mesh(mesh.name, points, indices,
-                                           normals=normals, uvs=uvs, material_ids=mids, **kwargs))
+            with _naming(core, mesh.name, "mesh"):
+                mesh_ids.append(scene.add_mesh(mesh.name, points, indices, normals=normals,
+                                               uvs=uvs, material_ids=mids, **kwargs))
             # keep the very arrays handed over: the core may share their
             # buffers (zero-copy), so they must stay alive and unchanged
             meshes.append(_MeshState(_topology_key(mesh), points, normals, indices, uvs, mids,
@@ -288,15 +328,17 @@ class SceneBridge:
             if not 0 <= inst.mesh < len(mesh_ids):
                 raise BridgeError(f"{inst.name}: instance refers to mesh {inst.mesh}, "
                                   f"but the frame has {len(mesh_ids)} meshes")
-            t = _mat(inst.transform)
-            inst_ids.append(scene.add_instance(mesh_ids[inst.mesh], t))
-            if inst.motion_transforms:
-                scene.set_instance_motion(inst_ids[-1], [_mat(m) for m in inst.motion_transforms])
+            with _naming(core, inst.name, "instance"):
+                t = _mat(inst.transform)
+                inst_ids.append(scene.add_instance(mesh_ids[inst.mesh], t))
+                if inst.motion_transforms:
+                    scene.set_instance_motion(inst_ids[-1],
+                                              [_mat(m) for m in inst.motion_transforms])
             transforms.append(t.copy())
         self.scene = scene
         self._textures, self._texture_arrays = {}, []
         diffuse, emission, params = self._material_arrays(fs)
-        scene.set_materials(diffuse, emission, params)
+        self._set_materials(scene, fs, diffuse, emission, params)
 
         self._meshes, self._mesh_ids = meshes, mesh_ids
         self._instances = [(i.name, int(i.mesh)) for i in fs.instances]
@@ -319,7 +361,8 @@ class SceneBridge:
                 continue
             p = padded_points(points)
             n = None if normals is None else padded_points(normals)
-            scene.update_mesh_points(self._mesh_ids[k], p, normals=n)
+            with _naming(self._core, mesh.name, "mesh"):
+                scene.update_mesh_points(self._mesh_ids[k], p, normals=n)
             old.points, old.normals = p, n
             report.meshes_updated += 1
         for k, inst in enumerate(fs.instances):
@@ -345,28 +388,42 @@ class SceneBridge:
         if not (np.array_equal(diffuse, self._materials[0]) and
                 np.array_equal(emission, self._materials[1]) and
                 np.array_equal(params, self._materials[2])):
-            scene.set_materials(diffuse, emission, params)
+            self._set_materials(scene, fs, diffuse, emission, params)
             self._materials = (diffuse.copy(), emission.copy(), params.copy())
             report.materials_updated = True
+
+    def _set_materials(self, scene, fs, diffuse, emission, params) -> None:
+        try:
+            scene.set_materials(diffuse, emission, params)
+        except (self._core.SceneError, ValueError, TypeError) as exc:
+            raise _material_error(self._core, fs.materials, exc) from None
+
+    def _add_light(self, scene, light) -> None:
+        scene.add_light(light.kind, _mat(light.transform),
+                        tuple(float(c) for c in light.radiance),
+                        width=float(light.width), height=float(light.height),
+                        radius=float(light.radius), length=float(light.length),
+                        angle=float(light.angle), treat_as_point=bool(light.treat_as_point),
+                        texture_id=self._light_texture(light),
+                        cone_angle=float(getattr(light, "cone_angle", 180.0)),
+                        cone_softness=float(getattr(light, "cone_softness", 0.0)),
+                        focus=float(getattr(light, "focus", 0.0)),
+                        focus_tint=tuple(float(c) for c in
+                                         getattr(light, "focus_tint", (0.0, 0.0, 0.0))))
 
     def _lights_and_camera(self, fs: FrameScene) -> None:
         scene = self.scene
         scene.clear_lights()
         for light in fs.lights:
-            scene.add_light(light.kind, _mat(light.transform),
-                            tuple(float(c) for c in light.radiance),
-                            width=float(light.width), height=float(light.height),
-                            radius=float(light.radius), length=float(light.length),
-                            angle=float(light.angle), treat_as_point=bool(light.treat_as_point),
-                            texture_id=self._light_texture(light),
-                            cone_angle=float(getattr(light, "cone_angle", 180.0)),
-                            cone_softness=float(getattr(light, "cone_softness", 0.0)),
-                            focus=float(getattr(light, "focus", 0.0)),
-                            focus_tint=tuple(float(c) for c in
-                                             getattr(light, "focus_tint", (0.0, 0.0, 0.0))))
+            with _naming(self._core, light.name, "light"):
+                self._add_light(scene, light)
         cam = fs.camera
         if cam is None:
             raise BridgeError(f"time {fs.time:g}: the frame has no camera")
+        with _naming(self._core, cam.name, "camera"):
+            self._set_camera(scene, cam)
+
+    def _set_camera(self, scene, cam) -> None:
         scene.set_camera(_mat(cam.transform), float(cam.focal_length),
                          float(cam.horizontal_aperture), float(cam.vertical_aperture),
                          horizontal_aperture_offset=float(cam.horizontal_aperture_offset),

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._version import __version__
 from ..color import ColorError
-from ..io.exr import check_crop, write_exr
+from ..io.exr import ExrWriteError, NonFiniteImageError, check_crop, write_exr
 from ..io.preview import write_preview
 from ..io.sidecar import write_sidecar
 from .analyse import frame_effects
@@ -128,10 +128,37 @@ def _settings_error(job: ShotJob, exc) -> Exception:
     return (UsageError if usage else RenderError)(msg)
 
 
+def _check_chains(job: ShotJob) -> None:
+    """pssmlt/cmlt: the chains this frame starts (the core's count: at most
+    ``chains``, at most what the budget feeds) must fit in memory, checked before
+    the driver or the core allocates them; a ``chains`` the budget cannot feed is
+    a warning naming its flag or attribute (once per sequence)."""
+    from .core_settings import where
+    from .preflight import chain_memory_problem
+
+    core, resolved = job.core, job.resolved
+    if str(resolved.integrator) not in ("pssmlt", "cmlt") or \
+            not hasattr(core, "temporal_chain_count"):
+        return
+    n = int(core.temporal_chain_count(job.st))
+    asked = int(resolved.chains)
+    name = where("chains", asked, job.sources)
+    problem = chain_memory_problem(n, name)
+    if problem:
+        user = not job.sources.get("chains", "").startswith("stage:")
+        raise (UsageError if user else RenderError)(problem)
+    if asked > n and job.sources.get("chains", "default") != "default" and \
+            not getattr(job, "_chains_warned", False):
+        job._chains_warned = True
+        job.warn([f"{name}: the budget of a {job.st.width}x{job.st.height} frame at spp "
+                  f"{job.st.spp} feeds only {n} chain(s), so {n} run"])
+
+
 def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     """The core's render of the frame (the temporal driver around it), checked
     finite; returns (result, stats, image, temporal record, state bytes, units)."""
     core, resolved = job.core, job.resolved
+    _check_chains(job)
     try:
         trec = job.temporal.prepare(scene, job.st, frame)
     except core.SettingsError as exc:
@@ -165,30 +192,63 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
 
 def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record, metadata,
            aovs, state_bytes):
-    """Preview, state and sidecar, then the EXR; returns (state file, preview)."""
+    """Preview, state, sidecar and EXR, each written to a temporary name and
+    renamed into place only once all four are complete, the image last
+    (:func:`cmlt.io.atomic.staged_paths`): a frame that fails to write leaves
+    the previous frame's files as they were. Returns (state file, preview)."""
+    from ..io.atomic import staged_paths
+    from ..io.exr import HALF_MAX
+    from ..io.sidecar import sidecar_path
+
     opts = job.opts
     pv = state_file = None
+    finals = []
+    if opts.preview:
+        pv = preview_path(path, opts.preview_format)
+        record["preview"] = os.path.basename(pv)
+        finals.append(pv)
+    if opts.state_dir:
+        from ..temporal.state import state_path
+        state_file = state_path(opts.state_dir, frame)
+        record["temporal"]["state_out"] = os.path.abspath(state_file)
+        finals.append(state_file)
+    finals += [sidecar_path(path), path]
+    tmp = {}
+
+    def named(text: str) -> str:        # messages name the final files, not temporaries
+        for final, t in tmp.items():
+            text = text.replace(t, final)
+        return text
     try:
-        if opts.preview:
-            # before the EXR: a finished image always has its preview
-            pv = preview_path(path, opts.preview_format)
-            shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
-            if opts.exposure:                 # previews only: the EXR stays as rendered
-                shown = shown * (2.0 ** float(opts.exposure))
-            write_preview(shown, pv, job.display, job.view)
-            record["preview"] = os.path.basename(pv)
-        if opts.state_dir:
-            # before the image: a finished frame always has its state
-            from ..temporal.state import state_path, write_state
-            state_file = write_state(state_path(opts.state_dir, frame), state_bytes)
-            record["temporal"]["state_out"] = os.path.abspath(state_file)
-        write_sidecar(path, record)
-        write_exr(path, out_image, half=opts.half, compression=opts.compression,
-                  colorspace=None, metadata=metadata, attributes=job.color_attrs,
-                  aovs=aovs, crop=crop)
+        with staged_paths(finals) as tmps:
+            tmp.update(zip(finals, tmps))
+            if pv:
+                shown = image if crop is None else image[crop[1]:crop[3], crop[0]:crop[2]]
+                if opts.exposure:             # previews only: the EXR stays as rendered
+                    shown = shown * (2.0 ** float(opts.exposure))
+                write_preview(shown, tmp[pv], job.display, job.view)
+            if state_file:
+                from ..temporal.state import write_state
+                write_state(tmp[state_file], state_bytes)
+            clamped, peak = write_exr(tmp[path], out_image, half=opts.half,
+                                      compression=opts.compression, colorspace=None,
+                                      metadata=metadata, attributes=job.color_attrs, aovs=aovs,
+                                      crop=crop)
+            if clamped:
+                msg = (f"--half: frame {frame:g}: {clamped} value(s) above half's largest "
+                       f"finite value {HALF_MAX:g} (up to {peak:.6g}) clamped to it in {path}; "
+                       "write float (no --half) to keep them")
+                record.setdefault("warnings", []).append(msg)
+                job.warn([msg])
+            write_sidecar(path, record, to=tmp[sidecar_path(path)])
+    except ExrWriteError as exc:            # its message starts with the path
+        raise RenderError(named(f"cannot write: {exc}")) from None
+    except NonFiniteImageError as exc:      # e.g. an overflow in the output colour space
+        raise RenderError(named(f"frame {frame:g}: {exc}")) from None
     except OSError as exc:
-        where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
-        raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") from None
+        name = named(str(exc.filename)) if exc.filename else ""
+        where = f" ({name})" if name and name != path else ""
+        raise RenderError(named(f"{path}: cannot write: {exc.strerror or exc}{where}")) from None
     return state_file, pv
 
 
@@ -210,10 +270,20 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
             crop = check_crop(opts.crop, int(width), int(height))
         except ValueError as exc:
             raise UsageError(str(exc)) from None
+    import warnings
     try:
-        scene = job.bridge.update(fs)
+        # the bridge's warnings (an unreadable texture, ...) are the frame's warnings,
+        # shown as such, not as Python UserWarning lines
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            scene = job.bridge.update(fs)
     except (core.SceneError, BridgeError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
+    bridge_warnings = [str(w.message) for w in caught]
+    if bridge_warnings:
+        job.warn(list(dict.fromkeys(bridge_warnings)))
+        fs.warnings = list(fs.warnings) + [w for w in dict.fromkeys(bridge_warnings)
+                                           if w not in fs.warnings]
     if job.temporal is None:
         job.temporal = job.make_temporal(int(width), int(height))
     prepare_temporal()

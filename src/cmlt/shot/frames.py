@@ -5,7 +5,8 @@ Frame specs follow usdrecord's ``--frames`` syntax:
 ==============  ==============================================
 ``7``           one frame (time code 7)
 ``1.5``         one fractional frame (time code 1.5)
-``1:24``        24 frames, both ends included (``1-24`` too, as husk writes it)
+``1:24``        24 frames, both ends included
+``1-24``        the same (husk's spelling; frames are never negative)
 ``1:24x2``      every second frame: 1, 3, ..., 23
 ``1:2x0.25``    sub-frames: 1, 1.25, 1.5, 1.75, 2
 ``1,5,9``       a comma list; each item may itself be a range
@@ -16,6 +17,13 @@ Frames are time codes. Negative frames are rejected: an output name cannot
 carry a sign in a way that sorts or pads sensibly, and husk/usdrecord users
 render negative pre-roll through an offset layer instead. A frame listed twice
 is rendered once (first occurrence wins; order is otherwise kept).
+
+Frames outside the stage's authored time range render the stage as USD holds
+it there (every animated value at its first or last time sample):
+:func:`check_stage_range` warns about them, naming the range, and refuses a
+spec that lies far beyond it (:func:`far_outside_limit`) unless forced
+(``--force-frames``): ``1:1000000`` on a one-frame stage is a typo, not a
+million identical frames.
 
 Output patterns (``--out``) substitute the frame number for a token of
 :mod:`cmlt.io.frame_pattern` (``####``, ``####.###``, ``$F4``, ``%04d``). So a
@@ -42,12 +50,20 @@ __all__ = [
     "format_frame",
     "expand_pattern",
     "expand_outputs",
+    "check_stage_range",
+    "far_outside_limit",
 ]
 
 #: a frame within this distance of an integer counts as that integer
 _INTEGRAL_EPS = 1e-6
 #: upper bound on frames from one spec (a typo like 1:1e9 must not hang)
 MAX_FRAMES = 1_000_000
+#: "far outside" the stage's time range (check_stage_range): more frames outside it
+#: than FAR_FACTOR times the stage's frame count, at least FAR_MIN, at most FAR_MAX
+FAR_FACTOR, FAR_MIN, FAR_MAX = 10, 100, 10_000
+#: husk's START-END range spelling (no sign: frames are never negative), with an
+#: optional stride as in START:ENDxSTRIDE
+_DASH_RANGE = re.compile(r"^\s*(\d+(?:\.\d*)?)\s*-\s*(\d+(?:\.\d*)?)\s*(?=[xX]|$)")
 
 
 class FrameSpecError(UsageError):
@@ -99,12 +115,8 @@ def _item(item: str, spec: str, start: float, end: float, has_range: bool) -> Li
             # is authored); render the one start frame, as husk does.
             return [_clean(start)]
         return _range(start, end, 1.0, spec)
+    text = _DASH_RANGE.sub(r"\1:\2", text, count=1)        # 1-24 -> 1:24
     stride = 1.0
-    # husk's / usdrecord's habit START-END for START:END (frames are not negative,
-    # so a '-' after the first character separates the ends)
-    dash = re.match(r"^\s*([0-9][0-9.]*)\s*-\s*([0-9][0-9.]*)\s*((?:[xX].*)?)$", text)
-    if dash and ":" not in text:
-        text = f"{dash.group(1)}:{dash.group(2)}{dash.group(3)}"
     if "x" in text.lower():
         if ":" not in text:
             raise FrameSpecError(f"--frames {spec!r}: a stride (x) needs a range, as in 1:24x2")
@@ -144,6 +156,53 @@ def parse_frames(spec: str, start: float = 0.0, end: float = 0.0,
     if len(frames) > MAX_FRAMES:
         raise FrameSpecError(f"--frames {spec!r}: more than {MAX_FRAMES} frames")
     return frames
+
+
+def far_outside_limit(stage_frames: int) -> int:
+    """How many frames outside the stage's time range a spec may list before
+    it is refused as a typo: ``FAR_FACTOR`` times the stage's frame count,
+    at least ``FAR_MIN`` (a static one-frame stage rendered 24 times for a
+    flicker measurement is fine), at most ``FAR_MAX``."""
+    return int(min(FAR_MAX, max(FAR_MIN, FAR_FACTOR * max(1, int(stage_frames)))))
+
+
+def _list_frames(frames: Sequence[float], limit: int = 4) -> str:
+    shown = ", ".join(f"{f:g}" for f in frames[:limit])
+    return shown + (f", ... ({len(frames) - limit} more)" if len(frames) > limit else "")
+
+
+def check_stage_range(frames: Sequence[float], start: float, end: float,
+                      has_range: bool = True, *, spec: Optional[str] = None,
+                      force: bool = False) -> Optional[str]:
+    """Frames against the stage's time range ``start..end``.
+
+    Returns a warning naming the range and the frames outside it (None if
+    all are inside, or if the stage authors no range: a static stage looks
+    the same at every frame). Raises :class:`FrameSpecError` if more frames
+    than :func:`far_outside_limit` lie outside the range (without an
+    authored range: other than ``start``, the one frame such a stage has),
+    unless ``force``.
+    """
+    lo, hi = (float(start), float(end)) if has_range else (float(start), float(start))
+    if hi < lo:
+        lo, hi = hi, lo
+    outside = [f for f in frames if f < lo - _INTEGRAL_EPS or f > hi + _INTEGRAL_EPS]
+    if not outside:
+        return None
+    stage_frames = int(math.floor(hi - lo + 1e-9)) + 1
+    what = f"--frames {spec!r}" if spec is not None else "frames"
+    rng = (f"time range {lo:g}..{hi:g} ({stage_frames} frame{'s' if stage_frames != 1 else ''})"
+           if has_range else f"time range (none authored: one frame, {lo:g})")
+    limit = far_outside_limit(stage_frames)
+    if len(outside) > limit and not force:
+        raise FrameSpecError(
+            f"{what}: {len(outside)} of {len(frames)} frames lie outside the stage's {rng}, "
+            f"more than {limit}; give --force-frames to render them anyway")
+    if not has_range:
+        return None
+    return (f"{what}: {len(outside)} of {len(frames)} frame(s) lie outside the stage's {rng}: "
+            f"{_list_frames(outside)}; there every animated value holds its first or last "
+            "time sample")
 
 
 def default_frames(start: float) -> List[float]:

@@ -3,13 +3,19 @@ render (+ AOV pass) -> write preview, sidecar, EXR.
 
 Guarantees:
 
-* a frame's image appears under its final name only when it is complete
-  (temporary name + rename); its sidecar is written just before it, so an
-  image on disk always has its sidecar;
+* before the first frame renders, every output name is checked
+  (:mod:`cmlt.shot.preflight`: an ``.exr`` that can be created, ``--state-dir`` a
+  directory), so a bad ``--out`` fails at once and leaves nothing behind, and the
+  temporaries of a killed render in those directories are removed;
+* a frame's files (preview, state, sidecar, image) are all written to temporary
+  names first and renamed into place only once every one of them is complete,
+  the image last: a frame that fails to write leaves the previous frame's files
+  as they were, and an image on disk always has its sidecar;
 * Ctrl-C cancels the frame being rendered (the core's progress callback
   returns False), does not write it, keeps the finished frames and raises
-  :class:`RenderCancelled`; ``resume=True`` then skips frames whose image
-  exists;
+  :class:`RenderCancelled`; ``resume=True`` then skips frames that are finished
+  (the image reads completely, is finite, has this render's size and channels,
+  and its sidecar is of that image and frame) and renders any other again;
 * one seed for the whole shot, the same for every frame (DESIGN.md §4:
   random streams are keyed by shot seed, not frame, so that noise is
   correlated in time).
@@ -25,10 +31,12 @@ from .analyse import resolve_auto_setting
 from .core_settings import core_settings, resolve
 from .errors import RenderCancelled, RenderError, UsageError
 from .frame_job import ShotJob, render_frame
-from .frames import default_frames, expand_outputs, parse_frames
+from .frames import check_stage_range, default_frames, expand_outputs, parse_frames
 from .options import (AOV_NAMES, PREVIEW_FORMATS, RenderOptions, check_aovs_for, default_output,
                       preview_path)
 from .output import color_setup
+from .preflight import (check_output_paths, check_state_dir, finished_frame_problem,
+                        remove_stale_temporaries)
 from .progress import Reporter
 
 __all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
@@ -142,18 +150,18 @@ def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> di
     return record
 
 
-def _outside_range_warning(frame_list, info) -> str:
-    """A warning when frames lie outside the stage's authored time range (USD
-    holds the first/last samples there), '' otherwise."""
-    if not info.has_authored_time_range:
-        return ""
-    out = [f for f in frame_list if f < info.start - 1e-9 or f > info.end + 1e-9]
-    if not out:
-        return ""
-    shown = ", ".join(f"{f:g}" for f in out[:5]) + (f" and {len(out) - 5} more"
-                                                     if len(out) > 5 else "")
-    return (f"{info.path}: frame(s) {shown} outside the stage's time range "
-            f"{info.start:g}..{info.end:g}; time samples are held there")
+def _finished_frame_expectation(resolved, opts: RenderOptions, aovs) -> dict:
+    """What a finished frame of this render holds (``finished_frame_problem``'s
+    keywords): its size, its channels (beauty and AOVs) and its data window."""
+    from ..io.exr import AOV_CHANNELS
+
+    channels = ["R", "G", "B"]
+    for name in aovs:
+        prefix, suffixes = AOV_CHANNELS[name]
+        channels += [prefix] if suffixes is None else [f"{prefix}.{c}" for c in suffixes]
+    size = tuple(int(v) for v in (opts.resolution or resolved.resolution))
+    return {"size": size, "channels": channels,
+            "crop": tuple(int(v) for v in opts.crop) if opts.crop is not None else None}
 
 
 def _frame_list(frames, info) -> List[float]:
@@ -191,13 +199,16 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
                     reporter: Optional[Reporter] = None, core=None,
-                    client=None, on_part=None) -> SequenceResult:
+                    client=None, on_part=None,
+                    force_frames: bool = False) -> SequenceResult:
     """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
     :mod:`cmlt.shot.frames`).
 
     ``frames``: None (the stage's start frame), a ``--frames`` spec, or a
-    list of time codes. Raises :class:`UsageError`, :class:`RenderError` or
-    :class:`RenderCancelled`.
+    list of time codes. Frames outside the stage's time range are a warning;
+    far outside it (:func:`cmlt.shot.frames.check_stage_range`) a UsageError
+    unless ``force_frames``. Raises :class:`UsageError`, :class:`RenderError`
+    or :class:`RenderCancelled`.
 
     ``client``: a ``distributed.Client``; the frames' parts then run as Dask tasks
     (:mod:`cmlt.shot.distributed`; ``options.dask`` = ``local:N`` or a scheduler address
@@ -219,19 +230,38 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
     check_aovs_for(aovs, resolved.integrator)
     t_start = time.perf_counter()
-    outputs = expand_outputs(out or default_output(shot), frame_list)
+    range_warning = check_stage_range(frame_list, info.start, info.end,
+                                      info.has_authored_time_range, force=force_frames,
+                                      spec=frames if isinstance(frames, str) else None)
+    pattern = out or default_output(shot)
+    outputs = expand_outputs(pattern, frame_list)
+    # before the first frame: every output can be written as an EXR (no stray sidecar of
+    # a frame whose image cannot be), the state directory is one, and the temporaries a
+    # killed render left in those directories go
+    check_output_paths(pattern, outputs, [preview_path(p, opts.preview_format)
+                                          for p in outputs] if opts.preview else ())
+    check_state_dir(opts.state_dir)
+    removed = remove_stale_temporaries([os.path.dirname(os.path.abspath(p)) for p in outputs]
+                                       + ([opts.state_dir] if opts.state_dir else []))
 
     result = SequenceResult(frames=list(frame_list), sources=dict(sources),
                             settings=_settings_record(resolved, opts, colorspace_name,
                                                       display, view, aovs))
     if auto is not None:
         result.settings["integrator_auto"] = auto.as_dict()
-    todo = []
+    todo, redo = [], []
+    expect = _finished_frame_expectation(resolved, opts, aovs)
     for f, path in zip(frame_list, outputs):
-        if resume and os.path.isfile(path):
-            result.skipped.append(path)
-        else:
-            todo.append((f, path))
+        if resume and os.path.lexists(path):
+            # a frame is skipped only when it is really done: a truncated or empty
+            # image, or one without its sidecar, is rendered again
+            why = finished_frame_problem(path, f, **expect)
+            if why is None:
+                result.skipped.append(path)
+                continue
+            redo.append(f"--resume: {path} is not a finished frame ({why}); rendering "
+                        f"frame {f:g} again")
+        todo.append((f, path))
     # the frame before each frame (temporal carry-over): the previous one in the
     # list, or for the list's first frame one step back
     step = (frame_list[1] - frame_list[0]) if len(frame_list) > 1 else 1.0
@@ -271,10 +301,15 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             raise RenderError(f"{shot}: --dask: a worker cannot open the shot: {exc}") from None
     stage_warnings = [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
-    outside = _outside_range_warning(frame_list, info)
-    if outside:
-        stage_warnings.append(outside)
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
+    if range_warning:
+        stage_warnings.append(range_warning)
+    if removed:
+        stage_warnings.append(
+            f"removed {len(removed)} temporary file(s) left by a render that was killed: "
+            + ", ".join(removed[:3]) + (f", ... ({len(removed) - 3} more)"
+                                        if len(removed) > 3 else ""))
+    stage_warnings += redo
     if cold:
         stage_warnings.append(cold)
     try:

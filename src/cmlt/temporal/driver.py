@@ -220,7 +220,10 @@ class TemporalDriver:
                 prev_picks = list(prev.start_picks)
             else:
                 f_old = []
-        c = core.temporal_couple_starts(f_old, f_new, prev_picks, int(self.settings.chains),
+        # as many starts as the render runs chains (never the requested count itself:
+        # a --chains the budget cannot feed must not allocate that many starts)
+        n_chains = int(core.temporal_chain_count(st))
+        c = core.temporal_couple_starts(f_old, f_new, prev_picks, n_chains,
                                         self.base_seed, frame_key(frame))
         picks = list(c["picks"])
         if picks:

@@ -200,11 +200,12 @@ def read_state(path: str) -> FrameState:
 
 def write_state(path: str, data: bytes) -> str:
     """Write encoded state bytes atomically (temporary name + rename)."""
+    from ..io.atomic import atomic_path
+
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    tmp = f"{path}.tmp.{os.getpid()}"
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:          # the temporary is removed on failure
+        with open(tmp, "wb") as fh:
+            fh.write(data)
     return path
 
 

@@ -93,12 +93,15 @@ def load_texture(path: str, source_colorspace: Optional[str] = "auto", *,
 
     inp = oiio.ImageInput.open(local_path(path))
     if inp is None:
-        raise OSError(f"texture {path}: cannot read: {oiio.geterror()}")
+        from ..io.image import read_error_reason
+        raise OSError(f"texture {path}: cannot read: {read_error_reason(path, oiio.geterror())}")
     try:
         spec = inp.spec()
         pixels = inp.read_image(oiio.FLOAT)
         if pixels is None:
-            raise OSError(f"texture {path}: cannot read pixels: {inp.geterror()}")
+            from ..io.image import read_error_reason
+            raise OSError(f"texture {path}: cannot read pixels: "
+                          f"{read_error_reason(path, inp.geterror())}")
         bits = str(spec.format)          # "uint8", "uint16", "half", "float"
     finally:
         inp.close()

@@ -19,6 +19,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cmath>
 #include <mutex>
 
@@ -109,6 +110,18 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
 
 uint64_t bootstrap_count(const RenderSettings& settings) {
     return mlt::FrameBudget::plan(settings).bootstrap;
+}
+
+uint64_t chain_count(const RenderSettings& settings) {
+    const uint64_t n_mut = mlt::FrameBudget::plan(settings).chains;
+    const uint64_t asked = uint64_t(std::max(settings.chains, 1));
+    if (settings.integrator == "pssmlt") return std::min(asked, n_mut);
+    if (settings.integrator == "cmlt") {
+        if (n_mut == 0) return 0;
+        const uint64_t block = 1 + uint64_t(settings.inner_length) * uint64_t(settings.tries);
+        return std::min(asked, std::max<uint64_t>(1, n_mut / block));
+    }
+    return 0;
 }
 
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,

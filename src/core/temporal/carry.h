@@ -48,6 +48,14 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
 /// samples, half of what the pilot and the direct pass leave)).
 uint64_t bootstrap_count(const RenderSettings& settings);
 
+/// Chains a render with these settings starts without initial states: settings.chains,
+/// at most one per evaluation the budget leaves the chains (pssmlt), at most one per
+/// block of 1 + inner_length·tries evaluations (cmlt), at least 1; 0 for pt and bdpt,
+/// and when no chains are needed. As pssmlt_integrator.cpp and cmlt_integrator.cpp
+/// count them (tests/python/temporal compares it with the render's `chains` stat): the
+/// temporal driver asks this many starts, never more, so a huge --chains costs nothing.
+uint64_t chain_count(const RenderSettings& settings);
+
 /// The render's bootstrap points — large steps keyed (settings.seed, bootstrap, i),
 /// i < count — evaluated in `scene` as the render evaluates them: their states, f_star
 /// = f*. Given to the render (RenderSettings::mlt_bootstrap_f) the render does not

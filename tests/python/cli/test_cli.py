@@ -160,8 +160,8 @@ def _bad(make_shot, tiny_shot, tmp_path):
                            "--output-colorspace 'nope': unknown colour space"),
         "bad ocio config": (["render", tiny_shot, "--ocio-config", str(tmp_path / "no.ocio"),
                              "--out", out], 2, "--ocio-config"),
-        "unwritable out": (["render", tiny_shot, *FAST, "--out", _file_as_dir(tmp_path)], 1,
-                           "cannot write"),
+        "unwritable out": (["render", tiny_shot, *FAST, "--out", _file_as_dir(tmp_path)], 2,
+                           "cannot write into"),
         "inspect missing": (["inspect", str(tmp_path / "gone.usda")], 2, "gone.usda: no such file"),
         "no command": ([], 2, "COMMAND"),
     }

@@ -9,6 +9,7 @@ that was rendered (float, zip).
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 import OpenImageIO as oiio
@@ -17,6 +18,7 @@ import pytest
 from pxr import Sdf, Usd, UsdShade
 
 import cmlt.shot.frame_job as seqmod
+from cmlt.io.atomic import TEMP_MARKER
 from cmlt.color import GAMUT_CHROMATICITIES, get_config, load_config, set_config
 from cmlt.shot import RenderOptions, render_sequence
 from cmlt.usd import load_frame, open_stage
@@ -170,7 +172,12 @@ def _spy_writes(monkeypatch):
     real = seqmod.write_exr
 
     def spy(path, image, **kw):
-        written[path] = np.array(image, dtype=np.float32, copy=True)
+        # the frame loop writes to a temporary name (cmlt.io.atomic) renamed afterwards:
+        # key by the final name
+        head, tail = os.path.split(path)
+        m = re.match(r"^\.(.+)" + re.escape(TEMP_MARKER) + r".*?(\.[^.]*)$", tail)
+        final = os.path.join(head, m.group(1) + m.group(2)) if m else path
+        written[final] = np.array(image, dtype=np.float32, copy=True)
         return real(path, image, **kw)
     monkeypatch.setattr(seqmod, "write_exr", spy)
     return written

@@ -21,6 +21,9 @@ from cmlt.shot.errors import UsageError
     ("3:3", [3.0]),
     ("0", [0.0]),
     ("1:10x4", [1.0, 5.0, 9.0]),         # the end need not be on the stride
+    ("1-4", [1.0, 2.0, 3.0, 4.0]),       # husk's spelling of a range
+    ("1-5x2", [1.0, 3.0, 5.0]),
+    ("2,4-6", [2.0, 4.0, 5.0, 6.0]),
 ])
 def test_parse_frames(spec, expected):
     assert parse_frames(spec) == expected
