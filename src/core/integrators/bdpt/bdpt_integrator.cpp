@@ -3,6 +3,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/common/error_target.h"
 #include "integrators/common/frame_loop.h"
 #include "scene/scene.h"
 #include "util/fp_mode.h"
@@ -57,7 +58,10 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const PassSchedule schedule(settings, t0);
     bool cancelled = false;
     int done = 0;
-    while (const int n = schedule.next(done)) {
+    ErrorTarget target(settings.target_error, k_target_min_passes);
+    std::vector<float> est_mean, est_var;  // the film developed for the target's estimates
+    bool target_reached = false;
+    while (const int n = target_chunk(target, done, schedule.next(done), schedule.timed(), settings.spp - done)) {
         const int s1 = done + n;
         for (int pass = done; pass < s1; ++pass) {
             // Trace: one sample per pixel, splats kept per tile.
@@ -124,6 +128,16 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
             });
         }
         done = s1;
+        if (target.enabled()) {
+            est_mean.resize(size_t(W) * H * 3);
+            est_var.resize(size_t(W) * H * 3);
+            film.develop(est_mean.data(), est_var.data());
+            if (target.reached(double(done), schedule.elapsed(),
+                               estimate_from_variance(est_mean.data(), est_var.data(), W, H))) {
+                target_reached = true;
+                break;
+            }
+        }
         if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
             schedule.next(done) > 0) {
             cancelled = true;
@@ -139,6 +153,11 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     res.variance.resize(n_pix * 3);
     film.develop(res.image.data(), res.variance.data());
     res.cancelled = cancelled;
+    const ErrorValue err = estimate_from_variance(res.image.data(), res.variance.data(), W, H);
+    res.error_estimate = err.relmse;
+    res.error_stderr = err.stderr_;
+    res.error_history = target.take_history();
+    res.stop_reason = stop_reason(cancelled, target_reached, schedule.timed(), secs, settings.time_budget);
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
     st.splats = counters.splats.load();

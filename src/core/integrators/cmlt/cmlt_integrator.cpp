@@ -108,7 +108,8 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     const uint64_t max_chains = std::max<uint64_t>(1, n_mut / block);
     const uint64_t n_chains = initial ? std::min<uint64_t>(initial->chains.size(), max_chains)
                                       : std::min<uint64_t>(uint64_t(settings.chains), max_chains);
-    mlt::SplatFilm film(W, H);
+    mlt::SplatFilm film(W, H, mlt::error_layers(settings));
+    const int groups = film.layers();
     mlt::DirectSchedule direct{direct_pass, settings, arena, counters};
 
     auto make_target = [&](PathCounters* c, coherent::BundleCounters* bundle) {
@@ -213,6 +214,12 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     bool cancelled = false;
     ChainSchedule schedule(settings, t0, chains.size());
     uint64_t evaluations = 0;
+    ErrorTarget err_target(settings.target_error, 0.0);
+    bool target_reached = false;
+    if (schedule.targeted() && groups < 3)
+        CMLT_THROW(SettingsError, "RenderSettings.target_error: cmlt needs error_groups >= 3 for its estimate");
+    if (schedule.targeted())
+        schedule.set_fraction(mlt::target_first_fraction(pixels, chains.size(), block, n_mut));
     while (!chains.empty() && schedule.begin_round(evaluations)) {
         direct.before_round(schedule, evaluations);
         arena.execute([&] {
@@ -226,7 +233,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                     ChainState& st = *chains[ci];
                     const uint64_t end = schedule.round_end(st.budget, st.evaluations);
                     auto splat = [&](const State& s, double w) {
-                        if (s.sample.f > 0.0) film.add(s.sample.pixel, s.sample.L, w / s.sample.f);
+                        if (s.sample.f > 0.0) film.add(s.sample.pixel, s.sample.L, w / s.sample.f, int(ci % size_t(groups)));
                     };
                     auto record = [&](const mlt::StepResult& res) {
                         st.evaluations += res.evaluations;
@@ -267,11 +274,23 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                 bundle_stats.merge(bc);
             });
         });
+        if (schedule.targeted()) {
+            uint64_t chain_evals = 0;
+            for (const auto& st : chains) chain_evals += st->evaluations;
+            const double work = double(budget.pilot + direct_pass.evaluations() + budget.bootstrap + chain_evals) / double(pixels);
+            const ErrorValue e = mlt::estimate_groups(
+                film, mlt::group_counts(chains, groups, [](const auto& st) { return st.steps; }),
+                mlt::b_so_far(boot_acc, chains), direct_pass.develop());
+            if (mlt::target_round(err_target, schedule, e, work, chain_evals, n_mut)) {
+                target_reached = true;
+                break;
+            }
+        }
         if (!schedule.end_round(chains, [](const ChainState& st) { return st.evaluations; }, progress,
                                 &evaluations, &cancelled))
             break;
     }
-    direct.finish(cancelled, !chains.empty(), t0);
+    direct.finish(cancelled || target_reached, !chains.empty(), t0);
     const PtPassImage direct_image = direct_pass.develop();
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -298,6 +317,16 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
     res.width = W;
     res.height = H;
     mlt::develop_image(res, film, b.mean, steps, direct_image);
+    if (groups >= 3) {
+        std::vector<double> counts = mlt::group_counts(chains, groups, [](const auto& st) { return st.steps; });
+        const ErrorValue err = mlt::estimate_groups(film, counts, b, direct_image, &res.group_images);
+        res.error_estimate = err.relmse;
+        res.error_stderr = err.stderr_;
+        if (err.valid()) res.group_weights = std::move(counts);
+        else res.group_images.clear();
+    }
+    res.error_history = err_target.take_history();
+    res.stop_reason = stop_reason(cancelled, target_reached, schedule.timed(), secs, settings.time_budget);
     res.cancelled = cancelled;
     res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
     res.mlt_states = export_states();

@@ -115,7 +115,15 @@ public:
     static constexpr int k_rounds = 16;  ///< progress / cancel granularity of a fixed budget
 
     ChainSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point frame_start, uint64_t chains)
-        : m_seconds(s.time_budget), m_spp(s.spp), m_start(frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
+        : m_seconds(s.time_budget), m_spp(s.spp), m_start(frame_start), m_chains(std::max<uint64_t>(chains, 1)),
+          m_target(s.target_error > 0.0) {}
+
+    /// With a target error (error_target.h): rounds end at a share `f` of each chain's
+    /// budget set before each round (and within the time budget's quota, if timed)
+    /// instead of the k_rounds slices.
+    bool targeted() const { return m_target; }
+    void set_fraction(double f) { m_fraction = std::min(1.0, std::max(f, 0.0)); }
+    double fraction() const { return m_fraction; }
 
     bool timed() const { return m_seconds > 0.0; }
     double elapsed() const {
@@ -125,7 +133,7 @@ public:
     /// Begin the next round; false when the frame is done. `evaluations_so_far`: every
     /// chain's evaluations summed (for the rate).
     bool begin_round(uint64_t evaluations_so_far) {
-        if (!timed()) return m_round < k_rounds;
+        if (!timed()) return m_target || m_round < k_rounds;  // targeted: until the budget is spent
         const double t = elapsed();
         if (m_round > 0 && t >= m_seconds) return false;
         if (m_round == 0) {
@@ -142,6 +150,10 @@ public:
     }
     /// Evaluation count chain with `budget` and `done` evaluations runs to this round.
     uint64_t round_end(uint64_t budget, uint64_t done) const {
+        if (m_target) {
+            const uint64_t want = std::min(budget, uint64_t(std::ceil(double(budget) * m_fraction)));
+            return timed() ? std::min(want, done + m_quota) : want;
+        }
         if (!timed()) return budget * uint64_t(m_round + 1) / k_rounds;
         return std::min(budget, done + m_quota);
     }
@@ -168,11 +180,11 @@ public:
         return true;
     }
     int round() const { return m_round; }
-    bool last_round() const { return !timed() && m_round >= k_rounds; }
+    bool last_round() const { return !timed() && !m_target && m_round >= k_rounds; }
 
     uint64_t progress_done() const {
-        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0)
-                       : uint64_t(m_spp) * uint64_t(m_round) / k_rounds;
+        if (timed()) return uint64_t(std::min(elapsed(), m_seconds) * 1000.0);
+        return m_target ? uint64_t(double(m_spp) * m_fraction) : uint64_t(m_spp) * uint64_t(m_round) / k_rounds;
     }
     uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
 
@@ -184,6 +196,8 @@ private:
     int m_round = 0;
     double m_rate_t0 = 0.0;
     uint64_t m_quota = 16;
+    bool m_target = false;
+    double m_fraction = 1.0;
 };
 
 }  // namespace cmlt

@@ -4,6 +4,7 @@
 #include "film/film.h"
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
+#include "integrators/common/error_target.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/mlt/pssmlt_integrator.h"
 #include "integrators/path/path_tracer.h"
@@ -61,7 +62,10 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     const PassSchedule schedule(settings, t0);
     bool cancelled = false;
     int done = 0;
-    while (const int n = schedule.next(done)) {
+    ErrorTarget target(settings.target_error, k_target_min_passes);
+    std::vector<float> est_mean, est_var;  // the film developed for the target's estimates
+    bool target_reached = false;
+    while (const int n = target_chunk(target, done, schedule.next(done), schedule.timed(), settings.spp - done)) {
         const int s0 = done, s1 = done + n;
         arena.execute([&] {
             tbb::parallel_for(
@@ -85,6 +89,16 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
                 tbb::simple_partitioner());
         });
         done = s1;
+        if (target.enabled()) {
+            est_mean.resize(size_t(W) * H * 3);
+            est_var.resize(size_t(W) * H * 3);
+            film.develop(est_mean.data(), est_var.data());
+            if (target.reached(double(done), schedule.elapsed(),
+                               estimate_from_variance(est_mean.data(), est_var.data(), W, H))) {
+                target_reached = true;
+                break;
+            }
+        }
         if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
             schedule.next(done) > 0) {
             cancelled = true;
@@ -100,6 +114,11 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
     res.variance.resize(size_t(W) * H * 3);
     film.develop(res.image.data(), res.variance.data());
     res.cancelled = cancelled;
+    const ErrorValue err = estimate_from_variance(res.image.data(), res.variance.data(), W, H);
+    res.error_estimate = err.relmse;
+    res.error_stderr = err.stderr_;
+    res.error_history = target.take_history();
+    res.stop_reason = stop_reason(cancelled, target_reached, schedule.timed(), secs, settings.time_budget);
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
     st.nan_samples = film.nan_samples();

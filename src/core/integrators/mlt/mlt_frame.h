@@ -15,6 +15,7 @@
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
 #include "cameras/camera.h"
 #include "film/film.h"
+#include "integrators/common/error_target.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/mlt/mlt_context.h"
 #include "integrators/mlt/splat_film.h"
@@ -131,6 +132,8 @@ struct DirectSchedule {
     void before_round(const ChainSchedule& rounds, uint64_t chain_evaluations) {
         if (!pass.enabled()) return;
         if (rounds.timed()) pass.render_to(arena, pass.passes_for(chain_evaluations), counters);
+        else if (rounds.targeted())
+            pass.render_to(arena, int(std::ceil(MltContext::direct_spp(settings) * rounds.fraction())), counters);
         else pass.render_to(arena, MltContext::direct_spp(settings) * (rounds.round() + 1) / ChainSchedule::k_rounds,
                             counters);
     }
@@ -268,6 +271,80 @@ inline void develop_image(RenderResult& res, const SplatFilm& film, double b, ui
         res.direct = direct.mean;
         res.variance = direct.variance;
     }
+}
+
+/// Layers of the frame's splat film: the error groups (RenderSettings.error_groups; chain
+/// c splats into layer c mod G), or 1 without an estimate.
+inline int error_layers(const RenderSettings& s) { return s.error_groups >= 3 ? s.error_groups : 1; }
+
+/// The relMSE estimate of a Metropolis frame from its film's layers (error_target.h):
+/// group g's image is b·W·H/steps[g] times its layer plus the direct pass; every group
+/// shares the direct pass's variance and b's, (b_se/b)² on the chains' part. Optionally
+/// writes the group images (G, H, W, 3). No estimate without >= 3 layers.
+inline ErrorValue estimate_groups(const SplatFilm& film, const std::vector<double>& steps,
+                                  const NormalisationEstimate& b, const PtPassImage& direct,
+                                  std::vector<float>* group_images = nullptr) {
+    const int G = film.layers();
+    if (G < 3 || int(steps.size()) != G || !(b.mean > 0.0)) return ErrorValue{};
+    const size_t pixels = size_t(film.width()) * size_t(film.height()), n = pixels * 3;
+    double total = 0.0;
+    std::vector<double> scale(static_cast<size_t>(G));
+    for (int g = 0; g < G; ++g) {
+        total += steps[size_t(g)];
+        scale[size_t(g)] = steps[size_t(g)] > 0.0 ? b.mean * double(pixels) / steps[size_t(g)] : 0.0;
+    }
+    if (total <= 0.0) return ErrorValue{};
+    const double s_all = b.mean * double(pixels) / total;
+    const double b_rel_var = b.std_error > 0.0 ? (b.std_error / b.mean) * (b.std_error / b.mean) : 0.0;
+    const bool has_direct = !direct.mean.empty();
+    auto group = [&](size_t g, size_t i) {
+        return scale[g] * film.layer_sum(int(g), i / 3, int(i % 3)) + (has_direct ? double(direct.mean[i]) : 0.0);
+    };
+    auto shared = [&](size_t i) {
+        const double c = s_all * film.sum(i / 3, int(i % 3));
+        return (has_direct ? double(direct.variance[i]) : 0.0) + b_rel_var * c * c;
+    };
+    if (group_images) {
+        group_images->resize(size_t(G) * n);
+        for (size_t g = 0; g < size_t(G); ++g)
+            for (size_t i = 0; i < n; ++i) (*group_images)[g * n + i] = float(group(g, i));
+    }
+    return estimate_from_groups(n, steps, group, shared);
+}
+
+/// Image normalisation counts per error group: `count(chain)` of chain c added to
+/// group c mod G.
+template <class Chains, class Count>
+std::vector<double> group_counts(const Chains& chains, int G, Count count) {
+    std::vector<double> out(size_t(std::max(G, 1)), 0.0);
+    for (size_t c = 0; c < chains.size(); ++c) out[c % out.size()] += double(count(*chains[c]));
+    return out;
+}
+
+/// b so far: the bootstrap and every chain's large steps (chain order).
+template <class Chains>
+NormalisationEstimate b_so_far(const NormalisationAccumulator& boot, const Chains& chains) {
+    NormalisationAccumulator acc = boot;
+    for (const auto& st : chains) acc.merge(st->large);
+    return acc.estimate();
+}
+
+/// After a chain round of a frame with a target error: the estimate, recorded in `t`;
+/// true when the target is reached (not before the second round), else the schedule's
+/// next share of the chains' budget (`evaluations` of `chain_budget` spent so far).
+/// `work`: path evaluations per pixel so far (the history's unit).
+inline bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorValue& e, double work,
+                         uint64_t evaluations, uint64_t chain_budget) {
+    const bool reached = t.reached(work, schedule.elapsed(), e) && schedule.round() >= 1;
+    if (!reached && chain_budget > 0) schedule.set_fraction(t.next_work(double(evaluations) / double(chain_budget)));
+    return reached;
+}
+
+/// The first share of the chains' budget a targeted frame runs: about 4 evaluations per
+/// pixel, and at least 2 blocks (`block` evaluations) per chain.
+inline double target_first_fraction(uint64_t pixels, uint64_t chains, uint64_t block, uint64_t chain_budget) {
+    if (chain_budget == 0) return 1.0;
+    return std::min(1.0, double(std::max(4 * pixels, 2 * block * chains)) / double(chain_budget));
 }
 
 /// MltStats fields both Metropolis integrators fill the same way.

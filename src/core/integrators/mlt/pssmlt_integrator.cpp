@@ -124,7 +124,8 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     const uint64_t n_mut = budget.chains;
     const uint64_t n_chains = initial ? std::min<uint64_t>(initial->chains.size(), n_mut)
                                       : std::min<uint64_t>(uint64_t(settings.chains), n_mut);
-    mlt::SplatFilm film(W, H);
+    mlt::SplatFilm film(W, H, mlt::error_layers(settings));
+    const int groups = film.layers();
     mlt::DirectSchedule direct{direct_pass, settings, arena, counters};
 
     // 2. bootstrap: N independent large-step samples, keyed (seed, bootstrap, i)
@@ -202,6 +203,12 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     bool cancelled = false;
     ChainSchedule schedule(settings, t0, chains.size());
     uint64_t evaluations = 0;
+    ErrorTarget err_target(settings.target_error, 0.0);
+    bool target_reached = false;
+    if (schedule.targeted() && groups < 3)
+        CMLT_THROW(SettingsError, "RenderSettings.target_error: pssmlt needs error_groups >= 3 for its estimate");
+    if (schedule.targeted())
+        schedule.set_fraction(mlt::target_first_fraction(pixels, chains.size(), 1, n_mut));
     while (!chains.empty() && schedule.begin_round(evaluations)) {
         direct.before_round(schedule, evaluations);
         arena.execute([&] {
@@ -215,7 +222,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                     PathSample last;
                     const SamplerProposal proposal{&tracer, &st.sampler, &c, &last};
                     auto splat = [&](const PathSample& s, double w) {
-                        if (s.f > 0.0) film.add(s.pixel, s.L, w / s.f);
+                        if (s.f > 0.0) film.add(s.pixel, s.L, w / s.f, int(k % size_t(groups)));
                     };
                     for (; st.done < end; ++st.done) {
                         const bool large = st.sampler.start_iteration();
@@ -233,11 +240,23 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                 counters.add(c);
             });
         });
+        if (schedule.targeted()) {
+            uint64_t chain_evals = 0;
+            for (const auto& st : chains) chain_evals += st->done;
+            const double work = double(budget.pilot + direct_pass.evaluations() + budget.bootstrap + chain_evals) / double(pixels);
+            const ErrorValue e = mlt::estimate_groups(
+                film, mlt::group_counts(chains, groups, [](const auto& st) { return st.done; }),
+                mlt::b_so_far(boot_acc, chains), direct_pass.develop());
+            if (mlt::target_round(err_target, schedule, e, work, chain_evals, n_mut)) {
+                target_reached = true;
+                break;
+            }
+        }
         if (!schedule.end_round(chains, [](const ChainRun& st) { return st.done; }, progress,
                                 &evaluations, &cancelled))
             break;
     }
-    direct.finish(cancelled, !chains.empty(), t0);
+    direct.finish(cancelled || target_reached, !chains.empty(), t0);
     const PtPassImage direct_image = direct_pass.develop();
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -264,6 +283,16 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
     res.width = W;
     res.height = H;
     mlt::develop_image(res, film, b.mean, mutations, direct_image);
+    if (groups >= 3) {
+        std::vector<double> counts = mlt::group_counts(chains, groups, [](const auto& st) { return st.done; });
+        const ErrorValue err = mlt::estimate_groups(film, counts, b, direct_image, &res.group_images);
+        res.error_estimate = err.relmse;
+        res.error_stderr = err.stderr_;
+        if (err.valid()) res.group_weights = std::move(counts);
+        else res.group_images.clear();
+    }
+    res.error_history = err_target.take_history();
+    res.stop_reason = stop_reason(cancelled, target_reached, schedule.timed(), secs, settings.time_budget);
     res.cancelled = cancelled;
     res.bootstrap_f.assign(boot_f.begin(), boot_f.end());
     res.mlt_states = std::move(states);
