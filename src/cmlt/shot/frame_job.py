@@ -155,7 +155,7 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
 
 
 def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record, metadata,
-           aovs, state_bytes):
+           aovs, state_bytes, group_images=None):
     """Preview, state and sidecar, then the EXR; returns (state file, preview)."""
     opts = job.opts
     pv = state_file = None
@@ -171,6 +171,9 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
             from ..temporal.state import state_path, write_state
             state_file = write_state(state_path(opts.state_dir, frame), state_bytes)
             record["temporal"]["state_out"] = os.path.abspath(state_file)
+        groups = _group_images(job, group_images, path)
+        if groups:
+            record["error_group_images"] = groups
         write_sidecar(path, record)
         write_exr(path, out_image, half=opts.half, compression=opts.compression,
                   colorspace=None, metadata=metadata, attributes=job.color_attrs,
@@ -179,6 +182,27 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
         where = f" ({exc.filename})" if exc.filename and exc.filename != path else ""
         raise RenderError(f"{path}: cannot write: {exc.strerror or exc}{where}") from None
     return state_file, pv
+
+
+def group_image_path(path: str, g: int) -> str:
+    """Where ``--group-images`` writes error group g of the frame at ``path``."""
+    root, ext = os.path.splitext(path)
+    return f"{root}.group{g}{ext or '.exr'}"
+
+
+def _group_images(job: ShotJob, r_groups, path: str):
+    """``--group-images``: each error group's image (pssmlt/cmlt, before the temporal
+    normalisation) as its own EXR beside the frame; their file names, or None."""
+    if r_groups is None or not getattr(job.st, "keep_group_images", False):
+        return None
+    names = []
+    for g, img in enumerate(np.asarray(r_groups)):
+        gp = group_image_path(path, g)
+        write_exr(gp, np.ascontiguousarray(img, dtype=np.float32), half=job.opts.half,
+                  compression=job.opts.compression, colorspace=None,
+                  attributes=job.color_attrs, metadata={"errorGroup": g})
+        names.append(os.path.basename(gp))
+    return names
 
 
 def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dict[str, Any]:
@@ -222,6 +246,6 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
                                temporal=trec)
     out_image = to_output(image, opts.output_colorspace)
     state_file, pv = _write(job, path, frame, image, out_image, crop, record, metadata, aovs,
-                            state_bytes)
+                            state_bytes, getattr(r, "group_images", None))
     return {"out_image": out_image, "stats": stats, "state_bytes": state_bytes,
             "state_file": state_file, "preview": pv, "units": units}

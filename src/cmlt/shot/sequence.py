@@ -185,7 +185,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
-    check_aovs_for(aovs, resolved.integrator)
+    check_aovs_for(aovs, resolved.integrator, getattr(resolved, "error_groups", 8))
     t_start = time.perf_counter()
     frame_list = _frame_list(frames, info)
     outputs = expand_outputs(out or default_output(shot), frame_list)
