@@ -17,7 +17,7 @@
 /// Stopping (ErrorTarget): the frame stops when the estimate E ≤ target and its standard
 /// error < E / 4, after at least a minimum of work (16 passes; 2 chain rounds); the sample
 /// and time budgets still bound it. The next chunk of work is predicted from relMSE ∝
-/// 1 / work: work · E / (0.85 · target), at least 1.15× and at most 2× the work so far, so
+/// 1 / work: work · E / (0.95 · target), at least 1.1× and at most 2× the work so far, so
 /// the frame ends close to the target instead of a budget slice past it.
 #include <algorithm>
 #include <array>
@@ -146,10 +146,10 @@ public:
     double next_work(double work) const {
         double want = 2.0 * work;
         if (m_last.valid() && m_last.relmse > 0.0) {
-            if (m_last.relmse > m_target) want = work * m_last.relmse / (0.85 * m_target);
+            if (m_last.relmse > m_target) want = work * m_last.relmse / (0.95 * m_target);
             else want = 1.25 * work;  // below the target, but its standard error too large
         }
-        want = std::min(std::max(want, 1.15 * work), 2.0 * work);
+        want = std::min(std::max(want, 1.1 * work), 2.0 * work);
         return std::max(want, m_min_work);
     }
     const std::vector<std::array<double, 4>>& history() const { return m_history; }
