@@ -281,7 +281,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
             const ErrorValue e = mlt::estimate_groups(
                 film, mlt::group_counts(chains, groups, [](const auto& st) { return st.steps; }),
                 mlt::b_so_far(boot_acc, chains), direct_pass.develop());
-            if (mlt::target_round(err_target, schedule, e, work, chain_evals, n_mut)) {
+            if (mlt::target_round(err_target, schedule, e, work, chain_evals, n_mut, groups)) {
                 target_reached = true;
                 break;
             }

@@ -15,7 +15,7 @@
 ///   chains' part C; standard error by the delete-one-group jackknife.
 ///
 /// Stopping (ErrorTarget): the frame stops when the estimate E ≤ target and its standard
-/// error < E / 4, after at least a minimum of work (16 passes; 2 chain rounds); the sample
+/// error < E / 4, after at least a minimum of work (16 passes; 2G chain rounds); the sample
 /// and time budgets still bound it. The next chunk of work is predicted from relMSE ∝
 /// 1 / work: work · E / (0.95 · target), at least 1.1× and at most 2× the work so far, so
 /// the frame ends close to the target instead of a budget slice past it.

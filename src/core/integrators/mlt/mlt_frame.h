@@ -330,21 +330,28 @@ NormalisationEstimate b_so_far(const NormalisationAccumulator& boot, const Chain
 }
 
 /// After a chain round of a frame with a target error: the estimate, recorded in `t`;
-/// true when the target is reached (not before the second round), else the schedule's
+/// true when the target is reached (not before round 2G, the first 2G rounds being equal
+/// slices: the chains must have moved before their groups' spread means much), else the
+/// schedule's
 /// next share of the chains' budget (`evaluations` of `chain_budget` spent so far).
 /// `work`: path evaluations per pixel so far (the history's unit).
 inline bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorValue& e, double work,
-                         uint64_t evaluations, uint64_t chain_budget) {
-    const bool reached = t.reached(work, schedule.elapsed(), e) && schedule.round() >= 1;
-    if (!reached && chain_budget > 0) schedule.set_fraction(t.next_work(double(evaluations) / double(chain_budget)));
-    return reached;
+                         uint64_t evaluations, uint64_t chain_budget, int groups) {
+    const int done = schedule.round() + 1;  // rounds run
+    const bool reached = t.reached(work, schedule.elapsed(), e) && done >= 2 * groups;
+    if (reached || chain_budget == 0) return reached;
+    const double f = double(evaluations) / double(chain_budget);
+    // the first 2G rounds grow linearly (equal slices), then as the target predicts
+    schedule.set_fraction(done < 2 * groups ? f * double(done + 1) / double(done) : t.next_work(f));
+    return false;
 }
 
-/// The first share of the chains' budget a targeted frame runs: about 4 evaluations per
-/// pixel, and at least 2 blocks (`block` evaluations) per chain.
+/// The first share of the chains' budget a targeted frame runs (and each of its first 2G
+/// rounds): about 2 evaluations per pixel, and at least 1 block (`block` evaluations)
+/// per chain.
 inline double target_first_fraction(uint64_t pixels, uint64_t chains, uint64_t block, uint64_t chain_budget) {
     if (chain_budget == 0) return 1.0;
-    return std::min(1.0, double(std::max(4 * pixels, 2 * block * chains)) / double(chain_budget));
+    return std::min(1.0, double(std::max(2 * pixels, block * chains)) / double(chain_budget));
 }
 
 /// MltStats fields both Metropolis integrators fill the same way.
