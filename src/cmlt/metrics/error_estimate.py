@@ -58,6 +58,16 @@ splitting the pixels into k x k interleaved (polyphase) sub-images, whose estima
 nearly independent (pt pixels are; bdpt's light-tracing splats couple them a little)
 and see nearly the same content: stderr = sd over the k^2 sub-estimates / k.
 
+Chain groups in one render
+--------------------------
+pssmlt and cmlt with ``error_groups`` G >= 3 (default 8): chain c splats into film layer
+c mod G, so one render hands over G images of the frame (RenderResult.group_images, each
+its chains' splats normalised by their own step count plus the direct pass; weights: the
+step counts), whose weighted mean is the image. The core computes the same estimate
+(src/core/integrators/common/error_target.h) between chain rounds, to stop at
+``target_error``; the direct pass, identical in every group, adds its own per-pass
+variance (``shared_var``).
+
 A shared scale
 --------------
 pssmlt and cmlt multiply the chains' image by one normalisation b shared by every chain

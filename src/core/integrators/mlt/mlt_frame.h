@@ -347,11 +347,13 @@ inline bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorVal
 }
 
 /// The first share of the chains' budget a targeted frame runs (and each of its first 2G
-/// rounds): about 2 evaluations per pixel, and at least 1 block (`block` evaluations)
-/// per chain.
+/// rounds): 2 evaluations per pixel (a chain whose share is less than one block of
+/// `block` evaluations runs a block in the rounds where its share passes one).
 inline double target_first_fraction(uint64_t pixels, uint64_t chains, uint64_t block, uint64_t chain_budget) {
+    (void)chains;
+    (void)block;
     if (chain_budget == 0) return 1.0;
-    return std::min(1.0, double(std::max(2 * pixels, block * chains)) / double(chain_budget));
+    return std::min(1.0, double(2 * pixels) / double(chain_budget));
 }
 
 /// MltStats fields both Metropolis integrators fill the same way.
