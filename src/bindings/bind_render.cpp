@@ -38,6 +38,8 @@ struct PyRenderResult {
     nb::object direct;  ///< None unless an MLT render had a direct pass
     nb::object bootstrap_f;  ///< float32 (N,) for pssmlt / cmlt, else None
     bool cancelled = false;
+    nb::object group_images;   ///< float32 (G, H, W, 3) of the error groups, else None
+    nb::object group_weights;  ///< their image normalisation counts (list), else None
     nb::dict stats;
     std::shared_ptr<mlt::ChainStates> mlt_states;  ///< pssmlt / cmlt, else None
     std::shared_ptr<mlt::ChainStates> mlt_start_states;
@@ -137,6 +139,18 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         out.bootstrap_f = nb::ndarray<nb::numpy, float>(heap->data(), 1, shape, owner).cast();
     }
     out.cancelled = res.cancelled;
+    if (res.group_images.empty()) {
+        out.group_images = nb::none();
+        out.group_weights = nb::none();
+    } else {
+        auto* heap = new std::vector<float>(std::move(res.group_images));
+        nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+        size_t shape[4] = {res.group_weights.size(), size_t(res.height), size_t(res.width), 3};
+        out.group_images = nb::ndarray<nb::numpy, float>(heap->data(), 4, shape, owner).cast();
+        nb::list w;
+        for (double v : res.group_weights) w.append(v);
+        out.group_weights = w;
+    }
     out.mlt_states = std::move(res.mlt_states);
     out.mlt_start_states = std::move(res.mlt_start_states);
     out.mlt_part = nb::none();
@@ -171,6 +185,16 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     d["spp"] = st.spp;
     d["seed"] = st.seed;
     d["cancelled"] = res.cancelled;
+    d["stop_reason"] = res.stop_reason;
+    if (std::isfinite(res.error_estimate)) {
+        d["error_estimate"] = res.error_estimate;
+        d["error_stderr"] = res.error_stderr;
+    }
+    if (!res.error_history.empty()) {
+        nb::list h;
+        for (const auto& r : res.error_history) h.append(nb::make_tuple(r[0], r[1], r[2], r[3]));
+        d["error_history"] = h;
+    }
     if (st.mlt.enabled) {
         const MltStats& m = st.mlt;
         d["b"] = m.b;
@@ -271,6 +295,12 @@ void bind_render(nb::module_& m) {
                 "pssmlt/cmlt: float32 (N,) f* of the bootstrap samples by index (the same "
                 "points every frame with stored seeds); None otherwise")
         .def_ro("cancelled", &PyRenderResult::cancelled)
+        .def_ro("group_images", &PyRenderResult::group_images,
+                "pssmlt/cmlt with error_groups G >= 3: float32 (G, H, W, 3), the image of each "
+                "chain group (chain c in group c mod G); None otherwise")
+        .def_ro("group_weights", &PyRenderResult::group_weights,
+                "the group images' weights (their chains' image normalisation counts); None "
+                "without groups")
         .def_ro("stats", &PyRenderResult::stats)
         .def_ro("mlt_start_states", &PyRenderResult::mlt_start_states,
                 "pssmlt/cmlt: MltStates every chain started the frame from; None otherwise")

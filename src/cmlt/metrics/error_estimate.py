@@ -58,6 +58,16 @@ splitting the pixels into k x k interleaved (polyphase) sub-images, whose estima
 nearly independent (pt pixels are; bdpt's light-tracing splats couple them a little)
 and see nearly the same content: stderr = sd over the k^2 sub-estimates / k.
 
+Chain groups in one render
+--------------------------
+pssmlt and cmlt with ``error_groups`` G >= 3 (default 8): chain c splats into film layer
+c mod G, so one render hands over G images of the frame (RenderResult.group_images, each
+its chains' splats normalised by their own step count plus the direct pass; weights: the
+step counts), whose weighted mean is the image. The core computes the same estimate
+(src/core/integrators/common/error_target.h) between chain rounds, to stop at
+``target_error``; the direct pass, identical in every group, adds its own per-pass
+variance (``shared_var``).
+
 A shared scale
 --------------
 pssmlt and cmlt multiply the chains' image by one normalisation b shared by every chain
@@ -116,13 +126,16 @@ DEFAULT_DENOMINATOR = "geometric"
 
 def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
                 scale_rel_var: float = 0.0, scaled: Optional[np.ndarray] = None,
-                denominator: str = DEFAULT_DENOMINATOR) -> np.ndarray:
+                denominator: str = DEFAULT_DENOMINATOR,
+                shared_var: Optional[np.ndarray] = None) -> np.ndarray:
     """Per pixel and channel: e = v / D, v the variance of the mean (plus s C^2 with
-    s = scale_rel_var, C = scaled, default the image) and D one of DENOMINATORS:
-    ``corrected`` max(I^2 - v, 0) + eps, ``plug-in`` I^2 + eps, ``geometric`` the
-    geometric mean of the two (the module docstring says why)."""
+    s = scale_rel_var, C = scaled, default the image, plus ``shared_var``) and D one of
+    DENOMINATORS: ``corrected`` max(I^2 - v, 0) + eps, ``plug-in`` I^2 + eps,
+    ``geometric`` the geometric mean of the two (the module docstring says why)."""
     image = np.asarray(image, np.float64)
     v = np.maximum(np.asarray(var, np.float64), 0.0)
+    if shared_var is not None:
+        v = v + np.maximum(np.asarray(shared_var, np.float64), 0.0)
     if scale_rel_var > 0.0:
         c = image if scaled is None else np.asarray(scaled, np.float64)
         v = v + float(scale_rel_var) * c * c
@@ -163,9 +176,12 @@ def _moments(S1, S2, N, G):
 def estimate_from_groups(groups, weights: Optional[Sequence[float]] = None,
                          eps: float = REL_MSE_EPS, scale_rel_var: float = 0.0,
                          scaled: Optional[np.ndarray] = None, keep_pixels: bool = True,
-                         denominator: str = DEFAULT_DENOMINATOR) -> ErrorEstimate:
+                         denominator: str = DEFAULT_DENOMINATOR,
+                         shared_var: Optional[np.ndarray] = None) -> ErrorEstimate:
     """relMSE estimate of the mean of ``groups`` ((G, H, W, 3) independent unbiased images,
-    group g from ``weights[g]`` samples; default equal) with its jackknife standard error."""
+    group g from ``weights[g]`` samples; default equal) with its jackknife standard error.
+    ``shared_var``: (H, W, 3) variance of a part every group shares (pssmlt/cmlt's direct
+    pass), added to the groups' own."""
     Y, n = _check_groups(groups, weights)
     G = Y.shape[0]
     N = float(n.sum())
@@ -173,7 +189,7 @@ def estimate_from_groups(groups, weights: Optional[Sequence[float]] = None,
     S1 = (w * Y).sum(0)
     S2 = (w * Y * Y).sum(0)
     I, v = _moments(S1, S2, N, G)
-    e = pixel_terms(I, v, eps, scale_rel_var, scaled, denominator)
+    e = pixel_terms(I, v, eps, scale_rel_var, scaled, denominator, shared_var)
     E = float(e.mean())
     # delete-one-group jackknife: E_{-g} is the estimate of an image made of the other
     # G - 1 groups (its own variance in the numerator and in the denominator's
@@ -182,7 +198,8 @@ def estimate_from_groups(groups, weights: Optional[Sequence[float]] = None,
     for g in range(G):
         Ng = N - n[g]
         Ig, vg = _moments(S1 - n[g] * Y[g], S2 - n[g] * Y[g] * Y[g], Ng, G - 1)
-        loo[g] = float(pixel_terms(Ig, vg, eps, scale_rel_var, scaled, denominator).mean()) * (Ng / N)
+        loo[g] = float(pixel_terms(Ig, vg, eps, scale_rel_var, scaled, denominator,
+                                   shared_var).mean()) * (Ng / N)
     se = float(math.sqrt((G - 1) / G * float(((loo - loo.mean()) ** 2).sum())))
     return ErrorEstimate(E, se, G, "groups", e.mean(axis=2) if keep_pixels else None,
                          {"denominator": denominator})
@@ -241,9 +258,12 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
         s = float(b_se) ** 2 / float(b) ** 2 if b and b_se else 0.0
         direct = getattr(result, "direct", None)
         chains = image if direct is None else image - np.asarray(direct, np.float64)
+        # the direct pass is in every group image alike: its variance (RenderResult.variance)
+        # is added to the groups' spread
+        shared = None if direct is None else np.asarray(result.variance, np.float64)
         est = estimate_from_groups(np.asarray(groups), weights=weights, scale_rel_var=s,
                                    scaled=chains, keep_pixels=keep_pixels,
-                                   denominator=DEFAULT_DENOMINATOR)
+                                   denominator=DEFAULT_DENOMINATOR, shared_var=shared)
         return est, "groups"
     if integ in VARIANCE_INTEGRATORS:
         est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
@@ -251,7 +271,7 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
                                      keep_pixels=keep_pixels, denominator=DEFAULT_DENOMINATOR)
         return est, "variance"
     return None, (f"{integ or 'this integrator'}: no estimate (the chains' samples are "
-                  "correlated; it needs the core to split them into independent groups)")
+                  "correlated; the estimate needs error_groups >= 3)")
 
 
 def estimate_record(result, stats: Optional[Dict[str, Any]] = None) -> Dict[str, Any]:

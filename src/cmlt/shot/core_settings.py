@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Dict, Tuple
 
-from ..settings import BY_NAME, SettingsError, flag_name, resolve_settings
+from ..settings import BY_NAME, MACHINE_FIELDS, SettingsError, flag_name, resolve_settings
 from .errors import RenderError, UsageError
 
 __all__ = ["resolve", "core_settings", "settings_message", "where", "TIME_BUDGET_SPP_CAP"]
@@ -32,7 +32,7 @@ def _rank(sources: Dict[str, str], name: str) -> int:
 
 def core_settings(core, resolved, opts, sources: Dict[str, str]):
     """``core.RenderSettings`` from the resolved settings and the machine's
-    (threads, packets): every field of the table the core has."""
+    (threads, packets, keep_group_images): every field of the table the core has."""
     st = core.RenderSettings()
     values = dict(resolved.as_dict())
     # A time budget replaces the sample budget unless spp was given with the same or a
@@ -40,8 +40,8 @@ def core_settings(core, resolved, opts, sources: Dict[str, str]):
     if float(values.get("time_budget", 0.0) or 0.0) > 0.0 and \
             _rank(sources, "spp") < _rank(sources, "time_budget"):
         values["spp"] = TIME_BUDGET_SPP_CAP
-    values["threads"] = int(opts.threads)
-    values["packets"] = bool(opts.packets)
+    for f in MACHINE_FIELDS:        # threads, packets, keep_group_images: the machine's
+        values[f.name] = type(f.default)(getattr(opts, f.name))
     for name, value in values.items():
         f = BY_NAME.get(name)
         if f is None or not f.core:

@@ -191,7 +191,7 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
 
 
 def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record, metadata,
-           aovs, state_bytes):
+           aovs, state_bytes, group_images=None):
     """Preview, state, sidecar and EXR, each written to a temporary name and
     renamed into place only once all four are complete, the image last
     (:func:`cmlt.io.atomic.staged_paths`): a frame that fails to write leaves
@@ -240,6 +240,9 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
                        "write float (no --half) to keep them")
                 record.setdefault("warnings", []).append(msg)
                 job.warn([msg])
+            groups = _group_images(job, group_images, path)
+            if groups:
+                record["error_group_images"] = groups
             write_sidecar(path, record, to=tmp[sidecar_path(path)])
     except ExrWriteError as exc:            # its message starts with the path
         raise RenderError(named(f"cannot write: {exc}")) from None
@@ -250,6 +253,27 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
         where = f" ({name})" if name and name != path else ""
         raise RenderError(named(f"{path}: cannot write: {exc.strerror or exc}{where}")) from None
     return state_file, pv
+
+
+def group_image_path(path: str, g: int) -> str:
+    """Where ``--group-images`` writes error group g of the frame at ``path``."""
+    root, ext = os.path.splitext(path)
+    return f"{root}.group{g}{ext or '.exr'}"
+
+
+def _group_images(job: ShotJob, r_groups, path: str):
+    """``--group-images``: each error group's image (pssmlt/cmlt, before the temporal
+    normalisation) as its own EXR beside the frame; their file names, or None."""
+    if r_groups is None or not getattr(job.st, "keep_group_images", False):
+        return None
+    names = []
+    for g, img in enumerate(np.asarray(r_groups)):
+        gp = group_image_path(path, g)
+        write_exr(gp, np.ascontiguousarray(img, dtype=np.float32), half=job.opts.half,
+                  compression=job.opts.compression, colorspace=None,
+                  attributes=job.color_attrs, metadata={"errorGroup": g})
+        names.append(os.path.basename(gp))
+    return names
 
 
 def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dict[str, Any]:
@@ -304,6 +328,6 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
                                temporal=trec)
     out_image = to_output(image, opts.output_colorspace)
     state_file, pv = _write(job, path, frame, image, out_image, crop, record, metadata, aovs,
-                            state_bytes)
+                            state_bytes, getattr(r, "group_images", None))
     return {"out_image": out_image, "stats": stats, "state_bytes": state_bytes,
             "state_file": state_file, "preview": pv, "units": units}

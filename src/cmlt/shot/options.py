@@ -144,15 +144,15 @@ class _FrameOptions:
         return values
 
 
-def check_aovs_for(aovs, integrator: str) -> None:
-    """The ``--aov`` checks that need the integrator in force (flag, else the
-    stage's, else the default), so run once the settings are resolved:
-    ``error`` needs an integrator whose samples are independent."""
+def check_aovs_for(aovs, integrator: str, error_groups: int = 8) -> None:
+    """The ``--aov`` checks that need the settings in force (flag, else the stage's,
+    else the default), so run once the settings are resolved: ``error`` needs
+    independent samples (pt, bdpt) or chain groups (pssmlt, cmlt with error_groups >= 3)."""
     from ..metrics.error_estimate import VARIANCE_INTEGRATORS
-    if "error" in aovs and integrator not in VARIANCE_INTEGRATORS:
-        raise UsageError(f"--aov error: a per-pixel error estimate needs integrator "
-                         f"{' or '.join(VARIANCE_INTEGRATORS)} (the {integrator} chains' samples "
-                         "are correlated; their estimate needs chain groups from the core)")
+    if "error" in aovs and integrator not in VARIANCE_INTEGRATORS and int(error_groups) < 3:
+        raise UsageError(f"--aov error: a per-pixel error estimate of {integrator} needs its "
+                         f"chain groups (--error-groups G, G >= 3; got {int(error_groups)}): the "
+                         "chains' samples are correlated")
 
 
 #: the settings fields of RenderOptions, in the table's order

@@ -228,7 +228,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
     aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
-    check_aovs_for(aovs, resolved.integrator)
+    check_aovs_for(aovs, resolved.integrator, getattr(resolved, "error_groups", 8))
     t_start = time.perf_counter()
     range_warning = check_stage_range(frame_list, info.start, info.end,
                                       info.has_authored_time_range, force=force_frames,
@@ -283,6 +283,10 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             _close(own_client)
             raise UsageError("--dask: a time budget (--time-budget) does not split over "
                              "workers (a timed frame depends on the machine); give --spp")
+        if float(getattr(resolved, "target_error", 0.0) or 0.0) > 0.0:
+            _close(own_client)
+            raise UsageError("--dask: --target-error does not split over workers (each "
+                             "part would stop on its own estimate); give --spp")
         from .distributed import DaskRenderer
         job.distributed = DaskRenderer(client, shot, camera=opts.camera,
                                        resolution=opts.resolution, parts=int(opts.dask_parts),

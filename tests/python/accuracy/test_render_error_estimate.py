@@ -1,6 +1,6 @@
 """`cmlt render` records the frame's relMSE estimate (no reference needed): in the
 sidecar, the EXR header (cmlt:relMSEEstimate, ...), the per-frame line, and per pixel
-as the `--aov error` channel (relMSE). pssmlt/cmlt say why they have none."""
+as the `--aov error` channel (relMSE). pssmlt/cmlt from their chain groups (none with --error-groups 0)."""
 from __future__ import annotations
 
 import json
@@ -38,15 +38,25 @@ def test_estimate_in_sidecar_header_and_aov(tiny_shot, tmp_path, capsys, integra
     assert "relMSE ~" in err
 
 
-def test_mlt_has_no_estimate_yet(tiny_shot, tmp_path, capsys):
+def test_mlt_estimate_from_chain_groups(tiny_shot, tmp_path, capsys):
     out = tmp_path / "m.####.exr"
-    assert main(["render", tiny_shot, *FAST, "--integrator", "pssmlt", "--out", str(out)]) == 0
-    rec = json.load(open(str(tmp_path / "m.0001.exr") + ".json"))["stats"]["error_estimate"]
-    assert rec["available"] is False and "groups" in rec["reason"]
-    assert "relMSEEstimate" not in read_header(str(tmp_path / "m.0001.exr"))["cmlt"]
+    assert main(["render", tiny_shot, *FAST, "--integrator", "pssmlt", "--aov", "error",
+                 "--out", str(out)]) == 0
+    path = str(tmp_path / "m.0001.exr")
+    rec = json.load(open(path + ".json"))["stats"]["error_estimate"]
+    assert rec["available"] and rec["method"] == "groups" and rec["groups"] == 8
+    assert rec["relmse"] > 0 and rec["stderr"] > 0
+    assert read_header(path)["cmlt"]["relMSEEstimate"] == pytest.approx(rec["relmse"], rel=1e-6)
     capsys.readouterr()
-    code = main(["render", tiny_shot, *FAST, "--integrator", "cmlt", "--aov", "error",
-                 "--out", str(tmp_path / "n.####.exr")])
+    # without groups: no estimate, and --aov error says what it needs
+    assert main(["render", tiny_shot, *FAST, "--integrator", "cmlt", "--error-groups", "0",
+                 "--out", str(tmp_path / "k.####.exr")]) == 0
+    rec = json.load(open(str(tmp_path / "k.0001.exr") + ".json"))["stats"]["error_estimate"]
+    assert rec["available"] is False and "error_groups" in rec["reason"]
+    assert "relMSEEstimate" not in read_header(str(tmp_path / "k.0001.exr"))["cmlt"]
+    capsys.readouterr()
+    code = main(["render", tiny_shot, *FAST, "--integrator", "cmlt", "--error-groups", "0",
+                 "--aov", "error", "--out", str(tmp_path / "n.####.exr")])
     err = capsys.readouterr().err
-    assert code == 2 and "--aov error" in err and "pt or bdpt" in err
+    assert code == 2 and "--aov error" in err and "--error-groups" in err
     assert not os.path.exists(tmp_path / "n.0001.exr")

@@ -97,15 +97,16 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
         });
     };
     bool cancelled = false;
+    PassTarget target(settings, film);
     const int done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
         for (int pass = s0; pass < s1; ++pass) {
             trace_pass(pass);
             merge_splats();
             add_pass(pass);
         }
-    });
+    }, &target);
 
-    RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled);
+    RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
     res.stats.splats = counters.splats.load();
     res.stats.nan_samples += counters.bad_splats.load();
     return res;

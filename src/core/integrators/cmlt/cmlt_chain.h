@@ -79,7 +79,7 @@ public:
     /// Run blocks of `st` until it has spent `end` evaluations.
     void run(Chain& st, uint64_t end) {
         auto splat = [&](const State& s, double w) {
-            if (s.sample.f > 0.0) m_film.add(s.sample.pixel, s.sample.L, w / s.sample.f);
+            if (s.sample.f > 0.0) m_film.add(s.sample.pixel, s.sample.L, w / s.sample.f, st.layer);
         };
         while (st.evaluations < end) {
             // outer: independent large step, key (chain, id, n)

@@ -19,8 +19,18 @@ std::vector<Tile> image_tiles(int width, int height) {
     return tiles;
 }
 
+bool PassTarget::check(int done, double secs) {
+    const size_t n = size_t(film.width()) * size_t(film.height()) * 3;
+    std::vector<float> mean(n), var(n);
+    film.develop(mean.data(), var.data());
+    reached = target.reached(double(done), secs,
+                             estimate_from_variance(mean.data(), var.data(), film.width(), film.height()));
+    return reached;
+}
+
 RenderResult film_result(const Film& film, const FrameCounters& counters, const CycleRate& rate, double secs,
-                         const RenderSettings& settings, int threads, int passes, bool cancelled) {
+                         const RenderSettings& settings, int threads, int passes, bool cancelled,
+                         PassTarget* target) {
     RenderResult res;
     res.width = settings.width;
     res.height = settings.height;
@@ -29,6 +39,12 @@ RenderResult film_result(const Film& film, const FrameCounters& counters, const 
     res.variance.resize(n);
     film.develop(res.image.data(), res.variance.data());
     res.cancelled = cancelled;
+    const ErrorValue err = estimate_from_variance(res.image.data(), res.variance.data(), res.width, res.height);
+    res.error_estimate = err.relmse;
+    res.error_stderr = err.stderr_;
+    if (target) res.error_history = target->target.take_history();
+    res.stop_reason = stop_reason(cancelled, target && target->reached, settings.time_budget > 0.0, secs,
+                                  settings.time_budget);
     RenderStats& st = res.stats;
     fill_frame_stats(st, counters, rate, secs);
     st.nan_samples = film.nan_samples();

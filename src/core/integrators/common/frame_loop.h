@@ -12,6 +12,7 @@
 /// frame depends on the machine's speed, so it is not reproducible bit for bit; a
 /// sample-budget frame is.
 #include "accel/accel.h"
+#include "integrators/common/error_target.h"
 #include "integrators/common/path_counters.h"
 #include "integrators/common/render_settings.h"
 #include "util/cycle_clock.h"
@@ -142,6 +143,7 @@ public:
         return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0) : done;
     }
     uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+    int spp() const { return m_spp; }
 
 protected:
     int m_spp;
@@ -174,15 +176,33 @@ private:
     int m_chunk;
 };
 
+/// A pass frame's target error (RenderSettings.target_error, error_target.h): the film
+/// its estimates come from, and whether it was reached.
+struct PassTarget {
+    PassTarget(const RenderSettings& s, const Film& f) : target(s.target_error, k_target_min_passes), film(f) {}
+    ErrorTarget target;
+    const Film& film;
+    bool reached = false;
+    /// After `done` passes, `secs` into the frame: the estimate, recorded; true when
+    /// the target is reached (then `reached` is set).
+    bool check(int done, double secs);
+};
+
 /// The pass loop of pt and bdpt: `run(s0, s1)` renders passes [s0, s1) in chunks the
-/// schedule sizes; after each chunk `progress` may stop the frame (*cancelled is set
-/// unless that chunk was the last). Returns the passes rendered.
+/// schedule sizes (with a `target`, chunks it predicts, within the budgets; the frame
+/// stops when it is reached); after each chunk `progress` may stop the frame
+/// (*cancelled is set unless that chunk was the last). Returns the passes rendered.
 template <class Run>
-int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, bool* cancelled, Run&& run) {
+int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, bool* cancelled, Run&& run,
+               PassTarget* target = nullptr) {
+    const bool targeted = target && target->target.enabled();
     int done = 0;
-    while (const int n = schedule.next(done)) {
+    while (const int n = targeted ? target_chunk(target->target, done, schedule.next(done), schedule.timed(),
+                                                 schedule.spp() - done)
+                                  : schedule.next(done)) {
         run(done, done + n);
         done += n;
+        if (targeted && target->check(done, schedule.elapsed())) break;
         if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
             schedule.next(done) > 0) {
             *cancelled = true;
@@ -194,8 +214,11 @@ int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, b
 
 /// The result of a pass integrator: the film's mean and variance of the mean, its
 /// non-finite samples, the counters' stats, and the frame's settings.
+/// Also the film's relMSE estimate (error_target.h), the target's history and the stop
+/// reason.
 RenderResult film_result(const Film& film, const FrameCounters& counters, const CycleRate& rate, double secs,
-                         const RenderSettings& settings, int threads, int passes, bool cancelled);
+                         const RenderSettings& settings, int threads, int passes, bool cancelled,
+                         PassTarget* target = nullptr);
 
 /// Chain rounds (pssmlt, cmlt): the evaluation count each chain runs to in this round.
 /// Fixed budget: k_rounds slices of each chain's budget. Timed: a quota per chain per
@@ -206,12 +229,19 @@ public:
     static constexpr int k_rounds = 16;  ///< progress / cancel granularity of a fixed budget
 
     ChainSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point frame_start, uint64_t chains)
-        : FrameBudgetClock(s, frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
+        : FrameBudgetClock(s, frame_start), m_chains(std::max<uint64_t>(chains, 1)), m_target(s.target_error > 0.0) {}
+
+    /// With a target error (error_target.h): rounds end at a share `f` of each chain's
+    /// budget set before each round (and within the time budget's quota, if timed)
+    /// instead of the k_rounds slices.
+    bool targeted() const { return m_target; }
+    void set_fraction(double f) { m_fraction = std::min(1.0, std::max(f, 0.0)); }
+    double fraction() const { return m_fraction; }
 
     /// Begin the next round; false when the frame is done. `evaluations_so_far`: every
     /// chain's evaluations summed (for the rate).
     bool begin_round(uint64_t evaluations_so_far) {
-        if (!timed()) return m_round < k_rounds;
+        if (!timed()) return m_target || m_round < k_rounds;  // targeted: until the budget is spent
         const double t = elapsed();
         if (m_round > 0 && t >= m_seconds) return false;
         if (m_round == 0) {
@@ -228,6 +258,10 @@ public:
     }
     /// Evaluation count chain with `budget` and `done` evaluations runs to this round.
     uint64_t round_end(uint64_t budget, uint64_t done) const {
+        if (m_target) {
+            const uint64_t want = std::min(budget, uint64_t(std::ceil(double(budget) * m_fraction)));
+            return timed() ? std::min(want, done + m_quota) : want;
+        }
         if (!timed()) return budget * uint64_t(m_round + 1) / k_rounds;
         return std::min(budget, done + m_quota);
     }
@@ -254,10 +288,11 @@ public:
         return true;
     }
     int round() const { return m_round; }
-    bool last_round() const { return !timed() && m_round >= k_rounds; }
+    bool last_round() const { return !timed() && !m_target && m_round >= k_rounds; }
 
     uint64_t progress_done() const {
-        return FrameBudgetClock::progress_done(uint64_t(m_spp) * uint64_t(m_round) / k_rounds);
+        return FrameBudgetClock::progress_done(m_target ? uint64_t(double(m_spp) * m_fraction)
+                                                        : uint64_t(m_spp) * uint64_t(m_round) / k_rounds);
     }
 
 private:
@@ -265,6 +300,8 @@ private:
     int m_round = 0;
     double m_rate_t0 = 0.0;
     uint64_t m_quota = 16;
+    bool m_target = false;
+    double m_fraction = 1.0;
 };
 
 }  // namespace cmlt

@@ -53,6 +53,9 @@ void RenderSettings::validate() const {
 #undef CMLT_CHECK_REAL
 #undef CMLT_CHECK_NOTHING
 #undef CMLT_CHECK_TOKEN
+    if (error_groups == 1 || error_groups == 2)
+        CMLT_THROW(SettingsError, "RenderSettings.error_groups: 0 (off) or 3..64, got " << error_groups
+                                      << " (a variance and its jackknife need 3 groups)");
     // across fields: at most 2^31 pixels
     if (int64_t(width) * int64_t(height) > (int64_t(1) << 31))
         CMLT_THROW(SettingsError, "RenderSettings.width: width * height is too large ("

@@ -8,6 +8,7 @@
 /// flags, the stage attribute lookup and its checks (cmlt.settings) and the USD schema
 /// (plugins/usd/cmltSchemas/resources/*.usda, written by `python -m
 /// cmlt.settings.usd_schema --write`; tests/python/settings checks they have not drifted).
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -123,7 +124,17 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
           "or general (the full UsdPreviewSurface model everywhere, the reference)")         \
     TOKEN(mlt_path_sampler, "bdpt", "bdpt pt", "", "",                                       \
           "pssmlt's path sampler: bdpt (multiplexed over depth and strategy (s, t)) or pt "  \
-          "(the path tracer)")
+          "(the path tracer)")                                                               \
+    INT(error_groups, 8, 0, 64, "cmlt:errorGroups", "--error-groups G",                      \
+        "pssmlt/cmlt: independent chain groups of the error estimate (chain c in group c "   \
+        "mod G; the film keeps G partial sums, G times its memory); 0 = no estimate, 1 and " \
+        "2 are refused (a variance and its jackknife need 3)")                               \
+    REAL(target_error, 0.0, 0.0, settings_limits::k_inf, false, "cmlt:targetError",          \
+         "--target-error E",                                                                 \
+         "stop when the render's own relMSE estimate falls below E (and its standard error " \
+         "below a quarter of it), or when --spp/--time run out first; 0 = off")              \
+    BOOL(keep_group_images, false, "", "--group-images",                                     \
+         "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")
 
 // Settings of the sequence that the Python frame loop reads (DESIGN.md §4); the core
 // has no field for them. Same columns.
@@ -277,6 +288,22 @@ struct RenderResult {
     std::vector<float> bootstrap_f;
     bool cancelled = false;
     RenderStats stats;
+    /// The render's own relMSE estimate (integrators/common/error_target.h) and its
+    /// standard error; NaN where there is none (pssmlt/cmlt with error_groups 0).
+    double error_estimate = std::numeric_limits<double>::quiet_NaN();
+    double error_stderr = std::numeric_limits<double>::quiet_NaN();
+    /// Why the frame ended: "budget" (spp), "time", "target" (target_error reached),
+    /// "cancelled" (the progress callback).
+    std::string stop_reason;
+    /// With target_error > 0: the estimate after every chunk (pt, bdpt) or chain round
+    /// (pssmlt, cmlt), as (work done: passes or path evaluations per pixel, seconds,
+    /// estimate, its standard error).
+    std::vector<std::array<double, 4>> error_history;
+    /// pssmlt/cmlt with error_groups G >= 3: G images (G, H, W, 3), group g from the
+    /// chains c with c mod G = g (each an unbiased image of the frame with the shared b
+    /// and direct pass), and their path evaluations; else empty.
+    std::vector<float> group_images;
+    std::vector<double> group_weights;
     /// pssmlt / cmlt: the final state of every chain (integrators/mlt/chain_state.h).
     std::shared_ptr<mlt::ChainStates> mlt_states;
     /// pssmlt / cmlt: the state every chain started the frame from (after resampling or

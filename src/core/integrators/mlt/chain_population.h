@@ -47,6 +47,7 @@ struct ChainTally {
     uint64_t budget = 0;    ///< path evaluations the chain may spend
     uint64_t evaluations = 0, steps = 0;
     uint64_t invalid = 0;   ///< evaluations whose path was not finite
+    int layer = 0;          ///< the splat film layer: the chain's error group (index mod G)
     mcmc::KernelStats stats;
     mcmc::NormalisationAccumulator large;  ///< f* of the large-step proposals
     StreakTracker streaks;
@@ -140,6 +141,7 @@ public:
                     bad += invalid ? 1 : 0;
                     m_chains[k]->chain_id = in.chain_id;
                     m_chains[k]->budget = budget_of(k);
+                    m_chains[k]->layer = int(k % uint64_t(fr.film.layers()));
                 }
                 fr.counters.add(c, bad);
             });
@@ -156,6 +158,7 @@ public:
                                                           << " gave a different path");
                     m_chains[k]->chain_id = k;
                     m_chains[k]->budget = budget_of(k);
+                    m_chains[k]->layer = int(k % uint64_t(fr.film.layers()));
                 }
                 fr.counters.add(c);
             });
@@ -173,6 +176,16 @@ public:
         ChainSchedule schedule(fr.settings, fr.t0, m_chains.size());
         uint64_t evaluations = 0;
         const std::pair<size_t, size_t> run = part_chains(fr.settings, m_chains.size());  // all, or a part's
+        const int groups = fr.film.layers();
+        if (schedule.targeted() && fr.settings.partial)
+            CMLT_THROW(SettingsError, "RenderSettings.target_error: a part of a frame "
+                                      "(RenderSettings.partial) cannot stop at a target error; "
+                                      "the parts' film would not add up to the whole frame's");
+        if (schedule.targeted() && groups < 3)
+            CMLT_THROW(SettingsError, "RenderSettings.target_error: " << fr.settings.integrator
+                                          << " needs error_groups >= 3 for its estimate");
+        const uint64_t pixels = uint64_t(fr.settings.width) * uint64_t(fr.settings.height);
+        if (schedule.targeted()) schedule.set_fraction(target_first_fraction(pixels, fr.budget.chains));
         while (!m_chains.empty() && schedule.begin_round(evaluations)) {
             fr.direct.before_round(schedule, evaluations);
             parallel_tasks(fr.arena, fr.counters, run.second - run.first, size_t(1), [&](const tbb::blocked_range<size_t>& r) {
@@ -183,11 +196,23 @@ public:
                 }
                 tracer.flush(fr.counters);
             });
+            if (schedule.targeted()) {  // the estimate from the chain groups (error_target.h)
+                uint64_t chain_evals = 0;
+                for (const auto& c : m_chains) chain_evals += c->evaluations;
+                const double work =
+                    double(fr.budget.pilot + fr.direct_pass.evaluations() + fr.budget.bootstrap + chain_evals) /
+                    double(pixels);
+                const ErrorValue e = estimate_groups(fr.film, group_steps(), b_so_far(), fr.direct_pass.develop());
+                if (target_round(m_target, schedule, e, work, chain_evals, fr.budget.chains, groups)) {
+                    m_target_reached = true;
+                    break;
+                }
+            }
             if (!schedule.end_round(m_chains, [](const Chain& c) { return c.evaluations; }, progress, &evaluations,
                                     &m_cancelled))
                 break;
         }
-        fr.direct.finish(m_cancelled, !m_chains.empty(), fr.t0);
+        fr.direct.finish(m_cancelled || m_target_reached, !m_chains.empty(), fr.t0);
     }
 
     /// 4. Merge the chains in chain order; `export_chain` gives their final states.
@@ -210,6 +235,9 @@ public:
         out.chains = m_chains.size();
         out.imported = m_initial != nullptr;
         out.cancelled = m_cancelled;
+        out.group_steps = group_steps();
+        out.target_reached = m_target_reached;
+        out.error_history = m_target.take_history();
         out.states = export_states(export_chain);
         out.start_states = std::move(m_start_states);
         if (m_frame.settings.partial) {
@@ -222,6 +250,19 @@ public:
     }
 
 private:
+    /// Steps per error group (chain c in group c mod G).
+    std::vector<double> group_steps() const {
+        std::vector<double> out(size_t(m_frame.film.layers()), 0.0);
+        for (size_t c = 0; c < m_chains.size(); ++c) out[c % out.size()] += double(m_chains[c]->steps);
+        return out;
+    }
+    /// b so far: the bootstrap and every chain's large steps.
+    mcmc::NormalisationEstimate b_so_far() const {
+        mcmc::NormalisationAccumulator acc = m_boot_acc;
+        for (const auto& c : m_chains) acc.merge(c->large);
+        return acc.estimate();
+    }
+
     template <class Export>
     std::shared_ptr<ChainStates> export_states(Export& export_chain) const {
         auto out = std::make_shared<ChainStates>();
@@ -240,6 +281,8 @@ private:
     mcmc::NormalisationEstimate m_b_boot;
     std::shared_ptr<ChainStates> m_start_states;
     bool m_cancelled = false;
+    ErrorTarget m_target{m_frame.settings.target_error, 0.0};
+    bool m_target_reached = false;
 };
 
 }  // namespace cmlt::mlt

@@ -73,6 +73,8 @@ int DirectPass::passes_for(uint64_t chain_evaluations) const {
 void DirectSchedule::before_round(const ChainSchedule& rounds, uint64_t chain_evaluations) {
     if (!pass.enabled()) return;
     if (rounds.timed()) pass.render_to(arena, pass.passes_for(chain_evaluations), counters);
+    else if (rounds.targeted())
+        pass.render_to(arena, int(std::ceil(MltContext::direct_spp(settings) * rounds.fraction())), counters);
     else pass.render_to(arena, MltContext::direct_spp(settings) * (rounds.round() + 1) / ChainSchedule::k_rounds,
                         counters);
 }

@@ -22,7 +22,7 @@ FrameBudget FrameBudget::plan(const RenderSettings& s) {
 MltFrame::MltFrame(const Scene& scene_, const RenderSettings& s)
     : scene(scene_), settings(s), threads(frame_threads(s)), arena(threads), t0(std::chrono::steady_clock::now()),
       ctx(scene_, s, m_pilot_counters), direct_pass(scene_, s), budget(FrameBudget::plan(s)),
-      film(s.width, s.height), direct{direct_pass, s, arena, counters} {
+      film(s.width, s.height, error_layers(s)), direct{direct_pass, s, arena, counters} {
     counters.add(m_pilot_counters);
 }
 
@@ -47,6 +47,48 @@ void develop_image(RenderResult& res, const SplatFilm& film, double b, uint64_t 
 
 }  // namespace
 
+ErrorValue estimate_groups(const SplatFilm& film, const std::vector<double>& steps,
+                           const mcmc::NormalisationEstimate& b, const PtPassImage& direct,
+                           std::vector<float>* group_images) {
+    const int G = film.layers();
+    if (G < 3 || int(steps.size()) != G || !(b.mean > 0.0)) return ErrorValue{};
+    const size_t pixels = size_t(film.width()) * size_t(film.height()), n = pixels * 3;
+    double total = 0.0;
+    std::vector<double> scale(static_cast<size_t>(G));
+    for (size_t g = 0; g < size_t(G); ++g) {
+        total += steps[g];
+        scale[g] = steps[g] > 0.0 ? b.mean * double(pixels) / steps[g] : 0.0;
+    }
+    if (total <= 0.0) return ErrorValue{};
+    const double s_all = b.mean * double(pixels) / total;
+    const double b_rel_var = b.std_error > 0.0 ? (b.std_error / b.mean) * (b.std_error / b.mean) : 0.0;
+    const bool has_direct = !direct.mean.empty();
+    auto group = [&](size_t g, size_t i) {
+        return scale[g] * film.layer_sum(int(g), i / 3, int(i % 3)) + (has_direct ? double(direct.mean[i]) : 0.0);
+    };
+    auto shared = [&](size_t i) {
+        const double c = s_all * film.sum(i / 3, int(i % 3));
+        return (has_direct ? double(direct.variance[i]) : 0.0) + b_rel_var * c * c;
+    };
+    if (group_images) {
+        group_images->resize(size_t(G) * n);
+        for (size_t g = 0; g < size_t(G); ++g)
+            for (size_t i = 0; i < n; ++i) (*group_images)[g * n + i] = float(group(g, i));
+    }
+    return estimate_from_groups(n, steps, group, shared);
+}
+
+bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorValue& e, double work, uint64_t evaluations,
+                  uint64_t chain_budget, int groups) {
+    const int done = schedule.round() + 1;  // rounds run
+    const bool reached = t.reached(work, schedule.elapsed(), e) && done >= 2 * groups;
+    if (reached || chain_budget == 0) return reached;
+    const double f = double(evaluations) / double(chain_budget);
+    // the first 2G rounds grow linearly (equal slices), then as the target predicts
+    schedule.set_fraction(done < 2 * groups ? f * double(done + 1) / double(done) : t.next_work(f));
+    return false;
+}
+
 RenderResult MltFrame::finish(PopulationResult&& chains) {
     const PtPassImage direct_image = direct_pass.develop();
     const double secs = seconds_since(t0);
@@ -56,6 +98,16 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     res.height = settings.height;
     develop_image(res, film, chains.b.mean, chains.steps, direct_image);
     res.cancelled = chains.cancelled;
+    if (film.layers() >= 3) {
+        const ErrorValue err = estimate_groups(film, chains.group_steps, chains.b, direct_image, &res.group_images);
+        res.error_estimate = err.relmse;
+        res.error_stderr = err.stderr_;
+        if (err.valid()) res.group_weights = chains.group_steps;
+        else res.group_images.clear();
+    }
+    res.error_history = std::move(chains.error_history);
+    res.stop_reason = stop_reason(chains.cancelled, chains.target_reached, settings.time_budget > 0.0, secs,
+                                  settings.time_budget);
     res.bootstrap_f.assign(chains.bootstrap_f.begin(), chains.bootstrap_f.end());
     res.mlt_states = std::move(chains.states);
     res.mlt_start_states = std::move(chains.start_states);

@@ -27,6 +27,8 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -67,7 +69,38 @@ struct PopulationResult {
     /// RenderSettings::partial: the bootstrap's accumulator, then those of the part's
     /// chains in chain order (RenderResult::mlt_part)
     std::vector<mcmc::NormalisationAccumulator> part_norms;
+    std::vector<double> group_steps;  ///< steps per error group (chain c in group c mod G)
+    bool target_reached = false;      ///< the frame stopped at its target error
+    std::vector<std::array<double, 4>> error_history;  ///< the target's estimates
 };
+
+/// Layers of the frame's splat film: the error groups (RenderSettings.error_groups; chain
+/// c splats into layer c mod G), or 1 without an estimate.
+inline int error_layers(const RenderSettings& s) { return s.error_groups >= 3 ? s.error_groups : 1; }
+
+/// The relMSE estimate of a Metropolis frame from its film's layers (error_target.h):
+/// group g's image is b·W·H/steps[g] times its layer plus the direct pass; every group
+/// shares the direct pass's variance and b's, (b_se/b)² on the chains' part. Optionally
+/// writes the group images (G, H, W, 3). No estimate without >= 3 layers.
+ErrorValue estimate_groups(const SplatFilm& film, const std::vector<double>& steps,
+                           const mcmc::NormalisationEstimate& b, const PtPassImage& direct,
+                           std::vector<float>* group_images = nullptr);
+
+/// After a chain round of a frame with a target error: the estimate `e`, recorded in `t`;
+/// true when the target is reached (not before round 2G, the first 2G rounds being equal
+/// slices: the chains must have moved before their groups' spread means much), else the
+/// schedule's next share of the chains' budget (`evaluations` of `chain_budget` spent so
+/// far). `work`: path evaluations per pixel so far (the history's unit).
+bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorValue& e, double work, uint64_t evaluations,
+                  uint64_t chain_budget, int groups);
+
+/// The first share of the chains' budget a targeted frame runs (and each of its first 2G
+/// rounds): 2 evaluations per pixel (a chain whose share is less than one block runs a
+/// block in the rounds where its share passes one).
+inline double target_first_fraction(uint64_t pixels, uint64_t chain_budget) {
+    if (chain_budget == 0) return 1.0;
+    return std::min(1.0, double(2 * pixels) / double(chain_budget));
+}
 
 /// One Metropolis frame's machinery, built in this order: the thread arena and the
 /// counters, the pilot (in the context), the direct pass, the budget, the splat film.

@@ -22,6 +22,7 @@
 /// atomic add as before, and sums inside the old range read back bit-identically.
 #include "math/vec.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -35,10 +36,13 @@ public:
     static constexpr double k_scale = 4294967296.0;  ///< 2^32: one unit of the sum
     static constexpr double k_max_splat = 1073741824.0;  ///< 2^30
 
-    SplatFilm(int width, int height)
-        : m_width(width), m_height(height), m_lo(new std::atomic<uint64_t>[size_t(width) * height * 3]),
-          m_hi(new std::atomic<int64_t>[size_t(width) * height * 3]) {
-        for (size_t i = 0, n = size_t(width) * height * 3; i < n; ++i) {
+    /// `layers` >= 1 separate sums (the error groups: a chain splats into its group's
+    /// layer); sum() adds them up exactly, so the image does not depend on the count.
+    SplatFilm(int width, int height, int layers = 1)
+        : m_width(width), m_height(height), m_layers(std::max(layers, 1)),
+          m_lo(new std::atomic<uint64_t>[size_t(width) * height * 3 * size_t(std::max(layers, 1))]),
+          m_hi(new std::atomic<int64_t>[size_t(width) * height * 3 * size_t(std::max(layers, 1))]) {
+        for (size_t i = 0, n = size_t(width) * height * 3 * size_t(m_layers); i < n; ++i) {
             m_lo[i].store(0, std::memory_order_relaxed);
             m_hi[i].store(0, std::memory_order_relaxed);
         }
@@ -46,9 +50,10 @@ public:
 
     int width() const { return m_width; }
     int height() const { return m_height; }
+    int layers() const { return m_layers; }
 
     /// Add `weight · colour` to pixel `pixel` (= y·W + x). Thread-safe; order-independent.
-    void add(uint32_t pixel, const Spectrum& colour, double weight) {
+    void add(uint32_t pixel, const Spectrum& colour, double weight, int layer = 0) {
         const float c[3] = {colour.x, colour.y, colour.z};
         for (int k = 0; k < 3; ++k) {
             double v = double(c[k]) * weight;
@@ -59,7 +64,7 @@ public:
             }
             const int64_t q = std::llround(v * k_scale);
             if (q == 0) continue;
-            const size_t i = size_t(pixel) * 3 + k;
+            const size_t i = (size_t(layer) * size_t(m_width) * size_t(m_height) + pixel) * 3 + k;
             const uint64_t uq = uint64_t(q);
             const uint64_t old = m_lo[i].fetch_add(uq, std::memory_order_relaxed);
             // 128-bit add of sign-extended q: hi gets the carry out of lo, minus 1 for q < 0
@@ -68,26 +73,32 @@ public:
         }
     }
 
-    /// Sum of pixel i, channel k, as a double.
+    /// Sum of pixel i, channel k over every layer, as a double.
     double sum(size_t i, int k) const {
-        const unsigned __int128 lo = m_lo[i * 3 + k].load(std::memory_order_relaxed);
-        const __int128 v = __int128((unsigned __int128)(m_hi[i * 3 + k].load(std::memory_order_relaxed)) << 64 | lo);
+        __int128 v = 0;
+        for (int l = 0; l < m_layers; ++l) v += word(l, i, k);  // exact: wraps as the one sum would
         return double(v) / k_scale;  // rounds once, as the one-word conversion did
     }
+    /// Sum of pixel i, channel k in one layer.
+    double layer_sum(int layer, size_t i, int k) const { return double(word(layer, i, k)) / k_scale; }
     uint64_t clamped() const { return m_clamped.load(); }
 
-    /// The raw sums: low and high words of every pixel and channel (W·H·3 each).
+    /// The raw sums over every layer: low and high words of every pixel and channel
+    /// (W·H·3 each; the layers' exact 128-bit sum, as sum() develops it).
     void export_words(std::vector<uint64_t>& lo, std::vector<int64_t>& hi) const {
         const size_t n = size_t(m_width) * m_height * 3;
         lo.resize(n);
         hi.resize(n);
-        for (size_t i = 0; i < n; ++i) {
-            lo[i] = m_lo[i].load(std::memory_order_relaxed);
-            hi[i] = m_hi[i].load(std::memory_order_relaxed);
+        for (size_t j = 0; j < n; ++j) {
+            unsigned __int128 v = 0;
+            for (int l = 0; l < m_layers; ++l) v += (unsigned __int128)word(l, j / 3, int(j % 3));
+            lo[j] = uint64_t(v);
+            hi[j] = int64_t(uint64_t(v >> 64));
         }
     }
     /// Add another film's raw sums (export_words), exactly: 128-bit integer adds, so
     /// films of disjoint sets of splats sum to the film that received them all.
+    /// They go into layer 0 (a combined film keeps no groups).
     void add_words(const uint64_t* lo, const int64_t* hi) {
         for (size_t i = 0, n = size_t(m_width) * m_height * 3; i < n; ++i) {
             const uint64_t old = m_lo[i].fetch_add(lo[i], std::memory_order_relaxed);
@@ -97,7 +108,13 @@ public:
     }
 
 private:
-    int m_width, m_height;
+    __int128 word(int layer, size_t i, int k) const {
+        const size_t j = (size_t(layer) * size_t(m_width) * size_t(m_height) + i) * 3 + size_t(k);
+        const unsigned __int128 lo = m_lo[j].load(std::memory_order_relaxed);
+        return __int128((unsigned __int128)(m_hi[j].load(std::memory_order_relaxed)) << 64 | lo);
+    }
+
+    int m_width, m_height, m_layers;
     std::unique_ptr<std::atomic<uint64_t>[]> m_lo;  ///< fixed-point sums mod 2^64
     std::unique_ptr<std::atomic<int64_t>[]> m_hi;   ///< their high words (carries, signs)
     std::atomic<uint64_t> m_clamped{0};

@@ -37,6 +37,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     const CycleRate rate;
     const auto t0 = std::chrono::steady_clock::now();
     bool cancelled = false;
+    PassTarget target(settings, film);
     const int done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
         parallel_tasks(
             arena, counters, tiles.size(), size_t(1),
@@ -55,8 +56,8 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                 counters.add(c);
             },
             tbb::simple_partitioner());
-    });
-    return film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled);
+    }, &target);
+    return film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
 }
 
 }  // namespace cmlt

@@ -1,0 +1,185 @@
+#pragma once
+/// \file A render's estimate of its own relMSE, and the rule that stops a frame at a
+/// target error (RenderSettings.target_error).
+///
+/// The estimators are those of src/cmlt/metrics/error_estimate.py (its docstring derives
+/// them; tests/python/metrics checks that both sides agree): per pixel and channel
+/// e = v / D with v the variance of the pixel's mean and D the geometric denominator
+/// sqrt((I² + ε)(max(I² − v, 0) + ε)), ε = 10⁻²; the image's estimate is the mean of e.
+///
+/// * passes (pt, bdpt): v is the film's variance of the mean over independent passes;
+///   the standard error comes from 4 × 4 interleaved sub-images (sd / 4);
+/// * chain groups (pssmlt, cmlt): G images Y_g of the same frame from disjoint sets of
+///   chains (n_g path evaluations each), v = Σ n_g (Y_g − I)² / ((G − 1) N) plus the parts
+///   every group shares — the direct pass's variance and b's, (b_se / b)² C² on the
+///   chains' part C; standard error by the delete-one-group jackknife.
+///
+/// Stopping (ErrorTarget): the frame stops when the estimate E ≤ target and its standard
+/// error < E / 4, after at least a minimum of work (16 passes; 2G chain rounds); the sample
+/// and time budgets still bound it. The next chunk of work is predicted from relMSE ∝
+/// 1 / work: work · E / (0.95 · target), at least 1.1× and at most 2× the work so far, so
+/// the frame ends close to the target instead of a budget slice past it.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace cmlt {
+
+constexpr double k_rel_mse_eps = 1e-2;  ///< ε of relMSE (cmlt.metrics.flicker.REL_MSE_EPS)
+
+struct ErrorValue {
+    double relmse = std::numeric_limits<double>::quiet_NaN();
+    double stderr_ = std::numeric_limits<double>::quiet_NaN();
+    bool valid() const { return std::isfinite(relmse); }
+};
+
+/// e = v / D, geometric denominator (file comment).
+inline double rel_mse_term(double image, double var) {
+    const double v = std::max(var, 0.0), i2 = image * image;
+    return v / std::sqrt((i2 + k_rel_mse_eps) * (std::max(i2 - v, 0.0) + k_rel_mse_eps));
+}
+
+/// From a (H, W, 3) mean and variance of the mean.
+inline ErrorValue estimate_from_variance(const float* mean, const float* var, int W, int H) {
+    constexpr int k = 4;
+    const int kx = std::max(1, std::min(k, W)), ky = std::max(1, std::min(k, H));
+    const int kk = std::min(kx, ky);  // the Python side splits k = min(4, H, W) both ways
+    std::vector<double> sum(size_t(kk) * kk, 0.0);
+    std::vector<uint64_t> count(size_t(kk) * kk, 0);
+    double total = 0.0;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t p = size_t(y) * size_t(W) + size_t(x);
+            double e = 0.0;
+            for (int c = 0; c < 3; ++c) e += rel_mse_term(double(mean[3 * p + c]), double(var[3 * p + c]));
+            total += e;
+            const size_t cell = size_t(y % kk) * kk + size_t(x % kk);
+            sum[cell] += e / 3.0;
+            count[cell] += 1;
+        }
+    ErrorValue out;
+    const double n = double(W) * double(H);
+    out.relmse = total / (3.0 * n);
+    if (kk > 1) {
+        std::vector<double> sub;
+        for (size_t i = 0; i < sum.size(); ++i)
+            if (count[i]) sub.push_back(sum[i] / double(count[i]));
+        double m = 0.0;
+        for (double s : sub) m += s;
+        m /= double(sub.size());
+        double ss = 0.0;
+        for (double s : sub) ss += (s - m) * (s - m);
+        out.stderr_ = std::sqrt(ss / double(sub.size() - 1)) / double(kk);
+    }
+    return out;
+}
+
+/// From G group images: `group(g, i)` is group g's value at index i of the (H, W, 3)
+/// image (i < n), `weights` its path evaluations; `shared_var(i)` the variance every group
+/// shares at i (direct pass, normalisation; see the file comment). `image_out`, if given,
+/// receives the weighted mean (the frame's image).
+template <class Group, class SharedVar>
+ErrorValue estimate_from_groups(size_t n, const std::vector<double>& weights, Group group, SharedVar shared_var,
+                                float* image_out = nullptr) {
+    ErrorValue out;
+    const size_t G = weights.size();
+    if (G < 3 || n == 0) return out;
+    double N = 0.0;
+    for (double w : weights) {
+        if (!(w > 0.0)) return out;  // a group without work: no estimate yet
+        N += w;
+    }
+    std::vector<double> y(G), loo(G, 0.0);
+    double total = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        double s1 = 0.0, s2 = 0.0;
+        for (size_t g = 0; g < G; ++g) {
+            y[g] = group(g, i);
+            s1 += weights[g] * y[g];
+            s2 += weights[g] * y[g] * y[g];
+        }
+        const double sv = shared_var(i);
+        const double I = s1 / N;
+        if (image_out) image_out[i] = float(I);
+        const double v = std::max(s2 - N * I * I, 0.0) / (double(G - 1) * N);
+        total += rel_mse_term(I, v + sv);
+        for (size_t g = 0; g < G; ++g) {
+            const double ng = N - weights[g];
+            const double s1g = s1 - weights[g] * y[g], s2g = s2 - weights[g] * y[g] * y[g];
+            const double Ig = s1g / ng;
+            const double vg = std::max(s2g - ng * Ig * Ig, 0.0) / (double(G - 2) * ng);
+            loo[g] += rel_mse_term(Ig, vg + sv) * (ng / N);
+        }
+    }
+    out.relmse = total / double(n);
+    double m = 0.0;
+    for (double& l : loo) m += (l /= double(n));
+    m /= double(G);
+    double ss = 0.0;
+    for (double l : loo) ss += (l - m) * (l - m);
+    out.stderr_ = std::sqrt(double(G - 1) / double(G) * ss);
+    return out;
+}
+
+/// The stopping rule of RenderSettings.target_error and the record of its estimates.
+class ErrorTarget {
+public:
+    ErrorTarget(double target, double min_work) : m_target(target), m_min_work(min_work) {}
+
+    bool enabled() const { return m_target > 0.0; }
+    double target() const { return m_target; }
+
+    /// Record the estimate after `work` (passes, or evaluations per pixel) and `secs`;
+    /// true when the target is reached.
+    bool reached(double work, double secs, const ErrorValue& e) {
+        m_last = e;
+        m_history.push_back({work, secs, e.relmse, e.stderr_});
+        if (!enabled() || !e.valid() || work < m_min_work) return false;
+        return e.relmse <= m_target && e.stderr_ < 0.25 * e.relmse;
+    }
+    /// The work to have done after the next chunk, from `work` done (> 0).
+    double min_work() const { return m_min_work; }
+    double next_work(double work) const {
+        double want = 2.0 * work;
+        if (m_last.valid() && m_last.relmse > 0.0) {
+            if (m_last.relmse > m_target) want = work * m_last.relmse / (0.95 * m_target);
+            else want = 1.25 * work;  // below the target, but its standard error too large
+        }
+        want = std::min(std::max(want, 1.1 * work), 2.0 * work);
+        return std::max(want, m_min_work);
+    }
+    const std::vector<std::array<double, 4>>& history() const { return m_history; }
+    std::vector<std::array<double, 4>> take_history() { return std::move(m_history); }
+
+private:
+    double m_target, m_min_work;
+    ErrorValue m_last;
+    std::vector<std::array<double, 4>> m_history;
+};
+
+/// Passes (pt, bdpt): the chunk to render after `done` passes with a target, given the
+/// chunk the budgets allow (`budget_chunk`, PassSchedule::next; `remaining` passes of the
+/// sample budget when untimed, which the target's prediction then sizes).
+inline int target_chunk(const ErrorTarget& t, int done, int budget_chunk, bool timed, int remaining) {
+    if (!t.enabled() || budget_chunk <= 0) return budget_chunk;
+    const int cap = timed ? budget_chunk : remaining;
+    const double want = done == 0 ? t.min_work() : t.next_work(double(done));
+    return std::max(1, std::min(cap, int(std::ceil(want)) - done));
+}
+
+/// The stop reason of a frame (RenderResult::stop_reason).
+inline std::string stop_reason(bool cancelled, bool target_reached, bool timed, double elapsed, double time_budget) {
+    if (cancelled) return "cancelled";
+    if (target_reached) return "target";
+    if (timed && elapsed >= time_budget) return "time";
+    return "budget";
+}
+
+/// Passes needed before a pass-based frame may stop at its target.
+constexpr double k_target_min_passes = 16.0;
+
+}  // namespace cmlt
