@@ -155,12 +155,14 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                 uint64_t bad = 0;
                 const coherent::Target f = make_target(&c, nullptr);
                 for (uint64_t ci = r.begin(); ci != r.end(); ++ci) {
-                    State x = coherent::import_state(initial->chains[ci], StateKey{RngDomain::chain, uint32_t(ci), 0});
+                    const mlt::ChainState& in =
+                        initial->chains[mlt::subsampled_state(ci, n_chains, initial->chains.size())];
+                    State x = coherent::import_state(in, StateKey{RngDomain::chain, uint32_t(ci), 0});
                     const double fx = f(x);
                     bad += x.sample.invalid ? 1 : 0;
                     chains[ci] = std::make_unique<ChainState>(seed, uint32_t(ci), k, std::move(x), fx);
                     chains[ci]->budget = n_mut / n_chains + (ci < n_mut % n_chains ? 1 : 0);
-                    chain_ids[ci] = initial->chains[ci].chain_id;
+                    chain_ids[ci] = in.chain_id;
                 }
                 counters.add(c, bad);
             });
@@ -254,7 +256,7 @@ RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, con
                             else if (coherent::light_traced(st.chain.x.sample))
                                 kind = Perturbation::caustic;
                             const PerturbationProposal prop =
-                                PerturbationProposal::make(kind, seed, sigma_pixels, sigma_primary, W, H);
+                                PerturbationProposal::make(kind, seed, sigma_pixels, sigma_primary, W, H, st.rng);
                             const mlt::StepResult ir = mlt::inner_step(rule, st.chain, f, prop, splat, st.rng, st.ws);
                             st.perturbation[size_t(kind)].record(ir);
                             st.invalid += ir.invalid_values;

@@ -13,9 +13,10 @@
 ///     bootstrap evaluates — and a chain starts from a resampled bootstrap key with no
 ///     replay sampler state to carry;
 ///   * a perturbation copies the overrides and overrides 2 coordinates.
-/// Coordinates a path never reads stay at their key's values; that is a fixed (not
-/// re-drawn) part of the state, which is valid: they do not enter f*, and the
-/// perturbations leave them unchanged (δ, a symmetric kernel).
+/// Coordinates a path never reads stay at their key's values under the lens, caustic
+/// and pixel-move perturbations, which leave them unchanged (δ, a symmetric kernel);
+/// the small step refreshes them first (PerturbationProposal) and then steps every
+/// coordinate, the unread ones lazily (LazyStep).
 ///
 /// Perturbations (all symmetric on the torus, so mlt_kernels' mtm_step and bundle_step
 /// apply unchanged; the kernel draws every candidate of a bundle from the same kernel):
@@ -32,7 +33,8 @@
 ///     position only), so pixel coverage stays even (the seed's remedy against
 ///     stratification / blotches).
 ///   * small step: PSSMLT's wrapped Gaussian on every coordinate (σ in primary units),
-///     the technique held. Lens and caustic perturbations move two coordinates only, so
+///     the technique held, after a refresh of the unread coordinates
+///     (PerturbationProposal). Lens and caustic perturbations move two coordinates only, so
 ///     alone they never explore the rest of the path between large steps; measured on
 ///     sequences/caustic_glass at 64x64, 256 evaluations per pixel, 3 seeds: relMSE
 ///     0.0105 without small steps, 0.0084 with half the inner steps small steps, 0.0077
@@ -67,6 +69,7 @@
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "scene/scene.h"
 #include "util/cycle_clock.h"
+#include "util/error.h"
 
 #include <algorithm>
 #include <array>
@@ -104,10 +107,38 @@ inline double key_value(uint64_t seed, const StateKey& key, size_t i) {
 
 inline constexpr double k_unset = std::numeric_limits<double>::quiet_NaN();
 
-/// A chain state: the point (key + overrides) and, cached by the target, its path.
+/// A lazy step of the coordinates a state does not override: either a uniform shift
+/// (the small step's refresh of the unread coordinates: key value + a fresh uniform,
+/// mod 1, is a fresh uniform) or a wrapped Gaussian step of σ (the small step itself),
+/// both drawn per coordinate from (seed, id, index) when the coordinate is read.
+struct LazyStep {
+    uint64_t id = 0;
+    double sigma = -1.0;  ///< < 0: uniform shift; else the Gaussian's σ
+};
+
+/// The lazy steps' numbers: one Philox draw per (step, coordinate), tag 3 of the
+/// Metropolis counters (0-2 are MltSampler's and CounterRng's).
+inline double lazy_step(uint64_t seed, const LazyStep& step, size_t i) {
+    const Philox4x32Counter r = philox4x32(
+        mlt::detail::mlt_counter(3, RngDomain::chain, uint32_t(step.id >> 32), step.id & 0xFFFFFFFFu, uint32_t(i)),
+        mlt::detail::mlt_key(seed));
+    const double a = mlt::detail::bits_to_unit(r[0], r[1]);
+    if (step.sigma < 0.0) return a;
+    return step.sigma * mlt::detail::box_muller(a, mlt::detail::bits_to_unit(r[2], r[3]));
+}
+
+/// A chain state: the point (key + overrides + lazy steps) and, cached by the target,
+/// its path.
 struct State {
+    /// Lazy steps a state can carry: a refresh and two Gaussian levels (the bundle's
+    /// centre and candidate, or MTM's candidate and reference point).
+    static constexpr size_t k_max_lazy = 3;
+
     StateKey key;
     std::vector<double> u;  ///< overrides by global index; NaN = the key's value
+    /// Steps applied, in order, to every coordinate without an override (see LazyStep).
+    std::array<LazyStep, k_max_lazy> lazy{};
+    uint32_t lazy_count = 0;
     mutable PathSample sample;  ///< set by the target when the point is evaluated
     /// `sample` is this point's (set by the target; a proposal that writes the point
     /// clears it, so the target evaluates each new point once)
@@ -117,7 +148,13 @@ struct State {
 
     double value(uint64_t seed, size_t i) const {
         if (i < u.size() && !std::isnan(u[i])) return u[i];
-        return key_value(seed, key, i);
+        double v = key_value(seed, key, i);
+        for (uint32_t n = 0; n < lazy_count; ++n) v = mlt::detail::wrap01(v + lazy_step(seed, lazy[n], i));
+        return v;
+    }
+    void add_lazy(const LazyStep& step) {
+        CMLT_CHECK_MSG(lazy_count < k_max_lazy, "coherent::State: more than " << k_max_lazy << " lazy steps");
+        lazy[lazy_count++] = step;
     }
     void set(size_t i, double v) {
         if (i >= u.size()) u.resize(i + 1, k_unset);
@@ -184,16 +221,40 @@ inline size_t caustic_index(int axis) {
                              k_emission_direction_dimension * MltSampler::k_slots_per_dimension + uint32_t(axis));
 }
 
-/// A symmetric perturbation of two coordinates (mlt_kernels Proposal concept).
+/// A symmetric perturbation (mlt_kernels Proposal concept): two coordinates, or for the
+/// small step every coordinate.
+///
+/// The small step is PSSMLT's wrapped Gaussian on every coordinate (the technique slots
+/// held), preceded by a Gibbs refresh of the coordinates the current state x has not
+/// read — both leave π invariant, so their composition does:
+///   1. refresh: x's coordinates below its extent (those its path read, and the unread
+///      ones between) are kept; every other coordinate becomes a fresh uniform (under π
+///      they are uniform and independent of the rest, whatever x's key gave them).
+///      Without it a coordinate outside the extent stays at the key's value that earlier,
+///      rejected proposals read, a proposal reading it for the first time sees that fixed
+///      value while the reverse move would perturb it: T(y→x) ≠ T(x→y), and on a target
+///      whose paths read a variable number of coordinates (Russian roulette, pass-through
+///      surfaces, the pt sampler) the chain drifts (tests/cpp/test_small_step_balance.cpp).
+///   2. step: the Gaussian on every coordinate of the refreshed point — eagerly on the
+///      overridden ones, lazily (LazyStep, drawn when read) on the rest, so that the
+///      candidates of one bundle share the refreshed values and differ by their own
+///      Gaussian offsets, as the all-coordinate kernel has it (bundle_step's
+///      exchangeability, mtm_step's symmetric T).
+/// `refresh` names step 1's uniforms: make() draws it per inner step, and sample() from
+/// a point that does not carry it yet (the chain's current state) applies the refresh;
+/// from a point that does (the bundle's centre, MTM's chosen candidate) only the step.
 struct PerturbationProposal {
     static constexpr bool k_symmetric = true;
     Perturbation kind = Perturbation::lens;
     uint64_t seed = 0;
     size_t i0 = 0, i1 = 0;
     double s0 = 0.01, s1 = 0.01;  ///< σ per coordinate (unused by pixel_move)
+    uint64_t refresh = 0;         ///< the small step's refresh (see above)
 
+    /// A proposal of one inner step; the small step draws its refresh from `rng`.
+    template <class Rng>
     static PerturbationProposal make(Perturbation kind, uint64_t seed, double sigma_pixels, double sigma_primary,
-                                     int width, int height) {
+                                     int width, int height, Rng& rng) {
         PerturbationProposal p;
         p.kind = kind;
         p.seed = seed;
@@ -207,26 +268,31 @@ struct PerturbationProposal {
             p.s0 = sigma_pixels / double(width);
             p.s1 = sigma_pixels / double(height);
         }
+        if (kind == Perturbation::small_step) p.refresh = draw_id(rng);
         return p;
     }
 
     template <class Rng>
     void sample(const State& from, State& to, Rng& rng) const {
         to.key = from.key;
-        to.u = from.u;  // same-size assignment reuses capacity
         to.evaluated = false;
         if (kind == Perturbation::small_step) {
-            // Every materialised coordinate (overridden, or read by the path of `from`)
-            // gets a wrapped Gaussian step; the technique slots stay (multiplexed MLT,
-            // mlt_sampler.h). A coordinate never materialised keeps its key value, a
-            // uniform independent of the chain's past — in law the value a perturbed
-            // fresh uniform would have (PSSMLT's lazy mutation, Kelemen et al. 2002), so
-            // the kernel is the symmetric all-coordinate step.
+            const bool refreshed = from.lazy_count > 0 && from.lazy[0].sigma < 0.0 && from.lazy[0].id == refresh;
+            if (refreshed) {
+                to.u = from.u;  // same-size assignment reuses capacity
+                to.lazy = from.lazy;
+                to.lazy_count = from.lazy_count;
+            } else {
+                to.u.clear();
+                to.lazy_count = 0;
+            }
+            // the coordinates below from's extent become overrides (their current values)
             for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k)
                 for (uint32_t slot = 0; slot < from.extent[k]; ++slot) {
                     const size_t i = MltSampler::index(k, slot);
-                    if (i >= to.u.size() || std::isnan(to.u[i])) to.set(i, key_value(seed, from.key, i));
+                    if (i >= to.u.size() || std::isnan(to.u[i])) to.set(i, from.value(seed, i));
                 }
+            if (!refreshed) to.add_lazy(LazyStep{refresh, -1.0});
             to.extent = from.extent;
             const size_t t0 = MltSampler::index(MltSampler::connection, 0);
             const size_t t1 = MltSampler::index(MltSampler::connection, 1);
@@ -234,8 +300,12 @@ struct PerturbationProposal {
                 if (std::isnan(to.u[i]) || i == t0 || i == t1) continue;
                 to.u[i] = mlt::detail::wrap01(to.u[i] + s0 * rng.normal());
             }
+            to.add_lazy(LazyStep{draw_id(rng), s0});
             return;
         }
+        to.u = from.u;
+        to.lazy = from.lazy;
+        to.lazy_count = from.lazy_count;
         if (kind == Perturbation::pixel_move) {
             const double a = rng.uniform();
             const double b = rng.uniform();
@@ -248,6 +318,12 @@ struct PerturbationProposal {
             to.set(i1, b);
         }
     }
+
+private:
+    template <class Rng>
+    static uint64_t draw_id(Rng& rng) {
+        return uint64_t(rng.uniform() * 0x1p53);
+    }
 };
 
 /// The outer chain's large step: a new key, no overrides (independent uniform point).
@@ -258,6 +334,7 @@ struct LargeStepProposal {
     void sample(const State& /*from*/, State& to, Rng& /*rng*/) const {
         to.key = next;
         to.u.clear();
+        to.lazy_count = 0;
         to.evaluated = false;
     }
 };

@@ -153,7 +153,7 @@ RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings,
                 PathCounters c;
                 uint64_t bad = 0;
                 for (uint64_t k = r.begin(); k != r.end(); ++k) {
-                    const mlt::ChainState& in = initial->chains[k];
+                    const mlt::ChainState& in = initial->chains[mlt::subsampled_state(k, n_chains, initial->chains.size())];
                     MltSampler smp = make_sampler(RngDomain::chain, uint32_t(k));
                     smp.import_state(in.u);
                     smp.begin_replay();
