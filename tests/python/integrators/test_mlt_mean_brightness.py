@@ -72,10 +72,10 @@ def slit_room():
 
 
 def lit_floor():
-    """A grey floor under an emissive panel (black: it reflects nothing) and nothing
-    else: every path that carries light has depth 0 or 1."""
+    """A grey floor under an emissive panel (black and without a specular layer: it
+    reflects nothing) and nothing else: every path that carries light has depth 0 or 1."""
     mats = [Material("/floor", diffuse=(0.6, 0.6, 0.6)),
-            Material("/light", diffuse=(0.0, 0.0, 0.0), emission=(10.0, 10.0, 10.0))]
+            Material("/light", diffuse=(0.0, 0.0, 0.0), emission=(10.0, 10.0, 10.0), ior=1.0)]
     quads = [quad("/floor", (0, 0, 0), (0, 0, 2), (2, 0, 0), 0),
              quad("/lamp", (0, 1.5, 0), (0.4, 0, 0), (0, 0, -0.4), 1)]   # facing down
     cam_xf = np.eye(4)

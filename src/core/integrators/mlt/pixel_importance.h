@@ -21,12 +21,8 @@
 /// would divide the chains' target by the direct light: where a pixel is bright from
 /// direct light (a lit patch, a visible lamp) but its indirect light is ordinary, f*
 /// falls by the ratio, the chains hardly visit it and each visit splats that much more.
-/// Measured on sequences/door_ajar (frame 1, 64x64, 350 evaluations per pixel, pssmlt,
-/// seeds 0 and 2-5, against luminance-target renders of the same seeds averaging 1.00
-/// of bdpt): a 1-spp pilot of the whole image gave 0.84 of the mean brightness on
-/// every seed (a heavy-tailed estimator: the mean over many renders is right, a typical
-/// one is dark), a 64-spp pilot of the whole image 0.97, one of depths >= 2 1.03 (the
-/// 1-spp pilot of depths >= 2 is black there: the luminance target). Then, made robust
+/// (On sequences/door_ajar the pilot of depths >= 2 alone did not change the image: its
+/// 1-spp chance hits are indirect light too, see step 4.) Then, made robust
 /// before use:
 ///   1. fireflies: a pixel's luminance is clamped to the largest of its 8 neighbours
 ///      (an isolated outlier is noise of a 1-spp estimate; a lamp covers neighbours);
@@ -34,7 +30,20 @@
 ///   3. floor: P ≥ k_floor · mean(P), so dark pixels (or caustics the pilot missed) get
 ///      at most 1 / k_floor times their fair share of mutations;
 ///   4. an all-black pilot (nothing lit, or nothing the path tracer finds) gives P = 1:
-///      the luminance target.
+///      the luminance target; so does a pilot that lights fewer than k_min_lit_fraction
+///      of the pixels. That is a dark scene whose light the pilot finds only now and then
+///      (sequences/door_ajar at frame 1, 1 spp: 14-27 of 4,096 pixels lit), and its P is
+///      a few blobs around chance hits that survived steps 1-2, with every other pixel at
+///      the floor: f* is then 1/k_floor = 20 times Y almost everywhere and far less in
+///      the blobs for no reason (b came out 13-19 times the luminance target's), the
+///      chains hardly visit the blobs, each visit splats that much more, and a typical
+///      render comes out dark — the estimator is consistent but heavy-tailed. Measured
+///      on door_ajar frame 1, 64x64, 350 evaluations per pixel, pssmlt, seeds 0 and 2-5
+///      (seed 1's pilot is black): mean brightness 0.84 of bdpt on average with the
+///      blobs, each seed 0.75-0.89 of the luminance-target render with the same seed;
+///      the luminance target 1.00 over seeds 0-5. Pilots of 64 spp (rendered apart and
+///      given as RenderSettings::pilot, seeds 0 and 2-5) gave 0.97 (depths >= 0) and
+///      1.03 (depths >= 2).
 /// The pilot's samples count against the frame's budget of path evaluations.
 #include "math/vec.h"
 
@@ -56,6 +65,8 @@ class PixelImportance {
 public:
     /// Relative floor of P (step 3).
     static constexpr double k_floor = 0.05;
+    /// Fewest pixels a pilot must light (luminance > 0), as a share of the image (step 4).
+    static constexpr double k_min_lit_fraction = 0.1;
 
     PixelImportance() = default;  ///< luminance target (weight 1 everywhere)
     /// From a pilot image (H, W, 3 floats, scene-linear, row 0 at the top).
