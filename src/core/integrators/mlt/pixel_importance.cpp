@@ -90,10 +90,7 @@ std::vector<float> PixelImportance::importance() const {
 
 std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
                                 PathCounters& counters) {
-    // the paths the chains render: with a direct pass, depths >= 2 only (see the header)
-    return render_pt_pass(scene, settings, spp, k_pilot_sample_base, settings.max_depth, counters,
-                          MltContext::min_depth(settings))
-        .mean;
+    return render_pt_pass(scene, settings, spp, k_pilot_sample_base, settings.max_depth, counters).mean;
 }
 
 std::shared_ptr<const PixelImportance> make_importance(const Scene& scene, const RenderSettings& settings,

@@ -15,15 +15,8 @@
 ///    a pixel they still follow the contribution — light through a slit, caustics.
 ///
 /// P comes from a pilot pass of the path tracer (`pilot_spp` samples per pixel, keyed by
-/// the seed like every stream, so consecutive frames of a static shot get the same P) of
-/// the paths the chains render — with a direct pass (RenderSettings::direct_fraction >
-/// 0) depths >= 2 only, the direct pass renders the rest. A pilot of the whole image
-/// would divide the chains' target by the direct light: where a pixel is bright from
-/// direct light (a lit patch, a visible lamp) but its indirect light is ordinary, f*
-/// falls by the ratio, the chains hardly visit it and each visit splats that much more.
-/// (On sequences/door_ajar the pilot of depths >= 2 alone did not change the image: its
-/// 1-spp chance hits are indirect light too, see step 4.) Then, made robust
-/// before use:
+/// the seed like every stream, so consecutive frames of a static shot get the same P),
+/// made robust before use:
 ///   1. fireflies: a pixel's luminance is clamped to the largest of its 8 neighbours
 ///      (an isolated outlier is noise of a 1-spp estimate; a lamp covers neighbours);
 ///   2. blur: the separable [1 2 1] / 4 tent, twice (a 5×5 footprint);
@@ -43,7 +36,10 @@
 ///      blobs, each seed 0.75-0.89 of the luminance-target render with the same seed;
 ///      the luminance target 1.00 over seeds 0-5. Pilots of 64 spp (rendered apart and
 ///      given as RenderSettings::pilot, seeds 0 and 2-5) gave 0.97 (depths >= 0) and
-///      1.03 (depths >= 2).
+///      1.03 (depths >= 2 only: what the chains render beside the direct pass; a
+///      1-spp pilot of depths >= 2 changed nothing on door_ajar — its chance hits are
+///      indirect light too — and made chains stick on the caustic of
+///      tests/python/integrators/test_pssmlt_bdpt.py, so the pilot renders every depth).
 /// The pilot's samples count against the frame's budget of path evaluations.
 #include "math/vec.h"
 
@@ -86,8 +82,7 @@ private:
 };
 
 /// The pilot image: `spp` path-traced samples per pixel keyed by (seed, pixel, sample)
-/// in a stream of their own (H, W, 3), of the paths the chains render (depths >=
-/// MltContext::min_depth(settings)). Adds its rays to `counters`.
+/// in a stream of their own (H, W, 3). Adds its rays to `counters`.
 std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
                                 PathCounters& counters);
 

@@ -17,14 +17,14 @@
 namespace cmlt {
 
 PtPassImage render_pt_pass(const Scene& scene, const RenderSettings& settings, int spp,
-                           uint32_t sample_base, int max_depth, PathCounters& counters, int min_depth) {
+                           uint32_t sample_base, int max_depth, PathCounters& counters) {
     const int W = settings.width, H = settings.height;
     PtPassImage out;
     out.mean.assign(size_t(W) * size_t(H) * 3, 0.f);
     out.variance.assign(size_t(W) * size_t(H) * 3, 0.f);
     if (spp < 1) return out;
     const Camera camera(scene.camera_desc(), W, H);
-    const PathTracer tracer(scene, max_depth, min_depth);
+    const PathTracer tracer(scene, max_depth);
     const bool motion_blur = scene.motion_blur();
     Film film(W, H);
     const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();

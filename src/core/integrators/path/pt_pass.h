@@ -26,9 +26,9 @@ struct PtPassImage {
     uint64_t nan_samples = 0;     ///< non-finite samples dropped
 };
 
-/// `spp` samples per pixel of paths with `min_depth` to `max_depth` scattering events, at
-/// the settings' resolution, seed and thread count. Adds its rays to `counters`.
+/// `spp` samples per pixel of paths with at most `max_depth` scattering events, at the
+/// settings' resolution, seed and thread count. Adds its rays to `counters`.
 PtPassImage render_pt_pass(const Scene& scene, const RenderSettings& settings, int spp,
-                           uint32_t sample_base, int max_depth, PathCounters& counters, int min_depth = 0);
+                           uint32_t sample_base, int max_depth, PathCounters& counters);
 
 }  // namespace cmlt
