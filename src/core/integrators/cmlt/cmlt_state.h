@@ -116,11 +116,11 @@ struct LazyStep {
     double sigma = -1.0;  ///< < 0: uniform shift; else the Gaussian's σ
 };
 
-/// The lazy steps' numbers: one Philox draw per (step, coordinate), tag 3 of the
-/// Metropolis counters (0-2 are MltSampler's and CounterRng's).
+/// The lazy steps' numbers: one Philox draw per (step, coordinate), tag 4 of the
+/// Metropolis counters (0-2: MltSampler's and CounterRng's, 3: temporal keyed uniforms).
 inline double lazy_step(uint64_t seed, const LazyStep& step, size_t i) {
     const Philox4x32Counter r = philox4x32(
-        mlt::detail::mlt_counter(3, RngDomain::chain, uint32_t(step.id >> 32), step.id & 0xFFFFFFFFu, uint32_t(i)),
+        mlt::detail::mlt_counter(4, RngDomain::chain, uint32_t(step.id >> 32), step.id & 0xFFFFFFFFu, uint32_t(i)),
         mlt::detail::mlt_key(seed));
     const double a = mlt::detail::bits_to_unit(r[0], r[1]);
     if (step.sigma < 0.0) return a;
