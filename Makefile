@@ -17,6 +17,7 @@ PY       := $(VENV)/bin/python
 BUILD    := build/py
 SUDO     ?=
 APT_PKGS := build-essential cmake ninja-build libembree-dev libtbb-dev libosd-dev \
+            linux-perf valgrind \
             googletest libgtest-dev python3-dev python3-venv
 # pyproject.toml's [build-system] requires: the editable install builds without
 # isolation (incremental C++ builds in $(BUILD)), so they must be in the venv. The
