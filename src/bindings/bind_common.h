@@ -35,7 +35,11 @@ Mat4 to_mat4(nb::handle obj, const char* fn, const char* arg);
 /// Keep Python objects alive from C++; releases them with the GIL held.
 std::shared_ptr<void> make_owner(std::vector<nb::object> objs);
 
+/// float32 (h, w, 3) numpy array owning `v` (an RGB image, row by row).
+nb::object rgb_to_numpy(std::vector<float>&& v, int h, int w);
+
 void bind_scene(nb::module_& m);
+void bind_settings(nb::module_& m);  ///< RenderSettings: before bind_render
 void bind_render(nb::module_& m);
 void bind_temporal(nb::module_& m);
 void bind_geometry(nb::module_& m);

@@ -352,7 +352,7 @@ void bind_scene(nb::module_& m) {
              "  column (-1 = none; colours read 3 columns) of the mesh's primvars: 25 diffuseColor,\n"
              "  26 specularColor, 27 metallic, 28 roughness, 29 clearcoat, 30 clearcoatRoughness,\n"
              "  31 opacity.\n"
-             "(cmlt.shot.bridge.MATERIAL_PARAM_COLUMNS mirrors this layout.)")
+             "(cmlt.shot.material_table.MATERIAL_PARAM_COLUMNS mirrors this layout.)")
         .def("add_texture", &add_texture, "image"_a, "wrap_s"_a = "repeat", "wrap_t"_a = "repeat",
              "scale"_a = std::array<float, 4>{1.f, 1.f, 1.f, 1.f},
              "bias"_a = std::array<float, 4>{0.f, 0.f, 0.f, 0.f}, "name"_a = "texture",

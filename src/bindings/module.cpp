@@ -105,8 +105,8 @@ std::shared_ptr<void> make_owner(std::vector<nb::object> objs) {
 NB_MODULE(_core, m) {
     namespace nb = nanobind;
     using namespace cmlt::bindings;
-    m.doc() = "cmlt C++ core: scene, Embree BVH, path tracer";
-    m.attr("__version__") = "0.1.0";
+    m.doc() = "cmlt C++ core: scene, Embree BVH, integrators (pt, bdpt, pssmlt, cmlt), temporal carry-over";
+    m.attr("__version__") = CMLT_VERSION;  // pyproject.toml's version (CMakeLists.txt)
     nb::exception<cmlt::SceneError>(m, "SceneError", PyExc_ValueError);
     nb::exception<cmlt::SettingsError>(m, "SettingsError", PyExc_ValueError);
     m.def("max_packet_width", &cmlt::Accel::max_packet_width,

@@ -47,7 +47,7 @@ class Material:
     diffuse: Tuple[float, float, float] = (0.18, 0.18, 0.18)
     emission: Tuple[float, float, float] = (0.0, 0.0, 0.0)
     # the other UsdPreviewSurface inputs (the core's material parameters,
-    # cmlt.shot.bridge.MATERIAL_PARAM_COLUMNS)
+    # cmlt.shot.material_table.MATERIAL_PARAM_COLUMNS)
     specular: Tuple[float, float, float] = (0.0, 0.0, 0.0)
     use_specular_workflow: bool = False
     metallic: float = 0.0

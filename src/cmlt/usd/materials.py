@@ -54,7 +54,7 @@ class PrimvarRequest:
     (scalar) or padded with 0, a wider one cut), converting colours to the
     rendering space; where a gprim lacks the primvar, ``fallback`` (already
     in rendering-space units) fills it, with a warning naming ``reader``.
-    Equal requests share their columns (``cmlt.shot.bridge``)."""
+    Equal requests share their columns (``cmlt.shot.material_table``)."""
 
     varname: str
     width: int

@@ -67,7 +67,7 @@ public:
     /// Embree 3.13 (Debian 12) missed hits on flat instances (an emitter quad, a cut-out
     /// quad) for packets whose lanes start at different points — light-subpath bounces
     /// of one bundle — where rtcIntersect1 found them (test10b in
-    /// test_light_transport.py caught it; Accel.PacketOfLightSubpathBouncesFindsFlatInstances
+    /// tests/python/integrators/test_light_transport.py caught it; Accel.PacketOfLightSubpathBouncesFindsFlatInstances
     /// replays the packet). Without it packets and single rays agree.
     void intersect_packet(int width, const int* valid, const Ray* rays, Hit* hits,
                           bool coherent = false) const;

@@ -23,23 +23,15 @@
 /// every ray of a pixel converges there, and a point at depth z spreads over a circle
 /// of confusion of diameter 2 r |z - focus| / z on the plane of focus (in the image:
 /// times focal / focus). The lens sample comes from its own dimension
-/// (k_lens_dimension) of the sample's camera-path stream, drawn only with a lens.
+/// (k_lens_dimension, sampling/rng_domains.h) of the sample's camera-path stream, drawn
+/// only with a lens; the shutter time of a motion-blurred sample likewise
+/// (k_shutter_time_dimension).
 #include "math/mat4.h"
 #include "math/ray.h"
 
 #include <cstdint>
 
 namespace cmlt {
-
-/// Motion blur: the shutter time of a camera sample (Ray::time, in [0, 1) over
-/// [shutter open, shutter close]) is drawn from its own dimension of the sample's
-/// camera-path random stream, far above any dimension a path uses. Only when the scene
-/// has motion-blurred geometry (Scene::motion_blur()) is it drawn; otherwise rays keep
-/// time 0 and every other random number of the sample is the same either way, so a
-/// scene that does not move renders bit-identically with or without the feature.
-constexpr uint32_t k_shutter_time_dimension = 0xFFFFFF00u;
-/// Thin lens: the 2-D lens position of a camera sample (see Camera::has_lens).
-constexpr uint32_t k_lens_dimension = 0xFFFFFF10u;
 
 struct CameraDesc {
     enum class Projection { perspective, orthographic };

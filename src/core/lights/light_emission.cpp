@@ -103,7 +103,7 @@ LightLeSample TriangleLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) con
     if (u.x < 0.5f) {
         u.x = 2.f * u.x;
     } else {
-        u.x = std::min(2.f * u.x - 1.f, 0x1.fffffep-1f);
+        u.x = clamp_below_one(2.f * u.x - 1.f);
         n = -m_n;
     }
     Vec3 local = square_to_cosine_hemisphere(u);

@@ -1,5 +1,6 @@
 #include "sampling/discrete_distribution.h"
 
+#include "math/safe_math.h"
 #include "util/error.h"
 
 #include <algorithm>
@@ -37,7 +38,7 @@ size_t DiscreteDistribution::sample(float u, float* pmf_out, float* u_remapped) 
     if (u_remapped) {
         double w = m_cdf[i + 1] - m_cdf[i];
         double r = w > 0 ? (double(u) - m_cdf[i]) / w : 0.0;
-        *u_remapped = float(std::clamp(r, 0.0, double(0x1.fffffep-1f)));
+        *u_remapped = float(std::clamp(r, 0.0, double(k_one_minus_eps)));
     }
     return i;
 }

@@ -1,52 +1,54 @@
 #pragma once
-/// \file Counter-based random numbers: Philox-4x32-10 (Salmon et al. 2011, "Parallel
-/// random numbers: as easy as 1, 2, 3").
+/// \file The renderer's random numbers: Philox-4x32 (philox.h) over the counter spaces
+/// of the registry (rng_domains.h), turned into uniforms and normals.
 ///
-/// A value is a pure function of (key, counter): there is no sequential state, so
-/// results do not depend on thread count or scheduling. Samplers key the counter by
-/// (pixel index, sample index, dimension, stream) and the key by the seed.
-#include <array>
-#include <cstdint>
-
+///   PixelSampler   independent numbers of one pixel sample, dimension by dimension
+///                  (the path tracer's Sampler, base/sampler.h);
+///   CounterRng     a sequential stream keyed (seed, domain, id): the kernels' RNG
+///                  (`uniform()`, `normal()`) of the Metropolis chains;
+/// and the conversions every consumer shares (so the same bits give the same numbers
+/// everywhere): 24 bits → float, 64 bits → double, Box–Muller, the torus wrap, and a
+/// primary sample as the float a path routine reads.
 #include "math/safe_math.h"
 #include "math/vec.h"
+#include "sampling/philox.h"
+#include "sampling/rng_domains.h"
+
+#include <cmath>
+#include <cstdint>
 
 namespace cmlt {
-
-using Philox4x32Counter = std::array<uint32_t, 4>;
-using Philox4x32Key = std::array<uint32_t, 2>;
-
-/// Philox-4x32 with 10 rounds.
-inline Philox4x32Counter philox4x32(Philox4x32Counter c, Philox4x32Key k) {
-    constexpr uint32_t M0 = 0xD2511F53u, M1 = 0xCD9E8D57u;
-    constexpr uint32_t W0 = 0x9E3779B9u, W1 = 0xBB67AE85u;
-    for (int round = 0; round < 10; ++round) {
-        uint64_t p0 = uint64_t(M0) * c[0];
-        uint64_t p1 = uint64_t(M1) * c[2];
-        uint32_t hi0 = uint32_t(p0 >> 32), lo0 = uint32_t(p0);
-        uint32_t hi1 = uint32_t(p1 >> 32), lo1 = uint32_t(p1);
-        c = {hi1 ^ c[1] ^ k[0], lo1, hi0 ^ c[3] ^ k[1], lo0};
-        k[0] += W0;
-        k[1] += W1;
-    }
-    return c;
-}
 
 /// uint32 -> float in [0, 1) (top 24 bits; exactly representable, never 1).
 inline float uint_to_unit_float(uint32_t v) { return float(v >> 8) * 0x1p-24f; }
 
-/// Stream ids: separate counter spaces for different consumers.
-enum class RngStream : uint32_t { camera_path = 0, light_path = 1, test = 0xFFFF };
+/// 64 random bits → double in [0, 1) (53 bits; never 1).
+inline double bits_to_unit(uint32_t hi, uint32_t lo) { return double(((uint64_t(hi) << 32) | lo) >> 11) * 0x1p-53; }
+
+/// A primary sample u ∈ [0, 1) as the float a path routine reads: float(u) may round
+/// up to 1, which becomes the largest float below 1 (math/safe_math.h's clamp_below_one).
+inline float unit_float(double u) { return clamp_below_one(float(u)); }
+
+/// Standard normal from two uniforms (Box–Muller, cosine branch); u1 ∈ [0, 1).
+inline double box_muller(double u1, double u2) {
+    return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(6.283185307179586476925 * u2);
+}
+
+/// Map a real number onto [0, 1) (the unit torus of primary sample space). `v - floor(v)`
+/// can round up to exactly 1.0 for tiny negative v (e.g. -1e-17), so that case is mapped
+/// to 0; NaN and ±Inf also map to 0, so a primary sample is never outside [0, 1).
+inline double wrap01(double v) {
+    const double r = v - std::floor(v);
+    return r < 1.0 ? r : 0.0;  // false for r == 1 and for NaN
+}
 
 /// Random numbers of one pixel sample: dimension d of (seed, pixel, sample, stream).
 /// `get1d`/`get2d` consume dimensions in order; `set_dimension` jumps to a fixed
 /// dimension so that e.g. each bounce owns a fixed dimension range.
 class PixelSampler {
 public:
-    PixelSampler(uint64_t seed, uint32_t pixel, uint32_t sample,
-                 RngStream stream = RngStream::camera_path)
-        : m_key{uint32_t(seed), uint32_t(seed >> 32)},
-          m_pixel(pixel), m_sample(sample), m_stream(uint32_t(stream)) {}
+    PixelSampler(uint64_t seed, uint32_t pixel, uint32_t sample, RngStream stream = RngStream::camera_path)
+        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample), m_stream(stream) {}
 
     void set_dimension(uint32_t d) { m_dim = d; }
     uint32_t dimension() const { return m_dim; }
@@ -60,12 +62,42 @@ public:
     Philox4x32Counter get_bits() { return draw(); }
 
 private:
-    Philox4x32Counter draw() {
-        return philox4x32({m_pixel, m_sample, m_dim++, m_stream}, m_key);
-    }
+    Philox4x32Counter draw() { return philox4x32(pixel_counter(m_pixel, m_sample, m_dim++, m_stream), m_key); }
     Philox4x32Key m_key;
-    uint32_t m_pixel, m_sample, m_stream;
+    uint32_t m_pixel, m_sample;
+    RngStream m_stream;
     uint32_t m_dim = 0;
+};
+
+/// Sequential counter-based generator with the kernels' RNG interface (uniform(),
+/// normal()): draw k is a pure function of (seed, domain, id, k). Each Philox call gives
+/// two uniforms (the second is kept for the next call).
+class CounterRng {
+public:
+    CounterRng(uint64_t seed, RngDomain domain, uint32_t id) : m_key(seed_key(seed)), m_domain(domain), m_id(id) {}
+
+    double uniform() {
+        if (m_has_spare) {
+            m_has_spare = false;
+            return m_spare;
+        }
+        const Philox4x32Counter r = philox4x32(metropolis_counter(RngTag::sequence, m_domain, m_id, m_draw++, 0), m_key);
+        m_spare = bits_to_unit(r[2], r[3]);
+        m_has_spare = true;
+        return bits_to_unit(r[0], r[1]);
+    }
+    double normal() {
+        const double u1 = uniform();
+        return box_muller(u1, uniform());
+    }
+
+private:
+    Philox4x32Key m_key;
+    RngDomain m_domain;
+    uint32_t m_id;
+    uint64_t m_draw = 0;
+    double m_spare = 0.0;
+    bool m_has_spare = false;
 };
 
 }  // namespace cmlt

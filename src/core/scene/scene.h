@@ -127,7 +127,7 @@ public:
         return m_pass_through && m_material_passes[material_id] != 0;
     }
     /// Visibility of a shadow ray (ray.tnear .. ray.tfar), what integrators use instead of
-    /// occluded() (issue 3: cut-outs and pass-through surfaces let camera and BSDF rays
+    /// occluded() (cut-outs and pass-through surfaces let camera and BSDF rays
     /// through, so they must let shadow rays through too). Returns 0 if an opaque surface
     /// or an analytic light (blocked_by_light) blocks the ray, otherwise the product T of the pass-through weights of the
     /// surfaces it crosses, each evaluated at the hit as a camera path's BSDF is there

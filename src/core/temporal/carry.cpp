@@ -8,6 +8,8 @@
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/path/path_tracer_impl.h"
+#include "sampling/rng.h"
+#include "sampling/rng_domains.h"
 #include "scene/scene.h"
 #include "util/error.h"
 #include "util/fp_mode.h"
@@ -25,7 +27,6 @@ namespace cmlt::temporal {
 namespace {
 
 using mlt::MltSampler;
-using mlt::RngDomain;
 
 /// The path samplers of one frame, built as the renders build them (mlt_context.h), so
 /// f* here is f* there.
@@ -36,20 +37,13 @@ struct Tracers {
     const mlt::PssmltTracer& tracer;
 };
 
-/// A primary sample as a float the path routines would read (never 1: MltSampler's
-/// to_float; 1.0f would read back as "no value" on import).
-float to_state_float(double u) {
-    const float f = float(u);
-    return f < 1.f ? f : 0x1.fffffep-1f;
-}
-
 void fill_state(mlt::ChainState& out, const MltSampler& smp, const mlt::PathSample& x) {
     const auto u = smp.current_state();
     for (size_t k = 0; k < u.size(); ++k) {
         out.u[k].resize(u[k].size());
         for (size_t i = 0; i < u[k].size(); ++i)
             out.u[k][i] = std::isnan(u[k][i]) ? std::numeric_limits<float>::quiet_NaN()
-                                              : to_state_float(u[k][i]);
+                                              : unit_float(u[k][i]);  // never 1 (would import as "no value")
     }
     out.depth = x.depth >= 0 ? uint32_t(x.depth) : 0u;
     out.s = x.s >= 0 ? uint32_t(x.s) : 0u;
@@ -101,7 +95,7 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
     parallel(settings, states.chains.size(), [&](uint64_t i, PathCounters& c) {
         const mlt::ChainState& in = states.chains[i];
         MltSampler smp(settings.seed, settings.sigma, settings.large_step_probability,
-                       RngDomain(k_domain_evaluate), uint32_t(i));
+                       RngDomain::carry_evaluate, uint32_t(i));
         smp.import_state(in.u);
         smp.begin_replay();
         const mlt::PathSample x = tr.tracer.evaluate(smp, c);
@@ -142,8 +136,8 @@ std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const Ren
 
 double keyed_uniform(uint64_t seed, uint32_t domain, uint32_t id, uint32_t counter) {
     const Philox4x32Counter r =
-        philox4x32(mlt::detail::mlt_counter(3, RngDomain(domain), id, counter, 0), mlt::detail::mlt_key(seed));
-    return mlt::detail::bits_to_unit(r[0], r[1]);
+        philox4x32(metropolis_counter(RngTag::keyed, RngDomain(domain), id, counter, 0), seed_key(seed));
+    return bits_to_unit(r[0], r[1]);
 }
 
 CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<double>& f_new,
@@ -169,7 +163,7 @@ CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<
             // keep with probability min(1, q/p); p = 0 cannot have been picked (a
             // start from a state file written with other values: refresh it)
             const double a = p > 0.0 ? std::min(1.0, q / p) : 0.0;
-            if (a >= 1.0 || keyed_uniform(seed, k_domain_keep, uint32_t(k), frame_key) < a) {
+            if (a >= 1.0 || keyed_uniform(seed, uint32_t(RngDomain::carry_keep), uint32_t(k), frame_key) < a) {
                 slot[size_t(k)] = int64_t(i);
                 ++out.kept;
             } else {
@@ -194,7 +188,7 @@ CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<
         if (!(total > 0.0)) {  // rounding left no residual mass: draw from q
             for (size_t i = 0; i < f_new.size(); ++i) w[i] = clean(f_new[i]) / sum_new;
         }
-        const double u0 = keyed_uniform(seed, k_domain_refresh, uint32_t(group), frame_key);
+        const double u0 = keyed_uniform(seed, uint32_t(RngDomain::carry_refresh), uint32_t(group), frame_key);
         const std::vector<uint64_t> picks = systematic_resample(w, who.size(), u0);
         for (size_t j = 0; j < who.size() && j < picks.size(); ++j) slot[size_t(who[j])] = int64_t(picks[j]);
         (group == 1 ? out.refreshed : out.fresh) += who.size();

@@ -37,15 +37,9 @@ class Scene;
 
 namespace cmlt::temporal {
 
-/// Counter domains of the temporal numbers (MltSampler's RngDomain is an 8-bit field;
-/// these values are outside the ones mlt_sampler.h names).
-inline constexpr uint32_t k_domain_evaluate = 0x40;  ///< id = carried state index
-inline constexpr uint32_t k_domain_keep = 0x43;      ///< id = chain, counter = frame key: keep tests
-inline constexpr uint32_t k_domain_refresh = 0x44;   ///< id = group, counter = frame key: refresh draws
-
 /// Evaluate every state of `states` in `scene` (f* and colour of the new frame, the
 /// technique decoded again) with the settings' path sampler; coordinates without a value
-/// that the path reads are drawn (keyed by (seed, k_domain_evaluate, i)) and stored.
+/// that the path reads are drawn (keyed by (seed, RngDomain::carry_evaluate, i)) and stored.
 /// Returns the completed states (f_star, colour, depth/s/t of the new frame).
 std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const RenderSettings& settings,
                                                   const mlt::ChainStates& states);
@@ -94,7 +88,8 @@ CoupledStarts couple_starts(const std::vector<double>& f_old, const std::vector<
                             uint32_t frame_key);
 
 /// Uniform in [0, 1) keyed by (seed, domain, id, counter) (the keep tests and refresh
-/// draws of couple_starts).
+/// draws of couple_starts: domains RngDomain::carry_keep and carry_refresh,
+/// sampling/rng_domains.h).
 double keyed_uniform(uint64_t seed, uint32_t domain, uint32_t id, uint32_t counter);
 
 /// Screen motion (camera reprojection). An anchor is what the camera ray through a film

@@ -5,7 +5,7 @@
 
 #include "toy_targets.h"
 
-namespace cmlt::mlt::testing {
+namespace cmlt::mcmc::testing {
 
 enum class Kernel { small_step, large_step, pssmlt_mixture, mtm, seed, bundle };
 
@@ -99,4 +99,4 @@ ShortChainResult run_short_chains(const Binned<Target>& bn, const KernelParams& 
   });
 }
 
-}  // namespace cmlt::mlt::testing
+}  // namespace cmlt::mcmc::testing

@@ -27,7 +27,7 @@ void* operator new(std::size_t size) {
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 namespace {
 
 using namespace testing;
@@ -61,4 +61,4 @@ TEST(Allocation, InnerStepsDoNotAllocate) {
 }
 
 }  // namespace
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

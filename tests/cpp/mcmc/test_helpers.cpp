@@ -8,9 +8,10 @@
 
 #include "toy_targets.h"
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 namespace {
 
+using testing::TestRng;
 using testing::Vec;
 
 TEST(TestRng, SameSeedSameStreamDifferentSeedsDiffer) {
@@ -128,4 +129,4 @@ TEST(StatisticsHelpers, KnownValues) {
 }
 
 }  // namespace
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

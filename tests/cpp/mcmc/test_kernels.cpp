@@ -18,12 +18,17 @@
 #include <cstring>
 #include <sstream>
 
+#include "integrators/cmlt/inner_rule.h"
 #include "kernel_cases.h"
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 namespace {
 
 using namespace testing;
+using coherent::inner_rule_name;
+using coherent::inner_step;
+using coherent::InnerRule;
+using coherent::k_default_inner_rule;
 constexpr double k_alpha = 1e-3;
 
 double bonferroni_z(std::size_t bins) { return normal_upper_quantile(k_alpha / (2.0 * double(bins))); }
@@ -409,4 +414,4 @@ TEST(Workspace, RejectsZeroTries) {
 }
 
 }  // namespace
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

@@ -6,7 +6,7 @@
 
 #include "kernel_cases.h"
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 namespace {
 
 using namespace testing;
@@ -181,4 +181,4 @@ TEST(NegativeControl, UniformStartWithoutResamplingShowsStartUpBias) {
 }
 
 }  // namespace
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

@@ -14,12 +14,17 @@
 #include <gtest/gtest.h>
 
 
+#include "integrators/cmlt/inner_rule.h"
 #include "kernel_cases.h"
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 namespace {
 
 using namespace testing;
+using coherent::inner_rule_name;
+using coherent::inner_step;
+using coherent::InnerRule;
+using coherent::k_default_inner_rule;
 
 void record(const std::string& key, double value) {
   ::testing::Test::RecordProperty(key, std::to_string(value));
@@ -133,9 +138,9 @@ TEST(SeedRule, EqualsExactRuleForOneTry) {
 }
 
 }  // namespace
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 namespace {
 
 // The same paired measurement on the 2-D checkerboard with bump (odd cells 0.25, 8×8 bins):
@@ -166,4 +171,4 @@ TEST(SeedRule, ShortChainSplatBiasIn2D) {
 }
 
 }  // namespace
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc

@@ -11,9 +11,13 @@
 #include <string>
 #include <vector>
 
-#include "integrators/mlt_kernels/mlt_kernels.h"
+#include "special_functions.h"
 
-namespace cmlt::mlt::testing {
+#include "mcmc/mcmc.h"
+#include "test_rng.h"
+#include "toy_chains.h"
+
+namespace cmlt::mcmc::testing {
 
 using Vec = std::vector<double>;
 
@@ -134,36 +138,8 @@ inline double normal_upper_quantile(double p) {
   return 0.5 * (lo + hi);
 }
 
-/// Regularised upper incomplete gamma Q(a, x) (series / Lentz continued fraction).
-inline double gamma_q(double a, double x) {
-  if (x <= 0) return 1.0;
-  const double gln = std::lgamma(a);
-  if (x < a + 1.0) {
-    double sum = 1.0 / a, del = sum, ap = a;
-    for (int n = 0; n < 10000; ++n) {
-      ap += 1.0;
-      del *= x / ap;
-      sum += del;
-      if (std::fabs(del) < std::fabs(sum) * 1e-15) break;
-    }
-    return 1.0 - sum * std::exp(-x + a * std::log(x) - gln);
-  }
-  const double tiny = 1e-300;
-  double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
-  for (int i = 1; i < 10000; ++i) {
-    const double an = -i * (i - a);
-    b += 2.0;
-    d = an * d + b;
-    if (std::fabs(d) < tiny) d = tiny;
-    c = b + an / c;
-    if (std::fabs(c) < tiny) c = tiny;
-    d = 1.0 / d;
-    const double del = d * c;
-    h *= del;
-    if (std::fabs(del - 1.0) < 1e-15) break;
-  }
-  return std::exp(-x + a * std::log(x) - gln) * h;
-}
+/// Q(a, x), the regularised upper incomplete gamma function (support/special_functions.h).
+using cmlt::test::gamma_q;
 
 /// Pearson chi-square of observed counts against expected probabilities. Cells with
 /// expected count below 5 are pooled into one cell; cells with p = 0 are left out (their
@@ -230,4 +206,4 @@ struct BinMeans {
   }
 };
 
-}  // namespace cmlt::mlt::testing
+}  // namespace cmlt::mcmc::testing

@@ -12,7 +12,8 @@ from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 import cmlt._core as core
 from cmlt.color import get_config, load_config, set_config
-from cmlt.shot.bridge import SceneBridge, primvar_layout
+from cmlt.shot.bridge import SceneBridge
+from cmlt.shot.material_table import primvar_layout
 from cmlt.usd import load_frame
 
 GREEN = (0.1, 0.7, 0.1)

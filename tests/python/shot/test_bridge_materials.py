@@ -15,7 +15,8 @@ import pytest
 import cmlt._core as core
 
 from cmlt.scene import Camera, FrameScene, Instance, Light, Material, Mesh, padded_points
-from cmlt.shot.bridge import MATERIAL_PARAM_COLUMNS, SceneBridge, material_params
+from cmlt.shot.bridge import SceneBridge
+from cmlt.shot.material_table import MATERIAL_PARAM_COLUMNS, material_params
 
 L_DOME = np.array([0.7, 1.0, 1.3])
 

@@ -12,7 +12,8 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
 import cmlt._core as core
 from cmlt.color import ACESCG_LUMINANCE, get_config, load_config, set_config
 from cmlt.scene import Camera, FrameScene, Instance, Material, Mesh, padded_points
-from cmlt.shot.bridge import SceneBridge, resolve_wrap_modes
+from cmlt.shot.bridge import SceneBridge
+from cmlt.shot.material_table import resolve_wrap_modes
 from cmlt.usd import load_frame
 from cmlt.usd.color import load_texture, texture_wrap_metadata
 from cmlt.usd.materials import read_material

@@ -58,8 +58,10 @@
 /// (connections): per s = 1 strategy, light choice and position (2D); per t = 1
 /// strategy with a thin lens, the lens position (2D).
 #include "cameras/camera.h"
+#include "integrators/bdpt/camera_importance.h"
 #include "integrators/bdpt/path_sampler.h"
 #include "integrators/bdpt/path_vertex.h"
+#include "integrators/common/path_counters.h"
 
 #include <cstdint>
 #include <vector>
@@ -69,11 +71,8 @@ namespace cmlt {
 class Scene;
 struct SceneHit;
 
-struct BdptCounters {
-    uint64_t camera_rays = 0;
-    uint64_t shadow_rays = 0;
-    uint64_t rays = 0;
-    uint64_t samples = 0;
+/// The rays and samples of PathCounters, and the light-tracing splats.
+struct BdptCounters : PathCounters {
     uint64_t splats = 0;
     uint64_t bad_splats = 0;  ///< non-finite t = 1 contributions (dropped)
 };
@@ -139,6 +138,7 @@ enum class BdptQuery : uint8_t {
 struct BdptStrategyLane {
     enum class Stage : uint8_t { camera_walk, light_walk, connection, done };
     int depth = 0, s = 0, t = 0;
+    bool mis = true;  ///< MIS-weighted (false: the unweighted strategy, for tests)
     BdptSampler* sampler = nullptr;
     BdptWorkspace* ws = nullptr;
     Stage stage = Stage::done;
@@ -151,52 +151,6 @@ struct BdptStrategyLane {
 
     /// The ray of a pending query.
     const Ray& query_ray(BdptQuery q) const { return q == BdptQuery::intersect ? walk.ray : conn.shadow; }
-};
-
-/// Camera importance of a perspective camera, pinhole or thin lens (pbrt-v4's
-/// PerspectiveCamera::We / PDF_We / SampleWi explain the same quantities). A camera ray
-/// starts at a lens point (a Dirac position for the pinhole; uniform on the lens disk,
-/// area density 1 / A_lens, for a thin lens) and takes the direction of a uniform film
-/// position: per solid angle 1 / (A cos^3) whatever the lens point (A: image-window
-/// area at distance 1; for a thin lens the window on the plane of focus, seen from any
-/// lens point, subtends the same solid-angle density). The importance that makes every
-/// camera ray's throughput 1 is We = 1 / (A cos^4) (pinhole, times the Dirac of the
-/// position) or 1 / (A A_lens cos^4) (thin lens). Orthographic cameras have a Dirac
-/// direction and cannot be connected to (no t = 1).
-///
-/// The camera is assumed rigid (no scale in its transform), as everywhere in cameras/.
-class CameraImportance {
-public:
-    CameraImportance(const Camera& camera, int width, int height);
-    /// t = 1 is possible (perspective, with or without a lens).
-    bool connectable() const { return m_perspective; }
-    bool has_lens() const { return m_lens; }
-    /// A point on the lens for u in [0,1)^2 (the camera position for a pinhole).
-    Vec3 sample_lens(const Vec2& u) const { return m_camera.lens_point(u); }
-    /// Area density of sample_lens's point: 1 / A_lens (1 for the pinhole's Dirac
-    /// position, which cancels between strategies).
-    float pdf_lens() const { return m_pdf_lens; }
-    /// Solid-angle density of the camera generating direction w from lens point p_lens
-    /// (0 outside the image).
-    float pdf_dir(const Vec3& p_lens, const Vec3& w) const;
-    /// Importance We of the ray leaving lens point p_lens along w (per unit lens area
-    /// with a thin lens), and its raster position; 0 outside the image.
-    float we(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const;
-    /// Cosine of w with the viewing axis.
-    float cos_axis(const Vec3& w) const { return dot(w, m_fwd); }
-    const Camera& camera() const { return m_camera; }
-
-private:
-    /// Raster position of the ray (p_lens, w) if it is forward and inside the image.
-    bool raster_of(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const;
-
-    const Camera& m_camera;
-    int m_width, m_height;
-    Vec3 m_fwd;
-    float m_area = 1.f;
-    float m_pdf_lens = 1.f;
-    bool m_perspective = true;
-    bool m_lens = false;
 };
 
 class BdptTracer {
@@ -217,12 +171,14 @@ public:
     /// over the whole image, subpaths have exactly t and s vertices (no Russian
     /// roulette). Returns the MIS-weighted contribution and its raster position:
     /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
-    Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler,
-                               BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const;
+    /// It is the resumable strategy below with Scene::intersect and
+    /// Scene::transmittance answering its queries inline (tested bit for bit).
+    Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,
+                               Vec2* p_raster, BdptCounters& c, bool mis = true) const;
     /// Resumable evaluate_strategy (BdptStrategyLane: coherent MLT answers its ray
     /// queries, the camera ray first). Returns the first query, or none when done.
     BdptQuery begin_strategy(BdptStrategyLane& lane, int depth, int s, int t, BdptSampler& sampler,
-                             BdptWorkspace& ws) const;
+                             BdptWorkspace& ws, bool mis = true) const;
     /// Consume the answer to an intersect query (Scene::intersect's for lane.walk.ray).
     BdptQuery resume_strategy(BdptStrategyLane& lane, const SceneHit& hit) const;
     /// Consume the answer to a visibility query: Scene::transmittance(lane.conn.shadow).
@@ -294,6 +250,11 @@ private:
     /// The end of connect shared by every strategy: the pass-through scattering
     /// probabilities of the subpath ends and the MIS weight.
     Spectrum connect_tail(BdptConnection& conn, float conn_pass_pdf) const;
+    /// What evaluate_strategy and begin_strategy start with: false if (s, t) is no
+    /// strategy of `depth`; else the workspace sized, the sample counted, the film position
+    /// (the camera stream's first 2D) in *p_raster.
+    bool start_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws, Vec2* p_raster,
+                        BdptCounters& c) const;
     /// Stages of the resumable strategy (BdptStrategyLane) after a walk ends.
     BdptQuery strategy_after_camera(BdptStrategyLane& lane) const;
     BdptQuery strategy_after_light(BdptStrategyLane& lane) const;
@@ -304,17 +265,19 @@ private:
     float mis_weight(const PathVertex* light, int s, const PathVertex* camera, int t,
                      const PathVertex& sampled, float conn_pass_pdf = 1.f,
                      const PathVertex* pt_override = nullptr) const;
-    // Densities (area measure unless `to` is an infinite light).
-    float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
+    // Densities (area measure unless `to` is an infinite light). convert_density,
+    // is_delta_light and connectible are inline (bdpt_detail.h: every unit calls them per
+    // vertex).
+    inline float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
     float pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const;
     float pdf_light(const PathVertex& v, const PathVertex& next) const;
     float pdf_light_origin(const PathVertex& v, const PathVertex& next) const;
-    bool is_delta_light(const PathVertex& v) const;
+    inline bool is_delta_light(const PathVertex& v) const;
     /// Probability that a walk arriving at v from neighbour `toward` scatters there
     /// (makes a vertex) instead of crossing a pass-through surface: 1 - the pass-through
     /// lobe's probability; 1 for vertices that cannot pass rays.
     float scatter_probability(const PathVertex& v, const PathVertex& toward) const;
-    bool connectible(const PathVertex& v) const;
+    inline bool connectible(const PathVertex& v) const;
     /// BSDF value times the cosine at v toward direction w (unit), for radiance
     /// (camera-subpath) or importance (light-subpath, with the shading-normal correction).
     Spectrum scatter(const PathVertex& v, const Vec3& w, bool importance) const;

@@ -1,8 +1,8 @@
 #pragma once
-/// \file The random source of BDPT: three independent streams (camera subpath, light
-/// subpath, connections), as pbrt-v4's MLTSampler, so that a camera subpath that uses
-/// more or fewer numbers does not shift the light subpath's. PSSMLT drives the same
-/// code through its own implementation of this interface (primary samples).
+/// \file Independent numbers for BDPT's three streams (the BdptSampler interface,
+/// base/sampler.h): the pixel samples of the bdpt integrator. The Metropolis integrators
+/// drive the same code with their primary samples (BdptStreamAdapter, pssmlt_tracer.h).
+#include "base/sampler.h"
 #include "math/vec.h"
 #include "sampling/rng.h"
 
@@ -10,24 +10,13 @@
 
 namespace cmlt {
 
-class BdptSampler {
-public:
-    enum Stream : int { k_camera = 0, k_light = 1, k_connection = 2 };
-    virtual ~BdptSampler() = default;
-    /// Continue with stream `index` (0 camera, 1 light, 2 connection), from its start
-    /// the first time it is used in this sample.
-    virtual void start_stream(int index) = 0;
-    virtual float next1d() = 0;
-    virtual Vec2 next2d() = 0;
-};
-
 /// Independent numbers of one pixel sample: Philox keyed by the seed, counter
-/// (pixel, sample, dimension, 16 + stream); each stream has its own dimension counter.
-/// (Stream ids 16.. are distinct from PixelSampler's RngStream values.)
+/// (pixel, sample, dimension, RngStream::bdpt_camera + stream) (sampling/rng_domains.h);
+/// each stream has its own dimension counter.
 class PixelStreamSampler final : public BdptSampler {
 public:
     PixelStreamSampler(uint64_t seed, uint32_t pixel, uint32_t sample)
-        : m_key{uint32_t(seed), uint32_t(seed >> 32)}, m_pixel(pixel), m_sample(sample) {}
+        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample) {}
     void start_stream(int index) override { m_stream = uint32_t(index) % 3u; }
     float next1d() override { return uint_to_unit_float(draw()[0]); }
     Vec2 next2d() override {
@@ -37,7 +26,8 @@ public:
 
 private:
     Philox4x32Counter draw() {
-        return philox4x32({m_pixel, m_sample, m_dim[m_stream]++, 16u + m_stream}, m_key);
+        const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + m_stream);
+        return philox4x32(pixel_counter(m_pixel, m_sample, m_dim[m_stream]++, stream), m_key);
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;

@@ -1,6 +1,9 @@
 #pragma once
 /// \file Lockstep evaluation of a bundle's candidates with packet ray queries (DESIGN.md
-/// §3 "Coherence"; what is and is not traced in packets: cmlt_state.h).
+/// §3 "Coherence"; what is and is not traced in packets: cmlt_target.h). Packets pay
+/// little here: the BVH queries are ~15–20 % of a bundle's time (shading dominates), so
+/// the whole frame gains 0.96–1.12×, not the 1.5–2.5× Segovia et al. report for SSE
+/// packets (README, benchmarks).
 ///
 /// Every candidate of a bundle is one lane: a resumable BDPT strategy evaluation
 /// (PssmltTracer::BdptLane over BdptStrategyLane) that stops at each ray query. A round
@@ -57,9 +60,7 @@ struct BundleCounters {
 
 /// Fewer pending queries than this are answered one ray at a time: a packet query costs
 /// about as much with few active lanes as with all, and more than a few scalar queries.
-/// Measured with tests/bench/packets.py (Cornell box, 96², AVX2) when the threshold was
-/// 2: the bundles' BVH queries took 0.62× the speed of scalar ones at k = 2 (the
-/// whole frame 0.80×), 0.93× at k = 3, and 1.07–1.22× from k = 4 up.
+/// Measurements: tests/bench/results/packets.md.
 inline constexpr size_t k_min_packet_lanes = 4;
 
 /// Refine a mesh hit of `ray` by a double-precision Möller–Trumbore intersection with
@@ -108,26 +109,20 @@ public:
 
     /// Closest hits of rays[0..n) (unrefined).
     void intersect(const Ray* rays, size_t n, Hit* hits) const {
-        for_packets(n, [&](size_t p) { hits[p] = m_accel.intersect(rays[p]); },
-                    [&](int width, const int* valid, size_t p, size_t lanes) {
-                        Ray lane_rays[16];
-                        Hit lane_hits[16];
-                        fill_lanes(rays, p, lanes, width, lane_rays);
-                        m_accel.intersect_packet(width, valid, lane_rays, lane_hits);
-                        for (size_t i = 0; i < lanes; ++i) hits[p + i] = lane_hits[i];
-                    });
+        answer(
+            rays, n, hits, [&](const Ray& r) { return m_accel.intersect(r); },
+            [&](int width, const int* valid, const Ray* lanes, Hit* out) {
+                m_accel.intersect_packet(width, valid, lanes, out);
+            });
     }
     /// Whether something in the BVH blocks each of rays[0..n).
     void occluded(const Ray* rays, size_t n, bool* occluded) const {
         const uint64_t before = m_counters.packet_rays;
-        for_packets(n, [&](size_t p) { occluded[p] = m_accel.occluded(rays[p]); },
-                    [&](int width, const int* valid, size_t p, size_t lanes) {
-                        Ray lane_rays[16];
-                        bool lane_occluded[16];
-                        fill_lanes(rays, p, lanes, width, lane_rays);
-                        m_accel.occluded_packet(width, valid, lane_rays, lane_occluded);
-                        for (size_t i = 0; i < lanes; ++i) occluded[p + i] = lane_occluded[i];
-                    });
+        answer(
+            rays, n, occluded, [&](const Ray& r) { return m_accel.occluded(r); },
+            [&](int width, const int* valid, const Ray* lanes, bool* out) {
+                m_accel.occluded_packet(width, valid, lanes, out);
+            });
         m_counters.packet_shadow_rays += m_counters.packet_rays - before;
     }
 
@@ -157,6 +152,19 @@ private:
             m_counters.packet_rays += lanes;
             p += lanes;
         }
+    }
+    /// out[0..n) for rays[0..n): `one(ray)` alone, or `packet(width, valid, lane rays,
+    /// lane answers)` for a packet (for_packets decides).
+    template <class Answer, class One, class Packet>
+    void answer(const Ray* rays, size_t n, Answer* out, One&& one, Packet&& packet) const {
+        for_packets(n, [&](size_t p) { out[p] = one(rays[p]); },
+                    [&](int width, const int* valid, size_t p, size_t lanes) {
+                        Ray lane_rays[16];
+                        Answer lane_out[16];
+                        fill_lanes(rays, p, lanes, width, lane_rays);
+                        packet(width, valid, lane_rays, lane_out);
+                        for (size_t i = 0; i < lanes; ++i) out[p + i] = lane_out[i];
+                    });
     }
     /// Embree reads every lane of a packet: inactive ones repeat the first ray.
     static void fill_lanes(const Ray* rays, size_t p, size_t lanes, int width, Ray* out) {

@@ -1,7 +1,8 @@
 #pragma once
-/// \file Pieces every integrator's frame loop shares: counters summed over parallel
-/// tasks, the trace / shade time split, and the schedule of passes (pt, bdpt) or chain
-/// rounds (pssmlt, cmlt) under a sample budget and an optional time budget.
+/// \file Pieces every integrator's frame loop shares: the thread arena and its parallel
+/// tasks, counters summed over the tasks, the trace / shade time split, image tiles, and
+/// the schedule of passes (pt, bdpt) or chain rounds (pssmlt, cmlt) under a sample
+/// budget and an optional time budget.
 ///
 /// Budgets. `spp` is the budget of samples (pt, bdpt) or path evaluations per pixel
 /// (pssmlt, cmlt). With `time_budget` > 0 seconds the frame also stops when that much
@@ -11,16 +12,26 @@
 /// frame depends on the machine's speed, so it is not reproducible bit for bit; a
 /// sample-budget frame is.
 #include "accel/accel.h"
+#include "integrators/common/path_counters.h"
 #include "integrators/common/render_settings.h"
 #include "util/cycle_clock.h"
+#include "util/fp_mode.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace cmlt {
+
+class Film;
 
 /// Counters of one frame summed over its tasks (integer sums: order-independent).
 struct FrameCounters {
@@ -37,6 +48,15 @@ struct FrameCounters {
         samples.fetch_add(c.samples, std::memory_order_relaxed);
         invalid.fetch_add(invalid_samples, std::memory_order_relaxed);
         packets.fetch_add(packet_queries, std::memory_order_relaxed);
+    }
+    /// The rays and samples counted so far.
+    PathCounters paths() const {
+        PathCounters c;
+        c.camera_rays = camera_rays.load();
+        c.shadow_rays = shadow_rays.load();
+        c.rays = rays.load();
+        c.samples = samples.load();
+        return c;
     }
 };
 
@@ -71,16 +91,70 @@ inline void fill_frame_stats(RenderStats& st, const FrameCounters& c, const Cycl
     st.shade_s = st.busy_s - st.trace_s;
 }
 
-/// Passes (pt, bdpt): how many sample passes to run next.
-class PassSchedule {
+/// Seconds since `t0`.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Worker threads of a frame: the setting, or every core for 0.
+int frame_threads(const RenderSettings& s);
+
+/// Run `body(const tbb::blocked_range<Index>&)` over [0, n) in the arena, in tasks of
+/// `grain` items. Every task runs with FTZ/DAZ set (util/fp_mode.h: the same arithmetic
+/// on every thread) and adds its time to `counters` (TaskTimer). The partitioner is
+/// tbb's default unless given (tbb::simple_partitioner for one tile per task).
+template <class Index, class Body, class Partitioner = const tbb::auto_partitioner>
+void parallel_tasks(tbb::task_arena& arena, FrameCounters& counters, Index n, Index grain, Body&& body,
+                    Partitioner&& partitioner = Partitioner()) {
+    arena.execute([&] {
+        tbb::parallel_for(
+            tbb::blocked_range<Index>(Index(0), n, grain),
+            [&](const tbb::blocked_range<Index>& r) {
+                ScopedFtzDaz ftz;
+                const TaskTimer timer(counters);
+                body(r);
+            },
+            partitioner);
+    });
+}
+
+/// A rectangle of pixels [x0, x1) × [y0, y1): the unit of work of the pass integrators.
+struct Tile {
+    int x0, y0, x1, y1;
+};
+inline constexpr int k_tile_size = 16;
+/// The image in tiles of k_tile_size², row by row.
+std::vector<Tile> image_tiles(int width, int height);
+
+/// The budgets of a frame as both schedules see them: `spp` and an optional time budget
+/// counted from the frame's start; progress is reported in `spp` units, or in
+/// milliseconds of the time budget when there is one.
+class FrameBudgetClock {
 public:
-    PassSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point start)
-        : m_spp(s.spp), m_seconds(s.time_budget), m_start(start), m_chunk(std::max(1, (s.spp + 15) / 16)) {}
+    FrameBudgetClock(const RenderSettings& s, std::chrono::steady_clock::time_point start)
+        : m_spp(s.spp), m_seconds(s.time_budget), m_start(start) {}
 
     bool timed() const { return m_seconds > 0.0; }
-    double elapsed() const {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+    double elapsed() const { return seconds_since(m_start); }
+    /// Progress (done, total) for the callback: `done` in spp units, or the milliseconds
+    /// elapsed of the time budget.
+    uint64_t progress_done(uint64_t done) const {
+        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0) : done;
     }
+    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+
+protected:
+    int m_spp;
+    double m_seconds;
+    std::chrono::steady_clock::time_point m_start;
+};
+
+/// Passes (pt, bdpt): how many sample passes to run next.
+class PassSchedule : public FrameBudgetClock {
+public:
+    PassSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point start)
+        : FrameBudgetClock(s, start), m_chunk(std::max(1, (s.spp + 15) / 16)) {}
+
     /// Passes to run after `done` of them (0: stop).
     int next(int done) const {
         if (done >= m_spp) return 0;
@@ -94,33 +168,45 @@ public:
         return int(std::max(1.0, std::min(n, double(m_spp - done))));
     }
     /// Progress as (done, total) for the callback: passes, or milliseconds when timed.
-    uint64_t progress_done(int done) const {
-        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0) : uint64_t(done);
-    }
-    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
+    uint64_t progress_done(int done) const { return FrameBudgetClock::progress_done(uint64_t(done)); }
 
 private:
-    int m_spp;
-    double m_seconds;
-    std::chrono::steady_clock::time_point m_start;
     int m_chunk;
 };
+
+/// The pass loop of pt and bdpt: `run(s0, s1)` renders passes [s0, s1) in chunks the
+/// schedule sizes; after each chunk `progress` may stop the frame (*cancelled is set
+/// unless that chunk was the last). Returns the passes rendered.
+template <class Run>
+int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, bool* cancelled, Run&& run) {
+    int done = 0;
+    while (const int n = schedule.next(done)) {
+        run(done, done + n);
+        done += n;
+        if (progress && !progress(schedule.progress_done(done), schedule.progress_total()) &&
+            schedule.next(done) > 0) {
+            *cancelled = true;
+            break;
+        }
+    }
+    return done;
+}
+
+/// The result of a pass integrator: the film's mean and variance of the mean, its
+/// non-finite samples, the counters' stats, and the frame's settings.
+RenderResult film_result(const Film& film, const FrameCounters& counters, const CycleRate& rate, double secs,
+                         const RenderSettings& settings, int threads, int passes, bool cancelled);
 
 /// Chain rounds (pssmlt, cmlt): the evaluation count each chain runs to in this round.
 /// Fixed budget: k_rounds slices of each chain's budget. Timed: a quota per chain per
 /// round, sized from the measured evaluation rate, until the time is up (or every
 /// chain has spent its budget).
-class ChainSchedule {
+class ChainSchedule : public FrameBudgetClock {
 public:
     static constexpr int k_rounds = 16;  ///< progress / cancel granularity of a fixed budget
 
     ChainSchedule(const RenderSettings& s, std::chrono::steady_clock::time_point frame_start, uint64_t chains)
-        : m_seconds(s.time_budget), m_spp(s.spp), m_start(frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
-
-    bool timed() const { return m_seconds > 0.0; }
-    double elapsed() const {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
-    }
+        : FrameBudgetClock(s, frame_start), m_chains(std::max<uint64_t>(chains, 1)) {}
 
     /// Begin the next round; false when the frame is done. `evaluations_so_far`: every
     /// chain's evaluations summed (for the rate).
@@ -171,15 +257,10 @@ public:
     bool last_round() const { return !timed() && m_round >= k_rounds; }
 
     uint64_t progress_done() const {
-        return timed() ? uint64_t(std::min(elapsed(), m_seconds) * 1000.0)
-                       : uint64_t(m_spp) * uint64_t(m_round) / k_rounds;
+        return FrameBudgetClock::progress_done(uint64_t(m_spp) * uint64_t(m_round) / k_rounds);
     }
-    uint64_t progress_total() const { return timed() ? uint64_t(m_seconds * 1000.0) : uint64_t(m_spp); }
 
 private:
-    double m_seconds;
-    int m_spp;
-    std::chrono::steady_clock::time_point m_start;
     uint64_t m_chains;
     int m_round = 0;
     double m_rate_t0 = 0.0;

@@ -17,8 +17,8 @@
 /// RenderSettings::mlt_initial_states (if set and non-empty) replaces the bootstrap
 /// resampling: chain c starts from states.chains[c] (the chain count is then the number
 /// of states; the bootstrap still runs, for b). RenderResult::mlt_states holds the final
-/// state of every chain after a pssmlt render, chain_id carried over from the imported
-/// state (else the chain's index). Chain c's random numbers are keyed by (seed, c),
+/// state of every chain after a pssmlt or cmlt render, chain_id carried over from the
+/// imported state (else the chain's index). Chain c's random numbers are keyed by (seed, c),
 /// never by chain_id.
 ///
 /// Byte format (to_bytes / from_bytes), little-endian:

@@ -39,7 +39,7 @@ struct MltContext {
     }
     /// Direct-pass samples per pixel of a sample budget: round(direct_fraction · spp),
     /// at least 1 when the share is > 0; 0 = no direct pass. (With a time budget the pass
-    /// runs alongside the chains at the same share of evaluations: mlt_frame.h.)
+    /// runs alongside the chains at the same share of evaluations: direct_pass.h.)
     static int direct_spp(const RenderSettings& s) {
         if (!(s.direct_fraction > 0.0)) return 0;
         return std::max(1, int(std::lround(s.direct_fraction * double(s.spp))));

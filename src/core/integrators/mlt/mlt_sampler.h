@@ -42,10 +42,11 @@
 /// becomes part of the state).
 ///
 /// Random numbers are a pure function of (seed, domain, id, proposal number, sample
-/// index) through Philox-4x32 (sampling/rng.h): a chain's numbers depend neither on the
-/// thread that runs it nor on the order in which dimensions are read. The proposal
-/// number counts every proposal, rejected ones included (never reused). Control
-/// numbers (large-step choice, acceptance) come from a second, sequential counter.
+/// index) through Philox-4x32 (the Metropolis counters of sampling/rng_domains.h): a
+/// chain's numbers depend neither on the thread that runs it nor on the order in which
+/// dimensions are read. The proposal number counts every proposal, rejected ones
+/// included (never reused). Control numbers (large-step choice, acceptance) come from a
+/// second, sequential counter (CounterRng).
 #include "math/vec.h"
 #include "sampling/rng.h"
 
@@ -69,76 +70,10 @@ inline double target_luminance(const Spectrum& L) {
     return (std::isfinite(y) && y > 0.0) ? y : 0.0;
 }
 
-/// Key domains of the counter-based numbers (the `id` is the index inside a domain).
-enum class RngDomain : uint32_t {
-    bootstrap = 1,  ///< id = bootstrap sample index
-    chain = 2,      ///< id = chain index
-    resample = 3,   ///< id = 0: resampling the chains' start states
-    test = 0xFF,
-};
-
-namespace detail {
-
-/// 64 random bits → double in [0, 1) (53 bits; never 1).
-inline double bits_to_unit(uint32_t hi, uint32_t lo) {
-    return double(((uint64_t(hi) << 32) | lo) >> 11) * 0x1p-53;
-}
-
-/// Philox counter of a number: (id, counter low, index, tag | domain | counter high).
-/// The tag byte starts at 0x10, so these counters never meet PixelSampler's (whose
-/// last word is a small stream id).
-inline Philox4x32Counter mlt_counter(uint32_t tag, RngDomain domain, uint32_t id, uint64_t counter,
-                                     uint32_t index) {
-    return {id, uint32_t(counter), index,
-            ((0x10u + tag) << 24) | ((uint32_t(domain) & 0xFFu) << 16) |
-                uint32_t((counter >> 32) & 0xFFFFu)};
-}
-
-inline Philox4x32Key mlt_key(uint64_t seed) { return {uint32_t(seed), uint32_t(seed >> 32)}; }
-
-/// Standard normal from two uniforms (Box–Muller, cosine branch); u1 ∈ [0,1).
-inline double box_muller(double u1, double u2) {
-    return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(6.283185307179586476925 * u2);
-}
-
-/// Wrap onto [0, 1) (as mlt_kernels' wrap01: never returns 1, NaN → 0).
-inline double wrap01(double v) {
-    const double r = v - std::floor(v);
-    return r < 1.0 ? r : 0.0;
-}
-
-}  // namespace detail
-
-/// Sequential counter-based generator with the kernels' RNG interface (uniform(),
-/// normal()): draw k is a pure function of (seed, domain, id, k).
-class CounterRng {
-public:
-    CounterRng(uint64_t seed, RngDomain domain, uint32_t id)
-        : m_key(detail::mlt_key(seed)), m_domain(domain), m_id(id) {}
-
-    double uniform() {
-        if (m_has_spare) {
-            m_has_spare = false;
-            return m_spare;
-        }
-        const Philox4x32Counter r = philox4x32(detail::mlt_counter(1, m_domain, m_id, m_draw++, 0), m_key);
-        m_spare = detail::bits_to_unit(r[2], r[3]);
-        m_has_spare = true;
-        return detail::bits_to_unit(r[0], r[1]);
-    }
-    double normal() {
-        const double u1 = uniform();
-        return detail::box_muller(u1, uniform());
-    }
-
-private:
-    Philox4x32Key m_key;
-    RngDomain m_domain;
-    uint32_t m_id;
-    uint64_t m_draw = 0;
-    double m_spare = 0.0;
-    bool m_has_spare = false;
-};
+// The counter spaces and the chains' sequential generator live in the RNG module
+// (sampling/rng_domains.h, sampling/rng.h); the Metropolis room names them here too.
+using cmlt::CounterRng;
+using cmlt::RngDomain;
 
 /// The Metropolis sampler of one chain (see the file comment).
 class MltSampler {
@@ -160,7 +95,7 @@ public:
     /// `large_step_probability` ∈ [0, 1]. Numbers keyed by (seed, domain, id).
     MltSampler(uint64_t seed, double sigma, double large_step_probability,
                RngDomain domain = RngDomain::chain, uint32_t id = 0)
-        : m_seed(seed), m_key(detail::mlt_key(seed)), m_domain(domain), m_id(id), m_sigma(sigma),
+        : m_seed(seed), m_key(seed_key(seed)), m_domain(domain), m_id(id), m_sigma(sigma),
           m_large_step_probability(large_step_probability), m_control(seed, domain, id) {}
 
     /// Switch the numbers to (domain, id) — e.g. a chain started from bootstrap sample j
@@ -267,12 +202,12 @@ public:
 
     float get1d() {
         const size_t i = index(m_stream, m_dimension++ * k_slots_per_dimension);
-        return to_float(sample(i));
+        return unit_float(sample(i));
     }
     Vec2 get2d() {
         const uint32_t s = m_dimension++ * k_slots_per_dimension;
-        const float a = to_float(sample(index(m_stream, s)));
-        const float b = to_float(sample(index(m_stream, s + 1)));
+        const float a = unit_float(sample(index(m_stream, s)));
+        const float b = unit_float(sample(index(m_stream, s + 1)));
         return {a, b};
     }
 
@@ -294,14 +229,9 @@ public:
     }
 
 private:
-    static float to_float(double u) {
-        const float f = float(u);               // may round up to 1
-        return f < 1.f ? f : 0x1.fffffep-1f;    // largest float below 1
-    }
-
     /// Two numbers of sample i at the current proposal: [0] refresh, [1] proposal value.
     Philox4x32Counter draw(size_t i) const {
-        return philox4x32(detail::mlt_counter(0, m_domain, m_id, m_proposal, uint32_t(i)), m_key);
+        return philox4x32(metropolis_counter(RngTag::point, m_domain, m_id, m_proposal, uint32_t(i)), m_key);
     }
 
     void ensure_ready(size_t i) {
@@ -312,7 +242,7 @@ private:
         const Philox4x32Counter r = draw(i);
         if (m_replay) {  // evaluating the state itself: only coordinates without a value move
             if (x.last_modified == PrimarySample::k_unread) {
-                x.value = detail::bits_to_unit(r[0], r[1]);
+                x.value = bits_to_unit(r[0], r[1]);
                 x.last_modified = m_iteration;
             }
             return;
@@ -326,25 +256,25 @@ private:
         // of everything else: drawing it afresh is a Gibbs update of that coordinate, valid
         // whenever it happens — also again after a reject restored the stale value.
         if (x.last_modified == PrimarySample::k_unread) {
-            x.value = detail::bits_to_unit(r[0], r[1]);   // unread: uniform, part of x
+            x.value = bits_to_unit(r[0], r[1]);   // unread: uniform, part of x
             x.last_modified = m_iteration - 1;
         } else if (x.last_modified < m_last_large_step) {
-            x.value = detail::bits_to_unit(r[0], r[1]);   // a large step was accepted since
+            x.value = bits_to_unit(r[0], r[1]);   // a large step was accepted since
             x.last_modified = m_last_large_step;
         }
 
         // mutate: fresh uniform, or the accumulated small steps σ√n (wrapped)
         if (m_large_step) {
-            x.value = detail::bits_to_unit(r[2], r[3]);
+            x.value = bits_to_unit(r[2], r[3]);
         } else if (m_frozen_slots > 0 && i % k_stream_count == m_frozen_stream &&
                    i / k_stream_count < m_frozen_slots) {
             // held by small steps (technique samples): the value stays
         } else {
             const int64_t n = m_iteration - x.last_modified;
             const Philox4x32Counter g =
-                philox4x32(detail::mlt_counter(2, m_domain, m_id, m_proposal, uint32_t(i)), m_key);
-            const double z = detail::box_muller(detail::bits_to_unit(g[0], g[1]), detail::bits_to_unit(g[2], g[3]));
-            x.value = detail::wrap01(x.value + m_sigma * std::sqrt(double(n)) * z);
+                philox4x32(metropolis_counter(RngTag::small_step, m_domain, m_id, m_proposal, uint32_t(i)), m_key);
+            const double z = box_muller(bits_to_unit(g[0], g[1]), bits_to_unit(g[2], g[3]));
+            x.value = wrap01(x.value + m_sigma * std::sqrt(double(n)) * z);
         }
         x.last_modified = m_iteration;
     }

@@ -4,7 +4,7 @@
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/mlt_context.h"
 #include "integrators/mlt/mlt_sampler.h"
-#include "integrators/path/pt_pass.h"
+#include "integrators/mlt/direct_pass.h"
 #include "scene/scene.h"
 #include "util/error.h"
 
@@ -86,11 +86,6 @@ std::vector<float> PixelImportance::importance() const {
     std::vector<float> out(m_inv.size());
     for (size_t i = 0; i < m_inv.size(); ++i) out[i] = 1.f / m_inv[i];
     return out;
-}
-
-std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
-                                PathCounters& counters) {
-    return render_pt_pass(scene, settings, spp, k_pilot_sample_base, settings.max_depth, counters).mean;
 }
 
 std::shared_ptr<const PixelImportance> make_importance(const Scene& scene, const RenderSettings& settings,

@@ -81,14 +81,9 @@ private:
     int m_width = 0, m_height = 0;
 };
 
-/// The pilot image: `spp` path-traced samples per pixel keyed by (seed, pixel, sample)
-/// in a stream of their own (H, W, 3). Adds its rays to `counters`.
-std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
-                                PathCounters& counters);
-
 /// The importance of a frame for its settings: `importance` "luminance" → uniform;
 /// "pixel" → from `settings.pilot` if given (it must be W×H×3), else from
-/// render_pilot at `pilot_spp`. `pilot_evaluations` (if given) receives the path
+/// render_pilot (direct_pass.h) at `pilot_spp`. `pilot_evaluations` (if given) receives the path
 /// samples the pilot cost (0 when it was given or not needed).
 std::shared_ptr<const PixelImportance> make_importance(const Scene& scene,
                                                        const RenderSettings& settings,

@@ -1,6 +1,8 @@
 #pragma once
-/// \file Per-chain path work of PSSMLT: turn the sampler's current primary samples into a
-/// path sample (film position, contribution, f*).
+/// \file The path function of primary-sample-space MLT, shared by both Metropolis
+/// integrators (pssmlt's MltSampler chains, cmlt's keyed states and bundles) and the
+/// temporal carry-over: turn a sampler's primary samples into a path sample (film
+/// position, contribution, f*).
 ///
 /// Two path samplers (RenderSettings::mlt_path_sampler):
 ///  * "bdpt" (default; multiplexed MLT, Hachisuka et al. 2014, DESIGN.md §2): the
@@ -21,6 +23,7 @@
 #include "integrators/mlt/pixel_importance.h"
 #include "integrators/mlt/technique.h"
 #include "integrators/path/path_tracer.h"
+#include "math/safe_math.h"
 
 #include <algorithm>
 #include <cmath>
@@ -43,18 +46,17 @@ struct PathSample {
 /// driver moves it with the image's mean screen motion, so that chains replayed with the
 /// same numbers follow the surfaces under a moving camera (temporal/carry.h).
 inline Vec2 shift_film(const Vec2& u, const Vec2& offset) {
-    const auto wrap = [](float v) {
-        v -= std::floor(v);
-        return v < 1.f ? v : 0x1.fffffep-1f;
-    };
+    const auto wrap = [](float v) { return clamp_below_one(v - std::floor(v)); };
     return offset.x == 0.f && offset.y == 0.f ? u : Vec2(wrap(u.x + offset.x), wrap(u.y + offset.y));
 }
 
-/// BdptSampler over an MltSampler-like sampler (start_stream, set_dimension, get1d,
-/// get2d): BDPT's connection stream starts after the technique dimensions; the camera
-/// stream's first 2-D sample (the film position) is shifted by the film offset.
+/// BdptSampler over a StreamSampler (base/sampler.h): BDPT's connection stream starts
+/// after the technique dimensions; the camera stream's first 2-D sample (the film
+/// position) is shifted by the film offset.
 template <class Sampler>
 class BdptStreamAdapter final : public BdptSampler {
+    static_assert(is_stream_sampler_v<Sampler>, "BdptStreamAdapter wraps a StreamSampler (base/sampler.h)");
+
 public:
     explicit BdptStreamAdapter(Sampler& s, Vec2 film_offset = Vec2(0.f, 0.f)) : m_s(s), m_offset(film_offset) {}
     void start_stream(int index) override {
@@ -108,6 +110,7 @@ public:
     /// numbers read here, where evaluate's path sampling continues.
     template <class Sampler>
     Ray camera_ray(Sampler& sampler, uint32_t* pixel) const {
+        static_assert(is_stream_sampler_v<Sampler>, "a StreamSampler (base/sampler.h)");
         sampler.start_stream(MltSampler::camera);
         sampler.set_dimension(0);
         const Vec2 u = shift_film(sampler.get2d(), m_film_offset);
@@ -120,8 +123,8 @@ public:
         return ray;
     }
 
-    /// Evaluate the sampler's current proposal. `Sampler`: MltSampler (or any sampler
-    /// with start_stream + the path_tracer.h interface). `first_hit`, if given, is what
+    /// Evaluate the sampler's current proposal. `Sampler`: a StreamSampler
+    /// (base/sampler.h): MltSampler, coherent::PointSampler. `first_hit`, if given, is what
     /// camera_ray(sampler) hits first (coherent MLT traces the camera rays of a bundle
     /// as one Embree packet, integrators/cmlt): the camera ray is then not traced again.
     /// The pt sampler only: the bdpt sampler's bundles are evaluated by
@@ -201,10 +204,7 @@ private:
     /// Pixel, L = C / p(technique) and f* of an evaluated strategy C at p_raster.
     void finish_sample(PathSample& s, double pmf, const Spectrum& C, const Vec2& p_raster,
                        const BdptCounters& c, PathCounters& counters) const {
-        counters.camera_rays += c.camera_rays;
-        counters.shadow_rays += c.shadow_rays;
-        counters.rays += c.rays;
-        counters.samples += c.samples;
+        counters += c;
         if (!is_finite(C)) {
             s.invalid = true;
             return;

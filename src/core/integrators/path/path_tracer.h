@@ -20,13 +20,12 @@
 /// Shadow rays use Scene::transmittance: they cross pass-through surfaces as BSDF-sampled
 /// rays do, and the MIS weights include the crossings' selection probabilities.
 ///
-/// `li` is generic over its random source (Tungsten's PathSampleGenerator idea), so the
-/// same sampling routine runs on independent numbers (PixelSampler) or on a Markov
-/// chain's primary samples (mlt::MltSampler). A Sampler has
-///   void set_dimension(uint32_t d);  // jump to dimension d (each bounce owns a fixed range)
-///   float get1d();                   // next dimension, one value in [0, 1)
-///   Vec2 get2d();                    // next dimension, two values in [0, 1)
-/// The definition is in path_tracer_impl.h; path_tracer.cpp instantiates PixelSampler.
+/// `li` is generic over its random source, a PathSampler (base/sampler.h), so the same
+/// sampling routine runs on independent numbers (PixelSampler) or on a Markov chain's
+/// primary samples (mlt::MltSampler, coherent::PointSampler). The definition is in
+/// path_tracer_impl.h; path_tracer.cpp instantiates PixelSampler.
+#include "base/sampler.h"
+#include "integrators/common/path_counters.h"
 #include "math/ray.h"
 #include "math/vec.h"
 #include "sampling/rng.h"
@@ -38,13 +37,6 @@ namespace cmlt {
 class Camera;
 class Scene;
 struct SceneHit;
-
-struct PathCounters {
-    uint64_t camera_rays = 0;
-    uint64_t shadow_rays = 0;
-    uint64_t rays = 0;
-    uint64_t samples = 0;
-};
 
 class PathTracer {
 public:

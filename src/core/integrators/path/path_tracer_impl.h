@@ -17,6 +17,7 @@ namespace cmlt {
 template <class Sampler>
 Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c,
                         const SceneHit* first_hit) const {
+    static_assert(is_path_sampler_v<Sampler>, "PathTracer::li reads a PathSampler (base/sampler.h)");
     const Scene& scene = m_scene;
     Spectrum L(0.f), beta(1.f);
     Ray ray = camera_ray;

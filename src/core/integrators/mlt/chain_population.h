@@ -1,0 +1,238 @@
+#pragma once
+/// \file The chain population of a Metropolis frame (pssmlt, cmlt): bootstrap, chain
+/// starts, carried-over states, the chain rounds and the merged statistics. The
+/// integrators differ only in what a chain is and how it steps; both run this.
+///
+///   1. bootstrap (`bootstrap`): N independent large-step samples, f* of each evaluated
+///      in parallel (keyed (seed, bootstrap, i): the same points in pssmlt and cmlt), or
+///      given (RenderSettings::mlt_bootstrap_f, the temporal driver's coupled starts);
+///      b̂ = their mean, accumulated in index order (deterministic);
+///   2. chain starts (`start`), either
+///      * resampled from the bootstrap pool ∝ f* (mcmc::resample_start_indices with the
+///        numbers of (seed, resample, 0): no start-up bias, no burn-in,
+///        mcmc/normalisation.h); the integrator replays the chosen sample and re-keys it
+///        to the chain, and the population checks that the replay gave the same f*;
+///      * or, with RenderSettings::mlt_initial_states, the given states (the temporal
+///        carry-over), one chain each, evaluated in this frame's scene;
+///      the chain count is the setting (or the number of states), at most `max_chains`,
+///      never the thread count; chain c takes its share of the chains' budget;
+///   3. rounds (`run`, frame_loop.h's ChainSchedule): every chain runs to its round's
+///      evaluation count in parallel tasks, one per-task tracer each (the integrator's
+///      per-thread path work), the direct pass in slices between the rounds;
+///   4. `finish`: b from the bootstrap and every chain's large steps, kernel statistics,
+///      streaks, counts and the final states, merged in chain order (PopulationResult).
+/// Chain c's numbers are keyed by (seed, c) and splats are summed order-independently
+/// (splat_film.h), so the image is bit-identical for any number of threads.
+#include "integrators/mlt/chain_state.h"
+#include "integrators/mlt/chain_stats.h"
+#include "integrators/mlt/mlt_frame.h"
+#include "integrators/mlt/mlt_sampler.h"
+#include "mcmc/normalisation.h"
+#include "mcmc/step_stats.h"
+#include "mcmc/workspace.h"
+#include "util/error.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace cmlt::mlt {
+
+/// What every chain of a population keeps for the frame loop. An integrator's chain type
+/// derives from it and adds its Markov chain (an mcmc::Chain named `chain`), its numbers
+/// and its scratch.
+struct ChainTally {
+    uint64_t chain_id = 0;  ///< carried over from an imported state, else the chain's index
+    uint64_t budget = 0;    ///< path evaluations the chain may spend
+    uint64_t evaluations = 0, steps = 0;
+    uint64_t invalid = 0;   ///< evaluations whose path was not finite
+    mcmc::KernelStats stats;
+    mcmc::NormalisationAccumulator large;  ///< f* of the large-step proposals
+    StreakTracker streaks;
+
+    /// Count one kernel step.
+    void record(const mcmc::StepResult& r) {
+        evaluations += r.evaluations;
+        ++steps;
+        stats.record(r);
+        streaks.record(r.moved);
+    }
+};
+
+/// The given start states of a frame (nullptr when there are none), checked against the
+/// path sampler.
+inline const ChainStates* initial_states(const RenderSettings& s) {
+    const ChainStates* initial = s.mlt_initial_states.get();
+    if (initial && initial->chains.empty()) return nullptr;
+    if (initial && initial->path_sampler != s.mlt_path_sampler)
+        CMLT_THROW(SettingsError, "RenderSettings.mlt_initial_states: states of the '"
+                                      << initial->path_sampler << "' path sampler cannot start '"
+                                      << s.mlt_path_sampler << "' chains");
+    return initial;
+}
+
+/// The chains of one frame (see the file comment). `Chain` derives from ChainTally and
+/// has a member `chain` (mcmc::Chain) whose `fx` is f* of its state.
+template <class Chain>
+class ChainPopulation {
+public:
+    /// At most `max_chains` chains (the budget's limit).
+    ChainPopulation(MltFrame& frame, uint64_t max_chains)
+        : m_frame(frame), m_initial(initial_states(frame.settings)),
+          m_count(m_initial ? std::min<uint64_t>(m_initial->chains.size(), max_chains)
+                            : std::min<uint64_t>(uint64_t(frame.settings.chains), max_chains)) {}
+
+    size_t size() const { return m_chains.size(); }
+    const Chain& operator[](size_t i) const { return *m_chains[i]; }
+
+    /// 1. f* of bootstrap samples 0..N−1: `eval(i, PathCounters&, bool& invalid) -> double`,
+    /// or RenderSettings::mlt_bootstrap_f if given (the temporal driver evaluated them
+    /// already; it must hold N values), which is not evaluated again.
+    template <class Eval>
+    void bootstrap(Eval&& eval) {
+        MltFrame& fr = m_frame;
+        const uint64_t n = fr.budget.bootstrap;
+        if (const auto& given = fr.settings.mlt_bootstrap_f) {
+            if (given->size() != n)
+                CMLT_THROW(SettingsError, "RenderSettings.mlt_bootstrap_f holds "
+                                              << given->size() << " values, the frame's bootstrap has " << n
+                                              << " samples");
+            m_boot_f = *given;
+        } else {
+            m_boot_f.assign(n, 0.0);
+            parallel_tasks(fr.arena, fr.counters, n, uint64_t(256), [&](const tbb::blocked_range<uint64_t>& r) {
+                PathCounters c;
+                uint64_t bad = 0;
+                for (uint64_t i = r.begin(); i != r.end(); ++i) {
+                    bool invalid = false;
+                    m_boot_f[i] = eval(i, c, invalid);
+                    bad += invalid ? 1 : 0;
+                }
+                fr.counters.add(c, bad);
+            });
+        }
+        for (double f : m_boot_f) m_boot_acc.add(f);  // index order: deterministic
+        m_b_boot = m_boot_acc.estimate();
+    }
+
+    /// 2. Start the chains: `import(const ChainState&, uint32_t chain, PathCounters&, bool&
+    /// invalid)` from a given state, else `replay(uint32_t bootstrap_index, uint32_t chain,
+    /// PathCounters&)` from a resampled bootstrap sample; both return a
+    /// std::unique_ptr<Chain>. `export_chain(const Chain&) -> ChainState` records the
+    /// start states.
+    template <class Import, class Replay, class Export>
+    void start(Import&& import, Replay&& replay, Export&& export_chain) {
+        MltFrame& fr = m_frame;
+        const uint64_t n = m_count, total = fr.budget.chains;
+        const auto budget_of = [&](uint64_t k) { return total / n + (k < total % n ? 1 : 0); };
+        if (total == 0 || n == 0) {
+            // no chains (max_depth 1 with a direct pass)
+        } else if (m_initial) {
+            m_chains.resize(n);
+            parallel_tasks(fr.arena, fr.counters, n, uint64_t(8), [&](const tbb::blocked_range<uint64_t>& r) {
+                PathCounters c;
+                uint64_t bad = 0;
+                for (uint64_t k = r.begin(); k != r.end(); ++k) {
+                    const ChainState& in = m_initial->chains[subsampled_state(k, n, m_initial->chains.size())];
+                    bool invalid = false;
+                    m_chains[k] = import(in, uint32_t(k), c, invalid);
+                    bad += invalid ? 1 : 0;
+                    m_chains[k]->chain_id = in.chain_id;
+                    m_chains[k]->budget = budget_of(k);
+                }
+                fr.counters.add(c, bad);
+            });
+        } else if (m_b_boot.nonzero > 0) {
+            CounterRng rng(fr.settings.seed, RngDomain::resample, 0);
+            const std::vector<size_t> pick = mcmc::resample_start_indices(m_boot_f, size_t(n), rng);
+            m_chains.resize(n);
+            parallel_tasks(fr.arena, fr.counters, n, uint64_t(8), [&](const tbb::blocked_range<uint64_t>& r) {
+                PathCounters c;
+                for (uint64_t k = r.begin(); k != r.end(); ++k) {
+                    m_chains[k] = replay(uint32_t(pick[k]), uint32_t(k), c);
+                    CMLT_CHECK_MSG(m_chains[k]->chain.fx == m_boot_f[pick[k]],
+                                   fr.settings.integrator << ": replaying bootstrap sample " << pick[k]
+                                                          << " gave a different path");
+                    m_chains[k]->chain_id = k;
+                    m_chains[k]->budget = budget_of(k);
+                }
+                fr.counters.add(c);
+            });
+        }
+        m_start_states = export_states(export_chain);
+    }
+
+    /// 3. Run the chains in rounds until the budget or the time is spent or `progress`
+    /// stops the frame. `make_tracer()` gives each parallel task its tracer, with
+    /// `run(Chain&, uint64_t end)` (step the chain until `end` evaluations) and
+    /// `flush(FrameCounters&)` (add the task's counters).
+    template <class MakeTracer>
+    void run(const ProgressCallback& progress, MakeTracer&& make_tracer) {
+        MltFrame& fr = m_frame;
+        ChainSchedule schedule(fr.settings, fr.t0, m_chains.size());
+        uint64_t evaluations = 0;
+        while (!m_chains.empty() && schedule.begin_round(evaluations)) {
+            fr.direct.before_round(schedule, evaluations);
+            parallel_tasks(fr.arena, fr.counters, m_chains.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
+                auto tracer = make_tracer();
+                for (size_t k = r.begin(); k != r.end(); ++k) {
+                    Chain& chain = *m_chains[k];
+                    tracer.run(chain, schedule.round_end(chain.budget, chain.evaluations));
+                }
+                tracer.flush(fr.counters);
+            });
+            if (!schedule.end_round(m_chains, [](const Chain& c) { return c.evaluations; }, progress, &evaluations,
+                                    &m_cancelled))
+                break;
+        }
+        fr.direct.finish(m_cancelled, !m_chains.empty(), fr.t0);
+    }
+
+    /// 4. Merge the chains in chain order; `export_chain` gives their final states.
+    template <class Export>
+    PopulationResult finish(Export&& export_chain) {
+        PopulationResult out;
+        mcmc::NormalisationAccumulator b = m_boot_acc;
+        for (const auto& c : m_chains) {
+            c->streaks.end();
+            out.streaks.merge(c->streaks);
+            b.merge(c->large);
+            out.kernel.merge(c->stats);
+            out.steps += c->steps;
+            out.evaluations += c->evaluations;
+            out.invalid += c->invalid;
+        }
+        out.b = b.estimate();
+        out.b_bootstrap = m_b_boot;
+        out.bootstrap_f = std::move(m_boot_f);
+        out.chains = m_chains.size();
+        out.imported = m_initial != nullptr;
+        out.cancelled = m_cancelled;
+        out.states = export_states(export_chain);
+        out.start_states = std::move(m_start_states);
+        return out;
+    }
+
+private:
+    template <class Export>
+    std::shared_ptr<ChainStates> export_states(Export& export_chain) const {
+        auto out = std::make_shared<ChainStates>();
+        out->path_sampler = m_frame.settings.mlt_path_sampler;
+        out->chains.reserve(m_chains.size());
+        for (const auto& c : m_chains) out->chains.push_back(export_chain(*c));
+        return out;
+    }
+
+    MltFrame& m_frame;
+    const ChainStates* m_initial;
+    uint64_t m_count;  ///< chains to start
+    std::vector<std::unique_ptr<Chain>> m_chains;
+    std::vector<double> m_boot_f;
+    mcmc::NormalisationAccumulator m_boot_acc;
+    mcmc::NormalisationEstimate m_b_boot;
+    std::shared_ptr<ChainStates> m_start_states;
+    bool m_cancelled = false;
+};
+
+}  // namespace cmlt::mlt

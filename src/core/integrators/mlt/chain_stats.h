@@ -1,0 +1,85 @@
+#pragma once
+/// \file How long the Metropolis chains sit in one state (pssmlt, cmlt): rejection
+/// streaks and the occupancy statistic of "stuck" chains, per chain and merged over the
+/// population in chain order (MltStats::max_rejection_streak, long_streak_rejections,
+/// states_visited, top_occupancy).
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+
+namespace cmlt::mlt {
+
+/// How long chains sit in one state. A state is occupied for 1 + (rejections that
+/// follow) steps; `top_fraction(q)` is the share of all steps spent in the most-occupied
+/// fraction q of the states visited (the "no chain sticks" measure: with q = 0.1 %
+/// a healthy chain population gives a few percent, a stuck one most of its steps).
+class Occupancy {
+public:
+    void add_run(uint64_t steps) {
+        if (steps == 0) return;
+        if (steps < k_dense) ++m_dense[steps];
+        else ++m_sparse[steps];
+        m_total += steps;
+        ++m_states;
+    }
+    void merge(const Occupancy& o) {
+        for (size_t i = 0; i < k_dense; ++i) m_dense[i] += o.m_dense[i];
+        for (const auto& kv : o.m_sparse) m_sparse[kv.first] += kv.second;
+        m_total += o.m_total;
+        m_states += o.m_states;
+    }
+    uint64_t states() const { return m_states; }
+    uint64_t steps() const { return m_total; }
+    double top_fraction(double q) const {
+        if (m_total == 0) return 0.0;
+        uint64_t take = uint64_t(std::ceil(q * double(m_states)));
+        uint64_t sum = 0;
+        for (auto it = m_sparse.rbegin(); it != m_sparse.rend() && take > 0; ++it) {
+            const uint64_t k = std::min(take, it->second);
+            sum += k * it->first;
+            take -= k;
+        }
+        for (size_t len = k_dense; len-- > 1 && take > 0;) {
+            const uint64_t k = std::min(take, m_dense[len]);
+            sum += k * len;
+            take -= k;
+        }
+        return double(sum) / double(m_total);
+    }
+
+private:
+    static constexpr size_t k_dense = 256;
+    uint64_t m_dense[k_dense] = {};
+    std::map<uint64_t, uint64_t> m_sparse;
+    uint64_t m_total = 0, m_states = 0;
+};
+
+/// Rejection runs and occupancy of one chain.
+struct StreakTracker {
+    static constexpr uint64_t k_long_streak = 1000;  ///< "stuck" rejection run (stats)
+    uint64_t streak = 0, max_streak = 0, long_streak_rejections = 0;
+    Occupancy occupancy;
+
+    void record(bool moved) {
+        if (moved) {
+            end();
+        } else {
+            max_streak = std::max(max_streak, ++streak);
+        }
+    }
+    void merge(const StreakTracker& o) {
+        max_streak = std::max(max_streak, o.max_streak);
+        long_streak_rejections += o.long_streak_rejections;
+        occupancy.merge(o.occupancy);
+    }
+    /// The current state's run ends (a move, or the end of the frame).
+    void end() {
+        if (streak > k_long_streak) long_streak_rejections += streak;
+        occupancy.add_run(streak + 1);
+        streak = 0;
+    }
+};
+
+}  // namespace cmlt::mlt

@@ -1,0 +1,88 @@
+// Keyed path-tracing passes of the Metropolis frames; see direct_pass.h.
+#include "integrators/mlt/direct_pass.h"
+
+#include "integrators/common/render_settings.h"
+#include "integrators/mlt/mlt_context.h"
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cmlt::mlt {
+
+PtPass::PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth)
+    : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height), m_tracer(scene, max_depth),
+      m_motion_blur(scene.motion_blur()), m_film(s.width, s.height), m_sample_base(sample_base) {}
+
+uint64_t PtPass::evaluations() const {
+    return uint64_t(m_passes) * uint64_t(m_settings.width) * uint64_t(m_settings.height);
+}
+
+void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counters) {
+    if (total <= m_passes) return;
+    const int s0 = m_passes, s1 = total, W = m_settings.width;
+    parallel_tasks(arena, counters, m_settings.height, 2, [&](const tbb::blocked_range<int>& r) {
+        PathCounters c;
+        for (int y = r.begin(); y != r.end(); ++y)
+            for (int x = 0; x < W; ++x)
+                for (int k = s0; k < s1; ++k) {
+                    const uint32_t index = m_sample_base + uint32_t(k);
+                    m_film.add_sample(x, y, index,
+                                      m_tracer.pixel_sample(m_camera, m_motion_blur, m_settings.seed, x, y, W, index, c));
+                }
+        counters.add(c);
+    });
+    m_passes = total;
+}
+
+PtPassImage PtPass::develop() const {
+    PtPassImage out;
+    if (m_passes == 0) return out;
+    const size_t n = size_t(m_settings.width) * size_t(m_settings.height) * 3;
+    out.mean.resize(n);
+    out.variance.resize(n);
+    m_film.develop(out.mean.data(), out.variance.data());
+    out.nan_samples = m_film.nan_samples();
+    return out;
+}
+
+std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
+                                PathCounters& counters) {
+    PtPass pass(scene, settings, k_pilot_sample_base, settings.max_depth);
+    tbb::task_arena arena(frame_threads(settings));
+    FrameCounters c;
+    pass.render_to(arena, spp, c);
+    counters += c.paths();
+    std::vector<float> mean = pass.develop().mean;
+    if (mean.empty()) mean.assign(size_t(settings.width) * size_t(settings.height) * 3, 0.f);
+    return mean;
+}
+
+DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
+    : PtPass(scene, s, k_direct_sample_base, std::min(1, s.max_depth)), m_enabled(s.direct_fraction > 0.0) {}
+
+int DirectPass::passes_for(uint64_t chain_evaluations) const {
+    const double f = m_settings.direct_fraction;
+    const double pixels = double(m_settings.width) * double(m_settings.height);
+    return std::max(1, int(std::ceil(f / (1.0 - f) * double(chain_evaluations) / pixels)));
+}
+
+void DirectSchedule::before_round(const ChainSchedule& rounds, uint64_t chain_evaluations) {
+    if (!pass.enabled()) return;
+    if (rounds.timed()) pass.render_to(arena, pass.passes_for(chain_evaluations), counters);
+    else pass.render_to(arena, MltContext::direct_spp(settings) * (rounds.round() + 1) / ChainSchedule::k_rounds,
+                        counters);
+}
+
+void DirectSchedule::finish(bool cancelled, bool chains_ran, std::chrono::steady_clock::time_point t0) {
+    if (!pass.enabled() || cancelled) return;
+    if (settings.time_budget <= 0.0) {
+        pass.render_to(arena, MltContext::direct_spp(settings), counters);
+        return;
+    }
+    if (chains_ran) return;
+    const PassSchedule time(settings, t0);
+    while (const int n = time.next(pass.passes())) pass.render_to(arena, pass.passes() + n, counters);
+}
+
+}  // namespace cmlt::mlt

@@ -1,0 +1,99 @@
+#pragma once
+/// \file Whole-image path-tracing passes with independent keyed samples, for the
+/// Metropolis integrators (pssmlt, cmlt): the pilot image of the pixel importance
+/// (pixel_importance.h) and the direct pass (depths 0 and 1; the chains leave them to
+/// ordinary Monte Carlo, where it beats a Markov chain — Mitsuba 0.5's PSSMLT does the
+/// same). Each pass keys its samples from its own sample-index base (PixelSampler
+/// counters (seed, pixel, base + s); k_pilot_sample_base and k_direct_sample_base in
+/// sampling/rng_domains.h), so the passes never share numbers with each other or with
+/// the pt integrator, and a static shot gets the same pass every frame.
+///
+/// The direct pass runs in slices between the chain rounds (DirectSchedule), so it keeps
+/// its share of the frame's evaluations under a sample or a time budget.
+#include "cameras/camera.h"
+#include "film/film.h"
+#include "integrators/common/frame_loop.h"
+#include "integrators/path/path_tracer.h"
+#include "sampling/rng_domains.h"
+
+#include <tbb/task_arena.h>
+
+#include <chrono>
+#include <cstdint>
+#include <vector>
+
+namespace cmlt {
+
+class Scene;
+struct RenderSettings;
+
+namespace mlt {
+
+struct PtPassImage {
+    std::vector<float> mean;      ///< (H, W, 3)
+    std::vector<float> variance;  ///< (H, W, 3), variance of each pixel's mean
+    uint64_t nan_samples = 0;     ///< non-finite samples dropped
+};
+
+/// Path-traced samples keyed (seed, pixel, `sample_base` + s) of paths with at most
+/// `max_depth` scattering events, accumulated over calls of render_to.
+class PtPass {
+public:
+    PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth);
+
+    int passes() const { return m_passes; }
+    /// Path evaluations so far (passes · W·H).
+    uint64_t evaluations() const;
+    /// Render passes up to `total` (no-op if already there), rays into `counters`.
+    void render_to(tbb::task_arena& arena, int total, FrameCounters& counters);
+    /// Mean and variance of the mean (H, W, 3); empty before the first pass.
+    PtPassImage develop() const;
+
+protected:
+    const RenderSettings& m_settings;
+
+private:
+    Camera m_camera;
+    PathTracer m_tracer;
+    bool m_motion_blur;
+    Film m_film;
+    uint32_t m_sample_base;
+    int m_passes = 0;
+};
+
+/// The pilot image: `spp` samples per pixel at full depth, keyed from
+/// k_pilot_sample_base (H, W, 3). Adds its rays to `counters`.
+std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
+                                PathCounters& counters);
+
+/// The direct pass (depths 0 and 1) of a Metropolis frame, keyed from
+/// k_direct_sample_base; disabled when direct_fraction is 0.
+class DirectPass : public PtPass {
+public:
+    DirectPass(const Scene& scene, const RenderSettings& s);
+    bool enabled() const { return m_enabled; }
+    /// Passes a time-budgeted frame should have after `chain_evaluations`: the share
+    /// direct_fraction of all evaluations (at least one).
+    int passes_for(uint64_t chain_evaluations) const;
+
+private:
+    bool m_enabled;
+};
+
+/// The direct pass's slices around the chain rounds: before round r of a sample budget
+/// its share D·(r+1)/k_rounds of the D passes, with a time budget the passes that keep
+/// its share of the evaluations so far; `finish` completes a sample budget's D passes
+/// (also when the chains were done early or there were none) or, timed and chainless,
+/// renders passes until the time is used.
+struct DirectSchedule {
+    DirectPass& pass;
+    const RenderSettings& settings;
+    tbb::task_arena& arena;
+    FrameCounters& counters;
+
+    void before_round(const ChainSchedule& rounds, uint64_t chain_evaluations);
+    void finish(bool cancelled, bool chains_ran, std::chrono::steady_clock::time_point t0);
+};
+
+}  // namespace mlt
+}  // namespace cmlt

@@ -1,0 +1,51 @@
+// The path-tracing frame loop; see path_integrator.h.
+#include "integrators/path/path_integrator.h"
+
+#include "cameras/camera.h"
+#include "film/film.h"
+#include "integrators/common/frame_loop.h"
+#include "integrators/path/path_tracer.h"
+#include "scene/scene.h"
+
+#include <chrono>
+
+namespace cmlt {
+
+RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
+    const int W = settings.width, H = settings.height;
+    const Camera camera(scene.camera_desc(), W, H);
+    Film film(W, H);
+    const PathTracer tracer(scene, settings.max_depth);
+    const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
+    const std::vector<Tile> tiles = image_tiles(W, H);
+    const int threads = frame_threads(settings);
+    tbb::task_arena arena(threads);
+
+    // Chunks of samples per pixel: about 16 progress calls per frame (frame_loop.h).
+    FrameCounters counters;
+    const CycleRate rate;
+    const auto t0 = std::chrono::steady_clock::now();
+    bool cancelled = false;
+    const int done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
+        parallel_tasks(
+            arena, counters, tiles.size(), size_t(1),
+            [&](const tbb::blocked_range<size_t>& r) {
+                PathCounters c;
+                for (size_t ti = r.begin(); ti != r.end(); ++ti) {
+                    const Tile& tile = tiles[ti];
+                    for (int y = tile.y0; y < tile.y1; ++y)
+                        for (int x = tile.x0; x < tile.x1; ++x)
+                            for (int s = s0; s < s1; ++s) {
+                                const Spectrum L =
+                                    tracer.pixel_sample(camera, motion_blur, settings.seed, x, y, W, uint32_t(s), c);
+                                film.add_sample(x, y, uint32_t(s), L);
+                            }
+                }
+                counters.add(c);
+            },
+            tbb::simple_partitioner());
+    });
+    return film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled);
+}
+
+}  // namespace cmlt

@@ -1,0 +1,168 @@
+// Ray queries of the render scene: closest hits resolved to surfaces and analytic
+// lights, surface interactions (placed by the instance's transform at the ray's time),
+// and the visibility of shadow rays through pass-through surfaces; see scene.h. The
+// building of the scene (meshes, instances, materials, lights, commit) is in scene.cpp.
+#include "scene/scene.h"
+
+#include "lights/area_lights.h"
+#include "lights/cylinder_light.h"
+#include "lights/infinite_lights.h"
+#include "lights/sphere_light.h"
+#include "materials/material_eval.h"
+#include "util/error.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cmlt {
+
+namespace {
+
+/// Scene::fill_interaction for the triangle v of `mesh` placed by `xf`.
+void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mesh& mesh,
+                 const uint32_t* v, const Transform& xf, SurfaceInteraction* si) {
+    si->time = ray.time;
+    Vec3 p0 = xf.m.transform_point(mesh.point(v[0]));
+    Vec3 p1 = xf.m.transform_point(mesh.point(v[1]));
+    Vec3 p2 = xf.m.transform_point(mesh.point(v[2]));
+    float b1 = hit.u, b2 = hit.v, b0 = 1.f - b1 - b2;
+    si->p = p0 * b0 + p1 * b1 + p2 * b2;
+    si->t = hit.t;
+    si->wo = -normalize(ray.d);
+    Vec3 ng = normalize(cross(p1 - p0, p2 - p0));
+    if (is_black(ng) || !is_finite(ng)) ng = si->wo;  // degenerate triangle: face the ray
+    si->ng = ng;
+    si->ns = ng;
+    if (mesh.data.normals) {
+        Vec3 n = mesh.normal(v[0]) * b0 + mesh.normal(v[1]) * b1 + mesh.normal(v[2]) * b2;
+        n = normalize(xf.normal.transform_normal(n));
+        if (!is_black(n) && is_finite(n)) si->ns = face_forward(n, ng);
+    }
+    if (mesh.data.uvs) {
+        Vec2 t0 = mesh.uv(v[0]), t1 = mesh.uv(v[1]), t2 = mesh.uv(v[2]);
+        si->uv = Vec2(t0.x * b0 + t1.x * b1 + t2.x * b2, t0.y * b0 + t1.y * b1 + t2.y * b2);
+        // dp/du from the uv parametrisation of the triangle (pbrt's Triangle::Intersect).
+        float du02 = t0.x - t2.x, du12 = t1.x - t2.x, dv02 = t0.y - t2.y, dv12 = t1.y - t2.y;
+        float det = du02 * dv12 - dv02 * du12;
+        si->dpdu = Vec3(0.f);
+        if (std::fabs(det) > 1e-12f) {
+            Vec3 d = ((p0 - p2) * dv12 - (p1 - p2) * dv02) * (1.f / det);
+            if (is_finite(d)) si->dpdu = d;
+        }
+    } else {
+        si->uv = Vec2(b1, b2);
+        si->dpdu = Vec3(0.f);
+    }
+    si->error_scale = max_component(vmax(vabs(p0), vmax(vabs(p1), vabs(p2))));
+    si->instance_id = hit.instance_id;
+    si->mesh_id = inst.mesh_id;
+    si->prim_id = hit.prim_id;
+    si->material_id = mesh.material_id(hit.prim_id);
+    si->n_primvars = uint8_t(mesh.data.n_primvar_columns);
+    if (si->n_primvars) {
+        const float *q0 = mesh.primvar_row(v[0]), *q1 = mesh.primvar_row(v[1]),
+                    *q2 = mesh.primvar_row(v[2]);
+        for (int c = 0; c < si->n_primvars; ++c) si->primvars[c] = q0[c] * b0 + q1[c] * b1 + q2[c] * b2;
+    }
+}
+
+}  // namespace
+
+void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const {
+    const Instance& inst = m_instances[hit.instance_id];
+    const Mesh& mesh = m_meshes[inst.mesh_id];
+    uint32_t v[3];
+    mesh.triangle(hit.prim_id, v);
+    // A moving instance is placed where it is at the ray's time (as Embree placed it);
+    // only then is a Transform built (a default-constructed one per hit showed in
+    // profiles).
+    if (inst.motion.size() > 1)
+        fill_placed(ray, hit, inst, mesh, v, Transform(inst.matrix_at(ray.time), "moving instance"), si);
+    else
+        fill_placed(ray, hit, inst, mesh, v, inst.xf, si);
+}
+
+bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
+    Hit h = m_accel->intersect(ray);
+    if (!h.valid()) return false;
+    fill_interaction(ray, h, si);
+    return true;
+}
+
+bool Scene::blocked_by_light(const Ray& ray) const {
+    for (uint32_t li : m_analytic_area) {
+        float t;
+        Spectrum le;
+        if (m_lights[li]->intersect(ray, &t, &le)) return true;
+    }
+    return false;
+}
+
+float Scene::transmittance(const Ray& shadow, float* pass_pdf) const {
+    *pass_pdf = 1.f;
+    // An analytic emitter stops camera and BSDF rays (resolve_hit), so it stops shadow
+    // rays and BDPT connections too: otherwise light tracing sees surfaces behind a lamp
+    // that the camera cannot, and PT and BDPT disagree where a lamp is in view.
+    if (!m_analytic_area.empty() && blocked_by_light(shadow)) return 0.f;
+    if (!m_accel->occluded(shadow)) return 1.f;
+    return transmittance_through(shadow, pass_pdf);
+}
+
+float Scene::transmittance_through(const Ray& shadow, float* pass_pdf) const {
+    if (!m_pass_through) return 0.f;
+    // Something is in the way: walk the hits in order, crossing pass-through ones.
+    Ray ray = shadow;
+    float T = 1.f, P = 1.f;
+    for (int k = 0; k < k_max_pass_through_crossings; ++k) {
+        const Hit h = m_accel->intersect(ray);
+        if (!h.valid()) {
+            *pass_pdf = P;
+            return T;
+        }
+        const Instance& inst = m_instances[h.instance_id];
+        const uint32_t mid = m_meshes[inst.mesh_id].material_id(h.prim_id);
+        if (!m_material_passes[mid]) return 0.f;
+        SurfaceInteraction si;
+        fill_interaction(ray, h, &si);
+        const Bsdf bsdf = make_bsdf(m_materials[mid], si, m_textures);
+        float p = 0.f;
+        const float t = bsdf.pass_through(si.wo, &p);
+        if (!(t > 0.f) || !(p > 0.f)) return 0.f;  // opaque here (e.g. above the cut-out threshold)
+        T *= t;
+        P *= p;
+        // On from the far side of the surface, to the same end point.
+        Ray next(offset_ray_origin(si.p, si.ng, si.error_scale, ray.d), ray.d, 0.f,
+                 ray.tfar - h.t);
+        next.time = ray.time;
+        ray = next;
+    }
+    return 0.f;
+}
+
+SceneHit Scene::intersect(const Ray& ray) const { return resolve_hit(ray, m_accel->intersect(ray)); }
+
+SceneHit Scene::resolve_hit(const Ray& ray, const Hit& h) const {
+    SceneHit out;
+    float tmax = h.valid() ? h.t : ray.tfar;
+    // Analytic emitters are not in the BVH: test them and keep the nearest.
+    for (uint32_t li : m_analytic_area) {
+        float t;
+        Spectrum le;
+        if (m_lights[li]->intersect(Ray(ray.o, ray.d, ray.tnear, tmax), &t, &le) && t < tmax) {
+            tmax = t;
+            out.kind = SceneHit::Kind::light;
+            out.light_index = li;
+            out.le = le;
+            out.t = t;
+        }
+    }
+    if (out.kind == SceneHit::Kind::light) return out;
+    if (h.valid()) {
+        out.kind = SceneHit::Kind::surface;
+        out.t = h.t;
+        fill_interaction(ray, h, &out.si);
+    }
+    return out;
+}
+
+}  // namespace cmlt

@@ -1,0 +1,84 @@
+// The RNG module's registry (sampling/rng_domains.h) and shared conversions
+// (sampling/rng.h): the counter spaces stay disjoint and the conversions keep every
+// primary sample in [0, 1).
+#include "sampling/rng.h"
+#include "sampling/rng_domains.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <set>
+
+using namespace cmlt;
+
+TEST(RngDomains, MetropolisDomainsAreDistinctAndFitTheirByte) {
+    const RngDomain all[] = {RngDomain::bootstrap,      RngDomain::chain,      RngDomain::resample,
+                             RngDomain::carry_evaluate, RngDomain::carry_keep, RngDomain::carry_refresh,
+                             RngDomain::test};
+    std::set<uint32_t> seen;
+    for (RngDomain d : all) {
+        EXPECT_LT(uint32_t(d), 256u);
+        EXPECT_TRUE(seen.insert(uint32_t(d)).second) << uint32_t(d);
+    }
+}
+
+TEST(RngDomains, PixelAndMetropolisCountersNeverMeet) {
+    // Pixel counters end in a stream id below 2^16; Metropolis counters in a word whose
+    // top byte is 0x10 + tag.
+    const RngStream streams[] = {RngStream::camera_path, RngStream::bdpt_camera, RngStream::bdpt_light,
+                                 RngStream::bdpt_connection, RngStream::test};
+    for (RngStream s : streams) EXPECT_LT(pixel_counter(1, 2, 3, s)[3], 1u << 16);
+    const RngTag tags[] = {RngTag::point, RngTag::sequence, RngTag::small_step, RngTag::keyed};
+    std::set<uint32_t> words;
+    for (RngTag t : tags) {
+        const uint32_t w = metropolis_counter(t, RngDomain::chain, 4, 0xFFFF00000005ull, 6)[3];
+        EXPECT_GE(w, 1u << 28);
+        EXPECT_EQ(w >> 24, 0x10u + uint32_t(t));
+        EXPECT_EQ((w >> 16) & 0xFFu, uint32_t(RngDomain::chain));
+        EXPECT_EQ(w & 0xFFFFu, 0xFFFFu);  // the draw's high 16 bits
+        EXPECT_TRUE(words.insert(w).second);
+    }
+    // the Metropolis layout is part of the state files' meaning: it must not move
+    EXPECT_EQ(metropolis_counter(RngTag::point, RngDomain::bootstrap, 5, 7, 3),
+              (Philox4x32Counter{5u, 7u, 3u, 0x10010000u}));
+}
+
+TEST(RngDomains, PassSampleBasesAreDisjointFromEachOtherAndFromPixelSamples) {
+    // pt / bdpt sample indices count up from 0; each pass owns 2^29 indices
+    EXPECT_GE(k_direct_sample_base, 1u << 29);
+    EXPECT_GE(k_pilot_sample_base - k_direct_sample_base, 1u << 29);
+    EXPECT_GT(k_lens_dimension, k_shutter_time_dimension);
+    EXPECT_GE(k_shutter_time_dimension, 1u << 31);
+}
+
+TEST(Rng, UnitFloatAndWrapStayBelowOne) {
+    EXPECT_EQ(unit_float(0.5), 0.5f);
+    EXPECT_EQ(unit_float(0.0), 0.f);
+    const double just_below = std::nextafter(1.0, 0.0);  // rounds to 1.0f
+    EXPECT_EQ(float(just_below), 1.f);
+    EXPECT_LT(unit_float(just_below), 1.f);
+    EXPECT_EQ(unit_float(just_below), std::nextafter(1.f, 0.f));
+    EXPECT_EQ(wrap01(-1e-17), 0.0);
+    EXPECT_DOUBLE_EQ(wrap01(-0.25), 0.75);
+    EXPECT_EQ(wrap01(std::numeric_limits<double>::quiet_NaN()), 0.0);
+    EXPECT_EQ(wrap01(std::numeric_limits<double>::infinity()), 0.0);
+    EXPECT_LT(bits_to_unit(~0u, ~0u), 1.0);
+    EXPECT_LT(uint_to_unit_float(~0u), 1.f);
+}
+
+TEST(Rng, CounterRngIsAPureFunctionOfItsKey) {
+    CounterRng a(3, RngDomain::chain, 1), b(3, RngDomain::chain, 1), c(3, RngDomain::chain, 2),
+        d(3, RngDomain::bootstrap, 1), e(4, RngDomain::chain, 1);
+    const double va = a.uniform();
+    EXPECT_EQ(va, b.uniform());
+    EXPECT_NE(va, c.uniform());
+    EXPECT_NE(va, d.uniform());
+    EXPECT_NE(va, e.uniform());
+    for (int i = 0; i < 1000; ++i) {
+        const double u = a.uniform();
+        ASSERT_GE(u, 0.0);
+        ASSERT_LT(u, 1.0);
+        ASSERT_TRUE(std::isfinite(a.normal()));
+    }
+}
