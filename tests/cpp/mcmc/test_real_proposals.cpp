@@ -35,6 +35,9 @@ constexpr uint64_t k_key_seed = 5;
 struct FilmTarget {
   Binned<CheckerBump> bn{CheckerBump{0.25}, 8};
   double operator()(const State& s) const {
+    // the path reads the film position, camera slots 0 and 1 (the extent the small step
+    // keeps, as PointSampler records it for the renderer's target)
+    s.extent = {2, 0, 0};
     return bn.target.eval(s.value(k_key_seed, film_index(0)), s.value(k_key_seed, film_index(1)));
   }
   std::size_t bin(const State& s) const {
