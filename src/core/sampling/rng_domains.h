@@ -75,6 +75,7 @@ enum class RngTag : uint32_t {
     sequence = 1,    ///< a chain's sequential numbers (CounterRng)
     small_step = 2,  ///< a primary sample's small-step Gaussian (MltSampler)
     keyed = 3,       ///< one keyed uniform (temporal::keyed_uniform)
+    lazy_step = 4,   ///< a coherent-MLT state's lazy small step or refresh (cmlt_state.h)
 };
 
 /// Populations of the Metropolis counters (`id` is the index inside one).

@@ -35,6 +35,9 @@ constexpr uint64_t k_key_seed = 5;
 struct FilmTarget {
   Binned<CheckerBump> bn{CheckerBump{0.25}, 8};
   double operator()(const State& s) const {
+    // the path reads the film position, camera slots 0 and 1 (the extent the small step
+    // keeps, as PointSampler records it for the renderer's target)
+    s.extent = {2, 0, 0};
     return bn.target.eval(s.value(k_key_seed, film_index(0)), s.value(k_key_seed, film_index(1)));
   }
   std::size_t bin(const State& s) const {
@@ -55,7 +58,6 @@ State exact_state(const FilmTarget& f, TestRng& rng, uint32_t id) {
 void check_real_proposal(Perturbation kind, InnerRule rule, std::size_t tries, std::uint64_t seed) {
   const FilmTarget f;
   // σ 0.1 in primary units on both film axes (1×1 "image"); small steps: σ 0.1 too
-  const PerturbationProposal prop = PerturbationProposal::make(kind, k_key_seed, 0.1, 0.1, 1, 1);
   const std::size_t bins = f.bn.bins(), chains = 12000, steps = 6;
   const auto probs = f.bn.probabilities();
   std::vector<double> final_counts(bins, 0.0), h(bins, 0.0);
@@ -69,7 +71,11 @@ void check_real_proposal(Perturbation kind, InnerRule rule, std::size_t tries, s
     chain.x = exact_state(f, rng, uint32_t(c));
     chain.fx = f(chain.x);
     std::fill(h.begin(), h.end(), 0.0);
-    for (std::size_t t = 0; t < steps; ++t) stats.record(coherent::inner_step(rule, chain, f, prop, splat, rng, ws));
+    for (std::size_t t = 0; t < steps; ++t) {
+      // one proposal per inner step, as the integrator (a small step draws its refresh)
+      const PerturbationProposal prop = PerturbationProposal::make(kind, k_key_seed, 0.1, 0.1, 1, 1, rng);
+      stats.record(coherent::inner_step(rule, chain, f, prop, splat, rng, ws));
+    }
     for (double& v : h) v /= double(steps);
     splat_means.add(h);
     final_counts[f.bin(chain.x)] += 1.0;
@@ -124,8 +130,8 @@ struct PreparedTarget {
 
 TEST(RealProposals, EveryBundleIsPreparedOnceBeforeItIsEvaluated) {
   const PreparedTarget target;
-  const PerturbationProposal prop = PerturbationProposal::make(Perturbation::lens, k_key_seed, 0.1, 0.1, 1, 1);
   TestRng rng(77);
+  const PerturbationProposal prop = PerturbationProposal::make(Perturbation::lens, k_key_seed, 0.1, 0.1, 1, 1, rng);
   const std::size_t k = 5;
   Workspace<State> ws(k, State{});
   auto splat = [](const State&, double) {};

@@ -95,7 +95,7 @@ public:
                 const Perturbation kind = choose_perturbation(st.rng.uniform(), st.chain.x);
                 const PerturbationProposal prop = PerturbationProposal::make(
                     kind, m_settings.seed, m_settings.sigma_pixels, m_settings.sigma_primary, m_settings.width,
-                    m_settings.height);
+                    m_settings.height, st.rng);
                 const mcmc::StepResult ir = inner_step(m_settings.rule, st.chain, m_f, prop, splat, st.rng, st.ws);
                 st.perturbation[size_t(kind)].record(ir);
                 st.invalid += ir.invalid_values;

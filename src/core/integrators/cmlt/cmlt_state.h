@@ -13,15 +13,15 @@
 ///     replay sampler state to carry;
 ///   * a perturbation (perturbations.h) copies the overrides and overrides some
 ///     coordinates.
-/// Coordinates a path never reads stay at their key's values; that is a fixed (not
-/// re-drawn) part of the state, which is valid: they do not enter f*, and the lens,
-/// caustic and pixel-move perturbations leave them unchanged (δ, a symmetric kernel).
-/// The small step does not re-draw them either, which breaks its symmetry when a
-/// candidate reads one (perturbations.h).
+/// Coordinates a path never reads stay at their key's values under the lens, caustic
+/// and pixel-move perturbations, which leave them unchanged (δ, a symmetric kernel);
+/// the small step refreshes them first and then steps every coordinate, the unread ones
+/// lazily (LazyStep; perturbations.h).
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "sampling/rng.h"
+#include "util/error.h"
 
 #include <algorithm>
 #include <array>
@@ -54,10 +54,38 @@ inline double key_value(uint64_t seed, const StateKey& key, size_t i) {
 
 inline constexpr double k_unset = std::numeric_limits<double>::quiet_NaN();
 
-/// A chain state: the point (key + overrides) and, cached by the target, its path.
+/// A lazy step of the coordinates a state does not override: either a uniform shift
+/// (the small step's refresh of the unread coordinates: key value + a fresh uniform,
+/// mod 1, is a fresh uniform) or a wrapped Gaussian step of σ (the small step itself),
+/// both drawn per coordinate from (seed, id, index) when the coordinate is read.
+struct LazyStep {
+    uint64_t id = 0;
+    double sigma = -1.0;  ///< < 0: uniform shift; else the Gaussian's σ
+};
+
+/// The lazy steps' numbers: one Philox draw per (step, coordinate) (RngTag::lazy_step).
+inline double lazy_step(uint64_t seed, const LazyStep& step, size_t i) {
+    const Philox4x32Counter r = philox4x32(metropolis_counter(RngTag::lazy_step, RngDomain::chain,
+                                                              uint32_t(step.id >> 32), step.id & 0xFFFFFFFFu,
+                                                              uint32_t(i)),
+                                           seed_key(seed));
+    const double a = bits_to_unit(r[0], r[1]);
+    if (step.sigma < 0.0) return a;
+    return step.sigma * box_muller(a, bits_to_unit(r[2], r[3]));
+}
+
+/// A chain state: the point (key + overrides + lazy steps) and, cached by the target,
+/// its path.
 struct State {
+    /// Lazy steps a state can carry: a refresh and two Gaussian levels (the bundle's
+    /// centre and candidate, or MTM's candidate and reference point).
+    static constexpr size_t k_max_lazy = 3;
+
     StateKey key;
     std::vector<double> u;  ///< overrides by global index; NaN = the key's value
+    /// Steps applied, in order, to every coordinate without an override (see LazyStep).
+    std::array<LazyStep, k_max_lazy> lazy{};
+    uint32_t lazy_count = 0;
     mutable PathSample sample;  ///< set by the target when the point is evaluated
     /// `sample` is this point's (set by the target; a proposal that writes the point
     /// clears it, so the target evaluates each new point once)
@@ -67,7 +95,13 @@ struct State {
 
     double value(uint64_t seed, size_t i) const {
         if (i < u.size() && !std::isnan(u[i])) return u[i];
-        return key_value(seed, key, i);
+        double v = key_value(seed, key, i);
+        for (uint32_t n = 0; n < lazy_count; ++n) v = wrap01(v + lazy_step(seed, lazy[n], i));
+        return v;
+    }
+    void add_lazy(const LazyStep& step) {
+        CMLT_CHECK_MSG(lazy_count < k_max_lazy, "coherent::State: more than " << k_max_lazy << " lazy steps");
+        lazy[lazy_count++] = step;
     }
     void set(size_t i, double v) {
         if (i >= u.size()) u.resize(i + 1, k_unset);

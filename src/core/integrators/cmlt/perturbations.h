@@ -3,9 +3,10 @@
 /// on the chain state (cmlt_state.h) meant to be symmetric, so that mcmc's mtm_step and
 /// bundle_step apply unchanged; the kernel draws every candidate of a bundle from the
 /// same kernel. Lens, caustic and pixel move are symmetric on the whole point (they
-/// change two coordinates and keep every other, read or not). The small step is not
-/// exactly symmetric when a candidate's path reads coordinates the current path did not
-/// (see PerturbationProposal::sample).
+/// change two coordinates and keep every other, read or not). The small step refreshes
+/// the coordinates the current path did not read and then steps every coordinate
+/// (PerturbationProposal), which is exact also when a candidate's path reads more
+/// coordinates than the current one (tests/cpp/mcmc/test_small_step_balance.cpp).
 ///
 ///   * lens: wrapped Gaussian on the film position (camera stream, dimension 0), σ in
 ///     pixels converted to primary-sample units per axis (σ_pix / W, σ_pix / H). Every
@@ -20,7 +21,7 @@
 ///     position only), so pixel coverage stays even (the seed's remedy against
 ///     stratification / blotches).
 ///   * small step: PSSMLT's wrapped Gaussian on every coordinate (σ in primary units),
-///     the technique held. Lens and caustic perturbations move two coordinates only, so
+///     the technique held, after a refresh of the unread coordinates. Lens and caustic perturbations move two coordinates only, so
 ///     alone they never explore the rest of the path between large steps (measured:
 ///     tests/bench/results/cmlt_small_steps.md).
 /// Choice per inner step (choose_perturbation, by the kernel RNG, before the bundle is
@@ -68,16 +69,41 @@ inline size_t caustic_index(int axis) {
                              k_emission_direction_dimension * MltSampler::k_slots_per_dimension + uint32_t(axis));
 }
 
-/// A symmetric perturbation of two coordinates (mcmc/proposals.h Proposal concept).
+/// A symmetric perturbation (mcmc/proposals.h Proposal concept): two coordinates, or for
+/// the small step every coordinate.
+///
+/// The small step is PSSMLT's wrapped Gaussian on every coordinate (the technique slots
+/// held), preceded by a Gibbs refresh of the coordinates the current state x has not
+/// read — both leave π invariant, so their composition does:
+///   1. refresh: x's coordinates below its extent (those its path read, and the unread
+///      ones between) are kept; every other coordinate becomes a fresh uniform (under π
+///      they are uniform and independent of the rest, whatever x's key gave them).
+///      Without it a coordinate outside the extent stays at the key's value that earlier,
+///      rejected proposals read: a proposal reading it for the first time sees that fixed
+///      value while the reverse move would perturb it, T(y→x) ≠ T(x→y), and on a target
+///      whose paths read a variable number of coordinates (Russian roulette, pass-through
+///      surfaces, the pt sampler) the chains drift (test_small_step_balance.cpp: to
+///      π(u0 < 1/2) ≈ 0.52 instead of 0.478).
+///   2. step: the Gaussian on every coordinate of the refreshed point — eagerly on the
+///      overridden ones, lazily (LazyStep, drawn when read) on the rest, so that the
+///      candidates of one bundle share the refreshed values and differ by their own
+///      Gaussian offsets, as the all-coordinate kernel has it (bundle_step's
+///      exchangeability, mtm_step's symmetric T).
+/// `refresh` names step 1's uniforms: make() draws it per inner step, and sample() from
+/// a point that does not carry it yet (the chain's current state) applies the refresh;
+/// from a point that does (the bundle's centre, MTM's chosen candidate) only the step.
 struct PerturbationProposal {
     static constexpr bool k_symmetric = true;
     Perturbation kind = Perturbation::lens;
     uint64_t seed = 0;
     size_t i0 = 0, i1 = 0;
     double s0 = 0.01, s1 = 0.01;  ///< σ per coordinate (unused by pixel_move)
+    uint64_t refresh = 0;         ///< the small step's refresh (see above)
 
+    /// A proposal of one inner step; the small step draws its refresh from `rng`.
+    template <class Rng>
     static PerturbationProposal make(Perturbation kind, uint64_t seed, double sigma_pixels, double sigma_primary,
-                                     int width, int height) {
+                                     int width, int height, Rng& rng) {
         PerturbationProposal p;
         p.kind = kind;
         p.seed = seed;
@@ -91,29 +117,31 @@ struct PerturbationProposal {
             p.s0 = sigma_pixels / double(width);
             p.s1 = sigma_pixels / double(height);
         }
+        if (kind == Perturbation::small_step) p.refresh = draw_id(rng);
         return p;
     }
 
     template <class Rng>
     void sample(const State& from, State& to, Rng& rng) const {
         to.key = from.key;
-        to.u = from.u;  // same-size assignment reuses capacity
         to.evaluated = false;
         if (kind == Perturbation::small_step) {
-            // Every materialised coordinate (overridden, or read by the path of `from`)
-            // gets a wrapped Gaussian step; the technique slots stay (multiplexed MLT,
-            // mlt_sampler.h). A coordinate never materialised keeps its key value. That
-            // is not PSSMLT's lazy mutation (Kelemen et al. 2002: a number first read by
-            // the proposal is drawn afresh): a candidate whose path reads a coordinate
-            // `from`'s path did not sees the fixed key value, while the reverse move
-            // would perturb it, so T(x→y) ≠ T(y→x) on paths of different lengths (pass-
-            // through crossings, the pt sampler) and the chains drift from π (a toy
-            // target: tests/bench/results/cmlt_small_steps.md).
+            const bool refreshed = from.lazy_count > 0 && from.lazy[0].sigma < 0.0 && from.lazy[0].id == refresh;
+            if (refreshed) {
+                to.u = from.u;  // same-size assignment reuses capacity
+                to.lazy = from.lazy;
+                to.lazy_count = from.lazy_count;
+            } else {
+                to.u.clear();
+                to.lazy_count = 0;
+            }
+            // the coordinates below from's extent become overrides (their current values)
             for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k)
                 for (uint32_t slot = 0; slot < from.extent[k]; ++slot) {
                     const size_t i = MltSampler::index(k, slot);
-                    if (i >= to.u.size() || std::isnan(to.u[i])) to.set(i, key_value(seed, from.key, i));
+                    if (i >= to.u.size() || std::isnan(to.u[i])) to.set(i, from.value(seed, i));
                 }
+            if (!refreshed) to.add_lazy(LazyStep{refresh, -1.0});
             to.extent = from.extent;
             const size_t t0 = MltSampler::index(MltSampler::connection, 0);
             const size_t t1 = MltSampler::index(MltSampler::connection, 1);
@@ -121,8 +149,12 @@ struct PerturbationProposal {
                 if (std::isnan(to.u[i]) || i == t0 || i == t1) continue;
                 to.u[i] = wrap01(to.u[i] + s0 * rng.normal());
             }
+            to.add_lazy(LazyStep{draw_id(rng), s0});
             return;
         }
+        to.u = from.u;
+        to.lazy = from.lazy;
+        to.lazy_count = from.lazy_count;
         if (kind == Perturbation::pixel_move) {
             const double a = rng.uniform();
             const double b = rng.uniform();
@@ -135,6 +167,12 @@ struct PerturbationProposal {
             to.set(i1, b);
         }
     }
+
+private:
+    template <class Rng>
+    static uint64_t draw_id(Rng& rng) {
+        return uint64_t(rng.uniform() * 0x1p53);
+    }
 };
 
 /// The outer chain's large step: a new key, no overrides (independent uniform point).
@@ -145,6 +183,7 @@ struct LargeStepProposal {
     void sample(const State& /*from*/, State& to, Rng& /*rng*/) const {
         to.key = next;
         to.u.clear();
+        to.lazy_count = 0;
         to.evaluated = false;
     }
 };

@@ -135,7 +135,7 @@ public:
                 PathCounters c;
                 uint64_t bad = 0;
                 for (uint64_t k = r.begin(); k != r.end(); ++k) {
-                    const ChainState& in = m_initial->chains[k];
+                    const ChainState& in = m_initial->chains[subsampled_state(k, n, m_initial->chains.size())];
                     bool invalid = false;
                     m_chains[k] = import(in, uint32_t(k), c, invalid);
                     bad += invalid ? 1 : 0;

@@ -44,6 +44,17 @@ struct ChainState {
     Spectrum colour{0.f};
 };
 
+/// The state chain c of n starts from when a frame runs n < `given` chains of a
+/// population of `given` states (RenderSettings::mlt_initial_states; the budget caps the
+/// chain count): an even stride over the whole population, state ⌊(2c + 1)·given / 2n⌋,
+/// never just the first n. The temporal driver lists its starts in chain order, and in
+/// that order the starts follow their bootstrap index (systematic resampling is sorted),
+/// so the first n would be a resampling of the first n/given of the bootstrap pool only.
+/// With n = given, chain c starts from state c.
+inline size_t subsampled_state(uint64_t c, uint64_t n, uint64_t given) {
+    return size_t((2 * c + 1) * given / (2 * n));
+}
+
 struct ChainStates {
     std::string path_sampler = "bdpt";  ///< "pt" | "bdpt": the u layout
     std::vector<ChainState> chains;

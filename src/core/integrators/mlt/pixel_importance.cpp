@@ -44,6 +44,10 @@ PixelImportance::PixelImportance(const std::vector<float>& pilot, int width, int
         const double v = target_luminance(Spectrum(pilot[3 * i], pilot[3 * i + 1], pilot[3 * i + 2]));
         y[i] = v;  // target_luminance: finite and >= 0
     }
+    // 0. a pilot that lights too few pixels is noise, not an estimate: luminance target
+    size_t lit = 0;
+    for (double v : y) lit += v > 0.0 ? 1 : 0;
+    if (double(lit) < k_min_lit_fraction * double(n)) return;
     // 1. fireflies: clamp to the brightest of the 8 neighbours
     std::vector<double> c(y);
     for (int py = 0; py < height; ++py)

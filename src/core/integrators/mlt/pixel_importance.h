@@ -23,7 +23,23 @@
 ///   3. floor: P ≥ k_floor · mean(P), so dark pixels (or caustics the pilot missed) get
 ///      at most 1 / k_floor times their fair share of mutations;
 ///   4. an all-black pilot (nothing lit, or nothing the path tracer finds) gives P = 1:
-///      the luminance target.
+///      the luminance target; so does a pilot that lights fewer than k_min_lit_fraction
+///      of the pixels. That is a dark scene whose light the pilot finds only now and then
+///      (sequences/door_ajar at frame 1, 1 spp: 14-27 of 4,096 pixels lit), and its P is
+///      a few blobs around chance hits that survived steps 1-2, with every other pixel at
+///      the floor: f* is then 1/k_floor = 20 times Y almost everywhere and far less in
+///      the blobs for no reason (b came out 13-19 times the luminance target's), the
+///      chains hardly visit the blobs, each visit splats that much more, and a typical
+///      render comes out dark — the estimator is consistent but heavy-tailed. Measured
+///      on door_ajar frame 1, 64x64, 350 evaluations per pixel, pssmlt, seeds 0 and 2-5
+///      (seed 1's pilot is black): mean brightness 0.84 of bdpt on average with the
+///      blobs, each seed 0.75-0.89 of the luminance-target render with the same seed;
+///      the luminance target 1.00 over seeds 0-5. Pilots of 64 spp (rendered apart and
+///      given as RenderSettings::pilot, seeds 0 and 2-5) gave 0.97 (depths >= 0) and
+///      1.03 (depths >= 2 only: what the chains render beside the direct pass; a
+///      1-spp pilot of depths >= 2 changed nothing on door_ajar — its chance hits are
+///      indirect light too — and made chains stick on the caustic of
+///      tests/python/integrators/test_pssmlt_bdpt.py, so the pilot renders every depth).
 /// The pilot's samples count against the frame's budget of path evaluations.
 #include "math/vec.h"
 
@@ -45,6 +61,8 @@ class PixelImportance {
 public:
     /// Relative floor of P (step 3).
     static constexpr double k_floor = 0.05;
+    /// Fewest pixels a pilot must light (luminance > 0), as a share of the image (step 4).
+    static constexpr double k_min_lit_fraction = 0.1;
 
     PixelImportance() = default;  ///< luminance target (weight 1 everywhere)
     /// From a pilot image (H, W, 3 floats, scene-linear, row 0 at the top).

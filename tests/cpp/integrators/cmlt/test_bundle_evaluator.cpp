@@ -65,9 +65,9 @@ std::vector<State> test_states(const mlt::PssmltTracer& tracer, int width, int h
         }
     }
     EXPECT_TRUE(found || !tracer.bdpt());
-    const PerturbationProposal lens =
-        PerturbationProposal::make(Perturbation::lens, k_seed, 2.0, 0.01, width, height);
     CounterRng rng(k_seed, RngDomain::test, 1000);
+    const PerturbationProposal lens =
+        PerturbationProposal::make(Perturbation::lens, k_seed, 2.0, 0.01, width, height, rng);
     for (int k = 0; k < 8; ++k) {
         State y;
         lens.sample(out[centre], y, rng);
