@@ -36,6 +36,43 @@ def gf_to_np(m) -> np.ndarray:
     return np.array(m, dtype=np.float64).reshape(4, 4).T.copy()
 
 
+#: an instance transform's thinnest axis relative to its widest, at least: below it the
+#: core's float32 world-to-object transform of a ray (Embree inverts the instance
+#: matrix) overflows into rays Embree refuses (found by the stage fuzzer: a scale of
+#: -1e-30 on one axis)
+MIN_AXIS_RATIO = 1e-6
+
+
+def condition_instance_transform(m: np.ndarray):
+    """(transform, note) for a column-vector 4x4 object-to-world instance transform:
+    ``m`` itself with note None when the core can trace it; with its thinnest axes
+    widened to MIN_AXIS_RATIO of its widest (a flattened object stays where it was,
+    thicker by less than a millionth of its size) and a note saying so; or (None, why)
+    when nothing sensible can be traced (not finite, collapsed to a point, beyond
+    float32)."""
+    if not np.isfinite(m).all():
+        return None, "is not finite"
+    a = m[:3, :3]
+    frob = float(np.sqrt((a * a).sum()))
+    if not frob > 0.0:
+        return None, "collapses the object to a point"
+    if frob > _FLOAT32_MAX / 16 or float(np.abs(m[:3, 3]).max()) > _FLOAT32_MAX / 16:
+        return None, "reaches beyond float32's range"
+    # fast path: s_min >= |det| / frob^2, so |det| >= ratio * frob^3 keeps s_min >= ratio * s_max
+    if abs(float(np.linalg.det(a))) >= MIN_AXIS_RATIO * frob ** 3:
+        return m, None
+    u, sv, vt = np.linalg.svd(a)
+    floor = float(sv[0]) * MIN_AXIS_RATIO
+    if not floor > 1e-30:
+        return None, f"makes the object smaller than float32 can invert (scale {sv[0]:.3g})"
+    if float(sv[-1]) >= floor:
+        return m, None
+    out = m.copy()
+    out[:3, :3] = u @ np.diag(np.maximum(sv, floor)) @ vt
+    return out, (f"is nearly singular (axis scales {', '.join(f'{x:.3g}' for x in sv)}); its "
+                 f"thinnest axis is widened to {floor:.3g} so that rays can be traced through it")
+
+
 def _finite(v, default):
     try:
         f = float(v)

@@ -6,7 +6,7 @@ from typing import List, Tuple
 import numpy as np
 from pxr import Gf, Usd, UsdGeom
 
-from .camera import gf_to_np
+from .camera import condition_instance_transform, gf_to_np
 
 __all__ = ["shutter_motion", "MAX_MOTION_STEPS"]
 
@@ -59,8 +59,9 @@ def shutter_motion(fr, cam, tc) -> Tuple[bool, str, List[float]]:
     caches = [UsdGeom.XformCache(Usd.TimeCode(tk)) for tk in times]
     moving = 0
     for inst, prim in src:
-        steps = [fr.S @ gf_to_np(xc.GetLocalToWorldTransform(prim)) for xc in caches]
-        if not all(np.isfinite(m).all() for m in steps):
+        steps = [condition_instance_transform(fr.S @ gf_to_np(xc.GetLocalToWorldTransform(prim)))[0]
+                 for xc in caches]
+        if any(m is None for m in steps):       # the frame's own transform is warned about
             continue
         if any(not np.array_equal(steps[0], m) for m in steps[1:]):
             inst.motion_transforms = steps

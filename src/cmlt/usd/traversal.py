@@ -24,7 +24,7 @@ from pxr import Usd, UsdGeom, UsdLux
 
 from ..scene import Instance, Mesh
 from . import shapes
-from .camera import gf_to_np
+from .camera import condition_instance_transform, gf_to_np
 from .errors import UsdLoadError
 from .instancing import point_instancer
 from .lights import read_light
@@ -323,10 +323,12 @@ class FrameReader:
             self.motion_src.append((self.instances[-1], place))
 
     def _add_instance(self, name, mesh_index, world, animated=True):
-        m = self.S @ world
-        if not np.isfinite(m).all():
-            self.warn(f"{name}: transform is not finite (time {tstr(self.tc)}); not rendered")
+        m, note = condition_instance_transform(self.S @ world)
+        if m is None:
+            self.warn(f"{name}: transform {note} (time {tstr(self.tc)}); not rendered")
             return
+        if note:
+            self.warn(f"{name}: transform {note} (time {tstr(self.tc)})")
         self.instances.append(Instance(name=name, mesh=mesh_index, transform=m,
                                        animated=bool(animated)))
 
