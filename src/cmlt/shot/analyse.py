@@ -19,16 +19,20 @@ __all__ = ["analyse_frames", "resolve_auto", "auto_frames", "resolve_auto_settin
 
 
 def analyse_frames(stage, frames: Sequence[float], core, camera: Optional[str] = None,
-                   resolution=None, cache: Optional[Dict[float, FrameEffects]] = None
-                   ) -> List[FrameEffects]:
+                   resolution=None, cache: Optional[Dict[float, FrameEffects]] = None,
+                   skip_bad: bool = False) -> List[FrameEffects]:
     """The effects of each of ``frames`` (time codes) of ``stage``; ``cache`` (time ->
     FrameEffects) is read and filled. Raises RenderError naming the frame when the frame
-    cannot be loaded or the core refuses its scene."""
+    cannot be loaded or the core refuses its scene; with ``skip_bad`` such frames are
+    left out instead, unless all are bad (then the first one's error): a render decides
+    from the frames it can read and reports a bad frame when it reaches it, after the
+    frames before it are written."""
     from ..color import ColorError
     from ..usd import UsdLoadError, load_frame
 
     out: List[FrameEffects] = []
     bridge = None
+    first_error: Optional[RenderError] = None
     for f in frames:
         f = float(f)
         if cache is not None and f in cache:
@@ -36,18 +40,30 @@ def analyse_frames(stage, frames: Sequence[float], core, camera: Optional[str] =
             continue
         try:
             fs = load_frame(stage, f, camera=camera, resolution=resolution)
+            if bridge is None:
+                bridge = SceneBridge(core)
+            try:
+                scene = bridge.update(fs) if fs.camera is not None else None
+            except (core.SceneError, BridgeError) as exc:
+                bridge = None                   # its scene is half updated: start again
+                raise RenderError(f"frame {f:g}: {exc}") from None
         except (UsdLoadError, ColorError) as exc:
-            raise RenderError(f"frame {f:g}: {exc}") from None
-        if bridge is None:
-            bridge = SceneBridge(core)
-        try:
-            scene = bridge.update(fs) if fs.camera is not None else None
-        except (core.SceneError, BridgeError) as exc:
-            raise RenderError(f"frame {f:g}: {exc}") from None
+            err = RenderError(f"frame {f:g}: {exc}")
+            if not skip_bad:
+                raise err from None
+            first_error = first_error or err
+            continue
+        except RenderError as err:
+            if not skip_bad:
+                raise
+            first_error = first_error or err
+            continue
         fe = analyse_frame(fs, scene, core=core, resolution=resolution)
         if cache is not None:
             cache[f] = fe
         out.append(fe)
+    if not out and first_error is not None:
+        raise first_error
     return out
 
 
@@ -60,11 +76,13 @@ def auto_frames(info, frames: Sequence[float]) -> List[float]:
 
 
 def resolve_auto(stage, info, core, frames: Sequence[float], camera: Optional[str] = None,
-                 resolution=None, cache: Optional[Dict[float, FrameEffects]] = None
-                 ) -> AutoChoice:
-    """The integrator ``auto`` means for this shot (:mod:`cmlt.analysis.auto`)."""
+                 resolution=None, cache: Optional[Dict[float, FrameEffects]] = None,
+                 skip_bad: bool = False) -> AutoChoice:
+    """The integrator ``auto`` means for this shot (:mod:`cmlt.analysis.auto`), from the
+    frames :func:`auto_frames` picks (``skip_bad``: those of them that load)."""
     picks = auto_frames(info, frames)
-    return choose_integrator(analyse_frames(stage, picks, core, camera, resolution, cache))
+    return choose_integrator(analyse_frames(stage, picks, core, camera, resolution, cache,
+                                            skip_bad=skip_bad))
 
 
 def resolve_auto_setting(stage, info, core, frame_list: Sequence[float], opts, resolved,
@@ -75,7 +93,8 @@ def resolve_auto_setting(stage, info, core, frame_list: Sequence[float], opts, r
     render (time codes); ``opts.camera`` already checked."""
     if str(resolved.integrator) != "auto":
         return None
-    auto = resolve_auto(stage, info, core, frame_list, opts.camera, opts.resolution, cache)
+    auto = resolve_auto(stage, info, core, frame_list, opts.camera, opts.resolution, cache,
+                        skip_bad=True)
     sources["integrator"] = f"auto ({sources.get('integrator', 'default')}): {auto.reason}"
     resolved.integrator = auto.name
     return auto
