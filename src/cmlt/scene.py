@@ -80,7 +80,7 @@ class Mesh:
     # Per-vertex values that material inputs read through UsdPrimvarReaders:
     # {key: float32 (N, w)}, the key being the ``primvar_request`` of the
     # material input that reads it (``Material.inputs[name]["primvar_request"]``,
-    # a cmlt.usd.materials.PrimvarRequest or any hashable for hand-built scenes;
+    # a cmlt.usd.shading.PrimvarRequest or any hashable for hand-built scenes;
     # w = 3 for colour inputs, 1 for scalar ones). None = no such values.
     primvars: Optional[Dict[object, np.ndarray]] = None
 

@@ -2,15 +2,17 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
+from pxr import Sdf, UsdGeom, UsdShade
 
 from ..scene import Material
 from .color import to_rendering_space
+from .shading import (COLOR_INPUTS, PRIMVAR_INPUTS, PrimvarRequest,  # noqa: F401 (re-exported)
+                      _input_value, _plain, _shader_id,
+                      _transform2d_matrix, _value_source)
 
 DEFAULT_MATERIAL_NAME = "<default>"
 
@@ -32,7 +34,6 @@ PREVIEW_DEFAULTS = {
     "displacement": 0.0,
     "occlusion": 1.0,
 }
-COLOR_INPUTS = ("diffuseColor", "emissiveColor", "specularColor")
 _TEXTURE_CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3}
 
 #: UsdPrimvarReader_* shader ids -> the width of their ``result``
@@ -41,26 +42,6 @@ PRIMVAR_READERS = {
     "UsdPrimvarReader_float3": 3, "UsdPrimvarReader_normal": 3, "UsdPrimvarReader_point": 3,
     "UsdPrimvarReader_vector": 3, "UsdPrimvarReader_float4": 4,
 }
-#: UsdPreviewSurface inputs the core reads per hit from primvars (colour: 3 columns)
-PRIMVAR_INPUTS = {"diffuseColor": 3, "specularColor": 3, "metallic": 1, "roughness": 1,
-                  "clearcoat": 1, "clearcoatRoughness": 1, "opacity": 1}
-
-
-@dataclass(frozen=True)
-class PrimvarRequest:
-    """A per-vertex value a material input reads through a UsdPrimvarReader:
-    the mesh reader interpolates primvar ``varname`` to ``width`` columns
-    (1 for scalar inputs, 3 for colours; a narrower primvar is repeated
-    (scalar) or padded with 0, a wider one cut), converting colours to the
-    rendering space; where a gprim lacks the primvar, ``fallback`` (already
-    in rendering-space units) fills it, with a warning naming ``reader``.
-    Equal requests share their columns (``cmlt.shot.material_table``)."""
-
-    varname: str
-    width: int
-    colour: bool
-    fallback: Tuple[float, ...]
-    reader: str = field(default="", compare=False)
 
 
 def _fit_width(values, width: int) -> Tuple[float, ...]:
@@ -70,48 +51,6 @@ def _fit_width(values, width: int) -> Tuple[float, ...]:
     if len(v) == 1:
         return v * width
     return (v + (0.0,) * width)[:width]
-
-
-def _shader_id(shader: UsdShade.Shader) -> str:
-    try:
-        sid = shader.GetShaderId()
-    except Exception:                                    # pragma: no cover
-        sid = None
-    return str(sid or "")
-
-
-def _plain(value):
-    """USD value -> plain Python (tuples of floats, str, float, int, bool)."""
-    if value is None:
-        return None
-    if isinstance(value, (bool, int, str)):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else 0.0
-    if isinstance(value, Sdf.AssetPath):
-        return value.resolvedPath or value.path
-    try:
-        seq = tuple(float(x) for x in value)
-        return tuple(x if math.isfinite(x) else 0.0 for x in seq)
-    except TypeError:
-        return str(value)
-
-
-def _value_source(inp: UsdShade.Input):
-    """(value, shader, output name) for an input: follows connections through
-    node graph / material interface inputs."""
-    try:
-        attrs = inp.GetValueProducingAttributes()
-    except Exception:                                    # pragma: no cover
-        attrs = []
-    for attr in attrs:
-        if UsdShade.Output.IsOutput(attr):
-            shader = UsdShade.Shader(attr.GetPrim())
-            if shader:
-                return None, shader, UsdShade.Output(attr).GetBaseName()
-        else:
-            return attr.Get(), None, None
-    return inp.Get(), None, None
 
 
 def _asset_path(shader: UsdShade.Shader, name: str) -> Optional[str]:
@@ -128,26 +67,6 @@ def _asset_path(shader: UsdShade.Shader, name: str) -> Optional[str]:
 WRAP_MODES = ("black", "clamp", "repeat", "mirror", "useMetadata")
 #: identity of the st transform (2x3, row-major a, b, tx, c, d, ty)
 IDENTITY_ST = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
-
-
-def _input_value(shader: UsdShade.Shader, name: str, default):
-    inp = shader.GetInput(name)
-    if not inp:
-        return default
-    v, _, _ = _value_source(inp)
-    return default if v is None else _plain(v)
-
-
-def _transform2d_matrix(node: UsdShade.Shader) -> Tuple[float, ...]:
-    """A UsdTransform2d as a 2x3 matrix: ``result = in * scale * rotate +
-    translation`` (scale about the origin, then a counter-clockwise rotation
-    in degrees, then the translation; the UsdPreviewSurface spec)."""
-    sx, sy = (tuple(_input_value(node, "scale", (1.0, 1.0))) + (1.0, 1.0))[:2]
-    rot = _input_value(node, "rotation", 0.0)
-    rot = float(rot[0] if isinstance(rot, tuple) else rot)
-    tx, ty = (tuple(_input_value(node, "translation", (0.0, 0.0))) + (0.0, 0.0))[:2]
-    c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
-    return (c * sx, -s * sy, float(tx), s * sx, c * sy, float(ty))
 
 
 def _compose(outer: Tuple[float, ...], inner: Tuple[float, ...]) -> Tuple[float, ...]:
@@ -290,15 +209,6 @@ def _primvar_record(material: str, name: str, reader: UsdShade.Shader, sid: str,
     return rec, constant
 
 
-def _primvar_request_record(name: str, varname: str, fallback, reader: str, sid: str) -> dict:
-    """The inputs record of ``name`` read per vertex from primvar ``varname``
-    (``fallback`` in rendering-space units), as _primvar_record makes it."""
-    fb = tuple(float(x) for x in fallback)
-    return {"shader": reader, "id": sid, "primvar": varname, "fallback": fb,
-            "primvar_request": PrimvarRequest(varname, PRIMVAR_INPUTS[name],
-                                              name in COLOR_INPUTS, fb, reader)}
-
-
 def _fmt(v) -> str:
     return "(" + ", ".join(f"{x:g}" for x in v) + ")" if isinstance(v, tuple) else f"{v:g}"
 
@@ -383,11 +293,11 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
                                      prim=shader.GetPrim())
         if not all(math.isfinite(float(c)) for c in out):
             warnings.append(f"{path}: input {name} is not finite in the rendering space "
-                            f"({_fmt(v[:3])}); using the default")
+                            f"({_fmt_components(v[:3])}); using the default")
             return to_rendering_space(PREVIEW_DEFAULTS[name], None, prim=shader.GetPrim())
         if min(float(c) for c in out) < 0.0:
             warnings.append(f"{path}: input {name} has negative components in the rendering "
-                            f"space ({_fmt(out)}); clamped to 0")
+                            f"space ({_fmt_components(out)}); clamped to 0")
             out = tuple(max(0.0, float(c)) for c in out)
         return out
 
@@ -422,7 +332,7 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
     )
 
 
-def _fmt(v) -> str:
+def _fmt_components(v) -> str:
     return ", ".join(f"{float(c):g}" for c in v)
 
 

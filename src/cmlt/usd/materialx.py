@@ -182,7 +182,7 @@ class UsdNode(Node):
     """A UsdShade shader whose id is a MaterialX node definition."""
 
     def __init__(self, shader):
-        from .materials import _shader_id
+        from .shading import _shader_id
         self.shader = shader
         self.id = _shader_id(shader)
         self.path = str(shader.GetPath())
@@ -201,7 +201,7 @@ class UsdNode(Node):
     def input(self, name: str) -> Src:
         from pxr import UsdShade
 
-        from .materials import _value_source
+        from .shading import _value_source
         inp = self.shader.GetInput(name)
         if inp and (inp.GetAttr().HasAuthoredValue() or inp.HasConnectedSource()):
             value, src, out = _value_source(inp)
@@ -502,7 +502,7 @@ class _Mapper:
         if cat in ("dot", "convert"):
             return self.texcoord(n.input("in"), n, depth + 1)
         if cat == "UsdTransform2d":
-            from .materials import _transform2d_matrix
+            from .shading import _transform2d_matrix
             inner, pv = self.texcoord(n.input("in"), n, depth + 1)
             return _compose(_transform2d_matrix(n.shader), inner) if isinstance(n, UsdNode) \
                 else inner, pv
@@ -588,7 +588,7 @@ class _Surface:
         self.records: Dict[str, dict] = {}
 
     def set(self, name, ev, mapper: _Mapper, kind: str, node: Node):
-        from .materials import PRIMVAR_INPUTS, _primvar_request_record
+        from .shading import PRIMVAR_INPUTS, _primvar_request_record
         if ev is None:
             return
         if isinstance(ev, Const):
@@ -902,7 +902,7 @@ def mtlx_surface_shader(material):
     (or of its universal output when that is a MaterialX node), or None."""
     from pxr import UsdShade
 
-    from .materials import _shader_id
+    from .shading import _shader_id
     try:
         src, _, _ = material.ComputeSurfaceSource(["mtlx"])
     except Exception:                                    # pragma: no cover

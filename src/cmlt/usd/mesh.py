@@ -600,7 +600,7 @@ class MeshReader:
         warning. Without ``uv_fallback``, a missing ``uv_name`` falls back to
         ``st`` or another texCoord2f primvar (see :func:`find_uv_primvar`).
 
-        ``primvar_requests``: the :class:`cmlt.usd.materials.PrimvarRequest`
+        ``primvar_requests``: the :class:`cmlt.usd.shading.PrimvarRequest`
         of the materials' UsdPrimvarReaders; each becomes per-vertex columns
         of ``MeshGeom.primvars`` (any interpolation: constant, uniform,
         vertex, varying, faceVarying; indexed or not), the reader's fallback
