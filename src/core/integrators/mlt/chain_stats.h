@@ -82,4 +82,45 @@ struct StreakTracker {
     }
 };
 
+/// Where one chain's splat weight went, in luminance (Σ w · luminance(L) / f* over its
+/// splats: what the chain adds to the image's luminance, up to the frame's common factor
+/// b·W·H / steps). `stay` is the weight put on the chain's current state since it moved
+/// there; `max_stay` the heaviest stay so far: a chain stuck on one bright path puts most
+/// of its weight on one stay, a healthy one spreads it over many.
+struct ChainShare {
+    /// A chain is stuck (MltStats::stuck_chains) when one stay holds more than this
+    /// fraction of its own weight, or when it rejected k_long_streak proposals in a row.
+    static constexpr double k_stuck_stay_fraction = 0.5;
+    double weight = 0.0, stay = 0.0, max_stay = 0.0;
+
+    /// A splat of luminance weight `w`; `current`: on the chain's current state.
+    void add(double w, bool current) {
+        weight += w;
+        if (current) stay += w;
+    }
+    /// The current state's stay ends (a move, or the end of the frame).
+    void end_stay() {
+        max_stay = std::max(max_stay, stay);
+        stay = 0.0;
+    }
+    bool stuck(uint64_t max_streak) const {
+        return max_streak >= StreakTracker::k_long_streak ||
+               (weight > 0.0 && max_stay > k_stuck_stay_fraction * weight);
+    }
+};
+
+/// The chains' shares merged in chain order (deterministic at any thread count).
+struct ShareSummary {
+    double total = 0.0;           ///< Σ every chain's weight
+    double max_stay = 0.0;        ///< the heaviest stay of any chain
+    double max_chain = 0.0;       ///< the largest weight of one chain
+    uint64_t stuck = 0;           ///< chains ChainShare::stuck
+    void add(const ChainShare& c, uint64_t max_streak) {
+        total += c.weight;
+        max_stay = std::max(max_stay, c.max_stay);
+        max_chain = std::max(max_chain, c.weight);
+        stuck += c.stuck(max_streak) ? 1 : 0;
+    }
+};
+
 }  // namespace cmlt::mlt
