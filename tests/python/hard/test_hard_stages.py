@@ -77,6 +77,7 @@ XFAIL = {
         "Metropolis integrators are the ones for caustics)"),
     ("outlier", "caustic_sds", "pssmlt"): _GLINT,
     ("outlier", "caustic_sds", "cmlt"): _GLINT,
+}
 
 
 def _xfail(check, case, integrator):
