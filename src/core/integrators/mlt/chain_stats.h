@@ -129,8 +129,11 @@ public:
     }
     /// The heaviest stay of any chain, as a share of all chains' weight.
     double max_stay_share() const { return m_total > 0.0 ? m_max_stay / m_total : 0.0; }
+    /// Chains above k_stuck_factor / n, n the chains that splatted (a part of a frame,
+    /// RenderSettings::partial, runs only its own chains), or with a long rejection run.
     uint64_t stuck() const {
-        const double n = double(m_weights.size());
+        double n = 0.0;
+        for (double w : m_weights) n += w > 0.0 ? 1.0 : 0.0;
         uint64_t out = 0;
         for (size_t i = 0; i < m_weights.size(); ++i)
             out += (m_long[i] || (m_total > 0.0 && m_weights[i] / m_total > k_stuck_factor / n)) ? 1 : 0;
