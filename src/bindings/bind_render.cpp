@@ -229,6 +229,9 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["min_depth"] = m.min_depth;
         d["states_visited"] = m.states_visited;
         d["top_occupancy"] = m.top_occupancy;
+        d["stuck_chains"] = m.stuck_chains;
+        d["max_chain_share"] = m.max_chain_share;
+        d["max_stay_share"] = m.max_stay_share;
         d["path_evaluations"] = m.path_evaluations;
         d["kernel_stats"] = nb::module_::import_("json").attr("loads")(m.kernel_stats_json);
         if (st.integrator == "cmlt") {

@@ -79,7 +79,10 @@ public:
     /// Run blocks of `st` until it has spent `end` evaluations.
     void run(Chain& st, uint64_t end) {
         auto splat = [&](const State& s, double w) {
-            if (s.sample.f > 0.0) m_film.add(s.sample.pixel, s.sample.L, w / s.sample.f, st.layer);
+            if (s.sample.f > 0.0) {
+                m_film.add(s.sample.pixel, s.sample.L, w / s.sample.f, st.layer);
+                st.record_splat(s.sample.L, s.sample.f, w, &s == &st.chain.x);
+            }
         };
         while (st.evaluations < end) {
             // outer: independent large step, key (chain, id, n)

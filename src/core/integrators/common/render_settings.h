@@ -220,6 +220,11 @@ struct MltStats {
     uint64_t states_visited = 0;                     ///< distinct chain states (runs)
     double top_occupancy = 0;                        ///< share of steps spent in the most-
                                                      ///< occupied 0.1 % of the states
+    double max_chain_share = 0;                      ///< largest share of the chains' splat
+                                                     ///< luminance one chain contributed
+    uint64_t stuck_chains = 0;                       ///< chains above 100x the fair share, or
+                                                     ///< with >= 1000 rejections in a row
+    double max_stay_share = 0;                       ///< heaviest stay of one chain on one state
     std::string importance;                          ///< "pixel" | "luminance"
     uint64_t pilot_evaluations = 0;                  ///< budget spent on the pilot image
     uint64_t direct_evaluations = 0;                 ///< budget spent on the direct pass

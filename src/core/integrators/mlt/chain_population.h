@@ -51,13 +51,21 @@ struct ChainTally {
     mcmc::KernelStats stats;
     mcmc::NormalisationAccumulator large;  ///< f* of the large-step proposals
     StreakTracker streaks;
+    ChainShare share;  ///< where its splat weight went (stuck-chain statistics)
 
-    /// Count one kernel step.
+    /// A splat of `weight` on `L` with target value `f` > 0; `current`: on the chain's
+    /// current state (not a proposal).
+    void record_splat(const Spectrum& L, double f, double weight, bool current) {
+        share.add(weight * double(luminance(L)) / f, current);
+    }
+
+    /// Count one kernel step (after its splats).
     void record(const mcmc::StepResult& r) {
         evaluations += r.evaluations;
         ++steps;
         stats.record(r);
         streaks.record(r.moved);
+        if (r.moved) share.end_stay();
     }
 };
 
@@ -222,6 +230,8 @@ public:
         mcmc::NormalisationAccumulator b = m_boot_acc;
         for (const auto& c : m_chains) {
             c->streaks.end();
+            c->share.end_stay();
+            out.shares.add(c->share, c->streaks.max_streak);
             out.streaks.merge(c->streaks);
             b.merge(c->large);
             out.kernel.merge(c->stats);

@@ -133,6 +133,9 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.long_streak_rejections = chains.streaks.long_streak_rejections;
     m.states_visited = chains.streaks.occupancy.states();
     m.top_occupancy = chains.streaks.occupancy.top_fraction(0.001);
+    m.stuck_chains = chains.shares.stuck();
+    m.max_chain_share = chains.shares.max_share();
+    m.max_stay_share = chains.shares.max_stay_share();
     m.path_sampler = settings.mlt_path_sampler;
     m.importance = settings.importance;
     m.pilot_evaluations = budget.pilot;

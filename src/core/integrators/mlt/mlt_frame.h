@@ -62,6 +62,7 @@ struct PopulationResult {
     mcmc::NormalisationEstimate b;            ///< b from the bootstrap and every large step
     mcmc::KernelStats kernel;                 ///< every chain's steps, by kernel
     StreakTracker streaks;
+    ShareSummary shares;                      ///< the chains' splat shares (stuck chains)
     uint64_t chains = 0, steps = 0, evaluations = 0, invalid = 0;
     bool imported = false;   ///< the chains started from given states
     bool cancelled = false;  ///< progress stopped the frame

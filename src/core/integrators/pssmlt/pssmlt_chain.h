@@ -89,7 +89,10 @@ public:
         const SamplerProposal proposal{&m_tracer, &st.sampler, &m_counters, &last};
         const auto target = [](const PathSample& s) { return s.f; };
         auto splat = [&](const PathSample& s, double w) {
-            if (s.f > 0.0) m_film.add(s.pixel, s.L, w / s.f, st.layer);
+            if (s.f > 0.0) {
+                m_film.add(s.pixel, s.L, w / s.f, st.layer);
+                st.record_splat(s.L, s.f, w, &s == &st.chain.x);
+            }
         };
         while (st.evaluations < end) {
             const bool large = st.sampler.start_iteration();
