@@ -268,10 +268,7 @@ private:
             const float far = 2.f * m_scene.bounds_radius() + length(p - m_scene.bounds_center());
             ray = Ray(p + ls.wi * far, -ls.wi);
         } else {
-            Vec3 o = is_black(ls.n_light)
-                         ? ls.p_light
-                         : offset_ray_origin(ls.p_light, ls.n_light, ls.error_scale, -ls.wi);
-            ray = Ray(o, -ls.wi);
+            ray = Ray(shadow_target(ls.p_light, ls.n_light, ls.error_scale, ls.wi), -ls.wi);
         }
         SceneHit h = m_scene.intersect(ray);
         if (h.kind != SceneHit::Kind::surface || h.si.instance_id != cand.instance ||
@@ -306,11 +303,7 @@ private:
             if (std::isinf(ls.dist)) {
                 shadow = si.spawn_ray(ls.wi);
             } else {
-                Vec3 target = is_black(ls.n_light)
-                                  ? ls.p_light
-                                  : offset_ray_origin(ls.p_light, ls.n_light, ls.error_scale,
-                                                      -ls.wi);
-                shadow = si.spawn_ray_to(target);
+                shadow = si.spawn_ray_to(shadow_target(ls.p_light, ls.n_light, ls.error_scale, ls.wi));
             }
             float pass_pdf = 1.f;
             if (m_scene.transmittance(shadow, &pass_pdf) > 0.f) ++lit;

@@ -32,6 +32,13 @@ inline Vec3 offset_ray_origin(const Vec3& p, const Vec3& ng, float error_scale, 
     return dot(w, ng) < 0.f ? p - off : p + off;
 }
 
+/// Where a shadow ray toward a sampled light point `p_light` (reached along `wi`) aims:
+/// the point itself on a light without a surface normal, else `p_light` offset off the
+/// light's surface toward the ray, so the ray does not hit the light itself.
+inline Vec3 shadow_target(const Vec3& p_light, const Vec3& n_light, float error_scale, const Vec3& wi) {
+    return is_black(n_light) ? p_light : offset_ray_origin(p_light, n_light, error_scale, -wi);
+}
+
 /// Error scale of a point given by itself (analytic shapes).
 inline float point_error_scale(const Vec3& p) { return max_component(vabs(p)); }
 

@@ -110,11 +110,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
                     if (std::isinf(ls.dist)) {
                         shadow = si.spawn_ray(ls.wi);
                     } else {
-                        Vec3 target = is_black(ls.n_light)
-                                          ? ls.p_light
-                                          : offset_ray_origin(ls.p_light, ls.n_light, ls.error_scale,
-                                                              -ls.wi);
-                        shadow = si.spawn_ray_to(target);
+                        shadow = si.spawn_ray_to(shadow_target(ls.p_light, ls.n_light, ls.error_scale, ls.wi));
                     }
                     c.shadow_rays += 1;
                     c.rays += 1;
