@@ -87,7 +87,9 @@ from .flicker import REL_MSE_EPS
 
 __all__ = ["REL_MSE_EPS", "DENOMINATORS", "DEFAULT_DENOMINATOR", "ErrorEstimate",
            "estimate_from_groups", "estimate_from_variance", "pixel_terms", "estimate_render",
-           "estimate_record", "estimate_metadata", "estimate_text", "VARIANCE_INTEGRATORS"]
+           "estimate_record", "estimate_metadata", "estimate_text", "VARIANCE_INTEGRATORS",
+           "chi2_lower_quantile", "upper_bound", "target_reached", "TARGET_Z",
+           "TARGET_TOLERANCE"]
 
 @dataclass
 class ErrorEstimate:
@@ -227,6 +229,52 @@ def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: in
     se = float(np.std(subs, ddof=1) / k) if len(subs) > 1 else math.nan
     return ErrorEstimate(E, se, int(passes), "variance", e.mean(axis=2) if keep_pixels else None,
                          {"denominator": denominator})
+
+
+# ------------------------------------------------------------------ stopping at a target
+
+#: the standard normal's 95 % quantile: the level of the target error's test
+TARGET_Z = 1.6448536269514722
+#: the bound's limit, in targets: a frame stops when its estimate is at most the target
+#: and the 95 % upper bound at most this many targets (:func:`target_reached`)
+TARGET_TOLERANCE = 1.5
+
+
+def chi2_lower_quantile(nu: float, z: float = TARGET_Z) -> float:
+    """The chi-square quantile with ``nu`` degrees of freedom at the standard normal
+    quantile -z (Wilson-Hilferty: (chi2_nu / nu)^(1/3) is close to normal with mean
+    1 - 2/(9 nu) and variance 2/(9 nu)); 0 where that leaves the positive axis."""
+    if not nu > 0:
+        return 0.0
+    a = 2.0 / (9.0 * nu)
+    c = 1.0 - a - z * math.sqrt(a)
+    return nu * c ** 3 if c > 0 else 0.0
+
+
+def upper_bound(relmse: float, stderr: float, z: float = TARGET_Z) -> float:
+    """One-sided upper confidence bound (95 % at the default z) on the expected relMSE
+    from an estimate and its standard error: the estimate modelled as a scaled
+    chi-square variable, relMSE * chi2_nu / nu, with nu = 2 (relmse / stderr)^2
+    (Satterthwaite: the same mean and variance). ``upper_bound(E, se) <= x`` is the
+    test of "expected relMSE >= x" at level 5 % (:func:`target_reached`)."""
+    if not (math.isfinite(relmse) and math.isfinite(stderr)):
+        return math.inf
+    if stderr <= 0:
+        return relmse
+    if relmse <= 0:
+        return math.inf
+    nu = 2.0 * (relmse / stderr) ** 2
+    q = chi2_lower_quantile(nu, z)
+    return relmse * nu / q if q > 0 else math.inf
+
+
+def target_reached(relmse: float, stderr: float, target: float) -> bool:
+    """The stopping rule of a render with a target error (past its minimum of work;
+    src/core/integrators/common/error_target.h decides the same): the estimate at most
+    the target and its 95 % upper bound at most TARGET_TOLERANCE targets, so a check
+    stops a frame whose expected relMSE is beyond the tolerance with probability at
+    most 5 % under the bound's model."""
+    return relmse <= target and upper_bound(relmse, stderr) <= TARGET_TOLERANCE * target
 
 
 # ------------------------------------------------------------------ a render's estimate
