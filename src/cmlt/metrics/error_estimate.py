@@ -285,7 +285,8 @@ VARIANCE_INTEGRATORS = ("pt", "bdpt")
 
 
 def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
-                    keep_pixels: bool = False) -> Tuple[Optional[ErrorEstimate], str]:
+                    keep_pixels: bool = False,
+                    denominator: str = DEFAULT_DENOMINATOR) -> Tuple[Optional[ErrorEstimate], str]:
     """The relMSE estimate a finished ``core.render`` result allows, and how it was made
     (or why there is none).
 
@@ -311,12 +312,12 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
         shared = None if direct is None else np.asarray(result.variance, np.float64)
         est = estimate_from_groups(np.asarray(groups), weights=weights, scale_rel_var=s,
                                    scaled=chains, keep_pixels=keep_pixels,
-                                   denominator=DEFAULT_DENOMINATOR, shared_var=shared)
+                                   denominator=denominator, shared_var=shared)
         return est, "groups"
     if integ in VARIANCE_INTEGRATORS:
         est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
                                      passes=int(stats.get("spp", 0) or 0),
-                                     keep_pixels=keep_pixels, denominator=DEFAULT_DENOMINATOR)
+                                     keep_pixels=keep_pixels, denominator=denominator)
         return est, "variance"
     return None, (f"{integ or 'this integrator'}: no estimate (the chains' samples are "
                   "correlated; the estimate needs error_groups >= 3)")

@@ -250,6 +250,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     result = SequenceResult(frames=list(frame_list), sources=dict(sources),
                             settings=_settings_record(resolved, opts, colorspace_name,
                                                       display, view, aovs))
+    if "error_groups" in result.settings:       # the groups the core runs (core_settings)
+        result.settings["error_groups"] = int(st.error_groups)
     if auto is not None:
         result.settings["integrator_auto"] = auto.as_dict()
     todo, redo = [], []

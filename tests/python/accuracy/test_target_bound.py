@@ -72,7 +72,7 @@ def test_core_stops_at_the_bound_and_reports_each_estimate(cornell, integrator):
     assert s["stop_reason"] == "target"
     assert [tuple(h[:3]) for h in hist] == [tuple(a) for a in seen]
     assert target_reached(hist[-1][2], hist[-1][3], target)
-    minimum = 16 if integrator == "pt" else None    # cmlt's minimum is in rounds
+    minimum = 32 if integrator == "pt" else None    # cmlt's minimum is in rounds
     for h in hist[:-1]:
         if minimum is not None and h[0] >= minimum:
             assert not target_reached(h[2], h[3], target), h

@@ -16,7 +16,7 @@
 ///
 /// Stopping (ErrorTarget): the frame stops when the estimate E is at most the target T
 /// and a one-sided 95 % upper confidence bound U on the expected relMSE is at most
-/// 1.5 T (the tolerance, k_target_tolerance), after at least a minimum of work (16
+/// 1.5 T (the tolerance, k_target_tolerance), after at least a minimum of work (32
 /// passes; 2G chain rounds); the sample and time budgets still bound it. U models E as
 /// a scaled chi-square variable, E ~ relMSE · χ²_ν / ν, with the effective degrees of
 /// freedom from its standard error (Satterthwaite: ν = 2 (E / se)², matching mean and
@@ -239,7 +239,10 @@ inline std::string stop_reason(bool cancelled, bool target_reached, bool timed, 
     return "budget";
 }
 
-/// Passes needed before a pass-based frame may stop at its target.
-constexpr double k_target_min_passes = 16.0;
+/// Passes needed before a pass-based frame may stop at its target: the per-pixel
+/// variance of fewer passes misses the rare bright samples of most pixels, and the
+/// estimate is low (Cornell box pt, 32x32: estimate × passes 0.28-0.40 after 16 passes,
+/// 0.40-0.44 from 128 on, tests/bench/target_error.py).
+constexpr double k_target_min_passes = 32.0;
 
 }  // namespace cmlt
