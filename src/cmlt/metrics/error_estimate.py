@@ -60,8 +60,10 @@ and see nearly the same content: stderr = sd over the k^2 sub-estimates / k.
 
 Chain groups in one render
 --------------------------
-pssmlt and cmlt with ``error_groups`` G >= 3 (default 8): chain c splats into film layer
-c mod G, so one render hands over G images of the frame (RenderResult.group_images, each
+pssmlt and cmlt with ``error_groups`` G >= 3 (8; 4 for a ``cmlt render`` frame without a
+target error or group images): each chain splats into its group's film layer, the chains
+resampled from one bootstrap sample in one group (copies of one start path are not
+independent), so one render hands over up to G images of the frame (RenderResult.group_images, each
 its chains' splats normalised by their own step count plus the direct pass; weights: the
 step counts), whose weighted mean is the image. The core computes the same estimate
 (src/core/integrators/common/error_target.h) between chain rounds, to stop at
