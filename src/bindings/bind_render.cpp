@@ -99,13 +99,19 @@ nb::dict render_aovs_py(Scene& scene, const RenderSettings& settings, int sample
     return d;
 }
 
-PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::object progress) {
+PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::object progress, nb::object on_estimate) {
     ProgressCallback cb;
+    EstimateCallback est;
     std::exception_ptr cb_error;
-    if (!progress.is_none()) {
-        if (!PyCallable_Check(progress.ptr()))
-            throw nb::type_error("render: progress must be a callable(done, total) or None");
-        cb = [&](uint64_t done, uint64_t total) -> bool {
+    if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+        throw nb::type_error("render: progress must be a callable(done, total) or None");
+    if (!on_estimate.is_none() && !PyCallable_Check(on_estimate.ptr()))
+        throw nb::type_error("render: on_estimate must be a callable(work, seconds, relmse) or None");
+    if (!progress.is_none() || !on_estimate.is_none()) {
+        // an exception in either callback stops the frame after the current chunk
+        cb = [&, has_progress = !progress.is_none()](uint64_t done, uint64_t total) -> bool {
+            if (cb_error) return false;
+            if (!has_progress) return true;
             nb::gil_scoped_acquire gil;
             try {
                 nb::object r = progress(done, total);
@@ -119,10 +125,21 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
             }
         };
     }
+    if (!on_estimate.is_none()) {
+        est = [&](double work, double secs, double relmse, double) {
+            if (cb_error) return;
+            nb::gil_scoped_acquire gil;
+            try {
+                on_estimate(work, secs, relmse);
+            } catch (...) {
+                cb_error = std::current_exception();
+            }
+        };
+    }
     RenderResult res;
     {
         nb::gil_scoped_release release;
-        res = render(scene, settings, cb);
+        res = render(scene, settings, cb, est);
     }
     if (cb_error) std::rethrow_exception(cb_error);
 
@@ -353,9 +370,11 @@ void bind_render(nb::module_& m) {
         "in chain order, `direct` (the direct pass's image assembled from the parts' rows, "
         "or None) added — bit for bit the single-process frame.");
 
-    m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(),
+    m.def("render", &render_py, "scene"_a, "settings"_a, "progress"_a = nb::none(), "on_estimate"_a = nb::none(),
           "Render one frame. progress(done, total) is called between chunks of samples per "
-          "pixel on the calling thread; returning False cancels.");
+          "pixel on the calling thread; returning False cancels. With settings.target_error, "
+          "on_estimate(work, seconds, relmse) is called with each estimate as it is made (work: "
+          "passes for pt/bdpt, path evaluations per pixel for pssmlt/cmlt).");
     m.def(
         "render_pilot",
         [](Scene& scene, const RenderSettings& settings) {

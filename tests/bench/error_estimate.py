@@ -13,7 +13,11 @@ of getting the estimate:
   image is their mean -> estimate_from_groups (jackknife standard error). This is what the
   core will hand over in one render (RenderResult.group_images); with seeds the groups
   also have independent bootstraps and normalisations, which one render's chain groups
-  share (the shared scale term of estimate.py covers that).
+  share (the shared scale term of estimate.py covers that);
+* ``render`` (every integrator): one render's own estimate, what a sidecar records and
+  ``--target-error`` stops on (cmlt.metrics.error_estimate.estimate_render): pt/bdpt from
+  their variance, pssmlt/cmlt from the chain groups of that one render (RenderResult.
+  group_images: chains from disjoint bootstrap start samples, one bootstrap and b).
 
 The measured relMSE includes the reference's own error (``floor``, estimated from the
 reference's variance); ``measured - floor`` is the column to read where the floor is not
@@ -37,12 +41,15 @@ import numpy as np
 
 from cmlt.accuracy import (ShotFrame, estimate_from_groups, estimate_from_variance, measure,
                            parse_integrator, render_reference)
-from cmlt.metrics.error_estimate import DENOMINATORS
+from cmlt.metrics.error_estimate import DENOMINATORS, estimate_render
 
 #: sample budgets (samples or path evaluations per pixel) per render / per group
 VARIANCE_SPP = {"pt": (16, 32, 64, 128, 256), "bdpt": (8, 16, 32, 64, 128)}
 GROUP_SPP = {"pt": (2, 4, 8, 16, 32), "bdpt": (1, 2, 4, 8, 16),
              "pssmlt": (16, 32, 64, 128), "cmlt": (16, 32, 64, 128)}
+#: budgets of the ``render`` mode: one render, its own estimate
+RENDER_SPP = {"pt": (16, 32, 64, 128, 256), "bdpt": (8, 16, 32, 64, 128),
+              "pssmlt": (128, 256, 512, 1024), "cmlt": (128, 256, 512, 1024)}
 LO, HI = 0.67, 1.5
 
 
@@ -72,9 +79,9 @@ def main(argv=None) -> int:
         for integ in [s for s in args.integrators.split(",") if s]:
             spec = parse_integrator(integ, sf.core)
             for mode in [m for m in args.modes.split(",") if m]:
-                if mode == "variance" and integ not in VARIANCE_SPP:
+                if mode == "variance" and spec.name not in VARIANCE_SPP:
                     continue
-                budgets = VARIANCE_SPP[integ] if mode == "variance" else GROUP_SPP[integ]
+                budgets = {"variance": VARIANCE_SPP, "render": RENDER_SPP}.get(mode, GROUP_SPP)[spec.name]
                 for spp in budgets:
                     for rep in range(args.repeats):
                         ests = {}
@@ -85,6 +92,14 @@ def main(argv=None) -> int:
                             for d in DENOMINATORS:
                                 ests[d] = estimate_from_variance(image, r.variance, passes=spp,
                                                                  keep_pixels=False, denominator=d)
+                            total = spp
+                        elif mode == "render":
+                            seed = 2000 + rep
+                            st = sf.settings(spec, None, spp, seed)
+                            r = sf.core.render(sf.scene, st)
+                            image = np.asarray(r.image, np.float64)
+                            for d in DENOMINATORS:
+                                ests[d] = estimate_render(r, denominator=d)[0]
                             total = spp
                         else:
                             G = args.groups

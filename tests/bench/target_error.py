@@ -31,8 +31,12 @@ import numpy as np
 
 from cmlt.accuracy import ShotFrame, measure, parse_integrator, render_reference
 
-#: targets per shot: reachable in seconds at 32x32 by both integrators
-TARGETS = {"cornell": (0.02, 0.005), "caustic_glass": (0.05, 0.02), "door_ajar": (0.05, 0.02)}
+#: targets per shot: reachable in seconds at 32x32 by both integrators, and below the
+#: relMSE both reach at their minimum of work (16 passes; 2G chain rounds, ~110 path
+#: evaluations per pixel here) -- a target above it is met by the minimum, and the ratio
+#: then says how far the minimum overshoots, not how the rule stops (caustic_glass pt
+#: measures ~0.018 after 16 passes, door_ajar cmlt 0.015-0.17 after its minimum)
+TARGETS = {"cornell": (0.02, 0.005), "caustic_glass": (0.01, 0.004), "door_ajar": (0.02, 0.008)}
 LO, HI = 0.5, 1.5
 
 

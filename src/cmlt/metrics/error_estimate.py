@@ -60,8 +60,10 @@ and see nearly the same content: stderr = sd over the k^2 sub-estimates / k.
 
 Chain groups in one render
 --------------------------
-pssmlt and cmlt with ``error_groups`` G >= 3 (default 8): chain c splats into film layer
-c mod G, so one render hands over G images of the frame (RenderResult.group_images, each
+pssmlt and cmlt with ``error_groups`` G >= 3 (8; 4 for a ``cmlt render`` frame without a
+target error or group images): each chain splats into its group's film layer, the chains
+resampled from one bootstrap sample in one group (copies of one start path are not
+independent), so one render hands over up to G images of the frame (RenderResult.group_images, each
 its chains' splats normalised by their own step count plus the direct pass; weights: the
 step counts), whose weighted mean is the image. The core computes the same estimate
 (src/core/integrators/common/error_target.h) between chain rounds, to stop at
@@ -87,7 +89,9 @@ from .flicker import REL_MSE_EPS
 
 __all__ = ["REL_MSE_EPS", "DENOMINATORS", "DEFAULT_DENOMINATOR", "ErrorEstimate",
            "estimate_from_groups", "estimate_from_variance", "pixel_terms", "estimate_render",
-           "estimate_record", "estimate_metadata", "estimate_text", "VARIANCE_INTEGRATORS"]
+           "estimate_record", "estimate_metadata", "estimate_text", "VARIANCE_INTEGRATORS",
+           "chi2_lower_quantile", "upper_bound", "target_reached", "TARGET_Z",
+           "TARGET_TOLERANCE"]
 
 @dataclass
 class ErrorEstimate:
@@ -229,6 +233,52 @@ def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: in
                          {"denominator": denominator})
 
 
+# ------------------------------------------------------------------ stopping at a target
+
+#: the standard normal's 95 % quantile: the level of the target error's test
+TARGET_Z = 1.6448536269514722
+#: the bound's limit, in targets: a frame stops when its estimate is at most the target
+#: and the 95 % upper bound at most this many targets (:func:`target_reached`)
+TARGET_TOLERANCE = 1.5
+
+
+def chi2_lower_quantile(nu: float, z: float = TARGET_Z) -> float:
+    """The chi-square quantile with ``nu`` degrees of freedom at the standard normal
+    quantile -z (Wilson-Hilferty: (chi2_nu / nu)^(1/3) is close to normal with mean
+    1 - 2/(9 nu) and variance 2/(9 nu)); 0 where that leaves the positive axis."""
+    if not nu > 0:
+        return 0.0
+    a = 2.0 / (9.0 * nu)
+    c = 1.0 - a - z * math.sqrt(a)
+    return nu * c ** 3 if c > 0 else 0.0
+
+
+def upper_bound(relmse: float, stderr: float, z: float = TARGET_Z) -> float:
+    """One-sided upper confidence bound (95 % at the default z) on the expected relMSE
+    from an estimate and its standard error: the estimate modelled as a scaled
+    chi-square variable, relMSE * chi2_nu / nu, with nu = 2 (relmse / stderr)^2
+    (Satterthwaite: the same mean and variance). ``upper_bound(E, se) <= x`` is the
+    test of "expected relMSE >= x" at level 5 % (:func:`target_reached`)."""
+    if not (math.isfinite(relmse) and math.isfinite(stderr)):
+        return math.inf
+    if stderr <= 0:
+        return relmse
+    if relmse <= 0:
+        return math.inf
+    nu = 2.0 * (relmse / stderr) ** 2
+    q = chi2_lower_quantile(nu, z)
+    return relmse * nu / q if q > 0 else math.inf
+
+
+def target_reached(relmse: float, stderr: float, target: float) -> bool:
+    """The stopping rule of a render with a target error (past its minimum of work;
+    src/core/integrators/common/error_target.h decides the same): the estimate at most
+    the target and its 95 % upper bound at most TARGET_TOLERANCE targets, so a check
+    stops a frame whose expected relMSE is beyond the tolerance with probability at
+    most 5 % under the bound's model."""
+    return relmse <= target and upper_bound(relmse, stderr) <= TARGET_TOLERANCE * target
+
+
 # ------------------------------------------------------------------ a render's estimate
 
 #: integrators whose RenderResult.variance is the per-pixel variance of the mean over
@@ -237,7 +287,8 @@ VARIANCE_INTEGRATORS = ("pt", "bdpt")
 
 
 def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
-                    keep_pixels: bool = False) -> Tuple[Optional[ErrorEstimate], str]:
+                    keep_pixels: bool = False,
+                    denominator: str = DEFAULT_DENOMINATOR) -> Tuple[Optional[ErrorEstimate], str]:
     """The relMSE estimate a finished ``core.render`` result allows, and how it was made
     (or why there is none).
 
@@ -263,12 +314,12 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
         shared = None if direct is None else np.asarray(result.variance, np.float64)
         est = estimate_from_groups(np.asarray(groups), weights=weights, scale_rel_var=s,
                                    scaled=chains, keep_pixels=keep_pixels,
-                                   denominator=DEFAULT_DENOMINATOR, shared_var=shared)
+                                   denominator=denominator, shared_var=shared)
         return est, "groups"
     if integ in VARIANCE_INTEGRATORS:
         est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
                                      passes=int(stats.get("spp", 0) or 0),
-                                     keep_pixels=keep_pixels, denominator=DEFAULT_DENOMINATOR)
+                                     keep_pixels=keep_pixels, denominator=denominator)
         return est, "variance"
     return None, (f"{integ or 'this integrator'}: no estimate (the chains' samples are "
                   "correlated; the estimate needs error_groups >= 3)")

@@ -53,6 +53,7 @@ class ShotJob:
     make_temporal: Any = None           # (width, height) -> TemporalDriver
     distributed: Any = None             # cmlt.shot.distributed.DaskRenderer (--dask), or None
     effects_cache: Any = None           # time -> FrameEffects (cmlt.shot.analyse)
+    on_estimate: Any = None             # (work, seconds, relmse) -> None: the live estimate
 
     def __post_init__(self):
         if self.bridge is None:
@@ -67,10 +68,11 @@ class ShotJob:
                 self.result.warnings.append(w)
 
 
-def render_interruptible(core, scene, st, reporter: Reporter):
+def render_interruptible(core, scene, st, reporter: Reporter, on_estimate=None):
     """Run core.render on a worker thread so that Ctrl-C reaches the main
     thread promptly; the progress callback then asks the core to stop.
-    Returns (result, interrupted, units_total)."""
+    With a target error, each estimate goes to the reporter's frame bar and to
+    ``on_estimate(work, seconds, relmse)``. Returns (result, interrupted, units_total)."""
     cancel = threading.Event()
     box: dict = {}
     last_total = [None]
@@ -80,11 +82,20 @@ def render_interruptible(core, scene, st, reporter: Reporter):
         reporter.frame_progress(done, total)
         return not cancel.is_set()
 
+    def estimate(work_done, seconds, relmse):
+        shown = getattr(reporter, "frame_estimate", None)
+        if shown is not None:
+            shown(work_done, seconds, relmse)
+        if on_estimate is not None:
+            on_estimate(work_done, seconds, relmse)
+
+    targeted = float(getattr(st, "target_error", 0.0) or 0.0) > 0.0
     finished = threading.Event()
 
     def work():
         try:
-            box["result"] = core.render(scene, st, progress=progress)
+            extra = {"on_estimate": estimate} if targeted else {}
+            box["result"] = core.render(scene, st, progress=progress, **extra)
         except BaseException as exc:          # re-raised on the main thread
             box["error"] = exc
         finally:
@@ -172,7 +183,8 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
             r, interrupted, units = job.distributed.render(core, job.st, frame, job.reporter), \
                 False, None
         else:
-            r, interrupted, units = render_interruptible(core, scene, job.st, job.reporter)
+            r, interrupted, units = render_interruptible(core, scene, job.st, job.reporter,
+                                                         job.on_estimate)
     except core.SettingsError as exc:
         raise _settings_error(job, exc) from None
     except core.SceneError as exc:

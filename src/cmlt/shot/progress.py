@@ -70,6 +70,7 @@ class Reporter(_OnceWarnings):
         self._frame_t0 = 0.0
         self._rays_per_sample: Optional[float] = None  # from the last finished frame
         self._frame_samples: Optional[float] = None   # samples of the frame in progress
+        self._frame_estimate = ""                     # the live relMSE estimate's text
 
     # -- lifecycle -------------------------------------------------------
     def __enter__(self):
@@ -109,6 +110,7 @@ class Reporter(_OnceWarnings):
     def start_frame(self, frame: float) -> None:
         self._frame_t0 = time.perf_counter()
         self._frame_samples = None
+        self._frame_estimate = ""
         if self._progress is not None:
             if self._frame_task is not None:
                 self._progress.remove_task(self._frame_task)
@@ -139,7 +141,14 @@ class Reporter(_OnceWarnings):
         if self._progress is None or self._frame_task is None:
             return
         rate = self.live_rate(done, total, time.perf_counter() - self._frame_t0)
+        if self._frame_estimate:
+            rate = f"{rate}  {self._frame_estimate}" if rate else self._frame_estimate
         self._progress.update(self._frame_task, completed=done, total=total, rate=rate)
+
+    def frame_estimate(self, work: float, seconds: float, relmse: float) -> None:
+        """Called from the render thread with each estimate of a frame rendering to a
+        target error (the core's on_estimate): the frame bar shows the latest."""
+        self._frame_estimate = f"relMSE ~{relmse:.2g}" if relmse == relmse else ""
 
     def end_frame(self, frame: float, path: str, stats: dict, units_total: Optional[float]) -> None:
         rays, samples = stats.get("rays"), stats.get("samples")
@@ -282,6 +291,10 @@ class JsonReporter(_OnceWarnings):
 
     def frame_progress(self, done: float, total: float) -> None:
         pass                          # no per-chunk events: one line per frame event
+
+    def frame_estimate(self, work: float, seconds: float, relmse: float) -> None:
+        self.emit("frame_estimate", index=self._index, work=float(work),
+                  elapsed_s=float(seconds), relmse=float(relmse))
 
     def end_frame(self, frame: float, path: str, stats: dict, units_total: Optional[float]) -> None:
         self.emit("frame_done", frame=float(frame), path=path,

@@ -199,7 +199,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
                     reporter: Optional[Reporter] = None, core=None,
-                    client=None, on_part=None,
+                    client=None, on_part=None, on_estimate=None,
                     force_frames: bool = False) -> SequenceResult:
     """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
     :mod:`cmlt.shot.frames`).
@@ -213,7 +213,10 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     ``client``: a ``distributed.Client``; the frames' parts then run as Dask tasks
     (:mod:`cmlt.shot.distributed`; ``options.dask`` = ``local:N`` or a scheduler address
     makes one for the call). ``on_part(done, total, futures)``: called after each
-    part arrives (with a client).
+    part arrives (with a client). ``on_estimate(work, seconds, relmse)``: with a target
+    error (``options.target_error``), called from the render thread with each estimate
+    of the frame being rendered (work: passes for pt/bdpt, path evaluations per pixel
+    for pssmlt/cmlt; seconds into the frame; the estimated relMSE).
     """
     opts = options or RenderOptions()
     opts.check()
@@ -247,6 +250,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     result = SequenceResult(frames=list(frame_list), sources=dict(sources),
                             settings=_settings_record(resolved, opts, colorspace_name,
                                                       display, view, aovs))
+    if "error_groups" in result.settings:       # the groups the core runs (core_settings)
+        result.settings["error_groups"] = int(st.error_groups)
     if auto is not None:
         result.settings["integrator_auto"] = auto.as_dict()
     todo, redo = [], []
@@ -273,7 +278,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     job = ShotJob(shot=shot, stage=stage, info=info, opts=opts, core=core, st=st,
                   resolved=resolved, sources=sources, color_attrs=color_attrs, display=display,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
-                  result=result, effects_cache=effects_cache)
+                  result=result, effects_cache=effects_cache, on_estimate=on_estimate)
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
     own_client = None
     if client is None and opts.dask:

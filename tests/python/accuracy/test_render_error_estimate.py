@@ -11,6 +11,7 @@ import pytest
 
 from cmlt.cli import main
 from cmlt.io.exr import read_exr, read_header
+from cmlt.shot.core_settings import PLAIN_ERROR_GROUPS
 
 FAST = ["--spp", "8", "--threads", "2", "--res", "24x16"]
 
@@ -44,7 +45,9 @@ def test_mlt_estimate_from_chain_groups(tiny_shot, tmp_path, capsys):
                  "--out", str(out)]) == 0
     path = str(tmp_path / "m.0001.exr")
     rec = json.load(open(path + ".json"))["stats"]["error_estimate"]
-    assert rec["available"] and rec["method"] == "groups" and rec["groups"] == 8
+    # without a target error or group images, the default error_groups is the compact one
+    assert rec["available"] and rec["method"] == "groups" and rec["groups"] == PLAIN_ERROR_GROUPS
+    assert json.load(open(path + ".json"))["settings"]["error_groups"] == PLAIN_ERROR_GROUPS
     assert rec["relmse"] > 0 and rec["stderr"] > 0
     assert read_header(path)["cmlt"]["relMSEEstimate"] == pytest.approx(rec["relmse"], rel=1e-6)
     capsys.readouterr()
@@ -60,3 +63,24 @@ def test_mlt_estimate_from_chain_groups(tiny_shot, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "--aov error" in err and "--error-groups" in err
     assert not os.path.exists(tmp_path / "n.0001.exr")
+
+
+def test_error_groups_given_or_needed_are_kept(tiny_shot, tmp_path, capsys):
+    """--error-groups given, a target error or --group-images keep their groups (the
+    compact default applies only to a frame that needs none of them), and the image is
+    the same with either count (the film's layers add up exactly)."""
+    from cmlt.io.exr import read_exr as read
+    runs = {"plain": [], "given": ["--error-groups", "8"], "images": ["--group-images"]}
+    groups, images = {}, {}
+    for name, extra in runs.items():
+        out = tmp_path / f"{name}.####.exr"
+        assert main(["render", tiny_shot, *FAST, "--integrator", "cmlt", "--chains", "32",
+                     "--bootstrap-samples", "1000", "--out", str(out), *extra]) == 0
+        path = str(tmp_path / f"{name}.0001.exr")
+        groups[name] = json.load(open(path + ".json"))["stats"]["error_estimate"]["groups"]
+        images[name] = read(path)[0][..., :3]
+    capsys.readouterr()
+    assert groups["plain"] == PLAIN_ERROR_GROUPS
+    assert groups["given"] == 8 and groups["images"] == 8
+    assert np.array_equal(images["plain"], images["given"])
+    assert np.array_equal(images["plain"], images["images"])

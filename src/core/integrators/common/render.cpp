@@ -29,6 +29,12 @@ const IntegratorEntry* integrator_table(size_t* count) {
     return k_integrators;
 }
 
+RenderResult render(Scene& scene, const RenderSettings& settings, const ProgressCallback& progress,
+                    const EstimateCallback& on_estimate) {
+    ScopedEstimateListener listen(on_estimate);
+    return render(scene, settings, progress);
+}
+
 RenderResult render(Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
     settings.validate();
     if (!scene.has_camera()) throw SceneError("render: the scene has no camera (call set_camera)");

@@ -2,6 +2,7 @@
 /// \file render(): one frame with the integrator the settings name (the table of
 /// integrators, base/integrator.h).
 #include "base/integrator.h"
+#include "integrators/common/error_target.h"
 #include "integrators/common/render_settings.h"
 #include "scene/scene.h"
 
@@ -12,6 +13,10 @@ namespace cmlt {
 /// Render one frame. Commits the scene first if it has uncommitted edits. Throws
 /// SettingsError / SceneError on bad input. `progress` runs on the calling thread.
 RenderResult render(Scene& scene, const RenderSettings& settings, const ProgressCallback& progress = {});
+/// The same, calling `on_estimate` with each estimate of a frame with a target error
+/// (RenderSettings.target_error; error_target.h's EstimateCallback), as it is made.
+RenderResult render(Scene& scene, const RenderSettings& settings, const ProgressCallback& progress,
+                    const EstimateCallback& on_estimate);
 
 /// The integrators by name ("pt", "bdpt", "pssmlt", "cmlt"), `count` rows.
 const IntegratorEntry* integrator_table(size_t* count);

@@ -47,7 +47,7 @@ struct ChainTally {
     uint64_t budget = 0;    ///< path evaluations the chain may spend
     uint64_t evaluations = 0, steps = 0;
     uint64_t invalid = 0;   ///< evaluations whose path was not finite
-    int layer = 0;          ///< the splat film layer: the chain's error group (index mod G)
+    int layer = 0;          ///< the splat film layer: the chain's error group (mlt_frame.h)
     mcmc::KernelStats stats;
     mcmc::NormalisationAccumulator large;  ///< f* of the large-step proposals
     mcmc::StreakTracker streaks;
@@ -156,6 +156,7 @@ public:
         } else if (m_b_boot.nonzero > 0) {
             CounterRng rng(fr.settings.seed, RngDomain::resample, 0);
             const std::vector<size_t> pick = mcmc::resample_start_indices(m_boot_f, size_t(n), rng);
+            const std::vector<int> layers = start_sample_groups(pick, fr.film.layers());
             m_chains.resize(n);
             parallel_tasks(fr.arena, fr.counters, n, uint64_t(8), [&](const tbb::blocked_range<uint64_t>& r) {
                 PathCounters c;
@@ -166,7 +167,7 @@ public:
                                                           << " gave a different path");
                     m_chains[k]->chain_id = k;
                     m_chains[k]->budget = budget_of(k);
-                    m_chains[k]->layer = int(k % uint64_t(fr.film.layers()));
+                    m_chains[k]->layer = layers[k];
                 }
                 fr.counters.add(c);
             });
@@ -260,10 +261,10 @@ public:
     }
 
 private:
-    /// Steps per error group (chain c in group c mod G).
+    /// Steps per error group (the chains' film layers).
     std::vector<double> group_steps() const {
         std::vector<double> out(size_t(m_frame.film.layers()), 0.0);
-        for (size_t c = 0; c < m_chains.size(); ++c) out[c % out.size()] += double(m_chains[c]->steps);
+        for (const auto& c : m_chains) out[size_t(c->layer)] += double(c->steps);
         return out;
     }
     /// b so far: the bootstrap and every chain's large steps.

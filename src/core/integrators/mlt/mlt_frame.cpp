@@ -49,33 +49,38 @@ void develop_image(RenderResult& res, const SplatFilm& film, double b, uint64_t 
 
 ErrorValue estimate_groups(const SplatFilm& film, const std::vector<double>& steps,
                            const mcmc::NormalisationEstimate& b, const PtPassImage& direct,
-                           std::vector<float>* group_images) {
+                           std::vector<float>* group_images, std::vector<double>* used_steps) {
     const int G = film.layers();
     if (G < 3 || int(steps.size()) != G || !(b.mean > 0.0)) return ErrorValue{};
     const size_t pixels = size_t(film.width()) * size_t(film.height()), n = pixels * 3;
     double total = 0.0;
-    std::vector<double> scale(static_cast<size_t>(G));
-    for (size_t g = 0; g < size_t(G); ++g) {
-        total += steps[g];
-        scale[g] = steps[g] > 0.0 ? b.mean * double(pixels) / steps[g] : 0.0;
+    std::vector<int> used;  // the layers with steps (an empty group has no image)
+    std::vector<double> weights, scale;
+    for (int g = 0; g < G; ++g) {
+        total += steps[size_t(g)];
+        if (!(steps[size_t(g)] > 0.0)) continue;
+        used.push_back(g);
+        weights.push_back(steps[size_t(g)]);
+        scale.push_back(b.mean * double(pixels) / steps[size_t(g)]);
     }
-    if (total <= 0.0) return ErrorValue{};
+    if (used.size() < 3 || total <= 0.0) return ErrorValue{};
     const double s_all = b.mean * double(pixels) / total;
     const double b_rel_var = b.std_error > 0.0 ? (b.std_error / b.mean) * (b.std_error / b.mean) : 0.0;
     const bool has_direct = !direct.mean.empty();
     auto group = [&](size_t g, size_t i) {
-        return scale[g] * film.layer_sum(int(g), i / 3, int(i % 3)) + (has_direct ? double(direct.mean[i]) : 0.0);
+        return scale[g] * film.layer_sum(used[g], i / 3, int(i % 3)) + (has_direct ? double(direct.mean[i]) : 0.0);
     };
     auto shared = [&](size_t i) {
         const double c = s_all * film.sum(i / 3, int(i % 3));
         return (has_direct ? double(direct.variance[i]) : 0.0) + b_rel_var * c * c;
     };
     if (group_images) {
-        group_images->resize(size_t(G) * n);
-        for (size_t g = 0; g < size_t(G); ++g)
+        group_images->resize(used.size() * n);
+        for (size_t g = 0; g < used.size(); ++g)
             for (size_t i = 0; i < n; ++i) (*group_images)[g * n + i] = float(group(g, i));
     }
-    return estimate_from_groups(n, steps, group, shared);
+    if (used_steps) *used_steps = weights;
+    return estimate_from_groups(n, weights, group, shared);
 }
 
 bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorValue& e, double work, uint64_t evaluations,
@@ -99,10 +104,12 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     develop_image(res, film, chains.b.mean, chains.steps, direct_image);
     res.cancelled = chains.cancelled;
     if (film.layers() >= 3) {
-        const ErrorValue err = estimate_groups(film, chains.group_steps, chains.b, direct_image, &res.group_images);
+        std::vector<double> used_steps;
+        const ErrorValue err =
+            estimate_groups(film, chains.group_steps, chains.b, direct_image, &res.group_images, &used_steps);
         res.error_estimate = err.relmse;
         res.error_stderr = err.stderr_;
-        if (err.valid()) res.group_weights = chains.group_steps;
+        if (err.valid()) res.group_weights = std::move(used_steps);
         else res.group_images.clear();
     }
     res.error_history = std::move(chains.error_history);

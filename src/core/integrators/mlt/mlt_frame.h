@@ -75,17 +75,54 @@ struct PopulationResult {
     std::vector<std::array<double, 4>> error_history;  ///< the target's estimates
 };
 
-/// Layers of the frame's splat film: the error groups (RenderSettings.error_groups; chain
-/// c splats into layer c mod G), or 1 without an estimate.
+/// Layers of the frame's splat film: the error groups (RenderSettings.error_groups; a
+/// chain splats into its group's layer), or 1 without an estimate.
 inline int error_layers(const RenderSettings& s) { return s.error_groups >= 3 ? s.error_groups : 1; }
+
+/// The error group of each chain resampled from the bootstrap pool (`pick[k]`: chain k's
+/// bootstrap sample), `groups` G: chains that start from the same sample are copies of
+/// one path until they have moved apart, so they share a group — groups made of disjoint
+/// sets of start samples are independent given the pool, which the estimate assumes
+/// (chain k in group k mod G put copies of one start in every group, and the groups'
+/// spread missed the error of which few paths the chains started from). The start
+/// samples, by how many chains they start, go one by one to the group with the fewest
+/// chains so far (ties: the lower group). Fewer distinct starts than G leave groups
+/// empty (the estimate uses the others). Chains imported from a previous frame stay in
+/// group k mod G.
+inline std::vector<int> start_sample_groups(const std::vector<size_t>& pick, int groups) {
+    std::vector<int> out(pick.size(), 0);
+    if (groups <= 1) return out;
+    std::vector<std::pair<size_t, size_t>> starts;  // (sample, chains), by sample
+    {
+        std::vector<size_t> sorted(pick);
+        std::sort(sorted.begin(), sorted.end());
+        for (size_t s : sorted)
+            if (starts.empty() || starts.back().first != s) starts.push_back({s, 1});
+            else ++starts.back().second;
+    }
+    std::stable_sort(starts.begin(), starts.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    std::vector<size_t> load(size_t(groups), 0);
+    std::vector<std::pair<size_t, int>> group_of;  // (sample, group), sorted by sample after
+    group_of.reserve(starts.size());
+    for (const auto& st : starts) {
+        const int g = int(std::min_element(load.begin(), load.end()) - load.begin());
+        load[size_t(g)] += st.second;
+        group_of.push_back({st.first, g});
+    }
+    std::sort(group_of.begin(), group_of.end());
+    for (size_t k = 0; k < pick.size(); ++k)
+        out[k] = std::lower_bound(group_of.begin(), group_of.end(), std::make_pair(pick[k], -1))->second;
+    return out;
+}
 
 /// The relMSE estimate of a Metropolis frame from its film's layers (error_target.h):
 /// group g's image is b·W·H/steps[g] times its layer plus the direct pass; every group
 /// shares the direct pass's variance and b's, (b_se/b)² on the chains' part. Optionally
-/// writes the group images (G, H, W, 3). No estimate without >= 3 layers.
+/// writes the group images (G', H, W, 3) and their steps (`used_steps`) of the G' groups
+/// with steps (empty groups are left out). No estimate without >= 3 such groups.
 ErrorValue estimate_groups(const SplatFilm& film, const std::vector<double>& steps,
                            const mcmc::NormalisationEstimate& b, const PtPassImage& direct,
-                           std::vector<float>* group_images = nullptr);
+                           std::vector<float>* group_images = nullptr, std::vector<double>* used_steps = nullptr);
 
 /// After a chain round of a frame with a target error: the estimate `e`, recorded in `t`;
 /// true when the target is reached (not before round 2G, the first 2G rounds being equal

@@ -266,3 +266,27 @@ TEST(ChainPopulation, ProgressCanStopTheRounds) {
     EXPECT_LT(r.evaluations, frame.budget.chains);
     EXPECT_GT(r.evaluations, 0u);
 }
+
+// The error groups of resampled chains: every start sample's chains in one group, the
+// groups' chain counts as even as whole start samples allow, groups left empty only when
+// there are fewer start samples than groups.
+TEST(ChainPopulation, ErrorGroupsAreDisjointStartSamples) {
+    const std::vector<size_t> pick = {3, 3, 3, 3, 5, 5, 9, 11, 11, 11, 20, 21, 21, 40, 40, 40};
+    const std::vector<int> g = mlt::start_sample_groups(pick, 4);
+    ASSERT_EQ(g.size(), pick.size());
+    std::map<size_t, int> group_of;
+    std::vector<int> count(4, 0);
+    for (size_t k = 0; k < pick.size(); ++k) {
+        ASSERT_GE(g[k], 0);
+        ASSERT_LT(g[k], 4);
+        auto it = group_of.emplace(pick[k], g[k]).first;
+        EXPECT_EQ(it->second, g[k]) << "start sample " << pick[k] << " split over groups";
+        ++count[size_t(g[k])];
+    }
+    // 16 chains from starts of 4, 3, 3, 2, 2, 1, 1 chains: 4 per group
+    for (int c : count) EXPECT_EQ(c, 4);
+    // two start samples, three groups: one group stays empty
+    const std::vector<int> few = mlt::start_sample_groups({7, 7, 8}, 3);
+    EXPECT_EQ(few[0], few[1]);
+    EXPECT_NE(few[0], few[2]);
+}
