@@ -245,6 +245,10 @@ uint32_t Scene::add_light(const LightDesc& desc) {
 
 void Scene::set_camera(const CameraDesc& desc) {
     desc.validate();
+    const double reach = affine_reach(desc.transform, 0.0);
+    if (!(reach <= k_max_coordinate))
+        CMLT_THROW(SceneError, "set_camera: its position reaches " << reach << ", beyond the "
+                                   << k_max_coordinate << " the renderer can trace");
     m_camera = desc;
     m_has_camera = true;
 }
@@ -281,9 +285,6 @@ void Scene::compute_bounds() {
     }
     if (m_has_camera) {
         Vec3 c = m_camera.transform.transform_point(Vec3(0.f));
-        if (!(max_abs(c, c) <= k_max_coordinate))
-            CMLT_THROW(SceneError, "camera: its position reaches " << max_abs(c, c) << ", beyond the "
-                                   << k_max_coordinate << " the renderer can trace");
         lo = vmin(lo, c);
         hi = vmax(hi, c);
     }
