@@ -162,7 +162,8 @@ private:
     void require_committed(const char* what) const;
     void build_lights();
     /// The world bounds (m_center, m_radius); refuses coordinates beyond what the
-    /// renderer can trace (scene/coordinate_range.h), naming the mesh or the camera.
+    /// renderer can trace (scene/coordinate_range.h), naming the mesh (set_camera and
+    /// add_light check the camera and the lights).
     void compute_bounds();
     /// Refuses an instance whose inverse maps the world cube `extent` out of range.
     void check_instance_conditioning(double extent) const;
