@@ -72,7 +72,8 @@ demo: install
 
 test-sanitize: install
 	cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMLT_SANITIZE=ON \
-	  -DCMLT_BUILD_TESTS=ON -DPython_EXECUTABLE=$(abspath $(PY)) >/dev/null
+	  -DCMLT_BUILD_TESTS=ON -DPython_EXECUTABLE=$(abspath $(PY)) \
+	  -Dnanobind_ROOT="$$($(PY) -m nanobind --cmake_dir)" >/dev/null
 	cmake --build $(SAN_BUILD) -j $(THREADS)
 	$(SAN_ASAN) $(SAN_UBSAN) ctest --test-dir $(SAN_BUILD) --no-tests=error --output-on-failure -j $(THREADS)
 	LD_PRELOAD=$$($(CXX) -print-file-name=libasan.so) $(SAN_ASAN):detect_leaks=0 $(SAN_UBSAN) \

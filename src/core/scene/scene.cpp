@@ -2,6 +2,8 @@
 
 #include "analysis/kernel_select.h"
 
+#include "scene/coordinate_range.h"
+
 #include "lights/area_lights.h"
 #include "lights/cylinder_light.h"
 #include "lights/infinite_lights.h"
@@ -196,6 +198,7 @@ uint32_t Scene::add_texture(TextureDesc desc, const std::string& name) {
 
 void Scene::clear_lights() {
     m_analytic.clear();
+    m_light_reach = 0.0;
     m_dirty = true;
 }
 
@@ -216,6 +219,16 @@ uint32_t Scene::add_light(const LightDesc& desc) {
     if (desc.texture_id >= int32_t(m_textures.size()))
         CMLT_THROW(SceneError, "add_light: texture id " << desc.texture_id << " not registered ("
                                                          << m_textures.size() << " textures)");
+    if (desc.kind != LightDesc::Kind::distant && desc.kind != LightDesc::Kind::dome) {
+        double size = std::max({double(desc.width), double(desc.height), double(desc.radius),
+                                double(desc.length)});
+        double reach = affine_reach(desc.transform, size);
+        if (!(reach <= k_max_coordinate))
+            CMLT_THROW(SceneError, "add_light: its position and size reach " << reach
+                                       << ", beyond the " << k_max_coordinate
+                                       << " the renderer can trace");
+        m_light_reach = std::max(m_light_reach, reach);
+    }
     std::unique_ptr<Light> light;
     switch (desc.kind) {
         case LightDesc::Kind::rect: light.reset(new RectLight(desc)); break;
@@ -232,6 +245,10 @@ uint32_t Scene::add_light(const LightDesc& desc) {
 
 void Scene::set_camera(const CameraDesc& desc) {
     desc.validate();
+    const double reach = affine_reach(desc.transform, 0.0);
+    if (!(reach <= k_max_coordinate))
+        CMLT_THROW(SceneError, "set_camera: its position reaches " << reach << ", beyond the "
+                                   << k_max_coordinate << " the renderer can trace");
     m_camera = desc;
     m_has_camera = true;
 }
@@ -241,16 +258,29 @@ void Scene::compute_bounds() {
     for (const Instance& inst : m_instances) {
         const Mesh& m = m_meshes[inst.mesh_id];
         if (m.data.n_points == 0) continue;
+        double reach = max_abs(m.bbox_min, m.bbox_max);
+        if (!(reach <= k_max_coordinate))
+            CMLT_THROW(SceneError, "mesh '" << m.name << "': points reach " << reach
+                                            << ", beyond the " << k_max_coordinate
+                                            << " the renderer can trace");
         const size_t n_steps = std::max<size_t>(1, inst.motion.size());
         for (size_t k = 0; k < n_steps; ++k) {
             const Mat4& xm = inst.motion.empty() ? inst.xf.m : inst.motion[k];
+            Vec3 ilo(k_infinity), ihi(-k_infinity);
             for (int c = 0; c < 8; ++c) {
                 Vec3 p((c & 1) ? m.bbox_max.x : m.bbox_min.x, (c & 2) ? m.bbox_max.y : m.bbox_min.y,
                        (c & 4) ? m.bbox_max.z : m.bbox_min.z);
                 Vec3 w = xm.transform_point(p);
-                lo = vmin(lo, w);
-                hi = vmax(hi, w);
+                ilo = vmin(ilo, w);
+                ihi = vmax(ihi, w);
             }
+            reach = max_abs(ilo, ihi);
+            if (!(reach <= k_max_coordinate))
+                CMLT_THROW(SceneError, "mesh '" << m.name << "': world-space coordinates reach "
+                                                << reach << ", beyond the " << k_max_coordinate
+                                                << " the renderer can trace");
+            lo = vmin(lo, ilo);
+            hi = vmax(hi, ihi);
         }
     }
     if (m_has_camera) {
@@ -265,6 +295,28 @@ void Scene::compute_bounds() {
     }
     m_center = (lo + hi) * 0.5f;
     m_radius = std::max(1e-6f, 0.5f * length(hi - lo));
+    check_instance_conditioning(std::max({max_abs(lo, hi), m_light_reach, 1.0}) * 4.0);
+}
+
+void Scene::check_instance_conditioning(double extent) const {
+    // Rays start in the world bounds (the camera's position included), on a light or on
+    // the disk infinite lights emit from (within sqrt(2) bounding radii of the centre:
+    // at most (1 + sqrt(6)) times the bounds' reach): all inside the cube of `extent`,
+    // 4x the largest reach.
+    for (const Instance& inst : m_instances) {
+        if (m_meshes[inst.mesh_id].data.n_points == 0) continue;
+        const size_t n_steps = std::max<size_t>(1, inst.motion.size());
+        for (size_t k = 0; k < n_steps; ++k) {
+            const Mat4 inv = inst.motion.empty() ? inst.xf.inv : inst.motion[k].inverse();
+            double reach = affine_reach(inv, extent);
+            if (!(reach <= k_max_object_coordinate))
+                CMLT_THROW(SceneError, "mesh '" << m_meshes[inst.mesh_id].name
+                                       << "': rays of the scene (extent " << extent << ") reach "
+                                       << reach << " in its object space, beyond the "
+                                       << k_max_object_coordinate << " the renderer can trace "
+                                       << "(a degenerate, near-zero scale, or a scene too large)");
+        }
+    }
 }
 
 void Scene::build_lights() {

@@ -161,7 +161,12 @@ private:
     float transmittance_through(const Ray& ray, float* pass_pdf) const;
     void require_committed(const char* what) const;
     void build_lights();
+    /// The world bounds (m_center, m_radius); refuses coordinates beyond what the
+    /// renderer can trace (scene/coordinate_range.h), naming the mesh (set_camera and
+    /// add_light check the camera and the lights).
     void compute_bounds();
+    /// Refuses an instance whose inverse maps the world cube `extent` out of range.
+    void check_instance_conditioning(double extent) const;
 
     std::unique_ptr<Accel> m_accel;
     std::vector<Mesh> m_meshes;
@@ -172,6 +177,7 @@ private:
     bool m_pass_through = false;             ///< some entry of m_material_passes is set
     std::vector<Texture> m_textures;
     std::vector<std::unique_ptr<Light>> m_analytic;  ///< as added
+    double m_light_reach = 0.0;  ///< largest affine_reach of a finite analytic light
     std::vector<std::unique_ptr<TriangleLight>> m_triangle_lights;
     std::vector<const Light*> m_lights;               ///< analytic, then triangles
     std::vector<uint32_t> m_infinite;
