@@ -136,13 +136,19 @@ def test04_cmlt_sequence_on_two_workers_is_bit_identical(tmp_path, client):
     ref = [json.load(open(p + ".json")) for p in one.written]
     for s, r in zip(side, ref):
         d = s["stats"]["dask"]
-        assert d["workers"] == 2 and d["tasks"] == 4 and d["split"] == "chains+rows"
+        # one part per worker and the frame's preparation
+        assert d["workers"] == 2 and d["parts"] == 2 and d["tasks"] == 3
+        assert d["split"] == "chains+rows"
         assert d["bytes_from_workers"] > 0 and d["bytes_to_workers"] > 0
         # the temporal record (carried starts, b used) is the single process's
         assert s["temporal"]["b_used"] == r["temporal"]["b_used"]
         assert s["temporal"]["carried_chains"] == r["temporal"]["carried_chains"]
         assert s["stats"]["mutations"] == r["stats"]["mutations"]
     assert side[2]["temporal"]["carried_chains"] > 0       # frames 2, 3 did carry
+    # frames 2 and 3 were submitted while the frame before rendered, their preparations
+    # chained on the workers
+    assert [s["stats"]["dask"]["submitted_ahead"] for s in side] == [False, True, True]
+    assert [s["temporal"]["state_in"] for s in side] == [r["temporal"]["state_in"] for r in ref]
 
 
 def test05_pt_frame_with_dask_local_2_flag(tmp_path, capsys):
