@@ -23,6 +23,9 @@ F per further part (the growth of W from 1 to 2 parts per frame). On a cluster
 
     T(N) = max(C + c·(N + 1), R, (R + W + F·(N − 1)) / N)
 
+with N parts per frame (the default), and with one part per frame and frames side by
+side (``--dask-parts 1``, enough frames in flight) max(C + 2c, R, (R + W) / N);
+
 and on this machine's 2 cores, which the client shares with the workers:
 T(1) = max(C, R + W), T(2) = max(C, R, (C + R + W + F) / 2). The same formulas on the
 tasks' wall seconds (which the other load on a shared machine inflates) give the
@@ -143,6 +146,9 @@ def main(argv=None) -> int:
     def model(client, prep, work, fixed, per_task):
         cluster = {n: max(client + per_task * (n + 1), prep,
                           (prep + work + fixed * (n - 1)) / n) for n in (1, 2, 4, 16, 100)}
+        # one part per frame, frames side by side (--dask-parts 1): no fixed cost grows
+        cluster.update({f"{n} (1 part)": max(client + per_task * 2, prep, (prep + work) / n)
+                        for n in (16, 100)})
         machine = {1: max(client, prep + work),
                    2: max(client, prep, (client + prep + work + fixed) / 2)}
         return cluster, machine
@@ -180,6 +186,7 @@ def main(argv=None) -> int:
         "frames_submitted_ahead_2_workers": ahead,
         "frame_wall_2_workers_s": frame_wall2, "fixed_per_part_s": fixed,
         "estimate_frame_s": est, "estimate_speedup_100_vs_1": est[1] / est[100],
+        "estimate_speedup_100_vs_1_one_part": est[1] / est["100 (1 part)"],
         "client_cpu_s": cpus, "client_cpu_per_frame_s": cpu_client,
         "fixed_cpu_per_part_s": fixed_cpu, "estimate_cpu_frame_s": est_cpu,
         "estimate_cpu_this_machine_s": mach_cpu,
@@ -187,6 +194,7 @@ def main(argv=None) -> int:
         "estimate_process_cpu_this_machine_s": mach_proc,
         "estimate_process_cpu_ratio_2_over_1": mach_proc[2] / mach_proc[1],
         "estimate_cpu_speedup_100_vs_1": est_cpu[1] / est_cpu[100],
+        "estimate_cpu_speedup_100_vs_1_one_part": est_cpu[1] / est_cpu["100 (1 part)"],
         "machine": {"cpus": os.cpu_count(), "load_avg": os.getloadavg()},
     }
     load = os.getloadavg()
@@ -233,10 +241,14 @@ def main(argv=None) -> int:
            f"**{mach_cpu[2] / mach_cpu[1]:.2f}x** (with the worker processes' CPU: "
            f"{mach_proc[2] / mach_proc[1]:.2f}x). On a cluster: "
            + ", ".join(f"N={n}: {v:.3f} s" for n, v in est_cpu.items())
-           + f"; 100 workers vs 1: {est_cpu[1] / est_cpu[100]:.1f}x.", "",
+           + f"; 100 workers vs 1: {est_cpu[1] / est_cpu[100]:.1f}x with 100 parts per frame, "
+           f"{est_cpu[1] / est_cpu['100 (1 part)']:.1f}x with one part per frame and frames "
+           "side by side (--dask-parts 1).", "",
            "The same on the tasks' wall seconds: "
            + ", ".join(f"N={n}: {v:.3f} s" for n, v in est.items())
-           + f"; 100 workers vs 1: {summary['estimate_speedup_100_vs_1']:.1f}x.", ""]
+           + f"; 100 workers vs 1: {summary['estimate_speedup_100_vs_1']:.1f}x "
+           f"({summary['estimate_speedup_100_vs_1_one_part']:.1f}x with one part per frame).",
+           ""]
     Path(args.out + ".md").write_text("\n".join(md))
     print("\n".join(md))
     for c in clients.values():

@@ -98,6 +98,15 @@ def _settings(core, spec: dict):
     return st
 
 
+def _address() -> str:
+    """This worker's address ('' when not on a worker)."""
+    try:
+        from distributed import get_worker
+        return str(get_worker().address)
+    except Exception:                    # tests call the tasks directly
+        return ""
+
+
 def prepare_task(spec: dict, prev: Optional[dict]) -> dict:
     """The preparation of the spec's frame (module doc). ``prev``: the previous
     frame's preparation (its ``carry``), or ``{"carry": ...}`` from the client, or
@@ -126,8 +135,9 @@ def prepare_task(spec: dict, prev: Optional[dict]) -> dict:
             # what the next frame's preparation reads (as its FrameState would hold it)
             "carry": {"anchors": list(pending["anchors"]),
                       "film_offset": tuple(pending["film_offset"]),
-                      "boot_f": b"" if boot is None else boot.astype("<f8").tobytes(),
+                      "boot_f": b"" if boot is None else boot,      # the same values
                       "start_picks": list(pending["picks"])},
+            "worker": _address(),
             "times": (time.perf_counter() - t0, time.process_time() - c0,
                       time.thread_time() - h0)}
 
@@ -163,6 +173,7 @@ def render_part(spec: dict, shared: Optional[dict]) -> dict:
                "variance": np.asarray(r.variance)[y0:y1].copy(),
                "direct": None if r.direct is None else np.asarray(r.direct)[y0:y1].copy(),
                "part": r.mlt_part, "bootstrap_f": None}
+        out["worker"] = _address()
         if r.bootstrap_f is not None and spec.get("want_bootstrap_f"):
             out["bootstrap_f"] = np.asarray(r.bootstrap_f)
         # seconds: scene update, whole task (wall), whole task (CPU of the worker process,

@@ -1,33 +1,45 @@
 """Frames split into Dask tasks (``cmlt render --dask SCHEDULER``; DESIGN.md §6).
 
-What runs where, per frame:
+What runs where, per frame (the workers' side is :mod:`cmlt.shot.dask_worker`):
 
 * **client** (the process running the frame loop): reads the frame from the stage,
-  runs the temporal driver's ``prepare`` (the pilot image of the pixel importance,
-  the carry-over bootstrap, the coupling of the chain starts to the previous
-  frame's), then, once the parts are back, combines them, normalises (the
-  smoothed b), writes the frame atomically and keeps the state for the next frame.
-  That state is small (the bootstrap's f*, the start picks, anchors, the b
-  history): the frames of a cmlt sequence depend on each other only through it, and
-  it never leaves the client.
-* **workers**: one task per part of the frame. A task opens the stage itself (the
-  shot's path is shipped, never geometry; a worker keeps the stage and the built
-  core scene between tasks and only sends the core what changed), renders its part
-  and returns raw sums:
+  submits its tasks, and once its parts are back combines them, normalises (the
+  smoothed b, which needs the b history of every frame before), writes the frame
+  atomically and keeps the state for the next frame, as without Dask.
+* **workers**: per frame of pssmlt / cmlt, one *preparation* task — the temporal
+  driver's :func:`cmlt.temporal.driver.prepare_frame`: the pilot image of the pixel
+  importance, the screen anchors and film offset, the carry-over bootstrap and the
+  chain starts coupled to the previous frame's — and one task per *part*. A frame's
+  preparation takes the previous frame's preparation as its input (its f*, starts and
+  anchors: what the next frame needs of a frame, never its image), so the
+  preparations are a task chain from frame to frame; the first frame's comes from the
+  client's state (the frame before in memory, or ``--state-dir``). A task opens the
+  stage itself (the shot's path is shipped, never geometry; a worker keeps the stage
+  and the built scenes of its last two frames and only sends the core what changed).
+  The parts return raw sums:
 
   - pssmlt / cmlt: chains [c0, c1) of the frame's chains and the direct pass on rows
-    [y0, y1); the result is the splat film's 128-bit fixed-point words and the
-    normalisation accumulators of the bootstrap and of each chain. The client adds
-    the words (integer adds: exact, in any order), merges the accumulators in chain
-    order and develops the image in the core (``combine_mlt_parts``): bit for bit
-    the single-process frame, for any number of parts or workers;
+    [y0, y1), with the frame's preparation as their shared input; the result is the
+    splat film's 128-bit fixed-point words and the normalisation accumulators of the
+    bootstrap and of each chain. The client adds the words (integer adds: exact, in
+    any order), merges the accumulators in chain order and develops the image in the
+    core (``combine_mlt_parts``): bit for bit the single-process frame, for any number
+    of parts or workers;
   - pt: rows [y0, y1) (a pixel's samples never leave its row band);
   - bdpt: the whole frame in one task (its light-tracing splats reach every pixel of
-    a pass, so a pass does not split without moving W·H values per pass).
+    a pass, so a pass does not split without moving W·H values per pass); frames
+    still run side by side, one per worker.
 
-  The frame's shared inputs (pilot, bootstrap f*, chain starts) are scattered to the
-  workers once per frame. A task is a pure function of its inputs, so when a worker
-  dies Dask reruns its tasks elsewhere and the image is unchanged.
+* **pipelining**: while frame f renders, the tasks of the next frames are submitted
+  (``AHEAD`` of them, more when a frame has fewer parts than there are workers), each
+  when it follows the one before in the loop and the settings match (else a frame's
+  tasks are submitted when it comes). Priorities keep the order: a
+  frame's parts before the next frame's, and a frame's preparation before the parts
+  of the frame before it, so the workers render frame f+1 while the client combines
+  and writes frame f, and the preparation chain never waits behind parts.
+
+A task is a pure function of its inputs, so when a worker dies Dask reruns what it
+lost (a lost preparation from the one before it) and the images are unchanged.
 
 Time budgets are refused (a timed frame depends on the machine, and its parts would
 end at different points).
@@ -106,19 +118,22 @@ def _static(settings: dict) -> str:
 
 
 def _nbytes(obj) -> int:
-    from dask.sizeof import sizeof
-    return int(sizeof(obj))
+    """Bytes of ``obj`` pickled (as Dask sends it: an object referenced twice once)."""
+    import pickle
+    return len(pickle.dumps(obj, protocol=5))
 
 
 #: frames whose tasks are submitted while a frame renders (the workers start the next
-#: frames' preparations and parts while the client combines and writes this one)
-AHEAD = 2
+#: frames' preparations and parts while the client combines and writes this one): at
+#: least AHEAD, and enough to give every worker two parts (fewer parts per frame than
+#: workers: frames side by side), at most AHEAD_MAX
+AHEAD, AHEAD_MAX = 2, 64
 
 
 class DaskRenderer:
     """Renders the frames of one shot on a Dask cluster, part by part, one frame ahead.
 
-    ``parts``: tasks per frame (0: twice the number of workers). ``on_part``: called on
+    ``parts``: part tasks per frame (0: one per worker). ``on_part``: called on
     the client as ``on_part(done, total, futures)`` after each part arrives (the
     progress bar; tests use it to kill a worker mid-frame).
 
@@ -251,7 +266,8 @@ class DaskRenderer:
         self._frame = h
         # the next AHEAD frames' tasks, each preparation from the one before
         f, prep = float(frame), h["prep"]
-        for _ in range(AHEAD):
+        ahead = min(AHEAD_MAX, max(AHEAD, -(-2 * h["n_workers"] // h["n_parts"])))
+        for _ in range(ahead):
             f = self._next.get(f)
             if f is None:
                 break
@@ -302,6 +318,8 @@ class DaskRenderer:
         t_combine = time.perf_counter() - t_combine
         result_bytes = sum(_nbytes(r) for r in results)
         shared_bytes = _nbytes(prep) if prep else 0
+        # the preparation moves to each other worker that ran a part of the frame
+        moved = len({r.get("worker") for r in results} - {prep.get("worker")}) if prep else 0
         out.stats["time_s"] = time.perf_counter() - h["t0"]
         out.stats["rays_per_s"] = out.stats.get("rays", 0) / max(out.stats["time_s"], 1e-9)
         ptimes = prep.get("times") or (0.0, 0.0, 0.0)
@@ -309,10 +327,9 @@ class DaskRenderer:
             "scheduler": self.address or _scheduler_address(self.client),
             "workers": h["n_workers"], "tasks": n_parts + (1 if h["mlt"] else 0),
             "parts": n_parts, "submitted_ahead": bool(h.get("ahead")),
-            # the preparation goes to every worker that runs a part of the frame (at
-            # most), the specs to their tasks; the parts and the preparation come back
-            "bytes_to_workers": int(shared_bytes * min(n_parts, h["n_workers"])
-                                    + h["spec_bytes"]),
+            # the preparation to the other workers of its parts, the specs to their
+            # tasks; the parts and the preparation come back to the client
+            "bytes_to_workers": int(shared_bytes * moved + h["spec_bytes"]),
             "bytes_from_workers": int(result_bytes + shared_bytes),
             "split": "chains+rows" if h["mlt"] else ("rows" if integ == "pt" else "frame"),
             # seconds: on the client (waiting for the preparation and the parts, the

@@ -112,7 +112,8 @@ def bootstrap_ratio(f_old, f_new) -> Optional[dict]:
 
 def carry_of(prev) -> Optional[dict]:
     """What the next frame's :func:`prepare_frame` reads of a frame's state (a
-    FrameState or None): the screen anchors, film offset, bootstrap f* and starts."""
+    FrameState or None): the screen anchors, film offset, bootstrap f* (little-endian
+    float64 bytes, or an array of them) and starts."""
     if prev is None:
         return None
     return {"anchors": list(prev.anchors), "film_offset": tuple(prev.film_offset),
@@ -170,7 +171,7 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
     pending["boot_f"] = f_new
     f_old: List[float] = []
     prev_picks: List[int] = []
-    if prev_ok and prev["boot_f"] and prev["start_picks"]:
+    if prev_ok and len(prev["boot_f"]) and prev["start_picks"]:
         f_old = list(np.frombuffer(prev["boot_f"], dtype="<f8"))
         if len(f_old) == n_boot:
             prev_picks = list(prev["start_picks"])
