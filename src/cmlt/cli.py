@@ -158,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "processes here, else a scheduler address (tcp://host:8786); the images "
                    "are bit-identical to one process")
     r.add_argument("--dask-parts", metavar="N", type=int, default=0, dest="dask_parts",
-                   help="tasks per frame with --dask (default: twice the workers)")
+                   help="part tasks per frame with --dask (default: one per worker)")
     loud = r.add_mutually_exclusive_group()
     loud.add_argument("--quiet", "-q", action="store_true",
                       help="print nothing but errors")

@@ -11,14 +11,25 @@ the repeats is reported; every Dask run is checked bit-identical to the one-proc
 run. Each worker is one process with one thread; the one-process run uses --threads 2
 (both cores). Writes tests/bench/results/scale.md and scale.json.
 
-The estimate: per frame, the client's serial work S (stage read, the temporal
-driver's pilot, bootstrap and chain-start coupling, normalisation, writing, scatter
-and combine: the frame's wall time minus the time its tasks were running on the
-workers) does not shrink with workers; the tasks' work P (worker seconds: core
-render + the worker's scene update) divides over N workers, plus a fixed cost F per
-task (measured as the growth of P from 2 to 4 tasks per frame) for the 2N tasks of a
-frame, plus a per-task dispatch latency L (a no-op task's round trip, measured), and
-the client's combine per part C:  T(N) = S + (P_2 + F·(2N − 2))/N + L + 2N·C.
+The estimates (module doc of cmlt.shot.distributed: a frame is one preparation task
+and N part tasks, submitted two frames ahead, so the client's work, the preparations
+and the parts of consecutive frames overlap). Per frame: the client's CPU seconds C
+(the frame loop, its scene, writing, the combine, and the in-process scheduler),
+growing by c per task (a no-op task's client CPU, measured); the preparation's CPU
+seconds R (a chain from frame to frame: no frame's parts start before its
+preparation); the parts' worker CPU seconds W at one part per frame, plus a fixed cost
+F per further part (the growth of W from 1 to 2 parts per frame). On a cluster
+(the client on its own core, N worker cores, frames pipelined):
+
+    T(N) = max(C + c·(N + 1), R, (R + W + F·(N − 1)) / N)
+
+with N parts per frame (the default), and with one part per frame and frames side by
+side (``--dask-parts 1``, enough frames in flight) max(C + 2c, R, (R + W) / N);
+
+and on this machine's 2 cores, which the client shares with the workers:
+T(1) = max(C, R + W), T(2) = max(C, R, (C + R + W + F) / 2). The same formulas on the
+tasks' wall seconds (which the other load on a shared machine inflates) give the
+wall estimate.
 """
 from __future__ import annotations
 
@@ -82,13 +93,15 @@ def main(argv=None) -> int:
     clients = {n: Client(c) for n, c in clusters.items()}
     startup = time.perf_counter() - t
 
-    # dispatch latency: round trips of a no-op task, one at a time (2 workers)
+    # dispatch latency and the client's CPU per task: round trips of a no-op task, one
+    # at a time (2 workers)
     c2 = clients[2]
     c2.submit(_noop, 0, pure=False).result()
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     for i in range(100):
         c2.submit(_noop, i, pure=False).result()
     latency = (time.perf_counter() - t) / 100
+    client_per_task = (time.process_time() - c) / 100
 
     tmp = tempfile.mkdtemp(prefix="cmlt-scale-")
     walls = {"one process": [], "1 worker": [], "2 workers": []}
@@ -121,32 +134,46 @@ def main(argv=None) -> int:
     def mean(v):
         return float(np.mean(v)) if v else 0.0
 
-    d2 = {k: mean(per_frame("2 workers", k)) for k in
-          ("bytes_to_workers", "bytes_from_workers", "tasks", "scatter_s", "wait_s",
-           "combine_s", "part_render_s", "part_task_s", "part_scene_s")}
-    d1 = {k: mean(per_frame("1 worker", k)) for k in ("tasks", "part_task_s", "part_render_s")}
+    keys = ("bytes_to_workers", "bytes_from_workers", "tasks", "parts", "wait_s", "combine_s",
+            "prepare_task_s", "prepare_cpu_s", "prepare_thread_cpu_s", "part_render_s",
+            "part_task_s", "part_scene_s", "part_cpu_s", "part_thread_cpu_s")
+    d = {name: {k: mean(per_frame(name, k)) for k in keys} for name in ("1 worker", "2 workers")}
+    d1, d2 = d["1 worker"], d["2 workers"]
+    ahead = sum(per_frame("2 workers", "submitted_ahead"))
     frame_wall2 = mean([r["stats"]["wall_time_s"] for r in recs["2 workers"]])
-    # serial on the client: the frame's wall time minus the time its tasks ran
-    serial = frame_wall2 - (d2["wait_s"] - d2["scatter_s"])
-    fixed = max(0.0, (d2["part_task_s"] - d1["part_task_s"]) / max(1.0, d2["tasks"] - d1["tasks"]))
-    combine_per_part = d2["combine_s"] / max(1.0, d2["tasks"])
+    extra_parts = max(1.0, d2["parts"] - d1["parts"])
 
-    def estimate(n):
-        return serial + (d1["part_task_s"] + fixed * (2 * n - d1["tasks"])) / n + latency \
-            + 2 * n * combine_per_part
+    def model(client, prep, work, fixed, per_task):
+        cluster = {n: max(client + per_task * (n + 1), prep,
+                          (prep + work + fixed * (n - 1)) / n) for n in (1, 2, 4, 16, 100)}
+        # one part per frame, frames side by side (--dask-parts 1): no fixed cost grows
+        cluster.update({f"{n} (1 part)": max(client + per_task * 2, prep, (prep + work) / n)
+                        for n in (16, 100)})
+        machine = {1: max(client, prep + work),
+                   2: max(client, prep, (client + prep + work + fixed) / 2)}
+        return cluster, machine
 
-    est = {n: estimate(n) for n in (1, 2, 4, 16, 100)}
-    # the same model on CPU seconds (robust to the other load on a shared machine):
-    # the client's CPU per frame, the workers' CPU per frame at 2 and 4 tasks
-    cpu_client = statistics.median(cpus["2 workers"]) / n_frames
-    cpu1 = mean(per_frame("1 worker", "part_cpu_s"))
-    cpu2 = mean(per_frame("2 workers", "part_cpu_s"))
-    fixed_cpu = max(0.0, (cpu2 - cpu1) / max(1.0, d2["tasks"] - d1["tasks"]))
-
-    def estimate_cpu(n):
-        return cpu_client + (cpu1 + fixed_cpu * (2 * n - d1["tasks"])) / n + latency
-
-    est_cpu = {n: estimate_cpu(n) for n in (1, 2, 4, 16, 100)}
+    # CPU seconds: the client process's per frame (median run), the tasks'
+    cpu_client = {n: statistics.median(cpus[n]) / n_frames for n in ("1 worker", "2 workers")}
+    # the tasks' own threads (a one-thread render runs on it): the worker process's other
+    # threads (Dask's event loop, profiler, heartbeats) cost CPU per second of wall time,
+    # which the load of a shared machine stretches; their share is reported beside
+    fixed_cpu = max(0.0, (d2["part_thread_cpu_s"] - d1["part_thread_cpu_s"]) / extra_parts)
+    base_cpu = max(0.0, cpu_client["1 worker"] - 2 * client_per_task)   # without its 2 tasks
+    est_cpu, mach_cpu = model(base_cpu, d1["prepare_thread_cpu_s"], d1["part_thread_cpu_s"],
+                              fixed_cpu, client_per_task)
+    mach_cpu[1] = max(cpu_client["1 worker"], d1["prepare_thread_cpu_s"] + d1["part_thread_cpu_s"])
+    mach_cpu[2] = max(cpu_client["2 workers"], d2["prepare_thread_cpu_s"],
+                      (cpu_client["2 workers"] + d2["prepare_thread_cpu_s"]
+                       + d2["part_thread_cpu_s"]) / 2)
+    # the same with the worker processes' CPU seconds (their other threads included)
+    mach_proc = {1: max(cpu_client["1 worker"], d1["prepare_cpu_s"] + d1["part_cpu_s"]),
+                 2: max(cpu_client["2 workers"], d2["prepare_cpu_s"],
+                        (cpu_client["2 workers"] + d2["prepare_cpu_s"] + d2["part_cpu_s"]) / 2)}
+    # wall seconds of the tasks (the client's part stays its CPU seconds)
+    fixed = max(0.0, (d2["part_task_s"] - d1["part_task_s"]) / extra_parts)
+    est, _ = model(base_cpu, d1["prepare_task_s"], d1["part_task_s"], fixed,
+                   latency)
     summary = {
         "frames": n_frames, "res": [w, h], "spp": args.spp, "chains": args.chains,
         "bootstrap_samples": args.bootstrap_samples, "repeats": args.repeats,
@@ -154,18 +181,23 @@ def main(argv=None) -> int:
         "ratio_2_over_1_workers": med["2 workers"] / med["1 worker"],
         "ratio_2_workers_over_one_process": med["2 workers"] / med["one process"],
         "bit_identical": identical, "cluster_startup_s": startup,
-        "noop_task_latency_s": latency, "per_frame_2_workers": d2, "per_frame_1_worker": d1,
-        "frame_wall_2_workers_s": frame_wall2, "client_serial_s": serial,
-        "fixed_per_task_s": fixed, "combine_per_part_s": combine_per_part,
-        "estimate_frame_s": est,
-        "estimate_speedup_100_vs_1": est[1] / est[100],
+        "noop_task_latency_s": latency, "client_cpu_per_task_s": client_per_task,
+        "per_frame_2_workers": d2, "per_frame_1_worker": d1,
+        "frames_submitted_ahead_2_workers": ahead,
+        "frame_wall_2_workers_s": frame_wall2, "fixed_per_part_s": fixed,
+        "estimate_frame_s": est, "estimate_speedup_100_vs_1": est[1] / est[100],
+        "estimate_speedup_100_vs_1_one_part": est[1] / est["100 (1 part)"],
         "client_cpu_s": cpus, "client_cpu_per_frame_s": cpu_client,
-        "worker_cpu_per_frame_s": {"1 worker": cpu1, "2 workers": cpu2},
-        "fixed_cpu_per_task_s": fixed_cpu, "estimate_cpu_frame_s": est_cpu,
-        "estimate_cpu_ratio_2_over_1": est_cpu[2] / est_cpu[1],
+        "fixed_cpu_per_part_s": fixed_cpu, "estimate_cpu_frame_s": est_cpu,
+        "estimate_cpu_this_machine_s": mach_cpu,
+        "estimate_cpu_ratio_2_over_1": mach_cpu[2] / mach_cpu[1],
+        "estimate_process_cpu_this_machine_s": mach_proc,
+        "estimate_process_cpu_ratio_2_over_1": mach_proc[2] / mach_proc[1],
         "estimate_cpu_speedup_100_vs_1": est_cpu[1] / est_cpu[100],
+        "estimate_cpu_speedup_100_vs_1_one_part": est_cpu[1] / est_cpu["100 (1 part)"],
         "machine": {"cpus": os.cpu_count(), "load_avg": os.getloadavg()},
     }
+    load = os.getloadavg()
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out + ".json").write_text(json.dumps(summary, indent=1) + "\n")
     md = [
@@ -174,7 +206,8 @@ def main(argv=None) -> int:
         f"cmlt, camera_pan, {n_frames} frames, {w}x{h}, spp {args.spp}, {args.chains} chains, "
         f"bootstrap {args.bootstrap_samples}; LocalCluster workers of 1 thread; the one-process "
         f"run with 2 threads. Median of {args.repeats} interleaved runs; load average at the "
-        f"end {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (shared machine).", "",
+        f"end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1 / 5 / 15 min) on "
+        f"{os.cpu_count()} cores (shared machine).", "",
         "| run | wall s (median) | runs |", "|---|---|---|"]
     for k in ("one process", "1 worker", "2 workers"):
         md.append(f"| {k} | {med[k]:.1f} | {', '.join(f'{v:.1f}' for v in walls[k])} |")
@@ -183,28 +216,39 @@ def main(argv=None) -> int:
            f"2 workers / one process: {summary['ratio_2_workers_over_one_process']:.2f}x. "
            f"Dask images bit-identical to the one-process run: **{identical}**.", "",
            "Per frame (2 workers, mean): "
-           f"{d2['tasks']:.0f} tasks, {d2['bytes_to_workers'] / 1e3:.1f} kB to the workers "
-           f"(the shared inputs once per worker + the task specs), "
-           f"{d2['bytes_from_workers'] / 1e3:.1f} kB back (splat words, accumulators, rows); "
-           f"client serial {serial:.3f} s of a {frame_wall2:.3f} s frame; tasks "
-           f"{d2['part_task_s']:.3f} worker-s (of it core render {d2['part_render_s']:.3f} s, "
-           f"scene update {d2['part_scene_s']:.3f} s); scatter {d2['scatter_s'] * 1e3:.1f} ms, "
-           f"combine {d2['combine_s'] * 1e3:.1f} ms.", "",
-           f"Per-task costs: no-op round trip {latency * 1e3:.2f} ms; fixed cost of a part "
-           f"{fixed * 1e3:.1f} ms (growth of the tasks' worker time from "
-           f"{d1['tasks']:.0f} to {d2['tasks']:.0f} parts per frame); combine "
-           f"{combine_per_part * 1e3:.2f} ms per part.", "",
-           "Estimated frame time T(N) = S + (P + F(2N-2))/N + L + 2N C "
-           "(module doc): " + ", ".join(f"N={n}: {v:.3f} s" for n, v in est.items()) +
-           f"; 100 workers vs 1: {summary['estimate_speedup_100_vs_1']:.1f}x, bounded by the "
-           f"client's serial {serial:.3f} s per frame.", "",
-           "The same model on CPU seconds (the other load on this shared machine does not "
-           f"enter): client {cpu_client:.3f} CPU-s per frame, workers {cpu1:.3f} / "
-           f"{cpu2:.3f} CPU-s per frame at {d1['tasks']:.0f} / {d2['tasks']:.0f} tasks "
-           f"(fixed {fixed_cpu * 1e3:.1f} ms per task): "
+           f"{d2['tasks']:.0f} tasks ({d2['parts']:.0f} parts and the preparation; "
+           f"{ahead} of {n_frames} frames submitted ahead), "
+           f"{d2['bytes_to_workers'] / 1e3:.1f} kB to the workers (the preparation to the "
+           f"workers of the parts + the task specs), {d2['bytes_from_workers'] / 1e3:.1f} kB "
+           f"back (splat words, accumulators, rows, the preparation); frame {frame_wall2:.3f} s "
+           f"wall; preparation {d2['prepare_task_s']:.3f} s ({d2['prepare_cpu_s']:.3f} CPU-s); "
+           f"parts {d2['part_task_s']:.3f} worker-s (core render {d2['part_render_s']:.3f} s, "
+           f"scene update {d2['part_scene_s']:.3f} s; {d2['part_cpu_s']:.3f} CPU-s); the client "
+           f"waited {d2['wait_s']:.3f} s for them; combine {d2['combine_s'] * 1e3:.1f} ms.", "",
+           f"Per-task costs: no-op round trip {latency * 1e3:.2f} ms, of it "
+           f"{client_per_task * 1e3:.2f} ms CPU on the client (with its scheduler); fixed cost "
+           f"of a part {fixed_cpu * 1e3:.1f} ms CPU ({fixed * 1e3:.1f} ms wall: growth of the "
+           f"parts' worker time from {d1['parts']:.0f} to {d2['parts']:.0f} parts per frame).",
+           "",
+           "CPU-seconds model (module doc; the other load on this shared machine does not "
+           f"enter): client {cpu_client['1 worker']:.3f} / {cpu_client['2 workers']:.3f} CPU-s "
+           f"per frame with 1 / 2 workers, preparation {d1['prepare_thread_cpu_s']:.3f}, parts "
+           f"{d1['part_thread_cpu_s']:.3f} / {d2['part_thread_cpu_s']:.3f} CPU-s per frame at "
+           f"{d1['parts']:.0f} / {d2['parts']:.0f} parts (the tasks' threads; the worker "
+           f"processes' CPU during the parts: {d1['part_cpu_s']:.3f} / {d2['part_cpu_s']:.3f} "
+           f"CPU-s). On 2 idle cores: 1 worker "
+           f"{mach_cpu[1]:.3f} s, 2 workers {mach_cpu[2]:.3f} s per frame: "
+           f"**{mach_cpu[2] / mach_cpu[1]:.2f}x** (with the worker processes' CPU: "
+           f"{mach_proc[2] / mach_proc[1]:.2f}x). On a cluster: "
            + ", ".join(f"N={n}: {v:.3f} s" for n, v in est_cpu.items())
-           + f"; 2 workers / 1 worker on idle cores: {est_cpu[2] / est_cpu[1]:.2f}x; "
-           f"100 workers vs 1: {est_cpu[1] / est_cpu[100]:.1f}x.", ""]
+           + f"; 100 workers vs 1: {est_cpu[1] / est_cpu[100]:.1f}x with 100 parts per frame, "
+           f"{est_cpu[1] / est_cpu['100 (1 part)']:.1f}x with one part per frame and frames "
+           "side by side (--dask-parts 1).", "",
+           "The same on the tasks' wall seconds: "
+           + ", ".join(f"N={n}: {v:.3f} s" for n, v in est.items())
+           + f"; 100 workers vs 1: {summary['estimate_speedup_100_vs_1']:.1f}x "
+           f"({summary['estimate_speedup_100_vs_1_one_part']:.1f}x with one part per frame).",
+           ""]
     Path(args.out + ".md").write_text("\n".join(md))
     print("\n".join(md))
     for c in clients.values():

@@ -1,33 +1,45 @@
 """Frames split into Dask tasks (``cmlt render --dask SCHEDULER``; DESIGN.md §6).
 
-What runs where, per frame:
+What runs where, per frame (the workers' side is :mod:`cmlt.shot.dask_worker`):
 
 * **client** (the process running the frame loop): reads the frame from the stage,
-  runs the temporal driver's ``prepare`` (the pilot image of the pixel importance,
-  the carry-over bootstrap, the coupling of the chain starts to the previous
-  frame's), then, once the parts are back, combines them, normalises (the
-  smoothed b), writes the frame atomically and keeps the state for the next frame.
-  That state is small (the bootstrap's f*, the start picks, anchors, the b
-  history): the frames of a cmlt sequence depend on each other only through it, and
-  it never leaves the client.
-* **workers**: one task per part of the frame. A task opens the stage itself (the
-  shot's path is shipped, never geometry; a worker keeps the stage and the built
-  core scene between tasks and only sends the core what changed), renders its part
-  and returns raw sums:
+  submits its tasks, and once its parts are back combines them, normalises (the
+  smoothed b, which needs the b history of every frame before), writes the frame
+  atomically and keeps the state for the next frame, as without Dask.
+* **workers**: per frame of pssmlt / cmlt, one *preparation* task — the temporal
+  driver's :func:`cmlt.temporal.driver.prepare_frame`: the pilot image of the pixel
+  importance, the screen anchors and film offset, the carry-over bootstrap and the
+  chain starts coupled to the previous frame's — and one task per *part*. A frame's
+  preparation takes the previous frame's preparation as its input (its f*, starts and
+  anchors: what the next frame needs of a frame, never its image), so the
+  preparations are a task chain from frame to frame; the first frame's comes from the
+  client's state (the frame before in memory, or ``--state-dir``). A task opens the
+  stage itself (the shot's path is shipped, never geometry; a worker keeps the stage
+  and the built scenes of its last two frames and only sends the core what changed).
+  The parts return raw sums:
 
   - pssmlt / cmlt: chains [c0, c1) of the frame's chains and the direct pass on rows
-    [y0, y1); the result is the splat film's 128-bit fixed-point words and the
-    normalisation accumulators of the bootstrap and of each chain. The client adds
-    the words (integer adds: exact, in any order), merges the accumulators in chain
-    order and develops the image in the core (``combine_mlt_parts``): bit for bit
-    the single-process frame, for any number of parts or workers;
+    [y0, y1), with the frame's preparation as their shared input; the result is the
+    splat film's 128-bit fixed-point words and the normalisation accumulators of the
+    bootstrap and of each chain. The client adds the words (integer adds: exact, in
+    any order), merges the accumulators in chain order and develops the image in the
+    core (``combine_mlt_parts``): bit for bit the single-process frame, for any number
+    of parts or workers;
   - pt: rows [y0, y1) (a pixel's samples never leave its row band);
   - bdpt: the whole frame in one task (its light-tracing splats reach every pixel of
-    a pass, so a pass does not split without moving W·H values per pass).
+    a pass, so a pass does not split without moving W·H values per pass); frames
+    still run side by side, one per worker.
 
-  The frame's shared inputs (pilot, bootstrap f*, chain starts) are scattered to the
-  workers once per frame. A task is a pure function of its inputs, so when a worker
-  dies Dask reruns its tasks elsewhere and the image is unchanged.
+* **pipelining**: while frame f renders, the tasks of the next frames are submitted
+  (``AHEAD`` of them, more when a frame has fewer parts than there are workers), each
+  when it follows the one before in the loop and the settings match (else a frame's
+  tasks are submitted when it comes). Priorities keep the order: a
+  frame's parts before the next frame's, and a frame's preparation before the parts
+  of the frame before it, so the workers render frame f+1 while the client combines
+  and writes frame f, and the preparation chain never waits behind parts.
+
+A task is a pure function of its inputs, so when a worker dies Dask reruns what it
+lost (a lost preparation from the one before it) and the images are unchanged.
 
 Time budgets are refused (a timed frame depends on the machine, and its parts would
 end at different points).
@@ -35,13 +47,15 @@ end at different points).
 from __future__ import annotations
 
 import os
-import threading
 import time
 import uuid
 from types import SimpleNamespace
 from typing import Any, Dict, List, Optional
 
 import numpy as np
+
+from ..temporal.driver import carry_of
+from .dask_worker import open_shot, prepare_task, render_part
 
 __all__ = ["connect", "DaskRenderer", "DistributedError", "part_ranges"]
 
@@ -81,106 +95,6 @@ def part_ranges(n: int, parts: int) -> List[tuple]:
     return [(n * k // parts, n * (k + 1) // parts) for k in range(parts)]
 
 
-# ---- the worker side ------------------------------------------------------------------
-
-_WORKER: Dict[str, Any] = {}
-_WORKER_LOCK = threading.Lock()
-
-
-def _worker_stage(shot: str, stage_options: Optional[dict] = None) -> dict:
-    """This worker's cache of ``shot``: the stage, opened once (with the client's
-    ``stage_options``: variants, render settings prim), and its scene bridge."""
-    import cmlt._core as core
-
-    from ..usd import open_stage
-    from .bridge import SceneBridge
-
-    so = stage_options or {}
-    variants = tuple(so.get("variants") or ())
-    render_settings = so.get("render_settings")
-    ident = (shot, variants, render_settings)
-    c = _WORKER.get("shot")
-    if c is None or c["ident"] != ident:
-        c = {"shot": shot, "ident": ident, "bridge": SceneBridge(core), "key": None,
-             "stage": open_stage(shot, variants=variants, render_settings=render_settings)}
-        _WORKER["shot"] = c
-    return c
-
-
-def open_shot(shot: str, stage_options: Optional[dict] = None) -> bool:
-    """Open ``shot`` on this worker ahead of its first task (DaskRenderer.warm)."""
-    with _WORKER_LOCK:
-        _worker_stage(shot, stage_options)
-    return True
-
-
-def _worker_scene(shot: str, frame: float, camera, resolution,
-                  stage_options: Optional[dict] = None):
-    """(core, scene) of ``frame`` on this worker: the stage opened once per shot, the
-    core scene updated with what changed since the worker's previous frame."""
-    import cmlt._core as core
-
-    from ..usd import load_frame
-
-    so = stage_options or {}
-    c = _worker_stage(shot, so)
-    key = (float(frame), camera, tuple(resolution) if resolution else None)
-    if c["key"] != key:
-        c["key"] = None
-        fs = load_frame(c["stage"], frame, camera=camera, resolution=resolution,
-                        default_light=so.get("default_light") or "dome",
-                        purposes=tuple(so["purposes"]) if so.get("purposes") else None)
-        c["scene"] = c["bridge"].update(fs)
-        c["key"] = key
-    return core, c["scene"]
-
-
-def render_part(spec: dict, shared: dict) -> dict:
-    """One task: render the part ``spec`` of a frame (see the module doc) with the
-    frame's ``shared`` inputs; returns its image rows / raw sums and stats. A pure
-    function of (spec, shared)."""
-    with _WORKER_LOCK:                   # one render per worker process at a time
-        t0, c0 = time.perf_counter(), time.process_time()
-        core, scene = _worker_scene(spec["shot"], spec["frame"], spec["camera"],
-                                    spec["resolution"], spec.get("stage_options"))
-        t_scene = time.perf_counter() - t0
-        st = core.RenderSettings()
-        for name, value in spec["settings"].items():
-            setattr(st, name, value)
-        threads = int(spec.get("threads") or 0)
-        if threads <= 0:
-            try:
-                from distributed import get_worker
-                threads = int(get_worker().state.nthreads)
-            except Exception:            # not on a worker (tests call it directly)
-                threads = 1
-        st.threads = threads
-        st.mlt_film_offset_x, st.mlt_film_offset_y = spec["film_offset"]
-        if shared.get("pilot") is not None:
-            st.pilot = shared["pilot"]
-        if shared.get("bootstrap_f") is not None:
-            st.mlt_bootstrap_f = shared["bootstrap_f"]
-        if shared.get("initial_states") is not None:
-            st.mlt_initial_states = core.MltStates.from_bytes(shared["initial_states"])
-        rows, chains = spec.get("rows"), spec.get("chains")
-        if rows is not None:
-            st.partial = True
-            st.part_row_begin, st.part_row_end = rows
-            st.part_chain_begin, st.part_chain_end = chains if chains is not None else (0, 0)
-        r = core.render(scene, st)
-        y0, y1 = rows if rows is not None else (0, st.height)
-        out = {"stats": dict(r.stats), "rows": (y0, y1),
-               "image": np.asarray(r.image)[y0:y1].copy(),
-               "variance": np.asarray(r.variance)[y0:y1].copy(),
-               "direct": None if r.direct is None else np.asarray(r.direct)[y0:y1].copy(),
-               "part": r.mlt_part, "bootstrap_f": None}
-        if r.bootstrap_f is not None and spec.get("want_bootstrap_f"):
-            out["bootstrap_f"] = np.asarray(r.bootstrap_f)
-        # seconds: scene update, whole task (wall), whole task (CPU of the worker process)
-        out["times"] = (t_scene, time.perf_counter() - t0, time.process_time() - c0)
-        return out
-
-
 # ---- the client side ------------------------------------------------------------------
 
 #: RenderResult.stats entries that add up over the parts of a frame
@@ -197,17 +111,36 @@ def _scheduler_address(client) -> str:
         return ""
 
 
+def _static(settings: dict) -> str:
+    """What must match for tasks submitted ahead to be a frame's: its settings but the
+    seed (the preparation sets it per frame)."""
+    return repr(sorted((k, v) for k, v in settings.items() if k != "seed"))
+
+
 def _nbytes(obj) -> int:
-    from dask.sizeof import sizeof
-    return int(sizeof(obj))
+    """Bytes of ``obj`` pickled (as Dask sends it: an object referenced twice once)."""
+    import pickle
+    return len(pickle.dumps(obj, protocol=5))
+
+
+#: frames whose tasks are submitted while a frame renders (the workers start the next
+#: frames' preparations and parts while the client combines and writes this one): at
+#: least AHEAD, and enough to give every worker two parts (fewer parts per frame than
+#: workers: frames side by side), at most AHEAD_MAX
+AHEAD, AHEAD_MAX = 2, 64
 
 
 class DaskRenderer:
-    """Renders the frames of one shot on a Dask cluster, part by part.
+    """Renders the frames of one shot on a Dask cluster, part by part, one frame ahead.
 
-    ``parts``: tasks per frame (0: twice the number of workers). ``on_part``: called on
+    ``parts``: part tasks per frame (0: one per worker). ``on_part``: called on
     the client as ``on_part(done, total, futures)`` after each part arrives (the
-    progress bar; tests use it to kill a worker mid-frame)."""
+    progress bar; tests use it to kill a worker mid-frame).
+
+    Per frame the client calls :meth:`prepare` (submits the frame's tasks unless they
+    were submitted ahead, submits the next frame's, and returns the temporal record of
+    the frame's preparation) and then :meth:`render` (waits for the parts and combines
+    them). :meth:`plan` tells it which frame follows which in the loop."""
 
     def __init__(self, client, shot: str, camera=None, resolution=None, parts: int = 0,
                  threads: int = 0, on_part=None, address: str = "",
@@ -225,6 +158,10 @@ class DaskRenderer:
         self.stage_options = dict(stage_options or {})
         self._fields = None
         self.warm_s = 0.0
+        self._next: Dict[float, float] = {}     # frame -> the frame rendered after it
+        self._ahead: Dict[float, dict] = {}     # frame -> its submitted tasks
+        self._frame: Optional[dict] = None      # the frame being rendered
+        self._submitted = 0                     # frames submitted so far
 
     def warm(self) -> float:
         """Open the stage on every worker now (imports, USD composition), so that the
@@ -238,62 +175,128 @@ class DaskRenderer:
     def workers(self) -> int:
         return max(1, len(self.client.scheduler_info().get("workers", {})))
 
+    def plan(self, frames: List[float], predecessor: Dict[float, float]) -> None:
+        """The frames the loop renders, in order: a frame whose predecessor (the frame
+        its carried state comes from) is the one rendered just before it is submitted
+        while that one renders."""
+        self._next = {f: n for f, n in zip(frames, frames[1:]) if predecessor.get(n) == f}
+
+    def close(self) -> None:
+        """Cancel what was submitted ahead and not used (an interrupted loop)."""
+        for h in list(self._ahead.values()) + ([self._frame] if self._frame else []):
+            self._cancel(h)
+        self._ahead.clear()
+        self._frame = None
+
     def _settings_dict(self, core, st) -> dict:
         if self._fields is None:
             self._fields = [row["name"] for row in core.settings_table() if row.get("core", True)]
         return {name: getattr(st, name) for name in self._fields if hasattr(st, name)}
 
-    def render(self, core, st, frame: float, reporter=None):
-        """The frame ``frame`` with the settings ``st`` (core.RenderSettings, prepared by
-        the temporal driver): a RenderResult-like namespace (image, variance, direct,
-        bootstrap_f, cancelled, stats)."""
-        integ = str(st.integrator)
+    @staticmethod
+    def _cancel(h: dict) -> None:
+        futures = ([h["prep"]] if h.get("prep") is not None else []) + h["parts"]
+        for f in futures:
+            f.cancel()
+
+    def _submit(self, frame: float, settings: dict, temporal, prev) -> dict:
+        """Submit frame ``frame``'s tasks: for pssmlt/cmlt its preparation (from
+        ``prev``: the previous frame's preparation future, the client's carry dict or
+        None) and its parts, which take the preparation as their shared input."""
+        integ = str(settings["integrator"])
+        W, H = int(settings["width"]), int(settings["height"])
+        n_workers = self.workers()
+        n_parts = 1 if integ == "bdpt" else (self.parts or n_workers)
+        n_parts = max(1, min(n_parts, H))
+        mlt = integ in ("pssmlt", "cmlt")
+        config = temporal.config()
+        settings = dict(settings)
+        if not mlt:                     # the seed is all a pt/bdpt frame's preparation sets
+            from ..temporal.driver import frame_seed
+            settings["seed"] = frame_seed(config["base_seed"], frame, config["per_frame"])
+        base = {"shot": self.shot, "frame": float(frame), "camera": self.camera,
+                "resolution": self.resolution, "settings": settings,
+                "stage_options": self.stage_options, "threads": self.threads}
+        token = uuid.uuid4().hex[:8]
+        # priorities (higher first): a frame's parts before the next frame's, and a
+        # frame's preparation before the parts of the frame before it (the
+        # preparations are the chain every later frame waits for)
+        self._submitted += 1
+        order = -2 * self._submitted
+        prep = None
+        if mlt:
+            prep = self.client.submit(prepare_task, dict(base, temporal=config), prev,
+                                      pure=False, key=f"cmlt-prepare-{frame:g}-{token}",
+                                      retries=2, priority=order + 3)
+        rows = part_ranges(H, n_parts)
+        chains = part_ranges(int(settings["chains"]), n_parts) if mlt else [None] * n_parts
+        futures, spec_bytes = [], 0
+        for k in range(n_parts):
+            spec = dict(base, rows=None if integ == "bdpt" else rows[k], chains=chains[k],
+                        want_bootstrap_f=mlt and k == 0 and not config["carry"])
+            spec_bytes += _nbytes(spec)
+            futures.append(self.client.submit(render_part, spec, prep, pure=False,
+                                              key=f"cmlt-part-{frame:g}-{k}-{token}",
+                                              retries=2, priority=order))
+        return {"frame": float(frame), "key": _static(settings), "integ": integ, "W": W,
+                "H": H, "mlt": mlt, "prep": prep, "parts": futures, "n_parts": n_parts,
+                "n_workers": n_workers, "spec_bytes": spec_bytes, "prep_out": None,
+                "t0": time.perf_counter()}
+
+    def prepare(self, core, temporal, st, frame: float) -> dict:
+        """Before the frame ``frame`` renders with ``st`` (core.RenderSettings, its
+        size set): its tasks (submitted ahead, if they were submitted with these
+        settings; else now, from the temporal driver's state), the next frame's, and
+        the frame's preparation adopted by the driver. Returns its temporal record."""
         if float(st.time_budget) > 0.0:
             raise DistributedError("--dask: a time budget (--time-budget) is not supported: "
                                    "a timed frame depends on the machine; give --spp")
-        W, H = int(st.width), int(st.height)
-        n_workers = self.workers()
-        n_parts = self.parts or 2 * n_workers
-        if integ == "bdpt":
-            n_parts = 1
-        n_parts = max(1, min(n_parts, H))
-        mlt = integ in ("pssmlt", "cmlt")
-        t0 = time.perf_counter()
-
-        # the frame's shared inputs, once per worker
-        pilot = getattr(st, "pilot", None) if mlt else None
-        boot = getattr(st, "mlt_bootstrap_f", None) if mlt else None
-        states = getattr(st, "mlt_initial_states", None) if mlt else None
-        shared = {"pilot": None if pilot is None else np.asarray(pilot, dtype=np.float32),
-                  "bootstrap_f": None if boot is None else np.asarray(boot, dtype=np.float64),
-                  "initial_states": None if states is None else bytes(states.to_bytes())}
-        shared_bytes = _nbytes(shared)
-        t_scatter = time.perf_counter()
-        shared_f = self.client.scatter(shared, broadcast=True, hash=False)
-
-        t_scatter = time.perf_counter() - t_scatter
         settings = self._settings_dict(core, st)
-        rows = part_ranges(H, n_parts)
-        chains = part_ranges(int(st.chains), n_parts) if mlt else [None] * n_parts
-        token = uuid.uuid4().hex[:8]
-        futures, spec_bytes = [], 0
-        for k in range(n_parts):
-            spec = {"shot": self.shot, "frame": float(frame), "camera": self.camera,
-                    "resolution": self.resolution, "settings": settings,
-                    "stage_options": self.stage_options,
-                    "threads": self.threads,
-                    "film_offset": (float(getattr(st, "mlt_film_offset_x", 0.0)),
-                                    float(getattr(st, "mlt_film_offset_y", 0.0))),
-                    "rows": None if integ == "bdpt" else rows[k], "chains": chains[k],
-                    "want_bootstrap_f": k == 0 and boot is None}
-            spec_bytes += _nbytes(spec)
-            futures.append(self.client.submit(render_part, spec, shared_f, pure=False,
-                                              key=f"cmlt-part-{frame:g}-{k}-{token}",
-                                              retries=2))
+        t0 = time.perf_counter()
+        h = self._ahead.pop(float(frame), None)
+        if h is not None and h["key"] != _static(settings):
+            self._cancel(h)             # submitted with other settings: not this frame's
+            h = None
+        if h is None:
+            prev = {"carry": carry_of(temporal.prev)} if temporal.prev is not None else None
+            h = self._submit(frame, settings, temporal, prev)
+        else:
+            h["ahead"] = True
+        h["t0"] = t0
+        self._frame = h
+        # the next AHEAD frames' tasks, each preparation from the one before
+        f, prep = float(frame), h["prep"]
+        ahead = min(AHEAD_MAX, max(AHEAD, -(-2 * h["n_workers"] // h["n_parts"])))
+        for _ in range(ahead):
+            f = self._next.get(f)
+            if f is None:
+                break
+            if f not in self._ahead:
+                self._ahead[f] = self._submit(f, settings, temporal, prep)
+            prep = self._ahead[f]["prep"]
+        if not h["mlt"]:
+            return temporal.prepare(None, st, frame)
+        try:
+            out = h["prep"].result()     # a task's error raises here, once
+        except BaseException:
+            self.close()
+            raise
+        h["prep_out"] = out
+        return temporal.adopt(st, dict(out["rec"]), dict(out["pending"]))
+
+    def render(self, core, st, frame: float, reporter=None):
+        """The frame ``frame`` (after :meth:`prepare`): a RenderResult-like namespace
+        (image, variance, direct, bootstrap_f, cancelled, stats)."""
+        h = self._frame
+        if h is None or h["frame"] != float(frame):
+            raise DistributedError(f"--dask: frame {frame:g} rendered before it was prepared")
+        integ, W, H, n_parts = h["integ"], h["W"], h["H"], h["n_parts"]
+        futures = h["parts"]
         results: List[Optional[dict]] = [None] * n_parts
         index = {f.key: k for k, f in enumerate(futures)}
         from distributed import as_completed
         done = 0
+        t_wait = time.perf_counter()
         try:
             for fut in as_completed(futures):
                 results[index[fut.key]] = fut.result()   # a task's error raises here, once
@@ -303,34 +306,46 @@ class DaskRenderer:
                 if self.on_part is not None:
                     self.on_part(done, n_parts, futures)
         except BaseException:
-            for f in futures:
-                f.cancel()
+            self.close()
             raise
-        finally:
-            shared_f.release() if hasattr(shared_f, "release") else None
-        result_bytes = sum(_nbytes(r) for r in results)
-        t_wait = time.perf_counter()
+        self._frame = None
+        t_combine = time.perf_counter()
+        t_wait = t_combine - t_wait
+        prep = h["prep_out"] or {}
+        shared = prep.get("st") or {}
+        boot = shared.get("bootstrap_f")
         out = self._combine(core, integ, W, H, results, boot)
-        t_combine = time.perf_counter() - t_wait
-        t_wait -= t0
-        out.stats["time_s"] = time.perf_counter() - t0
+        t_combine = time.perf_counter() - t_combine
+        result_bytes = sum(_nbytes(r) for r in results)
+        shared_bytes = _nbytes(prep) if prep else 0
+        # the preparation moves to each other worker that ran a part of the frame
+        moved = len({r.get("worker") for r in results} - {prep.get("worker")}) if prep else 0
+        out.stats["time_s"] = time.perf_counter() - h["t0"]
         out.stats["rays_per_s"] = out.stats.get("rays", 0) / max(out.stats["time_s"], 1e-9)
+        ptimes = prep.get("times") or (0.0, 0.0, 0.0)
         out.stats["dask"] = {
             "scheduler": self.address or _scheduler_address(self.client),
-            "workers": n_workers, "tasks": n_parts,
-            "bytes_to_workers": int(shared_bytes * n_workers + spec_bytes),
-            "bytes_from_workers": int(result_bytes),
-            "split": "chains+rows" if mlt else ("rows" if integ == "pt" else "frame"),
-            # seconds: on the client (scatter of the shared inputs, until the last part
-            # arrived, the combine), summed over the tasks (core render, whole task
-            # including the worker's scene update, of it the scene update, the whole
-            # task's CPU seconds)
+            "workers": h["n_workers"], "tasks": n_parts + (1 if h["mlt"] else 0),
+            "parts": n_parts, "submitted_ahead": bool(h.get("ahead")),
+            # the preparation to the other workers of its parts, the specs to their
+            # tasks; the parts and the preparation come back to the client
+            "bytes_to_workers": int(shared_bytes * moved + h["spec_bytes"]),
+            "bytes_from_workers": int(result_bytes + shared_bytes),
+            "split": "chains+rows" if h["mlt"] else ("rows" if integ == "pt" else "frame"),
+            # seconds: on the client (waiting for the preparation and the parts, the
+            # combine), on the workers (the preparation's task; summed over the parts:
+            # core render, whole task including the worker's scene update, of it the
+            # scene update, the whole task's CPU seconds: of the worker process, and of
+            # the task's thread)
             "warmup_s": self.warm_s,         # once per sequence: DaskRenderer.warm
-            "scatter_s": t_scatter, "wait_s": t_wait, "combine_s": t_combine,
+            "wait_s": t_wait, "combine_s": t_combine,
+            "prepare_task_s": float(ptimes[0]), "prepare_cpu_s": float(ptimes[1]),
+            "prepare_thread_cpu_s": float(ptimes[2]),
             "part_render_s": sum(float(r["stats"].get("time_s", 0.0)) for r in results),
             "part_task_s": sum(r["times"][1] for r in results),
             "part_scene_s": sum(r["times"][0] for r in results),
-            "part_cpu_s": sum(r["times"][2] for r in results)}
+            "part_cpu_s": sum(r["times"][2] for r in results),
+            "part_thread_cpu_s": sum(r["times"][3] for r in results)}
         return out
 
     @staticmethod

@@ -171,9 +171,14 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     core, resolved = job.core, job.resolved
     _check_chains(job)
     try:
-        trec = job.temporal.prepare(scene, job.st, frame)
+        if job.distributed is not None:     # on the workers, maybe submitted ahead
+            trec = job.distributed.prepare(core, job.temporal, job.st, frame)
+        else:
+            trec = job.temporal.prepare(scene, job.st, frame)
     except core.SettingsError as exc:
         raise _settings_error(job, exc) from None
+    except core.SceneError as exc:
+        raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
     budget = getattr(job.reporter, "frame_budget", None)
     if budget is not None:          # the live rate of the frame bar
         timed = float(getattr(resolved, "time_budget", 0.0) or 0.0) > 0.0

@@ -349,7 +349,6 @@ def _close(own) -> None:
 
 def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start) -> None:
     """The frame loop of render_sequence."""
-    last_rendered = None
     with rep:
         rep.warnings(stage_warnings)
         result.warnings.extend(stage_warnings)
@@ -357,34 +356,46 @@ def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start)
             rep.info(f"resume: {len(result.skipped)} frame(s) already rendered, "
                      f"{len(todo)} to go")
         rep.start_sequence(len(todo))
-        for k, (frame, path) in enumerate(todo):
-            pred = predecessor[frame]
-            follows = last_rendered is not None and last_rendered == pred
-
-            def prepare_temporal():
-                if not follows:
-                    # not continuing in memory: the state file of the frame before, if any
-                    job.temporal.forget()
-                    note = _load_previous_state(job, pred, frame)
-                    if note:
-                        rep.info(note)
-            try:
-                rep.start_frame(frame)
-                done = render_frame(job, frame, path, prepare_temporal)
-                # flicker of the full frames in the output colour space, as `cmlt flicker`
-                # measures the EXRs (only consecutive frames of the list are paired)
-                flick.add(done["out_image"], follows=follows)
-                if done["preview"]:
-                    result.previews.append(done["preview"])
-                job.temporal.advance(done["state_bytes"],
-                                     done["state_file"] or f"<state of frame {frame:g}>")
-                last_rendered = frame
-                result.written.append(path)
-                result.stats[frame] = done["stats"]
-                result.flicker = flick.as_dict()
-                rep.end_frame(frame, path, done["stats"], done["units"])
-            except KeyboardInterrupt:
-                rep.abort_frame()
-                raise RenderCancelled(frame, result.written, len(todo) - k) from None
+        if job.distributed is not None:     # which frame's tasks go ahead of which
+            job.distributed.plan([f for f, _ in todo], predecessor)
+        try:
+            _frame_loop(job, rep, result, todo, predecessor, flick)
+        finally:
+            if job.distributed is not None:
+                job.distributed.close()
         result.elapsed_s = time.perf_counter() - t_start
         rep.end_sequence(result)
+
+
+def _frame_loop(job, rep, result, todo, predecessor, flick) -> None:
+    """Render the frames of ``todo`` in order (render_sequence's loop)."""
+    last_rendered = None
+    for k, (frame, path) in enumerate(todo):
+        pred = predecessor[frame]
+        follows = last_rendered is not None and last_rendered == pred
+
+        def prepare_temporal():
+            if not follows:
+                # not continuing in memory: the state file of the frame before, if any
+                job.temporal.forget()
+                note = _load_previous_state(job, pred, frame)
+                if note:
+                    rep.info(note)
+        try:
+            rep.start_frame(frame)
+            done = render_frame(job, frame, path, prepare_temporal)
+            # flicker of the full frames in the output colour space, as `cmlt flicker`
+            # measures the EXRs (only consecutive frames of the list are paired)
+            flick.add(done["out_image"], follows=follows)
+            if done["preview"]:
+                result.previews.append(done["preview"])
+            job.temporal.advance(done["state_bytes"],
+                                 done["state_file"] or f"<state of frame {frame:g}>")
+            last_rendered = frame
+            result.written.append(path)
+            result.stats[frame] = done["stats"]
+            result.flicker = flick.as_dict()
+            rep.end_frame(frame, path, done["stats"], done["units"])
+        except KeyboardInterrupt:
+            rep.abort_frame()
+            raise RenderCancelled(frame, result.written, len(todo) - k) from None

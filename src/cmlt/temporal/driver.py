@@ -36,7 +36,7 @@ from .normalization import NormRecord, paired_difference, update_normalization
 from .state import (FrameState, StateError, check_compatible, decode_state, encode_state,
                     read_state, settings_hash, shot_hash, state_path)
 
-__all__ = ["TemporalDriver", "frame_seed", "STATE_INTEGRATORS", "CHAIN_SETTINGS"]
+__all__ = ["TemporalDriver", "prepare_frame", "carry_of", "frame_seed", "STATE_INTEGRATORS", "CHAIN_SETTINGS"]
 
 #: integrators whose chains export / import states (RenderResult.mlt_states)
 STATE_INTEGRATORS = ("pssmlt", "cmlt")
@@ -110,6 +110,94 @@ def bootstrap_ratio(f_old, f_new) -> Optional[dict]:
     return {"mean": r, "variance": var_r * a.size, "count": int(a.size), "zero": 0}
 
 
+def carry_of(prev) -> Optional[dict]:
+    """What the next frame's :func:`prepare_frame` reads of a frame's state (a
+    FrameState or None): the screen anchors, film offset, bootstrap f* (little-endian
+    float64 bytes, or an array of them) and starts."""
+    if prev is None:
+        return None
+    return {"anchors": list(prev.anchors), "film_offset": tuple(prev.film_offset),
+            "boot_f": bytes(prev.boot_f), "start_picks": list(prev.start_picks)}
+
+
+def prepare_frame(core, scene, st, frame: float, config: dict,
+                  prev: Optional[dict]) -> Tuple[dict, dict]:
+    """The work before a frame's render (the module doc): sets the seed, pilot, film
+    offset, bootstrap f* and chain starts of ``st`` for ``frame`` from the previous
+    frame's :func:`carry_of` (or None). Returns (temporal record, pending: what
+    :meth:`TemporalDriver.finish` and the next frame need). A pure function of its
+    inputs; ``record["state_in"]`` is True when the previous state was used."""
+    per_frame, carry = bool(config["per_frame"]), bool(config["carry"])
+    st.seed = frame_seed(int(config["base_seed"]), frame, per_frame)
+    if hasattr(st, "mlt_initial_states"):
+        st.mlt_initial_states = None
+        st.mlt_bootstrap_f = None
+        st.mlt_film_offset_x = st.mlt_film_offset_y = 0.0
+    rec = {"seed": int(st.seed), "seed_per_frame": per_frame,
+           "carry_states": carry, "smooth_normalization": bool(config["smooth"]),
+           "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
+    pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
+               "anchors": []}
+    if config["integrator"] in MLT_INTEGRATORS and hasattr(st, "pilot"):
+        # the pixel importance's pilot, rendered once for the render and for the
+        # carry-over evaluations below (f* must be the same function in all of them)
+        st.pilot = None
+        if str(getattr(st, "importance", "luminance")) == "pixel":
+            st.pilot = core.render_pilot(scene, st)
+    if not carry:
+        return rec, pending
+    prev_ok = prev is not None and not per_frame
+    # the chains' film offset follows the image's screen motion (camera, moving
+    # geometry): a start kept from the previous frame then lands on the same surface
+    offset = (0.0, 0.0)
+    if REPROJECT and prev_ok and prev["anchors"]:
+        dx, dy = film_shift(prev["anchors"],
+                            core.temporal_project_anchors(scene, st, prev["anchors"]),
+                            st.width, st.height)
+        offset = ((prev["film_offset"][0] + dx) % 1.0, (prev["film_offset"][1] + dy) % 1.0)
+    st.mlt_film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
+    st.mlt_film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
+    pending["film_offset"] = (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))
+    pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
+    n_boot = int(core.temporal_bootstrap_count(st))
+    t0 = time.perf_counter()
+    boot, traced = core.temporal_bootstrap_states(scene, st, n_boot)
+    f_new = list(core.temporal_f_star(boot))
+    # the render counts these evaluations in its budget but not their rays (as the
+    # pilot's): the record says what the frame loop traced for them
+    rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0)
+    # the render uses these values for b and does not evaluate the points again
+    st.mlt_bootstrap_f = f_new
+    pending["boot_f"] = f_new
+    f_old: List[float] = []
+    prev_picks: List[int] = []
+    if prev_ok and len(prev["boot_f"]) and prev["start_picks"]:
+        f_old = list(np.frombuffer(prev["boot_f"], dtype="<f8"))
+        if len(f_old) == n_boot:
+            prev_picks = list(prev["start_picks"])
+        else:
+            f_old = []
+    # as many starts as the render runs chains (never the requested count itself:
+    # a --chains the budget cannot feed must not allocate that many starts)
+    n_chains = int(core.temporal_chain_count(st))
+    c = core.temporal_couple_starts(f_old, f_new, prev_picks, n_chains,
+                                    int(config["base_seed"]), frame_key(frame))
+    picks = list(c["picks"])
+    if picks:
+        st.mlt_initial_states = core.temporal_gather_states(boot, boot, picks, 0)
+    pending["picks"] = picks
+    if f_old:
+        pending["ratio"] = bootstrap_ratio(f_old, f_new)
+    rec.update(state_in=True if prev_picks else None,
+               carried_chains=int(c["kept"]), refreshed_chains=int(c["refreshed"]),
+               fresh_chains=int(c["fresh"]),
+               start_tv=float(c["tv"]) if prev_picks else None,
+               film_offset=list(pending["film_offset"]))
+    if pending["ratio"] is not None:
+        rec["ratio_mean"] = float(pending["ratio"]["mean"])
+    return rec, pending
+
+
 class TemporalDriver:
     """State carried from frame to frame of one job. ``settings``: the
     resolved :class:`cmlt.settings.RenderSettings`."""
@@ -170,74 +258,23 @@ class TemporalDriver:
     def prepare(self, scene, st, frame: float) -> dict:
         """Set the seed and the chain starts of ``st`` (core.RenderSettings)
         for ``frame``; returns the temporal record so far."""
-        core = self.core
-        st.seed = frame_seed(self.base_seed, frame, self.per_frame)
-        if hasattr(st, "mlt_initial_states"):
-            st.mlt_initial_states = None
-            st.mlt_bootstrap_f = None
-            st.mlt_film_offset_x = st.mlt_film_offset_y = 0.0
-        rec = {"seed": int(st.seed), "seed_per_frame": self.per_frame,
-               "carry_states": self.carry, "smooth_normalization": self.smooth,
-               "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
-        self._pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
-                         "anchors": []}
-        if self.integrator in MLT_INTEGRATORS and hasattr(st, "pilot"):
-            # the pixel importance's pilot, rendered once for the render and for the
-            # carry-over evaluations below (f* must be the same function in all of them)
-            st.pilot = None
-            if str(getattr(st, "importance", "luminance")) == "pixel":
-                st.pilot = core.render_pilot(scene, st)
-        if not self.carry:
-            return rec
-        prev = self.prev
-        prev_ok = prev is not None and not self.per_frame
-        # the chains' film offset follows the image's screen motion (camera, moving
-        # geometry): a start kept from the previous frame then lands on the same surface
-        offset = (0.0, 0.0)
-        if REPROJECT and prev_ok and prev.anchors:
-            dx, dy = film_shift(prev.anchors, core.temporal_project_anchors(scene, st, prev.anchors),
-                                st.width, st.height)
-            offset = ((prev.film_offset[0] + dx) % 1.0, (prev.film_offset[1] + dy) % 1.0)
-        st.mlt_film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
-        st.mlt_film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
-        self._pending["film_offset"] = (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))
-        self._pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
-        n_boot = int(core.temporal_bootstrap_count(st))
-        t0 = time.perf_counter()
-        boot, traced = core.temporal_bootstrap_states(scene, st, n_boot)
-        f_new = list(core.temporal_f_star(boot))
-        # the render counts these evaluations in its budget but not their rays (as the
-        # pilot's): the record says what the frame loop traced for them
-        rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0)
-        # the render uses these values for b and does not evaluate the points again
-        st.mlt_bootstrap_f = f_new
-        self._pending["boot_f"] = f_new
-        f_old: List[float] = []
-        prev_picks: List[int] = []
-        if prev_ok and prev.boot_f and prev.start_picks:
-            f_old = list(np.frombuffer(prev.boot_f, dtype="<f8"))
-            if len(f_old) == n_boot:
-                prev_picks = list(prev.start_picks)
-            else:
-                f_old = []
-        # as many starts as the render runs chains (never the requested count itself:
-        # a --chains the budget cannot feed must not allocate that many starts)
-        n_chains = int(core.temporal_chain_count(st))
-        c = core.temporal_couple_starts(f_old, f_new, prev_picks, n_chains,
-                                        self.base_seed, frame_key(frame))
-        picks = list(c["picks"])
-        if picks:
-            st.mlt_initial_states = core.temporal_gather_states(boot, boot, picks, 0)
-        self._pending["picks"] = picks
-        if f_old:
-            self._pending["ratio"] = bootstrap_ratio(f_old, f_new)
-        rec.update(state_in=self.prev_source if prev_picks else None,
-                   carried_chains=int(c["kept"]), refreshed_chains=int(c["refreshed"]),
-                   fresh_chains=int(c["fresh"]),
-                   start_tv=float(c["tv"]) if prev_picks else None,
-                   film_offset=list(self._pending["film_offset"]))
-        if self._pending["ratio"] is not None:
-            rec["ratio_mean"] = float(self._pending["ratio"]["mean"])
+        rec, pending = prepare_frame(self.core, scene, st, frame, self.config(),
+                                     carry_of(self.prev))
+        return self.adopt(st, rec, pending)
+
+    def config(self) -> dict:
+        """What :func:`prepare_frame` needs of this driver (picklable: a Dask task
+        prepares a frame on a worker, cmlt.shot.distributed)."""
+        return {"base_seed": self.base_seed, "per_frame": self.per_frame, "carry": self.carry,
+                "smooth": self.smooth, "integrator": self.integrator}
+
+    def adopt(self, st, rec: dict, pending: dict) -> dict:
+        """Take the result of :func:`prepare_frame` for the frame about to render
+        (made here, or on a Dask worker from the same inputs); returns the record."""
+        st.seed = int(rec["seed"])
+        self._pending = pending
+        if rec.get("state_in") is not None:
+            rec["state_in"] = self.prev_source
         return rec
 
     def finish(self, result, stats: dict, image: np.ndarray, frame: float,

@@ -24,6 +24,7 @@ from cmlt.metrics import load_image
 from cmlt.shot import RenderOptions, UsageError, render_sequence
 from cmlt.shot.bridge import SceneBridge
 from cmlt.shot.distributed import part_ranges
+from cmlt.temporal.state import state_path
 import support
 from support.scenes import cornell_scene
 
@@ -136,13 +137,19 @@ def test04_cmlt_sequence_on_two_workers_is_bit_identical(tmp_path, client):
     ref = [json.load(open(p + ".json")) for p in one.written]
     for s, r in zip(side, ref):
         d = s["stats"]["dask"]
-        assert d["workers"] == 2 and d["tasks"] == 4 and d["split"] == "chains+rows"
+        # one part per worker and the frame's preparation
+        assert d["workers"] == 2 and d["parts"] == 2 and d["tasks"] == 3
+        assert d["split"] == "chains+rows"
         assert d["bytes_from_workers"] > 0 and d["bytes_to_workers"] > 0
         # the temporal record (carried starts, b used) is the single process's
         assert s["temporal"]["b_used"] == r["temporal"]["b_used"]
         assert s["temporal"]["carried_chains"] == r["temporal"]["carried_chains"]
         assert s["stats"]["mutations"] == r["stats"]["mutations"]
     assert side[2]["temporal"]["carried_chains"] > 0       # frames 2, 3 did carry
+    # frames 2 and 3 were submitted while the frame before rendered, their preparations
+    # chained on the workers
+    assert [s["stats"]["dask"]["submitted_ahead"] for s in side] == [False, True, True]
+    assert [s["temporal"]["state_in"] for s in side] == [r["temporal"]["state_in"] for r in ref]
 
 
 def test05_pt_frame_with_dask_local_2_flag(tmp_path, capsys):
@@ -187,3 +194,62 @@ def test06_worker_killed_mid_frame_same_image(tmp_path, client):
 def test07_time_budget_is_refused(tmp_path, client):
     with pytest.raises(UsageError, match="time budget"):
         _render(tmp_path, "t", PAN, "1", client=client, time_budget=1.0)
+
+
+def test08_worker_killed_while_frames_are_ahead_same_images(tmp_path, client):
+    # a worker dies while the next frames' preparations and parts are queued or held on
+    # it: Dask reruns what it lost (the preparations chain from frame to frame) and every
+    # image is still the one process's
+    calls, killed = [], {}
+
+    def kill_in_second_frame(done, total, futures):
+        calls.append(done)
+        if killed or len(calls) < total + 1:        # the first part of the second frame
+            return
+        pids = client.run(os.getpid)
+        w = sorted(pids)[0]
+        killed.update(worker=w, pid=pids[w])
+        os.kill(pids[w], signal.SIGKILL)
+
+    one = _render(tmp_path, "one", PAN, "1:4")
+    dask = _render(tmp_path, "dask", PAN, "1:4", client=client, on_part=kill_in_second_frame)
+    assert killed, "the second frame's first part never arrived"
+    client.wait_for_workers(2, timeout=60)
+    assert killed["pid"] not in client.run(os.getpid).values()
+    _same_images(one, dask)
+
+
+def test09_dask_continues_a_sequence_from_the_state_dir(tmp_path, client):
+    # the first frame a Dask job renders takes its carried state from --state-dir (the
+    # client's), the next ones from the preparation before them (the workers')
+    one = _render(tmp_path, "one", PAN, "1:4", state_dir=str(tmp_path / "s1"))
+    _render(tmp_path, "dask", PAN, "1:2", state_dir=str(tmp_path / "s2"))
+    rest = _render(tmp_path, "dask", PAN, "3:4", client=client, state_dir=str(tmp_path / "s2"))
+    side = [json.load(open(p + ".json")) for p in rest.written]
+    assert side[0]["temporal"]["state_in"] == os.path.abspath(state_path(str(tmp_path / "s2"), 2))
+    assert side[0]["temporal"]["carried_chains"] > 0
+    for a, b in zip(one.written[2:], rest.written):
+        assert np.array_equal(load_image(a), load_image(b)), b
+    for a, b in zip(sorted(os.listdir(tmp_path / "s1")), sorted(os.listdir(tmp_path / "s2"))):
+        assert a == b
+        assert (tmp_path / "s1" / a).read_bytes() == (tmp_path / "s2" / b).read_bytes()
+
+
+@pytest.mark.parametrize("integrator", ["pt", "bdpt"])
+def test10_pt_bdpt_sequences_pipelined_bit_identical(tmp_path, client, integrator):
+    one = _render(tmp_path, "one", PAN, "1:3", integrator=integrator)
+    dask = _render(tmp_path, "dask", PAN, "1:3", client=client, integrator=integrator)
+    _same_images(one, dask)
+    side = [json.load(open(p + ".json"))["stats"]["dask"] for p in dask.written]
+    assert [d["submitted_ahead"] for d in side] == [False, True, True]
+    assert all(d["tasks"] == (1 if integrator == "bdpt" else 2) for d in side)
+
+
+def test11_one_part_per_frame_frames_side_by_side(tmp_path, client):
+    # --dask-parts 1: each frame one part, frames in flight on both workers at once
+    one = _render(tmp_path, "one", PAN, "1:4")
+    dask = _render(tmp_path, "dask", PAN, "1:4", client=client, dask_parts=1)
+    _same_images(one, dask)
+    side = [json.load(open(p + ".json"))["stats"]["dask"] for p in dask.written]
+    assert [d["tasks"] for d in side] == [2] * 4
+    assert [d["submitted_ahead"] for d in side] == [False, True, True, True]
