@@ -23,7 +23,7 @@ from .bridge import BridgeError, SceneBridge
 from .core_settings import settings_message
 from .errors import RenderError, UsageError
 from .options import preview_path
-from .output import aov_images, header_metadata, to_output
+from .output import aov_images, header_metadata, product_channels, to_output
 from .progress import Reporter
 
 __all__ = ["ShotJob", "render_frame", "render_interruptible"]
@@ -53,6 +53,7 @@ class ShotJob:
     make_temporal: Any = None           # (width, height) -> TemporalDriver
     distributed: Any = None             # cmlt.shot.distributed.DaskRenderer (--dask), or None
     effects_cache: Any = None           # time -> FrameEffects (cmlt.shot.analyse)
+    layers: Tuple = ()                  # the render product's layers (cmlt.usd.render_products)
 
     def __post_init__(self):
         if self.bridge is None:
@@ -230,10 +231,11 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
             if state_file:
                 from ..temporal.state import write_state
                 write_state(tmp[state_file], state_bytes)
+            aovs, layout, halfs = product_channels(aovs, job.layers)
             clamped, peak = write_exr(tmp[path], out_image, half=opts.half,
                                       compression=opts.compression, colorspace=None,
                                       metadata=metadata, attributes=job.color_attrs, aovs=aovs,
-                                      crop=crop)
+                                      crop=crop, layers=layout, half_channels=halfs)
             if clamped:
                 msg = (f"--half: frame {frame:g}: {clamped} value(s) above half's largest "
                        f"finite value {HALF_MAX:g} (up to {peak:.6g}) clamped to it in {path}; "

@@ -11,7 +11,8 @@ import numpy as np
 from .._version import __version__
 from .errors import RenderError, UsageError
 
-__all__ = ["color_setup", "to_output", "aov_images", "header_metadata"]
+__all__ = ["color_setup", "to_output", "aov_images", "header_metadata", "stage_product",
+           "product_channels"]
 
 
 def color_setup(opts, stage):
@@ -52,6 +53,43 @@ def to_output(image, output_colorspace):
         return image
     from ..color import from_rendering_space
     return from_rendering_space(np.array(image, dtype=np.float32, copy=True), output_colorspace)
+
+
+def stage_product(stage, opts, out):
+    """The stage's render product (:mod:`cmlt.usd.render_products`) for this
+    render, or None: its layers choose the EXR's channels unless ``--aov`` was
+    given, its productName the output pattern unless ``out`` (``--out``) was."""
+    from ..usd import UsdLoadError
+    from ..usd.render_products import read_render_product
+    from ..usd.render_settings import find_settings_prim
+
+    try:
+        product = read_render_product(stage, find_settings_prim(stage))
+    except UsdLoadError as exc:
+        raise RenderError(str(exc)) from None
+    if product is None:
+        return None
+    if opts.aovs:
+        product.layers = []             # the flags choose the channels
+    if out:
+        product.product_name = ""       # and the path
+    return product
+
+
+def product_channels(images: Dict[str, np.ndarray], layers):
+    """The AOV images of a frame rearranged as a render product's layers:
+    ``(aovs, layout, half_channels)`` for :func:`cmlt.io.exr.write_exr`
+    (``images`` keyed by AOV name, as :func:`aov_images` returns them)."""
+    if not layers:
+        return images, None, ()
+    aovs, layout, halfs = {}, {}, []
+    for layer in layers:
+        key = layer.channels()[0] if layer.suffixes is None else layer.name
+        aovs[key] = images[layer.aov]
+        layout[key] = (layer.name, layer.suffixes)
+        if layer.half:
+            halfs += layer.channels()
+    return aovs, layout, tuple(halfs)
 
 
 def aov_images(core, scene, st, r, aovs, opts,

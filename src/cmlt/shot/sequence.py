@@ -34,7 +34,7 @@ from .frame_job import ShotJob, render_frame
 from .frames import check_stage_range, default_frames, expand_outputs, parse_frames
 from .options import (AOV_NAMES, PREVIEW_FORMATS, RenderOptions, check_aovs_for, default_output,
                       preview_path)
-from .output import color_setup
+from .output import color_setup, stage_product
 from .preflight import (check_output_paths, check_state_dir, finished_frame_problem,
                         remove_stale_temporaries)
 from .progress import Reporter
@@ -150,13 +150,16 @@ def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> di
     return record
 
 
-def _finished_frame_expectation(resolved, opts: RenderOptions, aovs) -> dict:
+def _finished_frame_expectation(resolved, opts: RenderOptions, aovs, layers=()) -> dict:
     """What a finished frame of this render holds (``finished_frame_problem``'s
-    keywords): its size, its channels (beauty and AOVs) and its data window."""
+    keywords): its size, its channels (beauty and AOVs, or the render product's
+    layers) and its data window."""
     from ..io.exr import AOV_CHANNELS
 
     channels = ["R", "G", "B"]
-    for name in aovs:
+    for layer in layers:
+        channels += layer.channels()
+    for name in aovs if not layers else ():
         prefix, suffixes = AOV_CHANNELS[name]
         channels += [prefix] if suffixes is None else [f"{prefix}.{c}" for c in suffixes]
     size = tuple(int(v) for v in (opts.resolution or resolved.resolution))
@@ -227,14 +230,22 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                                 effects_cache)
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
-    aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
+    product = stage_product(stage, opts, out)
+    layers = tuple(product.layers) if product is not None else ()
+    aovs = product.aovs() if layers else tuple(n for n in AOV_NAMES if n in opts.aovs)
     check_aovs_for(aovs, resolved.integrator, getattr(resolved, "error_groups", 8))
     t_start = time.perf_counter()
     range_warning = check_stage_range(frame_list, info.start, info.end,
                                       info.has_authored_time_range, force=force_frames,
                                       spec=frames if isinstance(frames, str) else None)
-    pattern = out or default_output(shot)
-    outputs = expand_outputs(pattern, frame_list)
+    pattern = out or (product.product_name if product is not None else "") \
+        or default_output(shot)
+    try:
+        outputs = expand_outputs(pattern, frame_list)
+    except UsageError as exc:
+        if out or product is None or not product.product_name:
+            raise
+        raise UsageError(str(exc).replace("--out", f"{product.path}: productName", 1)) from None
     # before the first frame: every output can be written as an EXR (no stray sidecar of
     # a frame whose image cannot be), the state directory is one, and the temporaries a
     # killed render left in those directories go
@@ -250,7 +261,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     if auto is not None:
         result.settings["integrator_auto"] = auto.as_dict()
     todo, redo = [], []
-    expect = _finished_frame_expectation(resolved, opts, aovs)
+    if product is not None and product.path:
+        result.settings["render_product"] = product.as_dict()
+    expect = _finished_frame_expectation(resolved, opts, aovs, layers)
     for f, path in zip(frame_list, outputs):
         if resume and os.path.lexists(path):
             # a frame is skipped only when it is really done: a truncated or empty
@@ -273,7 +286,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     job = ShotJob(shot=shot, stage=stage, info=info, opts=opts, core=core, st=st,
                   resolved=resolved, sources=sources, color_attrs=color_attrs, display=display,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
-                  result=result, effects_cache=effects_cache)
+                  result=result, effects_cache=effects_cache, layers=layers)
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
     own_client = None
     if client is None and opts.dask:
@@ -313,7 +326,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             f"removed {len(removed)} temporary file(s) left by a render that was killed: "
             + ", ".join(removed[:3]) + (f", ... ({len(removed) - 3} more)"
                                         if len(removed) > 3 else ""))
-    stage_warnings += redo
+    stage_warnings += redo + (product.warnings if product is not None else [])
     if cold:
         stage_warnings.append(cold)
     try:
