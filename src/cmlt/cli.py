@@ -12,7 +12,7 @@
                      [--seed S] [--threads N] [--res WxH | --res W H] [--max-depth N]
                      [--camera PATH] [--variant [/PRIM:]SET=VALUE ...]
                      [--default-light dome|headlight|dome-key] [--purpose LIST] [--half] [--compression zip|piz|dwaa|none]
-                     [--output-colorspace NAME] [--ocio-config PATH]
+                     [--output-colorspace NAME] [--ocio-config PATH] [--rendering-space NAME]
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
                      [--display NAME] [--view NAME]
@@ -213,6 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--ocio-config", metavar="PATH", dest="ocio_config",
                    help="OpenColorIO config (file or ocio:// URI); default: $OCIO, else the "
                    "stage's colorConfiguration, else the built-in studio config")
+    r.add_argument("--rendering-space", metavar="NAME", dest="rendering_space",
+                   help="colour space of the OCIO config to render in (default: its "
+                   "scene_linear role, ACEScg in the ACES configs)")
     r.add_argument("--aov", type=parse_aovs, metavar="LIST", dest="aov", default=(),
                    help="extra channels in the same EXR: albedo (albedo.R/G/B), normal "
                    "(N.X/Y/Z, world space), depth (Z, along the camera axis; 0 = no hit), "
@@ -322,6 +325,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          resolution=args.res, camera=args.camera, half=args.half,
                          compression=args.compression, output_colorspace=args.output_colorspace,
                          ocio_config=args.ocio_config, aovs=tuple(args.aov),
+                         rendering_space=args.rendering_space,
                          aov_samples=args.aov_samples, crop=args.crop, preview=args.preview,
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,

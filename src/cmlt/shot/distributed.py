@@ -98,11 +98,16 @@ def _worker_stage(shot: str, stage_options: Optional[dict] = None) -> dict:
     so = stage_options or {}
     variants = tuple(so.get("variants") or ())
     render_settings = so.get("render_settings")
-    ident = (shot, variants, render_settings)
+    ident = (shot, variants, render_settings, so.get("ocio_config"), so.get("rendering_space"))
     c = _WORKER.get("shot")
     if c is None or c["ident"] != ident:
+        from ..color import load_config, set_config
+        stage = open_stage(shot, variants=variants, render_settings=render_settings)
+        # the client's config and rendering space: colours are converted as it does
+        set_config(load_config(so.get("ocio_config"), stage=stage,
+                               rendering_space=so.get("rendering_space")))
         c = {"shot": shot, "ident": ident, "bridge": SceneBridge(core), "key": None,
-             "stage": open_stage(shot, variants=variants, render_settings=render_settings)}
+             "stage": stage}
         _WORKER["shot"] = c
     return c
 

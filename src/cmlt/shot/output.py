@@ -24,13 +24,16 @@ def color_setup(opts, stage):
     # reader converts authored colours to ACEScg with it): --ocio-config, else
     # $OCIO, else the stage's colorConfiguration, else the built-in config.
     try:
-        cfg = load_config(opts.ocio_config, stage=stage)
+        cfg = load_config(opts.ocio_config, stage=stage, rendering_space=opts.rendering_space)
     except ColorError as exc:
+        if opts.rendering_space and str(exc).startswith("rendering space"):
+            raise UsageError(f"--rendering-space {opts.rendering_space!r}: {exc}") from None
         if opts.ocio_config:
             raise UsageError(f"--ocio-config {opts.ocio_config}: {exc}") from None
         raise RenderError(str(exc)) from None
     current = get_config()
-    if (current.location, current.source) != (cfg.location, cfg.source):
+    if (current.location, current.source, current.rendering_space) != \
+            (cfg.location, cfg.source, cfg.rendering_space):
         set_config(cfg)         # keep the current one (and its processor cache) if the same
     try:
         attrs = header_attributes(opts.output_colorspace)
@@ -122,6 +125,11 @@ def aov_images(core, scene, st, r, aovs, opts,
     return {name: out[name] for name in aovs}
 
 
+def _rendering_space() -> str:
+    from ..color import get_config
+    return get_config().rendering_space
+
+
 #: RenderResult.stats keys (MLT integrators) -> cmlt:* header attribute names:
 #: normalisation (b) estimates and mutation counts, written when present
 _MLT_STATS = {
@@ -161,6 +169,7 @@ def header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
         "integratorParameters": params,               # JSON text
         "spp": int(resolved.spp), "maxDepth": int(resolved.max_depth),
         "seed": int(resolved.seed),
+        "renderingSpace": _rendering_space(),
         "renderTime": float(stats.get("time_s", stats.get("wall_time_s", 0.0))),
         "samples": int(stats.get("samples", 0)),
         "rays": int(stats.get("rays", 0)),

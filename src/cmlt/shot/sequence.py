@@ -135,8 +135,10 @@ def _cold_resume_warning(resolved, opts: RenderOptions, todo, predecessor, outpu
 
 def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> dict:
     """The sidecar's ``settings``: the resolved settings and the output options."""
+    from ..color import get_config
     record = dict(resolved.as_dict(), threads=int(opts.threads), half=bool(opts.half),
-                  compression=opts.compression, output_colorspace=colorspace_name)
+                  compression=opts.compression, output_colorspace=colorspace_name,
+                  rendering_space=get_config().rendering_space)
     if aovs:
         record.update(aovs=list(aovs), aov_samples=int(opts.aov_samples))
     if opts.crop is not None:
@@ -309,7 +311,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                                            "variants": tuple(opts.variants),
                                            "render_settings": opts.render_settings,
                                            "default_light": opts.default_light,
-                                           "purposes": tuple(opts.purposes)})
+                                           "purposes": tuple(opts.purposes),
+                                           "ocio_config": opts.ocio_config,
+                                           "rendering_space": opts.rendering_space})
         result.settings["dask"] = opts.dask or "client"
         try:
             job.distributed.warm()
