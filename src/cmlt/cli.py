@@ -19,7 +19,7 @@
                      [--seed-per-frame] [--independent-frames] [--no-smoothing]
                      [--state-dir DIR [--fresh-start-on-bad-state]]
                      [--dask local:N|tcp://HOST:8786 [--dask-parts N]]
-                     [--resume] [--quiet | --log-json]
+                     [--resume] [--quiet | --log-json] [-v [N] | -vv | -vvv]
     cmlt inspect SHOT [--frames SPEC] [--json] [--variant [/PRIM:]SET=VALUE ...] | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
@@ -258,6 +258,10 @@ def build_parser() -> argparse.ArgumentParser:
     loud = r.add_mutually_exclusive_group()
     loud.add_argument("--quiet", "-q", action="store_true",
                       help="print nothing but errors")
+    r.add_argument("--verbosity", type=int, choices=range(0, 4), default=None,
+                   metavar="N", help="-v N / -v / -vv / -vvv: 0 errors only, 1 normal (default), "
+                   "2 verbose (set-up and per-frame details), 3 debug (settings with sources, "
+                   "scene updates, effects, tracebacks)")
     loud.add_argument("--log-json", action="store_true", dest="log_json",
                       help="for farms: one JSON object per line per event (frame start, "
                       "frame done, warning, sequence done) on stdout, nothing else")
@@ -335,9 +339,13 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          render_settings=args.render_settings, exposure=args.exposure,
                          purposes=tuple(args.purposes))
     log = None
+    if args.quiet and args.verbosity not in (None, 0):
+        return _error(f"give --quiet or -v {args.verbosity}, not both", EXIT_USAGE)
+    verbosity = 0 if args.quiet else (1 if args.verbosity is None else args.verbosity)
+    quiet = verbosity == 0 and not args.log_json
     if args.log_json:
         from .shot.progress import JsonReporter
-        log = JsonReporter(sys.stdout)
+        log = JsonReporter(sys.stdout, verbosity=verbosity)
 
     def fail(message: str, code: int) -> int:
         if log is not None:
@@ -361,8 +369,9 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
         return _list_cameras(args.shot, opts)
     try:
         res = render_sequence(args.shot, frames, args.out, opts, resume=args.resume,
-                              progress=not (args.quiet or args.log_json), quiet=args.quiet,
-                              reporter=log, force_frames=args.force_frames)
+                              progress=not (quiet or args.log_json), quiet=quiet,
+                              reporter=log, force_frames=args.force_frames,
+                              verbosity=verbosity)
     except UsageError as exc:
         return fail(str(exc), EXIT_USAGE)
     except RenderError as exc:
@@ -374,7 +383,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                      resume=resume, exit_code=EXIT_INTERRUPTED)
         sys.stderr.write(f"cmlt: {exc}\ncmlt: to continue: {resume}\n")
         return EXIT_INTERRUPTED
-    if not (args.quiet or args.log_json):
+    if not (quiet or args.log_json):
         from rich.console import Console
         from .shot.progress import summary_table
 
@@ -423,11 +432,20 @@ def _list_cameras(shot: str, opts) -> int:
 
 def _husk_argv(argv: Sequence[str]) -> List[str]:
     """husk/usdrecord spellings argparse cannot take as they are: ``--res W H``
-    becomes ``--res WxH``."""
+    becomes ``--res WxH``; ``-v N`` (or husk's ``-V N``) ``--verbosity N``, ``-v`` 2,
+    ``-vv`` 3 (more v's: 3)."""
     out, k = [], 0
     argv = list(argv)
     while k < len(argv):
         a = argv[k]
+        if a in ("-v", "-V") and k + 1 < len(argv) and argv[k + 1].isdigit():
+            out += ["--verbosity", str(min(int(argv[k + 1]), 3))]
+            k += 2
+            continue
+        if len(a) >= 2 and a[0] == "-" and set(a[1:]) == {"v"}:
+            out += ["--verbosity", str(min(len(a), 3))]
+            k += 1
+            continue
         if a == "--res" and k + 2 < len(argv) and argv[k + 1].isdigit() \
                 and argv[k + 2].isdigit():
             out += ["--res", f"{argv[k + 1]}x{argv[k + 2]}"]
@@ -567,7 +585,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except KeyboardInterrupt:
         return _error("interrupted", EXIT_INTERRUPTED)
     except Exception as exc:            # a bug: still one line unless asked for more
-        if os.environ.get("CMLT_DEBUG"):
+        if os.environ.get("CMLT_DEBUG") or (getattr(args, "verbosity", None) or 0) >= 3:
             raise
         return _error(f"internal error: {type(exc).__name__}: {exc} "
                       "(set CMLT_DEBUG=1 for a traceback)", EXIT_RENDER)

@@ -288,6 +288,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
     opts, core = job.opts, job.core
     t0 = time.perf_counter()
     fs = _load(job, frame)
+    phases = {"load": time.perf_counter() - t0}
     width, height = opts.resolution or fs.resolution
     job.st.width, job.st.height = int(width), int(height)
     crop = None
@@ -303,6 +304,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             scene = job.bridge.update(fs)
+        phases["scene update"] = time.perf_counter() - t0 - phases["load"]
     except (core.SceneError, BridgeError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
     bridge_warnings = [str(w.message) for w in caught]
@@ -331,5 +333,8 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
     out_image = to_output(image, opts.output_colorspace)
     state_file, pv = _write(job, path, frame, image, out_image, crop, record, metadata, aovs,
                             state_bytes, getattr(r, "group_images", None))
+    phases.update(render=float(stats.get("time_s", 0.0)), AOVs=stats.get("aov_time_s"),
+                  write=time.perf_counter() - t0 - stats["wall_time_s"])
     return {"out_image": out_image, "stats": stats, "state_bytes": state_bytes,
-            "state_file": state_file, "preview": pv, "units": units}
+            "state_file": state_file, "preview": pv, "units": units, "record": record,
+            "phases": phases}

@@ -37,7 +37,7 @@ from .options import (AOV_NAMES, PREVIEW_FORMATS, RenderOptions, check_aovs_for,
 from .output import color_setup, stage_product
 from .preflight import (check_output_paths, check_state_dir, finished_frame_problem,
                         remove_stale_temporaries)
-from .progress import Reporter
+from .progress import Reporter, frame_details
 
 __all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
            "preview_path", "AOV_NAMES", "PREVIEW_FORMATS"]
@@ -203,7 +203,7 @@ def _open(shot: str, core, variants=(), render_settings=None):
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
-                    reporter: Optional[Reporter] = None, core=None,
+                    reporter: Optional[Reporter] = None, core=None, verbosity: int = 1,
                     client=None, on_part=None,
                     force_frames: bool = False) -> SequenceResult:
     """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
@@ -284,7 +284,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     from ..metrics.flicker import FrameDifferenceFlicker
     flick = FrameDifferenceFlicker()        # frame-to-frame flicker (DESIGN.md §4)
 
-    rep = reporter or Reporter(show_progress=progress, quiet=quiet)
+    rep = reporter or Reporter(show_progress=progress, quiet=quiet, verbosity=verbosity)
     job = ShotJob(shot=shot, stage=stage, info=info, opts=opts, core=core, st=st,
                   resolved=resolved, sources=sources, color_attrs=color_attrs, display=display,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
@@ -359,6 +359,22 @@ def _close(own) -> None:
         cluster.close()
 
 
+def _setup_details(job, todo):
+    """``(level, text)`` lines describing the render before its first frame (``-v``)."""
+    from ..color import get_config
+    r, opts = job.resolved, job.opts
+    first = todo[0][1] if todo else "-"
+    yield 2, (f"{job.shot}: {len(todo)} frame(s) to render, first -> {first}; integrator "
+              f"{r.integrator}, {r.spp} spp, max depth {r.max_depth}, seed {r.seed}, "
+              f"threads {opts.threads or 'all'}")
+    yield 2, f"colour: {get_config().describe()}"
+    if job.layers:
+        yield 2, "channels: R, G, B, " + ", ".join(c for layer in job.layers
+                                                   for c in layer.channels())
+    for name, value in sorted(r.as_dict().items()):
+        yield 3, f"setting {name} = {value!r} ({job.sources.get(name, 'default')})"
+
+
 def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start) -> None:
     """The frame loop of render_sequence."""
     last_rendered = None
@@ -368,6 +384,8 @@ def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start)
         if result.skipped:
             rep.info(f"resume: {len(result.skipped)} frame(s) already rendered, "
                      f"{len(todo)} to go")
+        for level, text in _setup_details(job, todo):
+            rep.detail(text, level)
         rep.start_sequence(len(todo))
         for k, (frame, path) in enumerate(todo):
             pred = predecessor[frame]
@@ -395,6 +413,8 @@ def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start)
                 result.stats[frame] = done["stats"]
                 result.flicker = flick.as_dict()
                 rep.end_frame(frame, path, done["stats"], done["units"])
+                for level, text in frame_details(frame, done):
+                    rep.detail(text, level)
             except KeyboardInterrupt:
                 rep.abort_frame()
                 raise RenderCancelled(frame, result.written, len(todo) - k) from None
