@@ -524,8 +524,10 @@ def _cmd_inspect(args) -> int:
         return _error(str(exc), EXIT_RENDER)
     from .shot import RenderError, UsageError
     from .shot.analyse import inspect_effects
+    from .shot.py_warnings import warnings_to_stderr
     try:                                    # the effects of the frames (cmlt.analysis)
-        effects, table = inspect_effects(stage, info, args.frames)
+        with warnings_to_stderr():
+            effects, table = inspect_effects(stage, info, args.frames)
     except (UsageError, RenderError) as exc:
         return _error(str(exc), EXIT_USAGE if isinstance(exc, UsageError) else EXIT_RENDER)
     if args.json:

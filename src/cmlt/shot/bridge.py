@@ -35,6 +35,7 @@ the sidecar and the tests.
 from __future__ import annotations
 
 import contextlib
+import os
 
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
@@ -228,6 +229,10 @@ class SceneBridge:
         if not path or light.kind not in ("dome", "rect"):
             return -1
         rec = {"wrapS": "repeat" if light.kind == "dome" else "clamp", "wrapT": "clamp"}
+        if not str(path).endswith("]") and not os.path.exists(str(path)):
+            # no such file (and not inside a package): the asset resolver could not
+            # resolve it either, and the stage reader warned about that already
+            rec["unresolved"] = str(path)
         key = (str(path), "auto", "light", rec["wrapS"], rec["wrapT"])
         if key not in self._textures:
             self._textures[key] = self._load_texture(light.name, "texture:file", path, "auto", rec)
@@ -242,6 +247,8 @@ class SceneBridge:
                 raise OSError("no file")
             img = load_texture(str(path), cs)
         except Exception as exc:                       # missing / unreadable file
+            if rec.get("unresolved"):
+                return None             # the stage reader said so already (one cause, one warning)
             warnings.warn(f"{material}: texture file {rec.get('unresolved') or path!r} for "
                           f"{input_name} cannot be read ({exc}); using the fallback value")
             return None

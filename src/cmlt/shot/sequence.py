@@ -38,6 +38,7 @@ from .output import color_setup, stage_product
 from .preflight import (check_output_paths, check_state_dir, finished_frame_problem,
                         remove_stale_temporaries)
 from .progress import Reporter, frame_details
+from .py_warnings import current_router, routes_python_warnings
 
 __all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
            "preview_path", "AOV_NAMES", "PREVIEW_FORMATS"]
@@ -200,6 +201,7 @@ def _open(shot: str, core, variants=(), render_settings=None):
     return stage, info, core
 
 
+@routes_python_warnings
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
@@ -290,6 +292,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
                   result=result, effects_cache=effects_cache, layers=layers)
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
+    router = current_router()           # the Python warnings so far, and from now on
+    early = router.attach(job.warn) if router is not None else []
     own_client = None
     if client is None and opts.dask:
         client, own_client = _dask_client(opts.dask)
@@ -320,7 +324,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
         except Exception as exc:         # a worker cannot open the shot: say so once
             _close(own_client)
             raise RenderError(f"{shot}: --dask: a worker cannot open the shot: {exc}") from None
-    stage_warnings = [w for w in info.warnings
+    stage_warnings = early + [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
     if range_warning:

@@ -101,7 +101,8 @@ def rigid_and_scale(m: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
 def _asset(v, path: str, warnings: List[str]) -> Optional[str]:
     if isinstance(v, Sdf.AssetPath):
         if v.path and not v.resolvedPath:
-            warnings.append(f"{path}: texture:file {v.path} cannot be resolved")
+            warnings.append(f"{path}: texture:file {v.path} cannot be resolved; the light is "
+                            "not textured")
         return v.resolvedPath or v.path or None
     return str(v) if v else None
 

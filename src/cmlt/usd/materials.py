@@ -265,7 +265,8 @@ def read_material(material: UsdShade.Material, time, warnings: List[str]) -> Mat
                 rec = _texture_record(src, output or "rgb", warnings)
                 if rec.get("unresolved"):
                     warnings.append(f"{path}: texture {rec['unresolved']} for {name} "
-                                    f"(shader {rec['shader']}) cannot be resolved")
+                                    f"(shader {rec['shader']}) cannot be resolved; using "
+                                    "the fallback value")
                 inputs[name] = rec
                 values[name] = _fallback_constant(name, rec)
             else:

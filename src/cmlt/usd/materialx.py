@@ -885,7 +885,7 @@ def map_surface(node: Node, material: str, warnings: List[str]) -> Optional[Mate
     for name, rec in surf.records.items():
         if rec.get("unresolved"):
             warnings.append(f"{material}: texture {rec['unresolved']} for {name} (node "
-                            f"{rec['shader']}) cannot be resolved")
+                            f"{rec['shader']}) cannot be resolved; using the fallback value")
     return Material(
         name=material, diffuse=col("diffuseColor"), emission=col("emissiveColor"),
         specular=col("specularColor"),
