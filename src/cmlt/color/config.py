@@ -33,6 +33,7 @@ import PyOpenColorIO as ocio
 
 from .spaces import (USD_TOKEN_ALIASES, Chromaticities,
                      chromaticities_for_interop_id)
+from .errors import ColorError
 from .rendering_space import choose_rendering_space, luminance_weights
 from .stage_config import stage_config_path
 
@@ -59,12 +60,6 @@ _RAW_TOKENS = {"raw", "data", "identity", "none", "utility - raw"}
 _DEFAULT_TOKENS = {"", "unknown"}
 
 Triple = Tuple[float, float, float]
-
-
-class ColorError(ValueError):
-    """A colour-management failure: bad config, unknown colour space,
-    display or view. The message names the offending value and where it
-    came from."""
 
 
 def _bits(bit_depth: Any) -> Optional[int]:

@@ -21,6 +21,7 @@ from typing import Optional, Tuple
 import numpy as np
 import PyOpenColorIO as ocio
 
+from .errors import ColorError
 from .spaces import ACESCG_LUMINANCE
 
 __all__ = ["choose_rendering_space", "rendering_space_choices", "is_acescg", "luminance_weights"]
@@ -63,8 +64,6 @@ def choose_rendering_space(cfg, lookup, requested: Optional[str], where: str) ->
     """The OCIO name of the rendering space (module rules). ``lookup(name)``
     resolves a name, alias, role or interop ID to a colour space or None;
     ``where`` names the config in messages."""
-    from .config import ColorError
-
     if requested:
         cs = lookup(requested)
         ref = cs.getReferenceSpaceType() if cs is not None else None

@@ -255,7 +255,8 @@ class MaterialTable:
             if isinstance(mat, UsdShade.Material):
                 m = read_material(mat, self.time, self.warnings)
             else:                                        # a .mtlx document's material
-                m = mat.read(self.time, self.warnings) or \
+                from .materialx import read_mtlx_material
+                m = read_mtlx_material(mat, self.time, self.warnings) or \
                     Material(name=key, inputs={"unsupported": True})
             if m.inputs.get("unsupported"):
                 i = self.default()

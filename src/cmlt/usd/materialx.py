@@ -64,7 +64,7 @@ from .mtlx_eval import CHANNELS, Const, Prim, Tex, Mapper, scale_rec
 from .mtlx_graph import Node, UsdNode, as_float, as_tuple, mtlx_library
 
 __all__ = ["read_materialx_network", "mtlx_binding", "mtlx_references", "MtlxMaterialRef",
-           "SURFACE_IDS", "mtlx_library", "map_surface"]
+           "SURFACE_IDS", "mtlx_library", "map_surface", "read_mtlx_material"]
 
 #: MaterialX surface shaders mapped onto the core's model
 SURFACES = ("open_pbr_surface", "standard_surface", "UsdPreviewSurface")
@@ -445,5 +445,14 @@ def read_materialx_network(material, time, warnings: List[str]):
         return True, map_surface(UsdNode(shader), path, warnings)
     ref = mtlx_binding(material.GetPrim().GetStage(), material.GetPath())
     if ref is not None:
-        return True, ref.read(time, warnings, name=path)
+        return True, read_mtlx_material(ref, time, warnings, name=path)
     return False, None
+
+
+def read_mtlx_material(ref: MtlxMaterialRef, time, warnings: List[str],
+                       name: Optional[str] = None) -> Optional[Material]:
+    """The Material of a ``.mtlx`` document's material that a binding points at
+    (None when it cannot be read or mapped: warned, naming ``name`` or the target)."""
+    label = name or str(ref.target)
+    node = ref.surface_node(label, warnings)
+    return None if node is None else map_surface(node, label, warnings)

@@ -9,7 +9,6 @@ import os
 import threading
 from typing import Any, Dict, List, Optional, Tuple
 
-from ..scene import Material
 from .mtlx_graph import DocNode, mtlx_library
 
 __all__ = ["load_document", "MtlxMaterialRef", "mtlx_references", "mtlx_binding"]
@@ -64,8 +63,10 @@ class MtlxMaterialRef:
     def GetPath(self):
         return self.target
 
-    def read(self, time, warnings: List[str], name: Optional[str] = None) -> Optional[Material]:
-        label = name or str(self.target)
+    def surface_node(self, label: str, warnings: List[str]) -> Optional[DocNode]:
+        """The surface shader node of the material in its document, or None
+        (warned, naming ``label``: the document cannot be read, has no such
+        material or it has no surface shader)."""
         try:
             doc = load_document(self.doc_path)
         except OSError as exc:
@@ -89,8 +90,7 @@ class MtlxMaterialRef:
             warnings.append(f"{label}: material {mat.getName()} of {self.doc_path} has no "
                             f"surface shader; rendered with the default grey material")
             return None
-        from .materialx import map_surface      # the mapping imports this module
-        return map_surface(DocNode(shader, self.doc_path), label, warnings)
+        return DocNode(shader, self.doc_path)
 
 
 def mtlx_references(prim):
