@@ -5,10 +5,11 @@ connections, and the value helpers the evaluation and the mapping share
 (:mod:`cmlt.usd.materialx`)."""
 from __future__ import annotations
 
-import math
 import os
 import threading
 from typing import Any, List, Tuple
+
+from .shading import _plain as plain_usd_value
 
 __all__ = ["Node", "UsdNode", "DocNode", "Src", "mtlx_library", "as_float", "as_tuple"]
 
@@ -33,25 +34,9 @@ def mtlx_library():
 
 def _plain(v) -> Any:
     """A MaterialX / USD value as plain Python (float, int, bool, str, tuple)."""
-    if v is None:
-        return None
-    if isinstance(v, (bool, int, str)):
-        return v
-    if isinstance(v, float):
-        return v if math.isfinite(v) else 0.0
-    if hasattr(v, "asTuple"):
+    if hasattr(v, "asTuple"):                            # MaterialX vectors and colours
         v = v.asTuple()
-    try:
-        from pxr import Sdf
-        if isinstance(v, Sdf.AssetPath):
-            return v.resolvedPath or v.path
-    except ImportError:                                  # pragma: no cover
-        pass
-    try:
-        t = tuple(float(x) for x in v)
-        return tuple(x if math.isfinite(x) else 0.0 for x in t)
-    except TypeError:
-        return str(v)
+    return plain_usd_value(v)
 
 
 def as_tuple(v, n: int, default=0.0) -> Tuple[float, ...]:

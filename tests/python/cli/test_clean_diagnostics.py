@@ -15,29 +15,12 @@ import sys
 import warnings
 
 from cmlt.shot.py_warnings import WarningRouter, warning_text
+from test_bad_input import MISSING_TEXTURE
 
 OWN = ("cmlt: ", "frame ", "┏", "┃", "┡", "│", "└", "flicker =", "cmlt render summary")
-BROKEN_TEXTURE = {
-    "rel material:binding = </World/Looks/Red>": "rel material:binding = </World/Looks/Tex>",
-    'def Scope "Looks"\n    {': '''def Scope "Looks"
-    {
-        def Material "Tex"
-        {
-            token outputs:surface.connect = </World/Looks/Tex/PBR.outputs:surface>
-            def Shader "PBR"
-            {
-                uniform token info:id = "UsdPreviewSurface"
-                color3f inputs:diffuseColor.connect = </World/Looks/Tex/Img.outputs:rgb>
-                token outputs:surface
-            }
-            def Shader "Img"
-            {
-                uniform token info:id = "UsdUVTexture"
-                asset inputs:file = @broken.png@
-                float3 outputs:rgb
-            }
-        }''',
-}
+#: the stage of test_bad_input's missing-texture test, its texture a file that is no image
+BROKEN_TEXTURE = {old: new.replace("missing_tex.png", "broken.png")
+                  for old, new in MISSING_TEXTURE.items()}
 
 
 def _cmlt(args, cwd):

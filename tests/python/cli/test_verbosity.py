@@ -10,31 +10,9 @@ import textwrap
 import pytest
 
 from cmlt.cli import main
-from cmlt.color import load_config, set_config
+from support.stages import facing_quad_shot
 
-SHOT = textwrap.dedent('''\
-    #usda 1.0
-    (
-        startTimeCode = 1
-        endTimeCode = 1
-        upAxis = "Y"
-    )
-    def Mesh "Quad"
-    {
-        int[] faceVertexCounts = [4]
-        int[] faceVertexIndices = [0, 1, 2, 3]
-        point3f[] points = [(-1, -1, -3), (1, -1, -3), (1, 1, -3), (-1, 1, -3)]
-    }
-    def DistantLight "Sun"
-    {
-        float inputs:intensity = 1
-    }
-    def Camera "Cam"
-    {
-        float focalLength = 24
-        float horizontalAperture = 36
-        float verticalAperture = 24
-    }
+SHOT = facing_quad_shot(3.0, (0.5, 0.5, 0.5), textwrap.dedent('''\
     def RenderSettings "Settings"
     {
         rel camera = </Cam>
@@ -49,15 +27,10 @@ SHOT = textwrap.dedent('''\
         uniform string sourceName = "P"
         uniform token dataType = "point3f"
     }
-    ''')
+    '''))
 
 
-@pytest.fixture(autouse=True)
-def builtin_config(monkeypatch):
-    monkeypatch.delenv("OCIO", raising=False)
-    set_config(load_config())
-    yield
-    set_config(None)
+pytestmark = pytest.mark.usefixtures("builtin_color_config")
 
 
 @pytest.fixture

@@ -11,7 +11,6 @@ default ACEScg render the same formula computed in ACEScg, and the two differ.
 from __future__ import annotations
 
 import json
-import textwrap
 
 import numpy as np
 import OpenImageIO as oiio
@@ -21,6 +20,7 @@ from cmlt.cli import main
 from cmlt.color import get_config, load_config, set_config
 from cmlt.io.exr import read_exr
 from cmlt.usd.color import load_texture
+from support.stages import closed_box_shot
 
 RHO = (0.8, 0.3, 0.1)           # authored, untagged: linear Rec.709
 LE = 0.2
@@ -28,71 +28,15 @@ W, H = 48, 32
 REC709 = "Linear Rec.709 (sRGB)"
 
 
-def _box() -> str:
-    pts = []
-    for n in np.vstack([np.eye(3), -np.eye(3)]):      # inward normals
-        a = np.array([0, 1.0, 0]) if abs(n[1]) < 0.9 else np.array([1.0, 0, 0])
-        t1 = np.cross(a, n)
-        t1 /= np.linalg.norm(t1)
-        t2 = np.cross(n, t1)
-        c = -n
-        pts += [c - t1 - t2, c + t1 - t2, c + t1 + t2, c - t1 + t2]
-    p = ", ".join(f"({x:g}, {y:g}, {z:g})" for x, y, z in pts)
-    return textwrap.dedent(f'''\
-        #usda 1.0
-        (
-            startTimeCode = 1
-            endTimeCode = 1
-            metersPerUnit = 1
-            upAxis = "Y"
-        )
-        def Mesh "Box" (prepend apiSchemas = ["MaterialBindingAPI"])
-        {{
-            uniform token subdivisionScheme = "none"
-            uniform bool doubleSided = 1
-            int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]
-            int[] faceVertexIndices = [{", ".join(str(i) for i in range(24))}]
-            point3f[] points = [{p}]
-            rel material:binding = </Looks/M>
-        }}
-        def Scope "Looks"
-        {{
-            def Material "M"
-            {{
-                token outputs:surface.connect = </Looks/M/S.outputs:surface>
-                def Shader "S"
-                {{
-                    uniform token info:id = "UsdPreviewSurface"
-                    color3f inputs:diffuseColor = {RHO}
-                    color3f inputs:emissiveColor = ({LE}, {LE}, {LE})
-                    int inputs:useSpecularWorkflow = 1
-                    color3f inputs:specularColor = (0, 0, 0)
-                    token outputs:surface
-                }}
-            }}
-        }}
-        def Camera "Cam"
-        {{
-            float focalLength = 24
-            float horizontalAperture = 36
-            float verticalAperture = 24
-            float2 clippingRange = (0.01, 100)
-        }}
-        ''')
-
-
-@pytest.fixture(autouse=True)
-def builtin_config(monkeypatch):
-    monkeypatch.delenv("OCIO", raising=False)
-    set_config(load_config())
-    yield
-    set_config(None)
+pytestmark = pytest.mark.usefixtures("builtin_color_config")
 
 
 @pytest.fixture
 def box(tmp_path):
     p = tmp_path / "box.usda"
-    p.write_text(_box())
+    p.write_text(closed_box_shot(RHO, f"color3f inputs:emissiveColor = ({LE}, {LE}, {LE})\n"
+                                      "int inputs:useSpecularWorkflow = 1\n"
+                                      "color3f inputs:specularColor = (0, 0, 0)"))
     return str(p)
 
 

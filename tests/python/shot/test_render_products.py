@@ -10,63 +10,37 @@ rendering space, the depth layer D, and the unknown var a warning naming it.
 from __future__ import annotations
 
 import json
-import textwrap
 
 import numpy as np
 import OpenImageIO as oiio
 import pytest
 
 from cmlt.cli import main
-from cmlt.color import load_config, set_config
 from cmlt.color import to_rendering_space
+from support.stages import exr_channels, facing_quad_shot
 
 D = 5.0
 DIFFUSE = (0.8, 0.3, 0.1)        # untagged: linear Rec.709
 W, H = 48, 32
 
 
+#: RenderVar prim name -> (sourceName, dataType, aov name or None)
+VARS = {"color": ("color", "color3f", None), "diffuse": ("albedo", "color3f", None),
+        "depth": ("depth", "half", "Z"), "position": ("P", "point3f", None),
+        "shortNormal": ("normal", "float", None)}
+_VARS = "\n".join(
+    f'''                def RenderVar "{name}"
+                {{
+                    uniform string sourceName = "{src}"
+                    uniform token dataType = "{dtype}"'''
+    + (f'''\n                    uniform string driver:parameters:aov:name = "{aov}"''' if aov else "")
+    + "\n                }"
+    for name, (src, dtype, aov) in VARS.items())
+
+
 def _shot(product_name: str = "prod/beauty.####.exr", extra_var: str = "") -> str:
     name = f'uniform token productName = "{product_name}"' if product_name else ""
-    return textwrap.dedent(f'''\
-        #usda 1.0
-        (
-            startTimeCode = 1
-            endTimeCode = 2
-            metersPerUnit = 1
-            upAxis = "Y"
-        )
-        def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
-        {{
-            uniform token subdivisionScheme = "none"
-            int[] faceVertexCounts = [4]
-            int[] faceVertexIndices = [0, 1, 2, 3]
-            point3f[] points = [(-1.5, -1, {-D}), (1.5, -1, {-D}), (1.5, 1, {-D}), (-1.5, 1, {-D})]
-            rel material:binding = </Looks/M>
-        }}
-        def Scope "Looks"
-        {{
-            def Material "M"
-            {{
-                token outputs:surface.connect = </Looks/M/S.outputs:surface>
-                def Shader "S"
-                {{
-                    uniform token info:id = "UsdPreviewSurface"
-                    color3f inputs:diffuseColor = {DIFFUSE}
-                    token outputs:surface
-                }}
-            }}
-        }}
-        def DistantLight "Sun"
-        {{
-            float inputs:intensity = 1
-        }}
-        def Camera "Cam"
-        {{
-            float focalLength = 24
-            float horizontalAperture = 36
-            float verticalAperture = 24
-            float2 clippingRange = (0.1, 100)
-        }}
+    return facing_quad_shot(D, DIFFUSE, f'''\
         def Scope "Render"
         {{
             def RenderSettings "Settings"
@@ -83,53 +57,13 @@ def _shot(product_name: str = "prod/beauty.####.exr", extra_var: str = "") -> st
             }}
             def Scope "Vars"
             {{
-                def RenderVar "color"
-                {{
-                    uniform string sourceName = "color"
-                    uniform token dataType = "color3f"
-                }}
-                def RenderVar "diffuse"
-                {{
-                    uniform string sourceName = "albedo"
-                    uniform token dataType = "color3f"
-                }}
-                def RenderVar "depth"
-                {{
-                    uniform string sourceName = "depth"
-                    uniform token dataType = "half"
-                    uniform string driver:parameters:aov:name = "Z"
-                }}
-                def RenderVar "position"
-                {{
-                    uniform string sourceName = "P"
-                    uniform token dataType = "point3f"
-                }}
-                def RenderVar "shortNormal"
-                {{
-                    uniform string sourceName = "normal"
-                    uniform token dataType = "float"
-                }}
+{_VARS}
             }}
         }}
         ''')
 
 
-@pytest.fixture(autouse=True)
-def builtin_config(monkeypatch):
-    monkeypatch.delenv("OCIO", raising=False)
-    set_config(load_config())
-    yield
-    set_config(None)
-
-
-def _read(path):
-    inp = oiio.ImageInput.open(str(path))
-    assert inp is not None, oiio.geterror()
-    spec = inp.spec()
-    pix = np.asarray(inp.read_image(oiio.FLOAT), dtype=np.float32)
-    inp.close()
-    pix = pix.reshape(spec.height, spec.width, spec.nchannels)
-    return spec, {n: pix[..., i] for i, n in enumerate(spec.channelnames)}
+pytestmark = pytest.mark.usefixtures("builtin_color_config")
 
 
 def _centre():
@@ -148,7 +82,7 @@ def test01_product_vars_drive_channels_values_and_path(tmp_path, monkeypatch, ca
     assert code == 0, out.err
     exr = tmp_path / "prod" / "beauty.0001.exr"          # productName, no --out
     assert exr.is_file()
-    spec, ch = _read(exr)
+    spec, ch = exr_channels(exr)
     # (OpenEXR stores channels sorted by name: compare the sets)
     assert set(spec.channelnames) == {"R", "G", "B", "diffuse.R", "diffuse.G", "diffuse.B", "Z"}
     fmts = dict(zip(spec.channelnames, spec.channelformats or [spec.format] * spec.nchannels))
@@ -179,7 +113,7 @@ def test02_out_flag_wins_over_product_name_and_aov_flag_over_vars(tmp_path, monk
     assert main(["render", str(shot), "--frames", "1", "--spp", "1", "--out", str(out),
                  "--aov", "normal", "--quiet"]) == 0, capsys.readouterr().err
     assert out.is_file() and not (tmp_path / "prod").exists()
-    spec, _ = _read(out)
+    spec, _ = exr_channels(out)
     assert set(spec.channelnames) == {"R", "G", "B", "N.X", "N.Y", "N.Z"}
 
 
@@ -191,7 +125,7 @@ def test03_data_type_that_does_not_fit_is_a_warning_naming_the_var(tmp_path, mon
     assert main(["render", str(shot), "--frames", "1", "--spp", "1", "--out", str(out)]) == 0
     err = capsys.readouterr().err
     assert "/Render/Vars/shortNormal" in err and "'float'" in err
-    spec, _ = _read(out)
+    spec, _ = exr_channels(out)
     assert set(spec.channelnames) == {"R", "G", "B", "diffuse.R", "diffuse.G", "diffuse.B", "Z"}
 
 
