@@ -35,7 +35,6 @@ the sidecar and the tests.
 from __future__ import annotations
 
 import contextlib
-import os
 
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
@@ -229,10 +228,8 @@ class SceneBridge:
         if not path or light.kind not in ("dome", "rect"):
             return -1
         rec = {"wrapS": "repeat" if light.kind == "dome" else "clamp", "wrapT": "clamp"}
-        if not str(path).endswith("]") and not os.path.exists(str(path)):
-            # no such file (and not inside a package): the asset resolver could not
-            # resolve it either, and the stage reader warned about that already
-            rec["unresolved"] = str(path)
+        if getattr(light, "texture_unresolved", False):
+            rec["unresolved"] = str(path)       # the stage reader warned about it already
         key = (str(path), "auto", "light", rec["wrapS"], rec["wrapT"])
         if key not in self._textures:
             self._textures[key] = self._load_texture(light.name, "texture:file", path, "auto", rec)
