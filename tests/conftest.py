@@ -142,3 +142,15 @@ def make_shot(tmp_path):
         path.write_text(text)
         return str(path)
     return make
+
+
+@pytest.fixture
+def builtin_color_config(monkeypatch):
+    """The built-in OpenColorIO config (no $OCIO) as the process-wide one for the
+    test, reset afterwards (``pytestmark = pytest.mark.usefixtures(...)``)."""
+    from cmlt.color import load_config, set_config
+
+    monkeypatch.delenv("OCIO", raising=False)
+    set_config(load_config())
+    yield
+    set_config(None)

@@ -12,14 +12,14 @@
                      [--seed S] [--threads N] [--res WxH | --res W H] [--max-depth N]
                      [--camera PATH] [--variant [/PRIM:]SET=VALUE ...]
                      [--default-light dome|headlight|dome-key] [--purpose LIST] [--half] [--compression zip|piz|dwaa|none]
-                     [--output-colorspace NAME] [--ocio-config PATH]
+                     [--output-colorspace NAME] [--ocio-config PATH] [--rendering-space NAME]
                      [--aov albedo,normal,depth,variance] [--aov-samples N]
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
                      [--display NAME] [--view NAME]
                      [--seed-per-frame] [--independent-frames] [--no-smoothing]
                      [--state-dir DIR [--fresh-start-on-bad-state]]
                      [--dask local:N|tcp://HOST:8786 [--dask-parts N]]
-                     [--resume] [--quiet | --log-json]
+                     [--resume] [--quiet | --log-json] [-v [N] | -vv | -vvv]
     cmlt inspect SHOT [--frames SPEC] [--json] [--variant [/PRIM:]SET=VALUE ...] | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
     cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
@@ -120,6 +120,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--ocio-config", metavar="PATH", dest="ocio_config",
                    help="OpenColorIO config (file or ocio:// URI); default: $OCIO, else the "
                    "stage's colorConfiguration, else the built-in studio config")
+    r.add_argument("--rendering-space", metavar="NAME", dest="rendering_space",
+                   help="colour space of the OCIO config to render in (default: its "
+                   "scene_linear role, ACEScg in the ACES configs)")
     r.add_argument("--aov", type=parse_aovs, metavar="LIST", dest="aov", default=(),
                    help="extra channels in the same EXR: albedo (albedo.R/G/B), normal "
                    "(N.X/Y/Z, world space), depth (Z, along the camera axis; 0 = no hit), "
@@ -162,6 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
     loud = r.add_mutually_exclusive_group()
     loud.add_argument("--quiet", "-q", action="store_true",
                       help="print nothing but errors")
+    r.add_argument("--verbosity", type=int, choices=range(0, 4), default=None,
+                   metavar="N", help="-v N / -v / -vv / -vvv: 0 errors only, 1 normal (default), "
+                   "2 verbose (set-up and per-frame details), 3 debug (settings with sources, "
+                   "scene updates, effects, tracebacks)")
     loud.add_argument("--log-json", action="store_true", dest="log_json",
                       help="for farms: one JSON object per line per event (frame start, "
                       "frame done, warning, sequence done) on stdout, nothing else")
@@ -224,6 +231,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          resolution=args.res, camera=args.camera, half=args.half,
                          compression=args.compression, output_colorspace=args.output_colorspace,
                          ocio_config=args.ocio_config, aovs=tuple(args.aov),
+                         rendering_space=args.rendering_space,
                          aov_samples=args.aov_samples, crop=args.crop, preview=args.preview,
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,
@@ -233,9 +241,13 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          render_settings=args.render_settings, exposure=args.exposure,
                          purposes=tuple(args.purposes))
     log = None
+    if args.quiet and args.verbosity not in (None, 0):
+        return _error(f"give --quiet or -v {args.verbosity}, not both", EXIT_USAGE)
+    verbosity = 0 if args.quiet else (1 if args.verbosity is None else args.verbosity)
+    quiet = verbosity == 0 and not args.log_json
     if args.log_json:
         from .shot.progress import JsonReporter
-        log = JsonReporter(sys.stdout)
+        log = JsonReporter(sys.stdout, verbosity=verbosity)
 
     def fail(message: str, code: int) -> int:
         if log is not None:
@@ -259,8 +271,9 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
         return _list_cameras(args.shot, opts)
     try:
         res = render_sequence(args.shot, frames, args.out, opts, resume=args.resume,
-                              progress=not (args.quiet or args.log_json), quiet=args.quiet,
-                              reporter=log, force_frames=args.force_frames)
+                              progress=not (quiet or args.log_json), quiet=quiet,
+                              reporter=log, force_frames=args.force_frames,
+                              verbosity=verbosity)
     except UsageError as exc:
         return fail(str(exc), EXIT_USAGE)
     except RenderError as exc:
@@ -272,7 +285,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                      resume=resume, exit_code=EXIT_INTERRUPTED)
         sys.stderr.write(f"cmlt: {exc}\ncmlt: to continue: {resume}\n")
         return EXIT_INTERRUPTED
-    if not (args.quiet or args.log_json):
+    if not (quiet or args.log_json):
         from rich.console import Console
         from .shot.progress import summary_table
 
@@ -321,11 +334,20 @@ def _list_cameras(shot: str, opts) -> int:
 
 def _husk_argv(argv: Sequence[str]) -> List[str]:
     """husk/usdrecord spellings argparse cannot take as they are: ``--res W H``
-    becomes ``--res WxH``."""
+    becomes ``--res WxH``; ``-v N`` (or husk's ``-V N``) ``--verbosity N``, ``-v`` 2,
+    ``-vv`` 3 (more v's: 3)."""
     out, k = [], 0
     argv = list(argv)
     while k < len(argv):
         a = argv[k]
+        if a in ("-v", "-V") and k + 1 < len(argv) and argv[k + 1].isdigit():
+            out += ["--verbosity", str(min(int(argv[k + 1]), 3))]
+            k += 2
+            continue
+        if len(a) >= 2 and a[0] == "-" and set(a[1:]) == {"v"}:
+            out += ["--verbosity", str(min(len(a), 3))]
+            k += 1
+            continue
         if a == "--res" and k + 2 < len(argv) and argv[k + 1].isdigit() \
                 and argv[k + 2].isdigit():
             out += ["--res", f"{argv[k + 1]}x{argv[k + 2]}"]
@@ -359,8 +381,10 @@ def _cmd_inspect(args) -> int:
         return _error(str(exc), EXIT_RENDER)
     from .shot import RenderError, UsageError
     from .shot.analyse import inspect_effects
+    from .shot.py_warnings import warnings_to_stderr
     try:                                    # the effects of the frames (cmlt.analysis)
-        effects, table = inspect_effects(stage, info, args.frames)
+        with warnings_to_stderr():
+            effects, table = inspect_effects(stage, info, args.frames)
     except (UsageError, RenderError) as exc:
         return _error(str(exc), EXIT_USAGE if isinstance(exc, UsageError) else EXIT_RENDER)
     if args.json:
@@ -420,7 +444,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except KeyboardInterrupt:
         return _error("interrupted", EXIT_INTERRUPTED)
     except Exception as exc:            # a bug: still one line unless asked for more
-        if os.environ.get("CMLT_DEBUG"):
+        if os.environ.get("CMLT_DEBUG") or (getattr(args, "verbosity", None) or 0) >= 3:
             raise
         return _error(f"internal error: {type(exc).__name__}: {exc} "
                       "(set CMLT_DEBUG=1 for a traceback)", EXIT_RENDER)

@@ -126,6 +126,7 @@ class Light:
     angle: float = 0.53                         # distant: angular diameter, degrees
     treat_as_point: bool = False                # sphere treatAsPoint; cylinder treatAsLine
     texture: Optional[str] = None               # rect / dome texture file (resolved path)
+    texture_unresolved: bool = False            # the stage's path did not resolve (warned)
     normalize: bool = False
     # UsdLux ShapingAPI (rect, disk, sphere, cylinder): cone half-angle about the
     # light's -Z in degrees (180: none), cone softness in [0, 1], focus exponent and

@@ -31,8 +31,10 @@ from typing import Any, Dict, Optional, Tuple, Union
 import numpy as np
 import PyOpenColorIO as ocio
 
-from .spaces import (ACESCG_LUMINANCE, USD_TOKEN_ALIASES, Chromaticities,
+from .spaces import (USD_TOKEN_ALIASES, Chromaticities,
                      chromaticities_for_interop_id)
+from .errors import ColorError
+from .rendering_space import choose_rendering_space, luminance_weights
 from .stage_config import stage_config_path
 
 __all__ = [
@@ -58,12 +60,6 @@ _RAW_TOKENS = {"raw", "data", "identity", "none", "utility - raw"}
 _DEFAULT_TOKENS = {"", "unknown"}
 
 Triple = Tuple[float, float, float]
-
-
-class ColorError(ValueError):
-    """A colour-management failure: bad config, unknown colour space,
-    display or view. The message names the offending value and where it
-    came from."""
 
 
 def _bits(bit_depth: Any) -> Optional[int]:
@@ -95,7 +91,8 @@ class ColorConfig:
     processors may be applied from several threads at once.
     """
 
-    def __init__(self, config: "ocio.Config", source: str, location: str):
+    def __init__(self, config: "ocio.Config", source: str, location: str,
+                 rendering_space: Optional[str] = None):
         self.ocio = config
         #: where the config came from, e.g. ``"$OCIO"``, ``"built-in"``
         self.source = source
@@ -103,8 +100,13 @@ class ColorConfig:
         self.location = location
         self._lock = threading.Lock()
         self._processors: Dict[Tuple, Any] = {}
-        #: the OCIO name of cmlt's rendering space (ACEScg) in this config
-        self.rendering_space = self._find_rendering_space()
+        #: the OCIO name of the rendering space (cmlt.color.rendering_space: the
+        #: space asked for, else the scene_linear role, else ACEScg)
+        self.requested_rendering_space = rendering_space or None
+        self.rendering_space = choose_rendering_space(
+            config, self._lookup, rendering_space,
+            f"'{self.name}' ({source}: {location})")
+        self._luminance: Optional[Tuple[float, float, float]] = None
 
     # -- description -------------------------------------------------------
     @property
@@ -122,29 +124,13 @@ class ColorConfig:
         return f"ColorConfig({self.name!r}, source={self.source!r})"
 
     # -- colour spaces -----------------------------------------------------
-    def _find_rendering_space(self) -> str:
-        cfg = self.ocio
-        scene_linear = cfg.getColorSpace("scene_linear")     # roles resolve too
-        if scene_linear is not None and self._is_acescg(scene_linear):
-            return scene_linear.getName()
-        for name in (RENDERING_SPACE, "lin_ap1_scene", "lin_ap1"):
-            cs = cfg.getColorSpace(name)
-            if cs is not None:
-                return cs.getName()
-        cs = self._by_interop_id("lin_ap1_scene")
-        if cs is not None:
-            return cs.getName()
-        role = f"; its scene_linear role is '{scene_linear.getName()}'" if scene_linear else ""
-        raise ColorError(
-            f"OpenColorIO config '{self.name}' ({self.source}: {self.location}) has no "
-            f"ACEScg colour space (looked for the scene_linear role, 'ACEScg', "
-            f"'lin_ap1_scene'){role}; cmlt renders in ACEScg")
-
-    @staticmethod
-    def _is_acescg(cs) -> bool:
-        names = {cs.getName().lower()} | {a.lower() for a in cs.getAliases()}
-        interop = cs.getInteropID() if hasattr(cs, "getInteropID") else ""
-        return "acescg" in names or "lin_ap1_scene" in names or interop == "lin_ap1_scene"
+    @property
+    def luminance_weights(self) -> Tuple[float, float, float]:
+        """Y row of the rendering space (ACEScg: the AP1 row, exactly)."""
+        if self._luminance is None:
+            self._luminance = luminance_weights(self.ocio, self.rendering_space, self.convert,
+                                                self.chromaticities(None))
+        return self._luminance
 
     def _by_interop_id(self, interop_id: str):
         if not hasattr(ocio.ColorSpace, "getInteropID"):
@@ -374,10 +360,9 @@ class ColorConfig:
         arr = np.nan_to_num(arr, nan=0.0, posinf=1.0, neginf=0.0)
         return np.rint(np.clip(arr, 0.0, 1.0) * scale).astype(dt)
 
-    @staticmethod
-    def luminance(rgb) -> np.ndarray:
-        """Luminance (Y) of ACEScg colours (last axis RGB)."""
-        return np.asarray(rgb, dtype=np.float64)[..., :3] @ np.asarray(ACESCG_LUMINANCE)
+    def luminance(self, rgb) -> np.ndarray:
+        """Luminance (Y) of rendering-space colours (last axis RGB)."""
+        return np.asarray(rgb, dtype=np.float64)[..., :3] @ np.asarray(self.luminance_weights)
 
 
 # -- array plumbing -------------------------------------------------------------
@@ -419,13 +404,15 @@ def _prim_text(prim) -> str:
 
 # -- loading ----------------------------------------------------------------------
 
-def load_config(path: Optional[Union[str, os.PathLike]] = None, *, stage=None) -> ColorConfig:
+def load_config(path: Optional[Union[str, os.PathLike]] = None, *, stage=None,
+                rendering_space: Optional[str] = None) -> ColorConfig:
     """Load the OpenColorIO config cmlt renders with.
 
     ``path`` (``--ocio-config``) wins, then ``$OCIO``, then the stage's
     ``colorConfiguration``, then the built-in ``ocio://studio-config-latest``.
     A config that does not load raises :class:`ColorError` naming the path
-    and where it came from.
+    and where it came from. ``rendering_space`` (``--rendering-space``):
+    see :mod:`cmlt.color.rendering_space`.
     """
     if path is not None and str(path):
         location, source = str(path), "--ocio-config"
@@ -443,7 +430,7 @@ def load_config(path: Optional[Union[str, os.PathLike]] = None, *, stage=None) -
     except ocio.Exception as exc:
         raise ColorError(f"cannot load OpenColorIO config '{location}' (from {source}): "
                          f"{exc}") from exc
-    return ColorConfig(cfg, source, location)
+    return ColorConfig(cfg, source, location, rendering_space)
 
 
 _default: Optional[ColorConfig] = None

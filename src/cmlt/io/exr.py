@@ -133,7 +133,9 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
               metadata: Optional[Mapping[str, Any]] = None,
               attributes: Optional[Mapping[str, Any]] = None,
               aovs: Optional[Mapping[str, np.ndarray]] = None,
-              crop: Optional[Sequence[int]] = None) -> Tuple[int, float]:
+              crop: Optional[Sequence[int]] = None,
+              layers: Optional[Mapping[str, Tuple[str, Optional[Sequence[str]]]]] = None,
+              half_channels: Sequence[str] = ()) -> Tuple[int, float]:
     """Write ``image`` (H, W, 3) float, top row first, to ``path`` atomically.
     Returns ``(clamped, peak)``: with ``half``, how many stored values exceeded
     :data:`HALF_MAX` in magnitude and were clamped to it, and the largest
@@ -147,6 +149,10 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
     :data:`AOV_CHANNELS` to (H, W, 3) or (H, W) arrays the size of
     ``image``, written as extra channels. ``crop`` keeps only that window of
     every channel (data window) inside the full frame (display window).
+    ``layers`` names the channels of ``aovs`` keys that are no AOV name
+    (``key -> (prefix, suffixes)``, as in :data:`AOV_CHANNELS`: a render
+    product's layers); ``half_channels`` are stored as half even without
+    ``half``.
     """
     import OpenImageIO as oiio
 
@@ -157,9 +163,10 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
     names = list({1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}[nch])
     planes = [img]
     for name, data in (aovs or {}).items():
-        if name not in AOV_CHANNELS:
+        layout = (layers or {}).get(name) or AOV_CHANNELS.get(name)
+        if layout is None:
             raise ValueError(f"{path}: unknown AOV {name!r}; known: {', '.join(AOV_CHANNELS)}")
-        prefix, suffixes = AOV_CHANNELS[name]
+        prefix, suffixes = layout
         arr = _check_image(data, f"{path} (AOV {name})")
         want = 1 if suffixes is None else len(suffixes)
         if arr.shape != (h, w, want):
@@ -174,9 +181,10 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
         pixels = np.ascontiguousarray(pixels[y0:y1, x0:x1])
     ph, pw, ptot = pixels.shape
     clamped, peak = 0, 0.0
-    if half:
+    as_half = [(half and n not in FLOAT_ONLY_CHANNELS) or n in half_channels for n in names]
+    if any(as_half):
         # half has no finite value above HALF_MAX: clamp rather than store Inf
-        chans = [i for i, n in enumerate(names) if n not in FLOAT_ONLY_CHANNELS]
+        chans = [i for i, h16 in enumerate(as_half) if h16]
         over = np.abs(pixels[:, :, chans]) > HALF_MAX
         if over.any():
             clamped = int(over.sum())
@@ -184,13 +192,13 @@ def write_exr(path: str, image: np.ndarray, *, half: bool = False,
             pixels = pixels.copy()             # never the caller's array
             pixels[:, :, chans] = np.clip(pixels[:, :, chans], -HALF_MAX, HALF_MAX)
 
-    spec = oiio.ImageSpec(pw, ph, ptot, oiio.HALF if half else oiio.FLOAT)
+    spec = oiio.ImageSpec(pw, ph, ptot, oiio.HALF if half or all(as_half) else oiio.FLOAT)
     spec.x, spec.y = x0, y0
     spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, w, h
     spec.channelnames = tuple(names)
-    if half and any(n in FLOAT_ONLY_CHANNELS for n in names):
-        spec.channelformats = tuple(oiio.TypeDesc(oiio.FLOAT if n in FLOAT_ONLY_CHANNELS
-                                                  else oiio.HALF) for n in names)
+    if len(set(as_half)) > 1:
+        spec.channelformats = tuple(oiio.TypeDesc(oiio.HALF if h16 else oiio.FLOAT)
+                                    for h16 in as_half)
     if nch == 4:
         spec.alpha_channel = 3
     if "Z" in names:

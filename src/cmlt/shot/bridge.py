@@ -228,6 +228,8 @@ class SceneBridge:
         if not path or light.kind not in ("dome", "rect"):
             return -1
         rec = {"wrapS": "repeat" if light.kind == "dome" else "clamp", "wrapT": "clamp"}
+        if getattr(light, "texture_unresolved", False):
+            rec["unresolved"] = str(path)       # the stage reader warned about it already
         key = (str(path), "auto", "light", rec["wrapS"], rec["wrapT"])
         if key not in self._textures:
             self._textures[key] = self._load_texture(light.name, "texture:file", path, "auto", rec)
@@ -242,6 +244,8 @@ class SceneBridge:
                 raise OSError("no file")
             img = load_texture(str(path), cs)
         except Exception as exc:                       # missing / unreadable file
+            if rec.get("unresolved"):
+                return None             # the stage reader said so already (one cause, one warning)
             warnings.warn(f"{material}: texture file {rec.get('unresolved') or path!r} for "
                           f"{input_name} cannot be read ({exc}); using the fallback value")
             return None

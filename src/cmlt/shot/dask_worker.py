@@ -39,11 +39,15 @@ def _worker_stage(shot: str, stage_options: Optional[dict] = None) -> dict:
     so = stage_options or {}
     variants = tuple(so.get("variants") or ())
     render_settings = so.get("render_settings")
-    ident = (shot, variants, render_settings)
+    ident = (shot, variants, render_settings, so.get("ocio_config"), so.get("rendering_space"))
     c = _WORKER.get("shot")
     if c is None or c["ident"] != ident:
-        c = {"shot": shot, "ident": ident, "scenes": [],
-             "stage": open_stage(shot, variants=variants, render_settings=render_settings)}
+        from ..color import load_config, set_config
+        stage = open_stage(shot, variants=variants, render_settings=render_settings)
+        # the client's config and rendering space: colours are converted as it does
+        set_config(load_config(so.get("ocio_config"), stage=stage,
+                               rendering_space=so.get("rendering_space")))
+        c = {"shot": shot, "ident": ident, "scenes": [], "stage": stage}
         _WORKER["shot"] = c
     return c
 

@@ -23,7 +23,7 @@ from .bridge import BridgeError, SceneBridge
 from .core_settings import settings_message
 from .errors import RenderError, UsageError
 from .options import preview_path
-from .output import aov_images, header_metadata, to_output
+from .output import aov_images, header_metadata, product_channels, to_output
 from .progress import Reporter
 
 __all__ = ["ShotJob", "render_frame", "render_interruptible"]
@@ -54,6 +54,7 @@ class ShotJob:
     distributed: Any = None             # cmlt.shot.distributed.DaskRenderer (--dask), or None
     effects_cache: Any = None           # time -> FrameEffects (cmlt.shot.analyse)
     on_estimate: Any = None             # (work, seconds, relmse) -> None: the live estimate
+    layers: Tuple = ()                  # the render product's layers (cmlt.usd.render_products)
 
     def __post_init__(self):
         if self.bridge is None:
@@ -247,10 +248,11 @@ def _write(job: ShotJob, path: str, frame: float, image, out_image, crop, record
             if state_file:
                 from ..temporal.state import write_state
                 write_state(tmp[state_file], state_bytes)
+            aovs, layout, halfs = product_channels(aovs, job.layers)
             clamped, peak = write_exr(tmp[path], out_image, half=opts.half,
                                       compression=opts.compression, colorspace=None,
                                       metadata=metadata, attributes=job.color_attrs, aovs=aovs,
-                                      crop=crop)
+                                      crop=crop, layers=layout, half_channels=halfs)
             if clamped:
                 msg = (f"--half: frame {frame:g}: {clamped} value(s) above half's largest "
                        f"finite value {HALF_MAX:g} (up to {peak:.6g}) clamped to it in {path}; "
@@ -303,6 +305,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
     opts, core = job.opts, job.core
     t0 = time.perf_counter()
     fs = _load(job, frame)
+    phases = {"load": time.perf_counter() - t0}
     width, height = opts.resolution or fs.resolution
     job.st.width, job.st.height = int(width), int(height)
     crop = None
@@ -318,6 +321,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             scene = job.bridge.update(fs)
+        phases["scene update"] = time.perf_counter() - t0 - phases["load"]
     except (core.SceneError, BridgeError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
     bridge_warnings = [str(w.message) for w in caught]
@@ -346,5 +350,8 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
     out_image = to_output(image, opts.output_colorspace)
     state_file, pv = _write(job, path, frame, image, out_image, crop, record, metadata, aovs,
                             state_bytes, getattr(r, "group_images", None))
+    phases.update(render=float(stats.get("time_s", 0.0)), AOVs=stats.get("aov_time_s"),
+                  write=time.perf_counter() - t0 - stats["wall_time_s"])
     return {"out_image": out_image, "stats": stats, "state_bytes": state_bytes,
-            "state_file": state_file, "preview": pv, "units": units}
+            "state_file": state_file, "preview": pv, "units": units, "record": record,
+            "phases": phases}

@@ -50,6 +50,9 @@ class _FrameOptions:
     output_colorspace: Optional[str] = None
     #: OpenColorIO config (None: $OCIO, the stage's, else the built-in one)
     ocio_config: Optional[str] = None
+    #: colour space of the config to render in (None: its scene_linear role;
+    #: cmlt.color.rendering_space)
+    rendering_space: Optional[str] = None
     #: extra EXR channels: any of AOV_NAMES (albedo, normal, depth, variance, error)
     aovs: Tuple[str, ...] = ()
     #: camera rays per pixel of the AOV pass (albedo, normal, depth)

@@ -11,7 +11,8 @@ import numpy as np
 from .._version import __version__
 from .errors import RenderError, UsageError
 
-__all__ = ["color_setup", "to_output", "aov_images", "header_metadata"]
+__all__ = ["color_setup", "to_output", "aov_images", "header_metadata", "stage_product",
+           "product_channels"]
 
 
 def color_setup(opts, stage):
@@ -23,13 +24,16 @@ def color_setup(opts, stage):
     # reader converts authored colours to ACEScg with it): --ocio-config, else
     # $OCIO, else the stage's colorConfiguration, else the built-in config.
     try:
-        cfg = load_config(opts.ocio_config, stage=stage)
+        cfg = load_config(opts.ocio_config, stage=stage, rendering_space=opts.rendering_space)
     except ColorError as exc:
+        if opts.rendering_space and str(exc).startswith("rendering space"):
+            raise UsageError(f"--rendering-space {opts.rendering_space!r}: {exc}") from None
         if opts.ocio_config:
             raise UsageError(f"--ocio-config {opts.ocio_config}: {exc}") from None
         raise RenderError(str(exc)) from None
     current = get_config()
-    if (current.location, current.source) != (cfg.location, cfg.source):
+    if (current.location, current.source, current.rendering_space) != \
+            (cfg.location, cfg.source, cfg.rendering_space):
         set_config(cfg)         # keep the current one (and its processor cache) if the same
     try:
         attrs = header_attributes(opts.output_colorspace)
@@ -52,6 +56,43 @@ def to_output(image, output_colorspace):
         return image
     from ..color import from_rendering_space
     return from_rendering_space(np.array(image, dtype=np.float32, copy=True), output_colorspace)
+
+
+def stage_product(stage, opts, out):
+    """The stage's render product (:mod:`cmlt.usd.render_products`) for this
+    render, or None: its layers choose the EXR's channels unless ``--aov`` was
+    given, its productName the output pattern unless ``out`` (``--out``) was."""
+    from ..usd import UsdLoadError
+    from ..usd.render_products import read_render_product
+    from ..usd.render_settings import find_settings_prim
+
+    try:
+        product = read_render_product(stage, find_settings_prim(stage))
+    except UsdLoadError as exc:
+        raise RenderError(str(exc)) from None
+    if product is None:
+        return None
+    if opts.aovs:
+        product.layers = []             # the flags choose the channels
+    if out:
+        product.product_name = ""       # and the path
+    return product
+
+
+def product_channels(images: Dict[str, np.ndarray], layers):
+    """The AOV images of a frame rearranged as a render product's layers:
+    ``(aovs, layout, half_channels)`` for :func:`cmlt.io.exr.write_exr`
+    (``images`` keyed by AOV name, as :func:`aov_images` returns them)."""
+    if not layers:
+        return images, None, ()
+    aovs, layout, halfs = {}, {}, []
+    for layer in layers:
+        key = layer.channels()[0] if layer.suffixes is None else layer.name
+        aovs[key] = images[layer.aov]
+        layout[key] = (layer.name, layer.suffixes)
+        if layer.half:
+            halfs += layer.channels()
+    return aovs, layout, tuple(halfs)
 
 
 def aov_images(core, scene, st, r, aovs, opts,
@@ -82,6 +123,11 @@ def aov_images(core, scene, st, r, aovs, opts,
         from ..metrics.error_estimate import estimate_render
         out["error"] = estimate_render(r, stats, keep_pixels=True)[0].pixel.astype(np.float32)
     return {name: out[name] for name in aovs}
+
+
+def _rendering_space() -> str:
+    from ..color import get_config
+    return get_config().rendering_space
 
 
 #: RenderResult.stats keys (MLT integrators) -> cmlt:* header attribute names:
@@ -123,6 +169,7 @@ def header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
         "integratorParameters": params,               # JSON text
         "spp": int(resolved.spp), "maxDepth": int(resolved.max_depth),
         "seed": int(resolved.seed),
+        "renderingSpace": _rendering_space(),
         "renderTime": float(stats.get("time_s", stats.get("wall_time_s", 0.0))),
         "samples": int(stats.get("samples", 0)),
         "rays": int(stats.get("rays", 0)),

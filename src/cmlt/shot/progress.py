@@ -28,7 +28,38 @@ import time
 from typing import Any, Dict, Iterable, Optional, Set
 
 __all__ = ["Reporter", "JsonReporter", "format_rate", "format_flicker", "summary_table",
-           "sequence_summary"]
+           "sequence_summary", "VERBOSITY", "frame_details"]
+
+#: ``-v`` levels (husk style): what each adds on stderr (or as ``detail`` events
+#: with ``--log-json``)
+VERBOSITY = {0: "quiet: errors only", 1: "normal: warnings, a line per frame, the summary",
+             2: "verbose: the render's set-up and a details line per frame (size, camera, "
+                "samples, time per phase, what changed in the scene)",
+             3: "debug: also the settings with their sources, each frame's scene update and "
+                "effects, and a traceback on an internal error"}
+
+
+def frame_details(frame: float, done: Dict[str, Any]):
+    """``(level, text)`` lines describing a finished frame for ``-v`` 2 and 3
+    (``done``: what :func:`cmlt.shot.frame_job.render_frame` returned)."""
+    rec, st = done.get("record") or {}, done.get("stats") or {}
+    w, h = rec.get("resolution") or (0, 0)
+    settings = rec.get("settings") or {}
+    spp = f"{st['mutations']} mutations" if st.get("mutations") else \
+        f"{settings.get('spp', '?')} spp"
+    phases = ", ".join(f"{k} {float(v):.3f} s" for k, v in (done.get("phases") or {}).items()
+                       if v is not None)
+    upd = rec.get("scene_update") or {}
+    change = (f"rebuilt ({upd.get('reason')})" if upd.get("rebuilt") else
+              f"{upd.get('transforms_updated', 0)} transform(s), "
+              f"{upd.get('meshes_updated', 0)} mesh(es), "
+              f"{upd.get('materials_updated', 0)} material(s) updated")
+    yield 2, (f"frame {frame:g}: {w}x{h}, camera {rec.get('camera') or '(framing)'}, "
+              f"{settings.get('integrator', '?')} {spp}, {st.get('rays', 0)} rays; {phases}; "
+              f"scene {change}")
+    yield 3, f"frame {frame:g}: scene update {json.dumps(_json_safe(upd), sort_keys=True)}"
+    yield 3, (f"frame {frame:g}: effects "
+              f"{json.dumps(_json_safe(rec.get('effects')), sort_keys=True, default=str)}")
 
 
 def format_rate(rays_per_s: Optional[float]) -> str:
@@ -57,11 +88,13 @@ class _OnceWarnings:
 
 
 class Reporter(_OnceWarnings):
-    def __init__(self, *, show_progress: bool = True, quiet: bool = False, console=None):
+    def __init__(self, *, show_progress: bool = True, quiet: bool = False, console=None,
+                 verbosity: int = 1):
         from rich.console import Console
 
         self.console = console or Console(stderr=True, highlight=False)
-        self.quiet = quiet
+        self.verbosity = 0 if quiet else int(verbosity)
+        self.quiet = self.verbosity <= 0
         self.show_progress = show_progress and not quiet and self.console.is_terminal
         self._seen_warnings: Set[str] = set()
         self._progress = None
@@ -95,6 +128,12 @@ class Reporter(_OnceWarnings):
     def info(self, text: str) -> None:
         if not self.quiet:
             self.console.print(text, markup=False, highlight=False, soft_wrap=True)
+
+    def detail(self, text: str, level: int = 2) -> None:
+        """A line shown from verbosity ``level`` on (``-v``)."""
+        if self.verbosity >= level:
+            self.console.print(f"cmlt: {text}", markup=False, highlight=False, style="dim",
+                               soft_wrap=True)
 
     def warn(self, text: str) -> None:
         if self.quiet:                # --quiet: errors only
@@ -252,8 +291,9 @@ class JsonReporter(_OnceWarnings):
     """``--log-json``: one JSON object per line per event on ``stream``
     (stdout), flushed at once so a farm's log collector sees it live."""
 
-    def __init__(self, stream=None):
+    def __init__(self, stream=None, verbosity: int = 1):
         self.stream = stream if stream is not None else sys.stdout
+        self.verbosity = int(verbosity)
         self._seen_warnings: Set[str] = set()
         self._frame_t0 = 0.0
         self._index = 0
@@ -276,6 +316,10 @@ class JsonReporter(_OnceWarnings):
 
     def warn(self, text: str) -> None:
         self.emit("warning", message=text)
+
+    def detail(self, text: str, level: int = 2) -> None:
+        if self.verbosity >= level:
+            self.emit("detail", level=int(level), message=text)
 
     def start_sequence(self, total: int, skipped: int = 0) -> None:
         self._total = int(total)

@@ -34,10 +34,11 @@ from .frame_job import ShotJob, render_frame
 from .frames import check_stage_range, default_frames, expand_outputs, parse_frames
 from .options import (AOV_NAMES, PREVIEW_FORMATS, RenderOptions, check_aovs_for, default_output,
                       preview_path)
-from .output import color_setup
+from .output import color_setup, stage_product
 from .preflight import (check_output_paths, check_state_dir, finished_frame_problem,
                         remove_stale_temporaries)
-from .progress import Reporter
+from .progress import Reporter, frame_details
+from .py_warnings import current_router, routes_python_warnings
 
 __all__ = ["RenderOptions", "SequenceResult", "render_sequence", "default_output",
            "preview_path", "AOV_NAMES", "PREVIEW_FORMATS"]
@@ -135,8 +136,10 @@ def _cold_resume_warning(resolved, opts: RenderOptions, todo, predecessor, outpu
 
 def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> dict:
     """The sidecar's ``settings``: the resolved settings and the output options."""
+    from ..color import get_config
     record = dict(resolved.as_dict(), threads=int(opts.threads), half=bool(opts.half),
-                  compression=opts.compression, output_colorspace=colorspace_name)
+                  compression=opts.compression, output_colorspace=colorspace_name,
+                  rendering_space=get_config().rendering_space)
     if aovs:
         record.update(aovs=list(aovs), aov_samples=int(opts.aov_samples))
     if opts.crop is not None:
@@ -150,13 +153,16 @@ def _settings_record(resolved, opts, colorspace_name, display, view, aovs) -> di
     return record
 
 
-def _finished_frame_expectation(resolved, opts: RenderOptions, aovs) -> dict:
+def _finished_frame_expectation(resolved, opts: RenderOptions, aovs, layers=()) -> dict:
     """What a finished frame of this render holds (``finished_frame_problem``'s
-    keywords): its size, its channels (beauty and AOVs) and its data window."""
+    keywords): its size, its channels (beauty and AOVs, or the render product's
+    layers) and its data window."""
     from ..io.exr import AOV_CHANNELS
 
     channels = ["R", "G", "B"]
-    for name in aovs:
+    for layer in layers:
+        channels += layer.channels()
+    for name in aovs if not layers else ():
         prefix, suffixes = AOV_CHANNELS[name]
         channels += [prefix] if suffixes is None else [f"{prefix}.{c}" for c in suffixes]
     size = tuple(int(v) for v in (opts.resolution or resolved.resolution))
@@ -195,10 +201,11 @@ def _open(shot: str, core, variants=(), render_settings=None):
     return stage, info, core
 
 
+@routes_python_warnings
 def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                     out: Optional[str] = None, options: Optional[RenderOptions] = None, *,
                     resume: bool = False, progress: bool = True, quiet: bool = False,
-                    reporter: Optional[Reporter] = None, core=None,
+                    reporter: Optional[Reporter] = None, core=None, verbosity: int = 1,
                     client=None, on_part=None, on_estimate=None,
                     force_frames: bool = False) -> SequenceResult:
     """Render ``frames`` of ``shot`` to ``out`` (a pattern, see
@@ -230,14 +237,22 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                                 effects_cache)
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
-    aovs = tuple(n for n in AOV_NAMES if n in opts.aovs)        # channel order, no duplicates
+    product = stage_product(stage, opts, out)
+    layers = tuple(product.layers) if product is not None else ()
+    aovs = product.aovs() if layers else tuple(n for n in AOV_NAMES if n in opts.aovs)
     check_aovs_for(aovs, resolved.integrator, getattr(resolved, "error_groups", 8))
     t_start = time.perf_counter()
     range_warning = check_stage_range(frame_list, info.start, info.end,
                                       info.has_authored_time_range, force=force_frames,
                                       spec=frames if isinstance(frames, str) else None)
-    pattern = out or default_output(shot)
-    outputs = expand_outputs(pattern, frame_list)
+    pattern = out or (product.product_name if product is not None else "") \
+        or default_output(shot)
+    try:
+        outputs = expand_outputs(pattern, frame_list)
+    except UsageError as exc:
+        if out or product is None or not product.product_name:
+            raise
+        raise UsageError(str(exc).replace("--out", f"{product.path}: productName", 1)) from None
     # before the first frame: every output can be written as an EXR (no stray sidecar of
     # a frame whose image cannot be), the state directory is one, and the temporaries a
     # killed render left in those directories go
@@ -255,7 +270,9 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     if auto is not None:
         result.settings["integrator_auto"] = auto.as_dict()
     todo, redo = [], []
-    expect = _finished_frame_expectation(resolved, opts, aovs)
+    if product is not None and product.path:
+        result.settings["render_product"] = product.as_dict()
+    expect = _finished_frame_expectation(resolved, opts, aovs, layers)
     for f, path in zip(frame_list, outputs):
         if resume and os.path.lexists(path):
             # a frame is skipped only when it is really done: a truncated or empty
@@ -274,12 +291,15 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     from ..metrics.flicker import FrameDifferenceFlicker
     flick = FrameDifferenceFlicker()        # frame-to-frame flicker (DESIGN.md §4)
 
-    rep = reporter or Reporter(show_progress=progress, quiet=quiet)
+    rep = reporter or Reporter(show_progress=progress, quiet=quiet, verbosity=verbosity)
     job = ShotJob(shot=shot, stage=stage, info=info, opts=opts, core=core, st=st,
                   resolved=resolved, sources=sources, color_attrs=color_attrs, display=display,
                   view=view, aovs=aovs, settings_record=result.settings, reporter=rep,
-                  result=result, effects_cache=effects_cache, on_estimate=on_estimate)
+                  result=result, effects_cache=effects_cache, on_estimate=on_estimate,
+                  layers=layers)
     job.make_temporal = lambda w, h: _temporal_driver(job, w, h)
+    router = current_router()           # the Python warnings so far, and from now on
+    early = router.attach(job.warn) if router is not None else []
     own_client = None
     if client is None and opts.dask:
         client, own_client = _dask_client(opts.dask)
@@ -301,14 +321,16 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
                                            "variants": tuple(opts.variants),
                                            "render_settings": opts.render_settings,
                                            "default_light": opts.default_light,
-                                           "purposes": tuple(opts.purposes)})
+                                           "purposes": tuple(opts.purposes),
+                                           "ocio_config": opts.ocio_config,
+                                           "rendering_space": opts.rendering_space})
         result.settings["dask"] = opts.dask or "client"
         try:
             job.distributed.warm()
         except Exception as exc:         # a worker cannot open the shot: say so once
             _close(own_client)
             raise RenderError(f"{shot}: --dask: a worker cannot open the shot: {exc}") from None
-    stage_warnings = [w for w in info.warnings
+    stage_warnings = early + [w for w in info.warnings
                       if not (opts.camera and w == info.settings_camera_warning)]  # moot
     cold = _cold_resume_warning(resolved, opts, todo, predecessor, outputs, frame_list, resume)
     if range_warning:
@@ -318,7 +340,7 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
             f"removed {len(removed)} temporary file(s) left by a render that was killed: "
             + ", ".join(removed[:3]) + (f", ... ({len(removed) - 3} more)"
                                         if len(removed) > 3 else ""))
-    stage_warnings += redo
+    stage_warnings += redo + (product.warnings if product is not None else [])
     if cold:
         stage_warnings.append(cold)
     try:
@@ -347,6 +369,22 @@ def _close(own) -> None:
         cluster.close()
 
 
+def _setup_details(job, todo):
+    """``(level, text)`` lines describing the render before its first frame (``-v``)."""
+    from ..color import get_config
+    r, opts = job.resolved, job.opts
+    first = todo[0][1] if todo else "-"
+    yield 2, (f"{job.shot}: {len(todo)} frame(s) to render, first -> {first}; integrator "
+              f"{r.integrator}, {r.spp} spp, max depth {r.max_depth}, seed {r.seed}, "
+              f"threads {opts.threads or 'all'}")
+    yield 2, f"colour: {get_config().describe()}"
+    if job.layers:
+        yield 2, "channels: R, G, B, " + ", ".join(c for layer in job.layers
+                                                   for c in layer.channels())
+    for name, value in sorted(r.as_dict().items()):
+        yield 3, f"setting {name} = {value!r} ({job.sources.get(name, 'default')})"
+
+
 def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start) -> None:
     """The frame loop of render_sequence."""
     with rep:
@@ -355,6 +393,8 @@ def _frames(job, rep, result, todo, predecessor, stage_warnings, flick, t_start)
         if result.skipped:
             rep.info(f"resume: {len(result.skipped)} frame(s) already rendered, "
                      f"{len(todo)} to go")
+        for level, text in _setup_details(job, todo):
+            rep.detail(text, level)
         rep.start_sequence(len(todo))
         if job.distributed is not None:     # which frame's tasks go ahead of which
             job.distributed.plan([f for f, _ in todo], predecessor)
@@ -396,6 +436,8 @@ def _frame_loop(job, rep, result, todo, predecessor, flick) -> None:
             result.stats[frame] = done["stats"]
             result.flicker = flick.as_dict()
             rep.end_frame(frame, path, done["stats"], done["units"])
+            for level, text in frame_details(frame, done):
+                rep.detail(text, level)
         except KeyboardInterrupt:
             rep.abort_frame()
             raise RenderCancelled(frame, result.written, len(todo) - k) from None

@@ -119,17 +119,12 @@ def load_texture(path: str, source_colorspace: Optional[str] = "auto", *,
     if spec.nchannels < 3:
         grey = np.repeat(np.ascontiguousarray(img[..., :1]), 3, axis=2)
         acescg = np.asarray(cfg.convert(grey, src, dst), dtype=np.float32)
-        out[..., 0] = (acescg.astype(np.float64) @ np.asarray(_acescg_luminance())) \
+        out[..., 0] = (acescg.astype(np.float64) @ np.asarray(cfg.luminance_weights)) \
             .astype(np.float32)
         return out
     rgb = np.ascontiguousarray(img[..., :3])
     out[..., :3] = np.asarray(cfg.convert(rgb, src, dst), dtype=np.float32)
     return out
-
-
-def _acescg_luminance():
-    from ..color import ACESCG_LUMINANCE
-    return ACESCG_LUMINANCE
 
 
 #: OpenImageIO's ``wrapmodes`` names -> UsdUVTexture wrap tokens

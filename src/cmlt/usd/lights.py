@@ -98,10 +98,13 @@ def rigid_and_scale(m: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     return out, scale
 
 
-def _asset(v, path: str, warnings: List[str]) -> Optional[str]:
+def _asset(v, path: str, warnings: List[str], light=None) -> Optional[str]:
     if isinstance(v, Sdf.AssetPath):
         if v.path and not v.resolvedPath:
-            warnings.append(f"{path}: texture:file {v.path} cannot be resolved")
+            if light is not None:
+                light.texture_unresolved = True
+            warnings.append(f"{path}: texture:file {v.path} cannot be resolved; the light is "
+                            "not textured")
         return v.resolvedPath or v.path or None
     return str(v) if v else None
 
@@ -173,7 +176,8 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
     if kind == "rect":
         light.width = float(abs(num("width", 1.0)) * s[0])
         light.height = float(abs(num("height", 1.0)) * s[1])
-        light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
+        light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings,
+                               light)
         area = light.width * light.height
     elif kind == "disk":
         light.radius = float(abs(num("radius", 0.5)) * 0.5 * (s[0] + s[1]))
@@ -192,7 +196,8 @@ def read_light(prim, time, world_m: np.ndarray, warnings: List[str]) -> Optional
         half = math.radians(min(light.angle, 360.0)) / 2.0
         area = 2.0 * math.pi * (1.0 - math.cos(half))        # solid angle of the cone
     elif kind == "dome":
-        light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings)
+        light.texture = _asset(light_input(prim, "texture:file", None, time), path, warnings,
+                               light)
         pole = dome_pole_axis(prim, warnings)
         if pole == "Z":
             light.transform = xf @ _Y_POLE_TO_Z

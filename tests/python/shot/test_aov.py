@@ -7,8 +7,6 @@ misses are 0 in every AOV.
 """
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 import OpenImageIO as oiio
 import pytest
@@ -19,51 +17,12 @@ from cmlt.color import load_config, set_config
 from cmlt.color import to_rendering_space as acescg
 from cmlt.shot.bridge import SceneBridge
 from cmlt.usd import load_frame, open_stage
+from support.stages import exr_channels, facing_quad_shot
 
 D = 5.0
 DIFFUSE = (0.8, 0.3, 0.1)        # authored, untagged: linear Rec.709
 
-PLANE_SHOT = textwrap.dedent(f'''\
-    #usda 1.0
-    (
-        startTimeCode = 1
-        endTimeCode = 2
-        metersPerUnit = 1
-        upAxis = "Y"
-    )
-    def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
-    {{
-        uniform token subdivisionScheme = "none"
-        int[] faceVertexCounts = [4]
-        int[] faceVertexIndices = [0, 1, 2, 3]
-        point3f[] points = [(-1.5, -1, {-D}), (1.5, -1, {-D}), (1.5, 1, {-D}), (-1.5, 1, {-D})]
-        rel material:binding = </Looks/M>
-    }}
-    def Scope "Looks"
-    {{
-        def Material "M"
-        {{
-            token outputs:surface.connect = </Looks/M/S.outputs:surface>
-            def Shader "S"
-            {{
-                uniform token info:id = "UsdPreviewSurface"
-                color3f inputs:diffuseColor = {DIFFUSE}
-                token outputs:surface
-            }}
-        }}
-    }}
-    def DistantLight "Sun"
-    {{
-        float inputs:intensity = 1
-    }}
-    def Camera "Cam"
-    {{
-        float focalLength = 24
-        float horizontalAperture = 36
-        float verticalAperture = 24
-        float2 clippingRange = (0.1, 100)
-    }}
-    ''')
+PLANE_SHOT = facing_quad_shot(D, DIFFUSE)
 W, H = 48, 32
 
 
@@ -160,13 +119,7 @@ def test04_bad_arguments():
         core.render_aovs(scene, st, samples=0)
 
 
-def _channels(path):
-    inp = oiio.ImageInput.open(path)
-    spec = inp.spec()
-    pix = np.asarray(inp.read_image(oiio.FLOAT), dtype=np.float32)
-    inp.close()
-    pix = pix.reshape(spec.height, spec.width, spec.nchannels)
-    return spec, {n: pix[..., i] for i, n in enumerate(spec.channelnames)}
+_channels = exr_channels
 
 
 def test05_cli_writes_aov_channels_with_standard_names(plane_shot, tmp_path, capsys):
