@@ -58,6 +58,10 @@ public:
     double radius() const { return m_radius; }
     /// The one-pixel box: samples land in their pixel exactly as without a filter.
     bool unit_box() const { return m_unit_box; }
+    /// How far film positions reach beyond the image so that every pixel's footprint is
+    /// covered (a splatting film samples [-m, W + m) x [-m, H + m)): r - 1/2; 0 for the
+    /// unit box.
+    float margin() const { return m_unit_box ? 0.f : float(m_radius - 0.5); }
 
     /// Normalised 1-D profile f1(x) (∫ f1 = 1), 0 for |x| > r.
     double evaluate_1d(double x) const;
