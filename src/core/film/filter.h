@@ -62,6 +62,10 @@ public:
     /// covered (a splatting film samples [-m, W + m) x [-m, H + m)): r - 1/2; 0 for the
     /// unit box.
     float margin() const { return m_unit_box ? 0.f : float(m_radius - 0.5); }
+    /// Area of that window for a W x H image, in pixels (W·H for the unit box).
+    double window_area(int width, int height) const {
+        return (double(width) + 2.0 * double(margin())) * (double(height) + 2.0 * double(margin()));
+    }
 
     /// Normalised 1-D profile f1(x) (∫ f1 = 1), 0 for |x| > r.
     double evaluate_1d(double x) const;

@@ -22,7 +22,10 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
-    const BdptTracer tracer(scene, camera, W, H, settings.max_depth);
+    // light tracing reaches the film window (the image and the filter's margin), its
+    // importance normalised over the window: splats scaled by window / image area
+    const BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
+    const double splat_scale = filter.window_area(W, H) / (double(W) * double(H));
     const std::vector<Tile> tiles = image_tiles(W, H);
     const int threads = frame_threads(settings);
     tbb::task_arena arena(threads);
@@ -82,6 +85,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
             for (const BdptSplat& sp : list)
                 filter.footprint(sp.p_raster, W, H, [&](uint32_t pixel, double w) {
                     double* d = &splat_img[3 * size_t(pixel)];
+                    w *= splat_scale;
                     d[0] += double(sp.L.x) * w;
                     d[1] += double(sp.L.y) * w;
                     d[2] += double(sp.L.z) * w;
