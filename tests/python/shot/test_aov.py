@@ -86,6 +86,7 @@ def _aovs(shot, samples=4, threads=0, seed=0):
     fs = load_frame(open_stage(shot), 1, resolution=(W, H))
     scene = SceneBridge(core).update(fs)
     st = core.RenderSettings()
+    st.pixel_filter = "box"    # per-pixel analytic expectation: the one-pixel box
     st.width, st.height, st.threads, st.seed = W, H, threads, seed
     return core.render_aovs(scene, st, samples=samples)
 

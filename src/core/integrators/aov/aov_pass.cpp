@@ -81,12 +81,14 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                             Vec3 nsum(0.f), nfirst(0.f);
                             float zmin = k_infinity;
                             int hits = 0;
+                            float wsum = 0.f;  // the filter weights' sum (the film's divisor)
                             for (int s = 0; s < samples; ++s) {
                                 // The beauty render's film position of sample s (the pixel
                                 // filter's offset and weight, as pt's)
                                 PixelSampler sampler(settings.seed, pixel, uint32_t(s));
                                 float w = 1.f;
                                 const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), &w);
+                                wsum += w;
                                 Ray ray = camera.generate_ray(p_film);
                                 SceneHit hit = scene.intersect(ray);
                                 ++n_rays;
@@ -118,7 +120,7 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                                 ++hits;
                             }
                             const size_t i3 = size_t(pixel) * 3;
-                            const float inv = 1.f / float(samples);
+                            const float inv = wsum != 0.f ? 1.f / wsum : 0.f;
                             res.albedo[i3 + 0] = albedo.x * inv;
                             res.albedo[i3 + 1] = albedo.y * inv;
                             res.albedo[i3 + 2] = albedo.z * inv;

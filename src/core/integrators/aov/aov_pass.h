@@ -9,7 +9,7 @@
 /// beauty image is (each sample weighted by the filter's f/pdf); depth is not (below).
 ///
 /// Conventions (per pixel, over its samples):
-///  * albedo: mean over all samples of the filter weight times the first hit's diffuse colour (rendering-space RGB,
+///  * albedo: filter-weighted mean (as the film's) over all samples of the first hit's diffuse colour (rendering-space RGB,
 ///    ACEScg), its texture looked up at the hit's st (materials/material_eval.h). A ray that escapes contributes 0. A ray that hits an analytic light's
 ///    emitting side contributes the light's radiance clamped to [0, 1] (the denoiser
 ///    convention for emitters); an emissive mesh contributes its material's diffuse.

@@ -29,8 +29,10 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
             for (int x = 0; x < W; ++x)
                 for (int k = s0; k < s1; ++k) {
                     const uint32_t index = m_sample_base + uint32_t(k);
-                    m_film.add_sample(x, y, index,
-                                      m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x, y, W, index, c));
+                    float w = 1.f;
+                    const Spectrum L =
+                        m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x, y, W, index, c, &w);
+                    m_film.add_sample(x, y, index, L, w);
                 }
         counters.add(c);
     });

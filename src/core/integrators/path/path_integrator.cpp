@@ -50,9 +50,10 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x)
                             for (int s = s0; s < s1; ++s) {
-                                const Spectrum L =
-                                    tracer.pixel_sample(camera, filter, motion_blur, settings.seed, x, y, W, uint32_t(s), c);
-                                film.add_sample(x, y, uint32_t(s), L);
+                                float w = 1.f;
+                                const Spectrum L = tracer.pixel_sample(camera, filter, motion_blur, settings.seed, x,
+                                                                       y, W, uint32_t(s), c, &w);
+                                film.add_sample(x, y, uint32_t(s), L, w);
                             }
                 }
                 counters.add(c);

@@ -8,11 +8,10 @@ namespace cmlt {
 
 Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur,
                                   uint64_t seed, int x, int y, int width, uint32_t s,
-                                  PathCounters& counters) const {
+                                  PathCounters& counters, float* weight) const {
     const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
     PixelSampler sampler(seed, pixel, s);
-    float weight = 1.f;
-    const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), &weight);
+    const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), weight);
     Ray ray = camera.generate_ray(p_film);
     if (camera.has_lens()) {  // thin lens: its own dimension
         PixelSampler ls(seed, pixel, s);
@@ -24,7 +23,7 @@ Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filte
         ts.set_dimension(k_shutter_time_dimension);
         ray.time = ts.get1d();
     }
-    return li(ray, sampler, counters) * weight;
+    return li(ray, sampler, counters);
 }
 
 template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&, PathCounters&,
