@@ -41,104 +41,11 @@ import sys
 from typing import List, Optional, Sequence
 
 from ._version import __version__
+from .cli_args import (EXIT_INTERRUPTED, EXIT_OK, EXIT_RENDER, EXIT_USAGE, _error, _int_at_least, _Parser,
+                       parse_aovs, parse_crop, parse_purposes, parse_resolution, parse_variant_flag)
+from .cli_images import _cmd_contact_sheet, _cmd_inspect_image
 
 __all__ = ["main", "build_parser", "parse_resolution"]
-
-EXIT_OK, EXIT_RENDER, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse, but errors are one line: ``cmlt: error: ...``, exit 2."""
-
-    def error(self, message):                      # noqa: D401 - argparse API
-        sys.stderr.write(f"cmlt: error: {message} (see `{self.prog} --help`)\n")
-        raise SystemExit(EXIT_USAGE)
-
-
-def parse_resolution(text: str):
-    """``640x480`` -> (640, 480); argparse turns ValueError into a usage error."""
-    parts = text.lower().replace("*", "x").split("x")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        w, h = int(parts[0]), int(parts[1])
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT, e.g. 640x480") from None
-    from .settings.table import RESOLUTION_RANGE
-    lo, hi = RESOLUTION_RANGE
-    if w < lo or h < lo or w > hi or h > hi:
-        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be {lo}..{hi}")
-    return (w, h)
-
-
-def _int_at_least(lo: int):
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        if v < lo:
-            raise argparse.ArgumentTypeError(f"{text!r}: must be at least {lo}")
-        return v
-    return parse
-
-
-def parse_aovs(text: str):
-    """``albedo,normal`` -> ("albedo", "normal"); an unknown name is a usage
-    error naming ``--aov`` (argparse prefixes "argument --aov:")."""
-    from .io.exr import AOV_CHANNELS
-
-    names = [t.strip().lower() for t in text.split(",") if t.strip()]
-    if not names:
-        raise argparse.ArgumentTypeError(f"{text!r}: give one or more of "
-                                         f"{', '.join(AOV_CHANNELS)}")
-    for n in names:
-        if n not in AOV_CHANNELS:
-            raise argparse.ArgumentTypeError(f"unknown AOV {n!r}; choose from "
-                                             f"{', '.join(AOV_CHANNELS)} (comma-separated)")
-    return tuple(dict.fromkeys(names))
-
-
-def parse_variant_flag(text: str) -> str:
-    """``--variant`` text checked for its form (:func:`cmlt.usd.variants.parse_variant`);
-    whether the stage has that set is checked once it is open."""
-    from .usd.variants import parse_variant
-    try:
-        parse_variant(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return text.strip()
-
-
-def parse_purposes(text: str):
-    """``render,proxy`` -> ("render", "proxy"); ``geometry`` (husk's name for
-    the default purpose) is accepted and means ``default``."""
-    names = [t.strip().lower() for t in text.split(",") if t.strip()]
-    names = ["default" if n == "geometry" else n for n in names]
-    allowed = ("default", "render", "proxy", "guide")
-    for n in names:
-        if n not in allowed:
-            raise argparse.ArgumentTypeError(f"unknown purpose {n!r}; choose from "
-                                             "render, proxy, guide (comma-separated)")
-    if not names:
-        raise argparse.ArgumentTypeError(f"{text!r}: give one or more of render, proxy, guide")
-    return tuple(dict.fromkeys(names))
-
-
-def parse_crop(text: str):
-    """``x0,y0,x1,y1`` (pixels, x1/y1 exclusive) -> a tuple of 4 ints."""
-    parts = text.replace(" ", "").split(",")
-    try:
-        if len(parts) != 4:
-            raise ValueError
-        x0, y0, x1, y1 = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not X0,Y0,X1,Y1, e.g. 0,0,320,240") \
-            from None
-    if x0 < 0 or y0 < 0 or x1 <= x0 or y1 <= y0:
-        raise argparse.ArgumentTypeError(f"{text!r}: need 0 <= X0 < X1 and 0 <= Y0 < Y1 "
-                                         "(X1, Y1 exclusive)")
-    return (x0, y0, x1, y1)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -295,11 +202,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _error(message: str, code: int) -> int:
-    sys.stderr.write(f"cmlt: error: {message}\n")
-    return code
-
-
 def _resume_command(argv: Sequence[str], state_dir: Optional[str] = None) -> str:
     """The command that continues an interrupted render: the same arguments
     plus ``--resume``, and ``--state-dir DIR`` whenever a state directory was
@@ -432,51 +334,6 @@ def _husk_argv(argv: Sequence[str]) -> List[str]:
         out.append(a)
         k += 1
     return out
-
-
-def _cmd_inspect_image(path: str) -> int:
-    from .io.exr import format_header, read_header
-
-    if not os.path.isfile(path):
-        return _error(f"--image {path}: no such file", EXIT_USAGE)
-    try:
-        header = read_header(path)
-    except OSError as exc:
-        why = str(exc)
-        why = why[len(path) + 2:] if why.startswith(path + ": ") else why
-        return _error(f"--image {path}: {why}", EXIT_RENDER)
-    sys.stdout.write(format_header(header))
-    return EXIT_OK
-
-
-def _cmd_contact_sheet(args) -> int:
-    from .color import ColorError, load_config
-    from .io.contact_sheet import contact_sheet
-
-    patterns = args.pattern
-    source = patterns[0] if len(patterns) == 1 else patterns
-    try:
-        cfg = load_config(args.ocio_config)
-    except ColorError as exc:
-        return _error(f"--ocio-config {args.ocio_config}: {exc}" if args.ocio_config
-                      else str(exc), EXIT_USAGE)
-    try:
-        cfg.check_display_view(args.display, args.view)
-    except ColorError as exc:
-        flag = "--display" if str(exc).startswith("unknown display") else "--view"
-        return _error(f"{flag}: {exc}", EXIT_USAGE)
-    try:
-        out = contact_sheet(source, args.out, columns=args.columns, display=args.display,
-                            view=args.view, thumb_width=args.thumb_width, config=cfg)
-    except FileNotFoundError as exc:
-        return _error(str(exc), EXIT_USAGE)
-    except ValueError as exc:
-        return _error(f"--out {args.out}: {exc}" if "extension" in str(exc) else str(exc),
-                      EXIT_USAGE)
-    except OSError as exc:
-        return _error(str(exc), EXIT_RENDER)
-    sys.stderr.write(f"cmlt: contact sheet -> {out}\n")
-    return EXIT_OK
 
 
 def _cmd_inspect(args) -> int:

@@ -10,7 +10,7 @@ from pxr import Usd, UsdGeom, UsdRender, UsdShade
 from .errors import UsdLoadError
 from .frame import load_frame
 from .materialx import mtlx_references
-from .mesh import subdiv_level_of
+from .mesh_subdivision import subdiv_level_of
 from .render_settings import find_settings_prim, settings_camera_problem
 from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, one_line,
                     check_time_metadata, composition_warnings, ignored_reason, stage_file,

@@ -29,7 +29,8 @@ from .errors import UsdLoadError
 from .instancing import point_instancer
 from .lights import read_light
 from .materials import MaterialTable, subset_bindings
-from .mesh import MeshReader, SkipPrim, shape_primvars
+from .mesh import MeshReader, SkipPrim
+from .mesh_primvars import shape_primvars
 from .skel import SkelBindings
 from .stage import (INTRINSIC_TYPES, MESH_TYPES, SUPPORTED_LIGHT_TYPES, UNREGISTERED_REASON,
                     ignored_reason, stage_file, stage_state, tstr, unregistered_type)

@@ -10,11 +10,14 @@
 //   resample_start_indices
 //   Chain, Workspace, StepResult,  chain state, scratch, per-step and per-kind statistics
 //   KernelStats
+//   StreakTracker, ChainShare,     how long chains stay put, how their splat weight spreads
+//   ShareSummary
 // The kernels are templates over the chain state, the target, the proposal and the RNG
 // (`uniform()`, `normal()`); the renderer passes sampling/rng.h's CounterRng. Tests with
 // toy targets: tests/cpp/mcmc/.
 #pragma once
 
+#include "chain_diagnostics.h"
 #include "kernels.h"
 #include "normalisation.h"
 #include "proposals.h"

@@ -13,7 +13,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdShade
 import cmlt._core as core
 from cmlt.shot.bridge import SceneBridge
 from cmlt.usd import load_frame, stage_info
-from cmlt.usd import mesh as usd_mesh
+from cmlt.usd import mesh_subdivision as usd_mesh
 
 CUBE_IDX = [0, 2, 3, 1, 4, 5, 7, 6, 0, 1, 5, 4, 2, 6, 7, 3, 0, 4, 6, 2, 1, 3, 7, 5]
 CUBE_PTS = [(x, y, z) for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)]

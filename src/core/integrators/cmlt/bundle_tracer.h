@@ -6,7 +6,7 @@
 /// packets (README, benchmarks).
 ///
 /// Every candidate of a bundle is one lane: a resumable BDPT strategy evaluation
-/// (PssmltTracer::BdptLane over BdptStrategyLane) that stops at each ray query. A round
+/// (BdptLane over BdptStrategyLane) that stops at each ray query. A round
 /// collects the pending queries of all lanes — closest hits (camera rays, the walks'
 /// bounces and pass-through crossings) and visibility (connection, next-event and
 /// light-tracing shadow rays) — and answers them together: Embree packets of the
@@ -177,6 +177,35 @@ private:
     BundleCounters& m_counters;
 };
 
+/// One candidate of a bundle with the bdpt path sampler: PssmltTracer::evaluate as a
+/// resumable computation (BdptStrategyLane), so that a bundle's candidates run in
+/// lockstep and their rays are traced together.
+struct BdptLane {
+    mlt::PathSample sample;  ///< technique until finish_lane, then the evaluated sample
+    double pmf = 1.0;        ///< probability of the technique
+    BdptStrategyLane strategy;
+};
+
+/// Read the technique from `sampler` and begin its strategy with `adapter` (a
+/// BdptStreamAdapter over `sampler`, outliving the lane). Returns the first query;
+/// answer each with BdptTracer::resume_strategy until none, then finish_lane.
+template <class Sampler>
+BdptQuery begin_lane(const mlt::PssmltTracer& tracer, Sampler& sampler, BdptSampler& adapter, BdptWorkspace& ws,
+                     BdptLane& lane) {
+    lane.sample = mlt::PathSample();
+    lane.pmf = tracer.choose_technique(sampler, lane.sample);
+    return tracer.bdpt_tracer()->begin_strategy(lane.strategy, lane.sample.depth, lane.sample.s, lane.sample.t,
+                                                adapter, ws);
+}
+
+/// The path sample of a finished lane (its rays added to `counters`).
+inline mlt::PathSample finish_lane(const mlt::PssmltTracer& tracer, const BdptLane& lane, PathCounters& counters) {
+    mlt::PathSample s = lane.sample;
+    tracer.finish_sample(s, lane.pmf, lane.strategy.result, lane.strategy.p_raster, lane.strategy.counters,
+                         counters);
+    return s;
+}
+
 /// Evaluates points with the bdpt path sampler in lockstep (see the file comment).
 /// `State`: a point with mutable `extent` (reset here) and `sample` (the result);
 /// `Sampler`: the point's sampler, constructible from (const State&, seed). Scratch is
@@ -193,7 +222,7 @@ public:
             states[i].extent.fill(0);
             m_samplers[i].emplace(states[i], seed);
             m_adapters[i].emplace(*m_samplers[i], tracer.film_offset());
-            m_query[i] = tracer.begin_bdpt(*m_samplers[i], *m_adapters[i], m_ws[i], m_lanes[i]);
+            m_query[i] = begin_lane(tracer, *m_samplers[i], *m_adapters[i], m_ws[i], m_lanes[i]);
         }
         // rounds: every lane's pending query answered together, until none is left
         for (;;) {
@@ -236,7 +265,7 @@ public:
             for (size_t i = 0; i < n; ++i) waiting += m_query[i] != BdptQuery::none ? 1 : 0;
             if (waiting == 0) break;
         }
-        for (size_t i = 0; i < n; ++i) states[i].sample = tracer.finish_bdpt(m_lanes[i], counters);
+        for (size_t i = 0; i < n; ++i) states[i].sample = finish_lane(tracer, m_lanes[i], counters);
     }
 
 private:
@@ -253,7 +282,7 @@ private:
         m_occluded.reset(new bool[n]);
     }
 
-    std::vector<mlt::PssmltTracer::BdptLane> m_lanes;
+    std::vector<BdptLane> m_lanes;
     std::vector<BdptWorkspace> m_ws;
     std::vector<std::optional<Sampler>> m_samplers;
     std::vector<std::optional<mlt::BdptStreamAdapter<Sampler>>> m_adapters;

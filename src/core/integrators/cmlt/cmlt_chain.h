@@ -8,6 +8,7 @@
 ///      (inner_rule.h); the target evaluates each bundle's candidates together
 ///      (cmlt_target.h, bundle_tracer.h).
 /// Every step splats total weight 1 into the frame's SplatFilm (L / f* times the weight).
+#include "film/splat_film.h"
 #include "integrators/cmlt/bundle_tracer.h"
 #include "integrators/cmlt/cmlt_settings.h"
 #include "integrators/cmlt/cmlt_state.h"
@@ -17,7 +18,6 @@
 #include "integrators/common/frame_loop.h"
 #include "integrators/mlt/chain_population.h"
 #include "integrators/mlt/pssmlt_tracer.h"
-#include "integrators/mlt/splat_film.h"
 #include "mcmc/kernels.h"
 #include "mcmc/step_stats.h"
 #include "mcmc/workspace.h"
@@ -70,7 +70,7 @@ struct BundleTotals {
 /// comment). Holds the task's counters; not copyable (its target points at them).
 class ChainTracer {
 public:
-    ChainTracer(const mlt::PssmltTracer& tracer, const Scene& scene, const CmltSettings& s, mlt::SplatFilm& film,
+    ChainTracer(const mlt::PssmltTracer& tracer, const Scene& scene, const CmltSettings& s, SplatFilm& film,
                 BundleTotals& totals)
         : m_settings(s), m_filter(tracer.filter()), m_film(film), m_totals(totals), m_f(make_target(tracer, scene, s, &m_counters, &m_bundle)) {}
     ChainTracer(const ChainTracer&) = delete;
@@ -117,7 +117,7 @@ public:
 private:
     const CmltSettings& m_settings;
     const PixelFilter& m_filter;
-    mlt::SplatFilm& m_film;
+    SplatFilm& m_film;
     BundleTotals& m_totals;
     PathCounters m_counters;
     BundleCounters m_bundle;

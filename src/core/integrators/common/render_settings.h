@@ -57,6 +57,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
 // Defaults: pbrt-v4's published MLT defaults for sigma, large_step_probability, chains
 // and bootstrap_samples (shared/NOTES.md); tries and inner_length from the coherent-MLT
 // parameter study (README.md, tests/bench/cmlt_params.py).
+// The table is laid out in columns by hand:
+// clang-format off
 #define CMLT_RENDER_SETTINGS(INT, REAL, U64, BOOL, TOKEN)                                    \
     TOKEN(integrator, "auto", "auto pt bdpt pssmlt cmlt", "cmlt:integrator",                \
           "--integrator",                                                                    \
@@ -156,6 +158,7 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
     BOOL(seed_per_frame, false, "cmlt:temporal:seedPerFrame", "--seed-per-frame",            \
          "fold the frame number into the random streams (independent noise per frame, for "  \
          "comparison; more flicker); off keeps stored seeds")
+// clang-format on
 
 /// Settings of one frame: the fields of the table above, plus inputs that the temporal
 /// driver hands over (not settings: no default, range or flag).
@@ -282,7 +285,7 @@ struct RenderStats {
 /// pssmlt/cmlt with RenderSettings::partial: what a part of a frame adds to it.
 struct MltPart {
     std::vector<uint64_t> splat_lo;  ///< SplatFilm words (W·H·3): the 128-bit sums' low
-    std::vector<int64_t> splat_hi;   ///< and high words (splat_film.h)
+    std::vector<int64_t> splat_hi;   ///< and high words (film/splat_film.h)
     /// NormalisationAccumulator of the bootstrap, then of each chain of the part in chain
     /// order: (count, nonzero) pairs and (mean, m2) pairs.
     std::vector<uint64_t> norm_counts;

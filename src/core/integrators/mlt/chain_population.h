@@ -22,11 +22,11 @@
 ///   4. `finish`: b from the bootstrap and every chain's large steps, kernel statistics,
 ///      streaks, counts and the final states, merged in chain order (PopulationResult).
 /// Chain c's numbers are keyed by (seed, c) and splats are summed order-independently
-/// (splat_film.h), so the image is bit-identical for any number of threads.
+/// (film/splat_film.h), so the image is bit-identical for any number of threads.
 #include "integrators/mlt/chain_state.h"
-#include "integrators/mlt/chain_stats.h"
 #include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/mlt_sampler.h"
+#include "mcmc/chain_diagnostics.h"
 #include "mcmc/normalisation.h"
 #include "mcmc/step_stats.h"
 #include "mcmc/workspace.h"
@@ -50,8 +50,8 @@ struct ChainTally {
     int layer = 0;          ///< the splat film layer: the chain's error group (index mod G)
     mcmc::KernelStats stats;
     mcmc::NormalisationAccumulator large;  ///< f* of the large-step proposals
-    StreakTracker streaks;
-    ChainShare share;  ///< where its splat weight went (stuck-chain statistics)
+    mcmc::StreakTracker streaks;
+    mcmc::ChainShare share;  ///< where its splat weight went (stuck-chain statistics)
 
     /// A splat of `weight` on `L` with target value `f` > 0; `current`: on the chain's
     /// current state (not a proposal).

@@ -14,14 +14,14 @@
 ///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples;
 ///   4. the chains: the rest, split evenly over the chains.
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
+#include "film/splat_film.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/chain_state.h"
-#include "integrators/mlt/chain_stats.h"
 #include "integrators/mlt/direct_pass.h"
 #include "integrators/mlt/mlt_context.h"
-#include "integrators/mlt/splat_film.h"
 #include "integrators/path/path_tracer.h"
+#include "mcmc/chain_diagnostics.h"
 #include "mcmc/normalisation.h"
 #include "mcmc/step_stats.h"
 
@@ -61,8 +61,8 @@ struct PopulationResult {
     mcmc::NormalisationEstimate b_bootstrap;  ///< b from the bootstrap alone
     mcmc::NormalisationEstimate b;            ///< b from the bootstrap and every large step
     mcmc::KernelStats kernel;                 ///< every chain's steps, by kernel
-    StreakTracker streaks;
-    ShareSummary shares;                      ///< the chains' splat shares (stuck chains)
+    mcmc::StreakTracker streaks;
+    mcmc::ShareSummary shares;                ///< the chains' splat shares (stuck chains)
     uint64_t chains = 0, steps = 0, evaluations = 0, invalid = 0;
     bool imported = false;   ///< the chains started from given states
     bool cancelled = false;  ///< progress stopped the frame

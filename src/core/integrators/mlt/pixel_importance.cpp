@@ -76,7 +76,7 @@ PixelImportance::PixelImportance(const std::vector<float>& pilot, int width, int
     // Scaled by mean(P): f* keeps the units of luminance (in an evenly lit frame f* = Y),
     // so b = E[f*] follows the lighting from frame to frame (the temporal smoothing of b
     // and its change detection rely on that). A splat L/f* = (L/Y) · P/mean(P) stays far
-    // inside the SplatFilm's fixed-point range (splat_film.h) unless one pixel is ~10^6
+    // inside the SplatFilm's fixed-point range (film/splat_film.h) unless one pixel is ~10^6
     // times the mean and gets millions of splats; clamped splats are counted.
     m_inv.resize(n);
     for (size_t i = 0; i < n; ++i) m_inv[i] = float(mean / std::max(c[i], floor));

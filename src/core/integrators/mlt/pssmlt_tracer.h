@@ -175,53 +175,19 @@ public:
     int height() const { return m_height; }
     const BdptTracer* bdpt_tracer() const { return m_bdpt; }
 
-    /// evaluate() of the bdpt sampler as a resumable computation (BdptStrategyLane), so
-    /// that coherent MLT can run a bundle's candidates in lockstep and trace their rays
-    /// together (integrators/cmlt/bundle_tracer.h).
-    struct BdptLane {
-        PathSample sample;  ///< technique until finish_bdpt, then the evaluated sample
-        double pmf = 1.0;   ///< probability of the technique
-        BdptStrategyLane strategy;
-    };
-    /// Read the technique from `sampler` and begin its strategy with `adapter` (a
-    /// BdptStreamAdapter over `sampler`, outliving the lane). Returns the first query;
-    /// answer each with bdpt_tracer()->resume_strategy until none, then finish_bdpt.
+    /// Read the technique (depth, s, t) of the sampler's current proposal from the
+    /// connection stream's dimension 0 (technique.h) into `s`; returns its probability.
+    /// The bdpt sampler only.
     template <class Sampler>
-    BdptQuery begin_bdpt(Sampler& sampler, BdptSampler& adapter, BdptWorkspace& ws, BdptLane& lane) const {
-        lane.sample = PathSample();
+    double choose_technique(Sampler& sampler, PathSample& s) const {
         sampler.start_stream(MltSampler::connection);
         sampler.set_dimension(0);
         const Vec2 ut = sampler.get2d();
-        lane.pmf = m_technique.choose(ut.x, ut.y, &lane.sample.depth, &lane.sample.s, &lane.sample.t);
-        return m_bdpt->begin_strategy(lane.strategy, lane.sample.depth, lane.sample.s, lane.sample.t,
-                                      adapter, ws);
-    }
-    /// The path sample of a finished lane (its rays added to `counters`).
-    PathSample finish_bdpt(const BdptLane& lane, PathCounters& counters) const {
-        PathSample s = lane.sample;
-        finish_sample(s, lane.pmf, lane.strategy.result, lane.strategy.p_raster, lane.strategy.counters,
-                      counters);
-        return s;
+        return m_technique.choose(ut.x, ut.y, &s.depth, &s.s, &s.t);
     }
 
-private:
-    template <class Sampler>
-    PathSample evaluate_bdpt(Sampler& sampler, PathCounters& counters) const {
-        PathSample s;
-        sampler.start_stream(MltSampler::connection);
-        sampler.set_dimension(0);
-        const Vec2 ut = sampler.get2d();
-        const double pmf = m_technique.choose(ut.x, ut.y, &s.depth, &s.s, &s.t);
-        thread_local BdptWorkspace ws;
-        BdptCounters c;
-        BdptStreamAdapter<Sampler> adapter(sampler, m_film_offset);
-        Vec2 p_raster;
-        const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c);
-        finish_sample(s, pmf, C, p_raster, c, counters);
-        return s;
-    }
-
-    /// Pixel, L = C / p(technique) and f* of an evaluated strategy C at p_raster.
+    /// Pixel, L = C / p(technique) and f* of an evaluated strategy C at p_raster (the
+    /// bdpt sampler; also the end of coherent MLT's resumable lanes, bundle_tracer.h).
     void finish_sample(PathSample& s, double pmf, const Spectrum& C, const Vec2& p_raster,
                        const BdptCounters& c, PathCounters& counters) const {
         counters += c;
@@ -242,6 +208,20 @@ private:
             return;
         }
         s.f = target(s.L, s.pixel);
+    }
+
+private:
+    template <class Sampler>
+    PathSample evaluate_bdpt(Sampler& sampler, PathCounters& counters) const {
+        PathSample s;
+        const double pmf = choose_technique(sampler, s);
+        thread_local BdptWorkspace ws;
+        BdptCounters c;
+        BdptStreamAdapter<Sampler> adapter(sampler, m_film_offset);
+        Vec2 p_raster;
+        const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c);
+        finish_sample(s, pmf, C, p_raster, c, counters);
+        return s;
     }
 
     /// The pixel containing raster position p, clamped into the image.

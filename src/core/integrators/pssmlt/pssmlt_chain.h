@@ -4,13 +4,13 @@
 /// Markov chain over path samples, and the steps — a large step with probability
 /// `large_step_probability`, else a small wrapped-Gaussian step of σ — taken by
 /// mcmc::metropolis_step with expected-value splats into the frame's SplatFilm.
+#include "film/splat_film.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/chain_population.h"
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pssmlt_tracer.h"
-#include "integrators/mlt/splat_film.h"
 #include "integrators/mlt/technique.h"
 #include "mcmc/kernels.h"
 #include "mcmc/workspace.h"
@@ -81,7 +81,7 @@ struct SamplerProposal {
 /// The chain steps of one parallel task (ChainPopulation::run).
 class ChainTracer {
 public:
-    ChainTracer(const mlt::PssmltTracer& tracer, mlt::SplatFilm& film) : m_tracer(tracer), m_film(film) {}
+    ChainTracer(const mlt::PssmltTracer& tracer, SplatFilm& film) : m_tracer(tracer), m_film(film) {}
 
     /// Step `st` until it has spent `end` evaluations.
     void run(Chain& st, uint64_t end) {
@@ -110,7 +110,7 @@ public:
 
 private:
     const mlt::PssmltTracer& m_tracer;
-    mlt::SplatFilm& m_film;
+    SplatFilm& m_film;
     PathCounters m_counters;
 };
 

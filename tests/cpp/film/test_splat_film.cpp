@@ -1,10 +1,10 @@
-// SplatFilm (integrators/mlt/splat_film.h): exact, order-independent sums in fixed point
+// SplatFilm (film/splat_film.h): exact, order-independent sums in fixed point
 // beyond the range of one int64 word. One 64-bit word with 32 fractional bits holds
 // ±2^31 per pixel and channel: a bright pixel at a high mutation count (e.g. a pixel
 // value of 10^6 under the pixel importance at 4,000 mutations per pixel, or the
 // luminance target's L/Y of a saturated colour over 10^8 splats) passes it, and a plain
 // int64 sum wrapped around silently (1e9 added 8 times read back as -5.9e8).
-#include "integrators/mlt/splat_film.h"
+#include "film/splat_film.h"
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,6 @@
 #include <vector>
 
 using namespace cmlt;
-using cmlt::mlt::SplatFilm;
 
 TEST(SplatFilm, SumsBeyondTheInt64RangeStayExact) {
     SplatFilm film(2, 1);

@@ -1,6 +1,7 @@
 #pragma once
-/// \file Splat film of the Metropolis integrators: per-pixel sums of weighted colours,
-/// accumulated in 128-bit fixed point (32 fractional bits) with atomic integer adds.
+/// \file Splat film of the Metropolis integrators (pssmlt, cmlt: integrators/mlt's frame
+/// owns one): per-pixel sums of weighted colours, accumulated in 128-bit fixed point (32
+/// fractional bits) with atomic integer adds.
 ///
 /// Why fixed point: integer addition is exact and commutative, so the sum does not
 /// depend on the order in which chains running on different threads splat — the image
@@ -30,7 +31,7 @@
 #include <memory>
 #include <vector>
 
-namespace cmlt::mlt {
+namespace cmlt {
 
 class SplatFilm {
 public:
@@ -132,4 +133,4 @@ private:
     std::atomic<uint64_t> m_clamped{0};
 };
 
-}  // namespace cmlt::mlt
+}  // namespace cmlt

@@ -1,8 +1,11 @@
 #pragma once
-/// \file How long the Metropolis chains sit in one state (pssmlt, cmlt): rejection
-/// streaks and the occupancy statistic of "stuck" chains, per chain and merged over the
-/// population in chain order (MltStats::max_rejection_streak, long_streak_rejections,
-/// states_visited, top_occupancy).
+/// \file How long Markov chains sit in one state, and how unevenly a population's splat
+/// weight is spread over its chains: rejection streaks, the occupancy statistic of
+/// "stuck" chains and the chains' shares, per chain and merged over the population in
+/// chain order. Generic (no rendering types); the Metropolis integrators report them as
+/// MltStats::max_rejection_streak, long_streak_rejections, states_visited,
+/// top_occupancy, max_chain_share, stuck_chains and max_stay_share
+/// (integrators/mlt/chain_population.h).
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -10,7 +13,7 @@
 #include <map>
 #include <vector>
 
-namespace cmlt::mlt {
+namespace cmlt::mcmc {
 
 /// How long chains sit in one state. A state is occupied for 1 + (rejections that
 /// follow) steps; `top_fraction(q)` is the share of all steps spent in the most-occupied
@@ -146,4 +149,4 @@ private:
     double m_total = 0.0, m_max_stay = 0.0;
 };
 
-}  // namespace cmlt::mlt
+}  // namespace cmlt::mcmc
