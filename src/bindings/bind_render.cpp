@@ -193,6 +193,8 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     d["trace_s"] = st.trace_s;
     d["shade_s"] = st.shade_s;
     d["nan_samples"] = st.nan_samples;
+    d["pixel_filter"] = st.pixel_filter;
+    d["filter_radius"] = st.filter_radius;
     if (st.nan_samples > 0) {
         d["first_nan_pixel"] = nb::make_tuple(st.first_nan_x, st.first_nan_y);
         d["first_nan_sample"] = st.first_nan_sample;

@@ -12,7 +12,8 @@ Each case renders two consecutive frames (so the Metropolis integrators also car
 their chains and normalisation from one frame to the next) at a small resolution
 and budget through the command line, and records the SHA-256 of each frame's
 float32 pixels (all channels, AOVs included) together with the sample counts from
-its sidecar. ``--compare`` prints every case that differs and exits 1 if any does.
+its sidecar. ``--pixel-filter box`` forces the one-pixel box filter (to compare with
+renders made before the default filter became gaussian). ``--compare`` prints every case that differs and exits 1 if any does.
 Hashes are exact: they are only comparable on the same machine (the CPU's SIMD
 width decides Embree's kernels) and the same thread count.
 """
@@ -78,6 +79,8 @@ def run(args) -> dict:
                    "--res", args.res, "--spp", str(args.spp), "--integrator", integ,
                    "--seed", "7", "--threads", str(args.threads), "--quiet",
                    "--aov", "albedo,normal,depth"] + extra
+            if args.pixel_filter:     # not in the key: runs with and without it compare
+                cmd += ["--pixel-filter", args.pixel_filter]
             cmd = _first_two_frames(cmd, ROOT / shot)
             proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
             if proc.returncode != 0:
@@ -118,6 +121,9 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--shots", help="comma-separated sequence or stage names (default: all)")
+    ap.add_argument("--pixel-filter", help="render with this pixel filter (e.g. box: the "
+                    "one-pixel film of renders before the filters existed; default: the "
+                    "renderer's default)")
     args = ap.parse_args(argv)
     result = run(args)
     if args.out:

@@ -174,6 +174,8 @@ def header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
         "samples": int(stats.get("samples", 0)),
         "rays": int(stats.get("rays", 0)),
         "raysPerSecond": float(stats.get("rays_per_s", 0.0)),
+        "pixelFilter": str(stats.get("pixel_filter", resolved.pixel_filter)),
+        "filterRadius": float(stats.get("filter_radius", resolved.filter_radius)),
         "version": __version__,
     }
     for key, name in _MLT_STATS.items():

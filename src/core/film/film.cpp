@@ -11,9 +11,9 @@ Film::Film(int width, int height)
     CMLT_CHECK(width > 0 && height > 0);
 }
 
-bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L) {
+bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, float weight) {
     size_t idx = size_t(y) * size_t(m_width) + size_t(x);
-    if (!is_finite(L)) {
+    if (!is_finite(L) || !std::isfinite(weight)) {
         m_nan_count.fetch_add(1, std::memory_order_relaxed);
         uint64_t key = (uint64_t(idx) << 32) | sample_index;
         uint64_t cur = m_first_nan_key.load(std::memory_order_relaxed);
@@ -23,12 +23,15 @@ bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L) {
     }
     Pixel& p = m_pixels[idx];
     p.n += 1;
-    double inv_n = 1.0 / double(p.n);
+    const double w = double(weight);
+    p.w += w;
+    if (p.w == 0.0) return true;  // (negative lobes) no mean yet; the next sample gives one
+    const double share = w / p.w;  // weight 1: 1 / n, Welford's
     for (int c = 0; c < 3; ++c) {
         double v = double(L[c]);
         double delta = v - p.mean[c];
-        p.mean[c] += delta * inv_n;
-        p.m2[c] += delta * (v - p.mean[c]);
+        p.mean[c] += delta * share;
+        p.m2[c] += w * delta * (v - p.mean[c]);
     }
     return true;
 }
@@ -38,7 +41,8 @@ void Film::develop(float* image, float* variance) const {
         const Pixel& p = m_pixels[i];
         for (int c = 0; c < 3; ++c) {
             image[3 * i + c] = float(p.mean[c]);
-            double var = p.n > 1 ? p.m2[c] / (double(p.n - 1) * double(p.n)) : 0.0;
+            // weight 1: m2 / ((n - 1) n), the sample variance of the mean
+            double var = p.n > 1 && p.w > 0.0 ? std::max(0.0, p.m2[c] / (double(p.n - 1) * p.w)) : 0.0;
             if (variance) variance[3 * i + c] = float(var);
         }
     }

@@ -1,8 +1,12 @@
 #pragma once
-/// \file Film: per-pixel double-precision accumulation with a box filter.
+/// \file Film: per-pixel double-precision accumulation of filter-weighted samples.
 ///
-/// Each pixel keeps Welford's running mean and M2 per channel, so the sample variance of
-/// the mean is available as an AOV. `add_sample` is not synchronised per pixel: a pixel
+/// Each pixel keeps the weighted running mean (West's update of Welford's: sum_i w_i L_i
+/// / sum_i w_i, w the pixel filter's f/pdf of the sample: film/filter.h) and M2 per
+/// channel, so the variance of the mean is available as an AOV. Dividing by the weights'
+/// sum (as pbrt-v4's film does) instead of the count makes a uniform region exactly its
+/// radiance although the tabulated filters' weights are only ~1; with weight 1 (the
+/// unit box) it is Welford's mean bit for bit. `add_sample` is not synchronised per pixel: a pixel
 /// is owned by one task at a time and its samples arrive in sample-index order, which
 /// makes the sums bit-reproducible. Non-finite samples are counted (with the first
 /// (pixel, sample) in index order) and dropped, never written.
@@ -21,8 +25,9 @@ public:
     int width() const { return m_width; }
     int height() const { return m_height; }
 
-    /// Add one sample of pixel (x, y). Returns false (and counts it) if not finite.
-    bool add_sample(int x, int y, uint32_t sample_index, const Spectrum& L);
+    /// Add one sample of pixel (x, y) with filter weight `weight`. Returns false (and
+    /// counts it) if not finite.
+    bool add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, float weight = 1.f);
 
     /// Write mean (H, W, 3) and variance of the mean (H, W, 3) as float32, row 0 on top.
     void develop(float* image, float* variance) const;
@@ -34,6 +39,7 @@ public:
 private:
     struct Pixel {
         uint32_t n = 0;
+        double w = 0;  ///< sum of the weights
         double mean[3] = {0, 0, 0};
         double m2[3] = {0, 0, 0};
     };

@@ -21,6 +21,7 @@
 /// so the pair sums exactly whatever the order; hi is touched only when lo wraps (a sum
 /// crossing a multiple of 2^32 in value units or changing sign), so the common path is one
 /// atomic add as before, and sums inside the old range read back bit-identically.
+#include "film/filter.h"
 #include "math/vec.h"
 
 #include <algorithm>
@@ -106,6 +107,17 @@ public:
             const int64_t dh = hi[i] + int64_t(old + lo[i] < old);
             if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
         }
+    }
+
+    /// Add `weight · colour` over `filter`'s footprint around film position p (weights
+    /// f(c - p), film/filter.h); the unit box: add(pixel, ...) to the pixel given.
+    void add_filtered(const PixelFilter& filter, const Vec2& p, uint32_t pixel, const Spectrum& colour,
+                      double weight, int layer = 0) {
+        if (filter.unit_box()) {
+            add(pixel, colour, weight, layer);
+            return;
+        }
+        filter.footprint(p, m_width, m_height, [&](uint32_t j, double w) { add(j, colour, weight * w, layer); });
     }
 
 private:

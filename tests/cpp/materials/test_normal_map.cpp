@@ -118,6 +118,7 @@ RenderResult render_setup(const QuadSetup& st, const char* integrator, int spp, 
     rs.threads = 2;
     rs.seed = 3;
     rs.integrator = integrator;
+    rs.pixel_filter = "box";  // every sample exact (weight 1): expect_constant's 2e-4
     RenderResult r = render(s, rs);
     EXPECT_EQ(r.stats.nan_samples, 0u);
     return r;

@@ -100,8 +100,10 @@ def distant_light(st, direction_deg_about_y, intensity=1.0):
     return l
 
 
-def render(fs, spp=16, depth=1, integrator="pt", seed=5):
+def render(fs, spp=16, depth=1, integrator="pt", seed=5, pixel_filter=None):
     s = core.RenderSettings()
+    if pixel_filter:
+        s.pixel_filter = pixel_filter
     s.width, s.height = fs.resolution
     s.spp, s.max_depth, s.seed, s.threads = spp, depth, seed, 2
     s.integrator = integrator

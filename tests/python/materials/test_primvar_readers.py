@@ -100,6 +100,7 @@ def _primvar(mesh, name, vtype, interp, values, indices=None):
 
 def _render(fs, spp=16):
     st = core.RenderSettings()
+    st.pixel_filter = "box"    # per-pixel analytic expectation: the one-pixel box
     st.width, st.height = fs.resolution
     st.spp, st.max_depth, st.seed, st.threads = spp, 2, 3, 2
     st.integrator = "pt"

@@ -41,10 +41,13 @@ def plane_shot(tmp_path):
     return str(p)
 
 
-def _aovs(shot, samples=4, threads=0, seed=0):
+def _aovs(shot, samples=4, threads=0, seed=0, pixel_filter="box"):
+    """The AOVs; box by default (the per-pixel analytic expectations are of the
+    one-pixel box)."""
     fs = load_frame(open_stage(shot), 1, resolution=(W, H))
     scene = SceneBridge(core).update(fs)
     st = core.RenderSettings()
+    st.pixel_filter = pixel_filter
     st.width, st.height, st.threads, st.seed = W, H, threads, seed
     return core.render_aovs(scene, st, samples=samples)
 
@@ -132,7 +135,7 @@ def test05_cli_writes_aov_channels_with_standard_names(plane_shot, tmp_path, cap
     assert {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z",
             "variance.R", "variance.G", "variance.B"} == names
     assert spec.z_channel == list(spec.channelnames).index("Z")
-    ref = _aovs(plane_shot)
+    ref = _aovs(plane_shot, pixel_filter="gaussian")   # the CLI's default filter
     np.testing.assert_array_equal(ch["Z"], ref["Z"])
     np.testing.assert_array_equal(np.stack([ch["N.X"], ch["N.Y"], ch["N.Z"]], -1), ref["N"])
     np.testing.assert_array_equal(np.stack([ch["albedo.R"], ch["albedo.G"], ch["albedo.B"]], -1),

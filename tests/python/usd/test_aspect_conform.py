@@ -66,6 +66,7 @@ def _stage(path, policy=None):
 def _coverage(path, res):
     fs = load_frame(open_stage(path), None, resolution=res)
     st = core.RenderSettings()
+    st.pixel_filter = "box"    # per-pixel analytic expectation: the one-pixel box
     st.width, st.height = res
     st.spp, st.max_depth, st.seed, st.threads = 4, 1, 1, 2
     st.integrator = "pt"

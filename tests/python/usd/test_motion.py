@@ -15,6 +15,7 @@ SHIFT = 0.5            # the quad moves +X by this much while the shutter is ope
 
 def _settings(spp, seed=5):
     st = core.RenderSettings()
+    st.pixel_filter = "box"    # per-pixel analytic expectation: the one-pixel box
     st.width, st.height, st.spp, st.seed, st.threads, st.max_depth = W, H, spp, seed, 2, 2
     st.integrator = "pt"
     return st

@@ -107,6 +107,7 @@ def test03_loop_and_bilinear():
 def _coverage(st):
     fs = load_frame(st, 0, resolution=(48, 48))
     s = core.RenderSettings()
+    s.pixel_filter = "box"    # per-pixel analytic expectation: the one-pixel box
     s.width, s.height = fs.resolution
     s.spp, s.max_depth, s.seed, s.threads = 4, 1, 1, 2
     s.integrator = "pt"

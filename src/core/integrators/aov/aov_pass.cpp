@@ -1,6 +1,7 @@
 #include "integrators/aov/aov_pass.h"
 
 #include "cameras/camera.h"
+#include "film/filter.h"
 #include "materials/material_eval.h"
 #include "math/safe_math.h"
 #include "sampling/rng.h"
@@ -41,6 +42,7 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
 
     const int W = settings.width, H = settings.height;
     Camera camera(scene.camera_desc(), W, H);
+    const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     const Mat4& cam_m = scene.camera_desc().transform;
     const Vec3 cam_pos = cam_m.transform_point(Vec3(0.f));
     const Vec3 axis = normalize(cam_m.transform_vector(Vec3(0.f, 0.f, -1.f)));
@@ -79,11 +81,15 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                             Vec3 nsum(0.f), nfirst(0.f);
                             float zmin = k_infinity;
                             int hits = 0;
+                            float wsum = 0.f;  // the filter weights' sum (the film's divisor)
                             for (int s = 0; s < samples; ++s) {
-                                // The beauty render's camera jitter of sample s.
+                                // The beauty render's film position of sample s (the pixel
+                                // filter's offset and weight, as pt's)
                                 PixelSampler sampler(settings.seed, pixel, uint32_t(s));
-                                Vec2 u = sampler.get2d();
-                                Ray ray = camera.generate_ray(Vec2(float(x) + u.x, float(y) + u.y));
+                                float w = 1.f;
+                                const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), &w);
+                                wsum += w;
+                                Ray ray = camera.generate_ray(p_film);
                                 SceneHit hit = scene.intersect(ray);
                                 ++n_rays;
                                 if (hit.kind == SceneHit::Kind::miss || !std::isfinite(hit.t))
@@ -96,12 +102,12 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                                     const SurfaceInteraction& si = hit.si;
                                     const Material& mat = scene.material(si.material_id);
                                     const Bsdf bsdf = make_bsdf(mat, si, scene.textures());
-                                    albedo += diffuse_colour(mat, si.uv, scene.textures(), si.primvars, si.n_primvars);
+                                    albedo += diffuse_colour(mat, si.uv, scene.textures(), si.primvars, si.n_primvars) * w;
                                     n = face_forward(bsdf.shading_normal(), si.wo);
                                     p = si.p;
                                 } else {
                                     albedo += Spectrum(clamp01(hit.le.x), clamp01(hit.le.y),
-                                                       clamp01(hit.le.z));
+                                                       clamp01(hit.le.z)) * w;
                                     n = -ray.d;
                                     p = ray.o + ray.d * hit.t;
                                 }
@@ -109,12 +115,12 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                                 float z = dot(p - cam_pos, axis);
                                 if (!std::isfinite(z)) continue;
                                 if (hits == 0) nfirst = n;
-                                nsum += n;
+                                nsum += n * w;
                                 zmin = std::min(zmin, std::max(z, 0.f));
                                 ++hits;
                             }
                             const size_t i3 = size_t(pixel) * 3;
-                            const float inv = 1.f / float(samples);
+                            const float inv = wsum != 0.f ? 1.f / wsum : 0.f;
                             res.albedo[i3 + 0] = albedo.x * inv;
                             res.albedo[i3 + 1] = albedo.y * inv;
                             res.albedo[i3 + 2] = albedo.z * inv;

@@ -1,22 +1,25 @@
 #pragma once
 /// \file Integrator-independent AOV pass: albedo, shading normal, depth of the first hit.
 ///
-/// For each pixel, `samples` jittered camera rays are traced to their first hit only (no
-/// light transport, so the pass is cheap and the same for every integrator). Sample s of
-/// pixel p uses the camera jitter of `PixelSampler(seed, p, s)`, i.e. exactly the camera
-/// ray of the beauty render's sample s: deterministic, independent of thread count.
+/// For each pixel, `samples` camera rays are traced to their first hit only (no light
+/// transport, so the pass is cheap and the same for every integrator). Sample s of pixel
+/// p uses the film position of `PixelSampler(seed, p, s)` under the pixel filter
+/// (PixelFilter::film_position), i.e. exactly the camera ray of pt's sample s:
+/// deterministic, independent of thread count. Albedo and normal are filtered as the
+/// beauty image is (each sample weighted by the filter's f/pdf); depth is not (below).
 ///
 /// Conventions (per pixel, over its samples):
-///  * albedo: mean over all samples of the first hit's diffuse colour (rendering-space RGB,
+///  * albedo: filter-weighted mean (as the film's) over all samples of the first hit's diffuse colour (rendering-space RGB,
 ///    ACEScg), its texture looked up at the hit's st (materials/material_eval.h). A ray that escapes contributes 0. A ray that hits an analytic light's
 ///    emitting side contributes the light's radiance clamped to [0, 1] (the denoiser
 ///    convention for emitters); an emissive mesh contributes its material's diffuse.
 ///  * normal: world-space unit shading normal (the normal map applied, as the integrators'
 ///    BSDF sees it), turned to face the camera (toward the ray
-///    origin); the normalised mean of the hitting samples' normals. Analytic lights give
+///    origin); the normalised filter-weighted mean of the hitting samples' normals. Analytic lights give
 ///    the direction back to the camera. No hit: (0, 0, 0).
 ///  * depth (Z): distance of the hit point along the camera's viewing axis (local -Z),
-///    in world units; the *closest* hitting sample (Z is not filtered across edges). No
+///    in world units; the *closest* hitting sample of the filter's footprint (nearest
+///    sample, not filtered: an average of depths across an edge is a depth of nothing). No
 ///    hit: 0, which never occurs for a hit because near clipping is > 0 or the hit is in
 ///    front of the camera. Always finite.
 #include "integrators/common/render_settings.h"

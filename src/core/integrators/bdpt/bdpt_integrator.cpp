@@ -2,6 +2,7 @@
 
 #include "cameras/camera.h"
 #include "film/film.h"
+#include "film/filter.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/common/frame_loop.h"
 #include "scene/scene.h"
@@ -20,7 +21,11 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const int W = settings.width, H = settings.height;
     const Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
-    const BdptTracer tracer(scene, camera, W, H, settings.max_depth);
+    const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
+    // light tracing reaches the film window (the image and the filter's margin), its
+    // importance normalised over the window: splats scaled by window / image area
+    const BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
+    const double splat_scale = filter.window_area(W, H) / (double(W) * double(H));
     const std::vector<Tile> tiles = image_tiles(W, H);
     const int threads = frame_threads(settings);
     tbb::task_arena arena(threads);
@@ -50,9 +55,13 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
                             uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
                             PixelStreamSampler sampler(settings.seed, pixel, uint32_t(pass));
                             sampler.start_stream(BdptSampler::k_camera);
-                            Vec2 u = sampler.next2d();
+                            // the film position from the filter, its weight f/pdf on the
+                            // pixel's own estimate (the light-tracing splats below are
+                            // filtered where they land instead)
+                            float weight = 1.f;
+                            const Vec2 p_film = filter.film_position(x, y, sampler.next2d(), &weight);
                             ws.splats.clear();
-                            pass_L[pixel] = tracer.li(Vec2(float(x) + u.x, float(y) + u.y), sampler, ws, c);
+                            pass_L[pixel] = tracer.li(p_film, sampler, ws, c) * weight;
                             for (const BdptSplat& sp : ws.splats) {
                                 if (!is_finite(sp.L)) {
                                     c.bad_splats += 1;
@@ -68,18 +77,19 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
             },
             tbb::simple_partitioner());
     };
-    // Merge the splats in tile order (deterministic sums).
+    // Merge the splats in tile order (deterministic sums), each over the filter's
+    // footprint around where it landed (the one pixel for the unit box).
     const auto merge_splats = [&] {
         std::fill(splat_img.begin(), splat_img.end(), 0.0);
         for (const auto& list : tile_splats)
-            for (const BdptSplat& sp : list) {
-                int px = std::min(W - 1, std::max(0, int(std::floor(sp.p_raster.x))));
-                int py = std::min(H - 1, std::max(0, int(std::floor(sp.p_raster.y))));
-                double* d = &splat_img[3 * (size_t(py) * size_t(W) + size_t(px))];
-                d[0] += double(sp.L.x);
-                d[1] += double(sp.L.y);
-                d[2] += double(sp.L.z);
-            }
+            for (const BdptSplat& sp : list)
+                filter.footprint(sp.p_raster, W, H, [&](uint32_t pixel, double w) {
+                    double* d = &splat_img[3 * size_t(pixel)];
+                    w *= splat_scale;
+                    d[0] += double(sp.L.x) * w;
+                    d[1] += double(sp.L.y) * w;
+                    d[2] += double(sp.L.z) * w;
+                });
     };
     // One film sample per pixel: pass estimate + its splats.
     const auto add_pass = [&](int pass) {

@@ -14,9 +14,9 @@
 namespace cmlt {
 
 BdptTracer::BdptTracer(const Scene& scene, const Camera& camera, int width, int height,
-                       int max_depth)
-    : m_scene(scene), m_importance(camera, width, height), m_width(width), m_height(height),
-      m_max_depth(max_depth), m_motion_blur(scene.motion_blur()) {}
+                       int max_depth, float film_margin)
+    : m_scene(scene), m_importance(camera, width, height, film_margin), m_width(width), m_height(height),
+      m_margin(film_margin), m_max_depth(max_depth), m_motion_blur(scene.motion_blur()) {}
 
 float BdptTracer::choose_strategy(int depth, float u, int* s, int* t) {
     if (depth == 0) {
@@ -71,7 +71,8 @@ bool BdptTracer::start_strategy(int depth, int s, int t, BdptSampler& sampler, B
     c.samples += 1;
     sampler.start_stream(BdptSampler::k_camera);
     const Vec2 u = sampler.next2d();
-    *p_raster = Vec2(u.x * float(m_width), u.y * float(m_height));
+    *p_raster = Vec2(u.x * (float(m_width) + 2.f * m_margin) - m_margin,
+                     u.y * (float(m_height) + 2.f * m_margin) - m_margin);
     return true;
 }
 

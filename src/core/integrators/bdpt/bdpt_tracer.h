@@ -157,7 +157,11 @@ class BdptTracer {
 public:
     static constexpr int k_rr_start_depth = 3;
 
-    BdptTracer(const Scene& scene, const Camera& camera, int width, int height, int max_depth);
+    /// `film_margin`: the film window reaches that many pixels beyond the image on every
+    /// side (PixelFilter::margin): light tracing splats there, and evaluate_strategy's
+    /// film positions cover it.
+    BdptTracer(const Scene& scene, const Camera& camera, int width, int height, int max_depth,
+               float film_margin = 0.f);
 
     /// All strategies for one pixel sample at raster position `p_raster` (the caller
     /// picks it; the camera stream's first 2D is *not* consumed here). Returns the
@@ -168,9 +172,10 @@ public:
 
     /// One strategy (s, t) of a path with `depth` scattering events (s + t = depth + 2),
     /// for the Metropolis integrators: the camera stream's first 2D is the film position
-    /// over the whole image, subpaths have exactly t and s vertices (no Russian
+    /// over the whole film window (the image and its margin), subpaths have exactly t and s vertices (no Russian
     /// roulette). Returns the MIS-weighted contribution and its raster position:
-    /// E[ evaluate_strategy / strategy_pmf * 1{p_raster in pixel j} ] = I_j / (W H).
+    /// E[ evaluate_strategy / strategy_pmf * h(p_raster) ] = ∫ h I / A for the window's
+    /// area A ((W + 2 margin)(H + 2 margin) pixels; W H without a margin).
     /// It is the resumable strategy below with Scene::intersect and
     /// Scene::transmittance answering its queries inline (tested bit for bit).
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,
@@ -287,6 +292,7 @@ private:
     const Scene& m_scene;
     CameraImportance m_importance;
     int m_width, m_height;
+    float m_margin;
     int m_max_depth;
     bool m_motion_blur;
 };

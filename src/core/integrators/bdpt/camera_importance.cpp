@@ -7,8 +7,8 @@
 
 namespace cmlt {
 
-CameraImportance::CameraImportance(const Camera& camera, int width, int height)
-    : m_camera(camera), m_width(width), m_height(height) {
+CameraImportance::CameraImportance(const Camera& camera, int width, int height, float margin)
+    : m_camera(camera), m_width(width), m_height(height), m_margin(margin) {
     const CameraDesc& d = camera.desc();
     m_perspective = d.projection == CameraDesc::Projection::perspective;
     m_lens = m_perspective && camera.has_lens();
@@ -18,6 +18,9 @@ CameraImportance::CameraImportance(const Camera& camera, int width, int height)
     float ww = d.horizontal_aperture / fl;
     float wh = d.horizontal_aperture * float(height) / float(width) / fl;
     m_area = ww * wh;
+    if (margin != 0.f)  // the window grown by the margin
+        m_area *= float((double(width) + 2.0 * margin) * (double(height) + 2.0 * margin) /
+                        (double(width) * double(height)));
     if (m_lens) {
         const float r = camera.lens_radius();
         m_pdf_lens = 1.f / (k_pi * r * r);
@@ -27,8 +30,8 @@ CameraImportance::CameraImportance(const Camera& camera, int width, int height)
 bool CameraImportance::raster_of(const Vec3& p_lens, const Vec3& w, Vec2* p_raster) const {
     if (!(dot(w, m_fwd) > 0.f)) return false;
     if (!m_camera.lens_ray_to_raster(p_lens, w, p_raster)) return false;
-    return p_raster->x >= 0.f && p_raster->x < float(m_width) && p_raster->y >= 0.f &&
-           p_raster->y < float(m_height);
+    return p_raster->x >= -m_margin && p_raster->x < float(m_width) + m_margin && p_raster->y >= -m_margin &&
+           p_raster->y < float(m_height) + m_margin;
 }
 
 float CameraImportance::pdf_dir(const Vec3& p_lens, const Vec3& w) const {

@@ -20,7 +20,10 @@ namespace cmlt {
 
 class CameraImportance {
 public:
-    CameraImportance(const Camera& camera, int width, int height);
+    /// The film window is the image grown by `margin` pixels on every side (the
+    /// film positions a pixel filter reaches: PixelFilter::margin); light tracing
+    /// reaches it and the importance is normalised over it.
+    CameraImportance(const Camera& camera, int width, int height, float margin = 0.f);
     /// t = 1 is possible (perspective, with or without a lens).
     bool connectable() const { return m_perspective; }
     bool has_lens() const { return m_lens; }
@@ -45,6 +48,7 @@ private:
 
     const Camera& m_camera;
     int m_width, m_height;
+    float m_margin;
     Vec3 m_fwd;
     float m_area = 1.f;
     float m_pdf_lens = 1.f;

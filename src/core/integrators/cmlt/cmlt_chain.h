@@ -72,7 +72,7 @@ class ChainTracer {
 public:
     ChainTracer(const mlt::PssmltTracer& tracer, const Scene& scene, const CmltSettings& s, SplatFilm& film,
                 BundleTotals& totals)
-        : m_settings(s), m_film(film), m_totals(totals), m_f(make_target(tracer, scene, s, &m_counters, &m_bundle)) {}
+        : m_settings(s), m_filter(tracer.filter()), m_film(film), m_totals(totals), m_f(make_target(tracer, scene, s, &m_counters, &m_bundle)) {}
     ChainTracer(const ChainTracer&) = delete;
     ChainTracer& operator=(const ChainTracer&) = delete;
 
@@ -80,7 +80,8 @@ public:
     void run(Chain& st, uint64_t end) {
         auto splat = [&](const State& s, double w) {
             if (s.sample.f > 0.0) {
-                m_film.add(s.sample.pixel, s.sample.L, w / s.sample.f, st.layer);
+                m_film.add_filtered(m_filter, s.sample.p_film, s.sample.pixel, s.sample.L, w / s.sample.f,
+                                    st.layer);
                 st.record_splat(s.sample.L, s.sample.f, w, &s == &st.chain.x);
             }
         };
@@ -115,6 +116,7 @@ public:
 
 private:
     const CmltSettings& m_settings;
+    const PixelFilter& m_filter;
     SplatFilm& m_film;
     BundleTotals& m_totals;
     PathCounters m_counters;

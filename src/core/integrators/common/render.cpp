@@ -1,6 +1,7 @@
 // render() and the integrator table; see render.h.
 #include "integrators/common/render.h"
 
+#include "film/filter.h"
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
 #include "integrators/mlt/mlt_frame.h"
@@ -58,8 +59,14 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
         as_pt.integrator = "pt";
         use = &as_pt;
     }
+    const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     for (const IntegratorEntry& e : k_integrators)
-        if (use->integrator == e.name) return e.render(scene, *use, progress);
+        if (use->integrator == e.name) {
+            RenderResult res = e.render(scene, *use, progress);
+            res.stats.pixel_filter = filter.name();
+            res.stats.filter_radius = filter.radius();
+            return res;
+        }
     CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '" << settings.integrator << "'");
 }
 

@@ -1,5 +1,6 @@
 #include "integrators/common/render_settings.h"
 
+#include "film/filter.h"
 #include "util/error.h"
 
 #include <cmath>
@@ -56,6 +57,7 @@ void RenderSettings::validate() const {
     if (error_groups == 1 || error_groups == 2)
         CMLT_THROW(SettingsError, "RenderSettings.error_groups: 0 (off) or 3..64, got " << error_groups
                                       << " (a variance and its jackknife need 3 groups)");
+    if (filter_radius != 0.0) PixelFilter::from_settings(pixel_filter, filter_radius);  // its range
     // across fields: at most 2^31 pixels
     if (int64_t(width) * int64_t(height) > (int64_t(1) << 31))
         CMLT_THROW(SettingsError, "RenderSettings.width: width * height is too large ("

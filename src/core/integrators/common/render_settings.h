@@ -136,7 +136,15 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "stop when the render's own relMSE estimate falls below E (and its standard error " \
          "below a quarter of it), or when --spp/--time run out first; 0 = off")              \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
-         "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")
+         "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
+    TOKEN(pixel_filter, "gaussian", "box triangle gaussian mitchell blackman-harris",        \
+          "cmlt:pixelFilter", "--pixel-filter",                                              \
+          "pixel reconstruction filter (film/filter.h): gaussian (pbrt-v4's, sigma = radius/3), " \
+          "box (radius 0.5: the one-pixel box), triangle, mitchell (B = C = 1/3, negative "  \
+          "lobes) or blackman-harris")                                                       \
+    REAL(filter_radius, 0.0, 0.0, 3.5, false, "cmlt:filterRadius", "--filter-radius PIXELS", \
+         "radius of the pixel filter in pixels, 0 = the filter's default (box 0.5, "          \
+         "triangle 1, gaussian 1.5, mitchell 2, blackman-harris 1.5)")
 
 // Settings of the sequence that the Python frame loop reads (DESIGN.md §4); the core
 // has no field for them. Same columns.
@@ -256,6 +264,8 @@ struct RenderStats {
     uint64_t shadow_rays = 0;
     uint64_t rays = 0;          ///< every BVH query (camera + bounce + shadow)
     uint64_t splats = 0;        ///< bdpt: light-tracing (t = 1) contributions splatted
+    std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
+    double filter_radius = 0;   ///< its radius in pixels (the default resolved)
     double rays_per_s = 0;
     /// CPU time summed over the worker threads: busy in the frame's parallel work, of it
     /// inside BVH queries (tracing), and the rest (shading: BSDFs, lights, sampling, MIS,

@@ -11,7 +11,8 @@
 namespace cmlt::mlt {
 
 PtPass::PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth)
-    : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height), m_tracer(scene, max_depth),
+    : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height),
+      m_filter(PixelFilter::from_settings(s.pixel_filter, s.filter_radius)), m_tracer(scene, max_depth),
       m_motion_blur(scene.motion_blur()), m_film(s.width, s.height), m_sample_base(sample_base) {}
 
 uint64_t PtPass::evaluations() const {
@@ -28,8 +29,10 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
             for (int x = 0; x < W; ++x)
                 for (int k = s0; k < s1; ++k) {
                     const uint32_t index = m_sample_base + uint32_t(k);
-                    m_film.add_sample(x, y, index,
-                                      m_tracer.pixel_sample(m_camera, m_motion_blur, m_settings.seed, x, y, W, index, c));
+                    float w = 1.f;
+                    const Spectrum L =
+                        m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x, y, W, index, c, &w);
+                    m_film.add_sample(x, y, index, L, w);
                 }
         counters.add(c);
     });

@@ -12,6 +12,7 @@
 /// its share of the frame's evaluations under a sample or a time budget.
 #include "cameras/camera.h"
 #include "film/film.h"
+#include "film/filter.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng_domains.h"
@@ -60,6 +61,7 @@ protected:
 
 private:
     Camera m_camera;
+    PixelFilter m_filter;
     PathTracer m_tracer;
     bool m_motion_blur;
     Film m_film;

@@ -21,12 +21,14 @@ struct MltContext {
     /// Renders the pilot of the "pixel" importance unless settings.pilot holds it;
     /// its rays go to `counters`.
     MltContext(const Scene& scene, const RenderSettings& s, PathCounters& counters)
-        : camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth, min_depth(s)),
-          bdpt(scene, camera, s.width, s.height, s.max_depth),
+        : filter(PixelFilter::from_settings(s.pixel_filter, s.filter_radius)),
+          camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth, min_depth(s)),
+          bdpt(scene, camera, s.width, s.height, s.max_depth, filter.margin()),
           importance(make_importance(scene, s, counters, &pilot_rendered)),
           tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s))
                                               : PssmltTracer(pt, camera, s.width, s.height)) {
         tracer.set_importance(importance.get());
+        tracer.set_filter(&filter);
         tracer.set_film_offset(Vec2(float(s.mlt_film_offset_x), float(s.mlt_film_offset_y)));
     }
     MltContext(const MltContext&) = delete;
@@ -64,6 +66,7 @@ struct MltContext {
         return std::max<uint64_t>(2, total - used);
     }
 
+    PixelFilter filter;  ///< the chains' splats (the direct pass filters its own samples)
     Camera camera;
     PathTracer pt;
     BdptTracer bdpt;

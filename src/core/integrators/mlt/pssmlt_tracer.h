@@ -15,9 +15,16 @@
 ///    (MltSampler::freeze_in_small_steps).
 ///  * "pt": camera stream only: dimension 0 = film position, then the path tracer's own
 ///    layout (path_tracer.h: bounce b uses 1 + 5b ..); L = PathTracer::li (NEE + MIS).
-/// Both satisfy E[L · 1{pixel j}] = I_j / (W·H) for a uniform state, so the integrator's
-/// normalisation is the same.
+/// Both satisfy E[L · h(p_film)] = ∫ h I / (W·H) for a uniform state, so the
+/// integrator's normalisation is the same.
+///
+/// Pixel filter (set_filter, film/filter.h): the film position covers the film window,
+/// the image grown by the filter's margin (so that every pixel's footprint is sampled),
+/// and L is scaled by window / image area to keep the relation above; the chains splat
+/// L over the filter's footprint around p_film (splat_filtered). The unit box (the
+/// default) has no margin: the film position and L are those without a filter.
 #include "cameras/camera.h"
+#include "film/filter.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/mlt/mlt_sampler.h"
 #include "integrators/mlt/pixel_importance.h"
@@ -33,7 +40,8 @@ namespace cmlt::mlt {
 
 /// One evaluated state of a chain: where it splats and what.
 struct PathSample {
-    uint32_t pixel = 0;  ///< y·W + x
+    uint32_t pixel = 0;  ///< y·W + x (the pixel containing p_film, clamped into the image)
+    Vec2 p_film{0.f, 0.f};  ///< film position (raster), where its filtered splat centres
     Spectrum L{0.f};     ///< contribution (PT estimate for the sampled film position)
     double f = 0.0;      ///< f* = luminance(L) / P(pixel) (pixel_importance.h), ≥ 0
     bool invalid = false;  ///< L was not finite (f = 0, never splatted)
@@ -91,6 +99,17 @@ public:
         : m_bdpt(&bdpt), m_camera(camera), m_width(width), m_height(height),
           m_technique(bdpt.max_depth(), min_depth) {}
 
+    /// The pixel filter (outliving the tracer); nullptr: the unit box.
+    void set_filter(const PixelFilter* filter) {
+        m_filter = filter;
+        m_margin = filter ? filter->margin() : 0.f;
+        m_area_scale = filter ? filter->window_area(m_width, m_height) / (double(m_width) * double(m_height)) : 1.0;
+    }
+    const PixelFilter& filter() const {
+        static const PixelFilter unit_box;
+        return m_filter ? *m_filter : unit_box;
+    }
+
     /// Film offset of the camera stream's film position (shift_film); default none.
     void set_film_offset(const Vec2& offset) { m_film_offset = offset; }
     Vec2 film_offset() const { return m_film_offset; }
@@ -109,15 +128,15 @@ public:
     /// (The pt sampler keeps time 0.) Leaves the sampler on the camera stream after the
     /// numbers read here, where evaluate's path sampling continues.
     template <class Sampler>
-    Ray camera_ray(Sampler& sampler, uint32_t* pixel) const {
+    Ray camera_ray(Sampler& sampler, uint32_t* pixel, Vec2* p_film = nullptr) const {
         static_assert(is_stream_sampler_v<Sampler>, "a StreamSampler (base/sampler.h)");
         sampler.start_stream(MltSampler::camera);
         sampler.set_dimension(0);
         const Vec2 u = shift_film(sampler.get2d(), m_film_offset);
-        const Vec2 p_raster(u.x * float(m_width), u.y * float(m_height));
-        const int x = std::min(int(p_raster.x), m_width - 1);
-        const int y = std::min(int(p_raster.y), m_height - 1);
-        *pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
+        const Vec2 p_raster(u.x * (float(m_width) + 2.f * m_margin) - m_margin,
+                            u.y * (float(m_height) + 2.f * m_margin) - m_margin);
+        *pixel = pixel_of(p_raster);
+        if (p_film) *p_film = p_raster;
         Ray ray = m_camera.generate_ray(p_raster);
         if (m_bdpt && m_bdpt->motion_blur()) ray.time = sampler.get1d();
         return ray;
@@ -134,8 +153,9 @@ public:
                         const SceneHit* first_hit = nullptr) const {
         if (m_bdpt) return evaluate_bdpt(sampler, counters);
         PathSample s;
-        const Ray ray = camera_ray(sampler, &s.pixel);
+        const Ray ray = camera_ray(sampler, &s.pixel, &s.p_film);
         s.L = m_tracer->li(ray, sampler, counters, first_hit);
+        if (m_area_scale != 1.0) s.L *= float(m_area_scale);
         if (!is_finite(s.L)) {
             s.invalid = true;
             s.L = Spectrum(0.f);
@@ -176,13 +196,12 @@ public:
             return;
         }
         // film position: the camera stream's (t ≥ 2) or the light-tracing splat's (t = 1)
-        if (!(p_raster.x >= 0.f && p_raster.y >= 0.f && p_raster.x < float(m_width) &&
-              p_raster.y < float(m_height)))
-            return;  // off the image: contributes nothing (f* = 0)
-        const int x = std::min(int(p_raster.x), m_width - 1);
-        const int y = std::min(int(p_raster.y), m_height - 1);
-        s.pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
-        s.L = C * float(1.0 / pmf);
+        if (!(p_raster.x >= -m_margin && p_raster.y >= -m_margin && p_raster.x < float(m_width) + m_margin &&
+              p_raster.y < float(m_height) + m_margin))
+            return;  // off the film window: contributes nothing (f* = 0)
+        s.pixel = pixel_of(p_raster);
+        s.p_film = p_raster;
+        s.L = C * float(m_area_scale / pmf);
         if (!is_finite(s.L)) {
             s.invalid = true;
             s.L = Spectrum(0.f);
@@ -205,7 +224,17 @@ private:
         return s;
     }
 
+    /// The pixel containing raster position p, clamped into the image.
+    uint32_t pixel_of(const Vec2& p) const {
+        const int x = std::max(0, std::min(int(std::floor(p.x)), m_width - 1));
+        const int y = std::max(0, std::min(int(std::floor(p.y)), m_height - 1));
+        return uint32_t(y) * uint32_t(m_width) + uint32_t(x);
+    }
+
     const PathTracer* m_tracer = nullptr;
+    const PixelFilter* m_filter = nullptr;
+    float m_margin = 0.f;        ///< the filter's (film window beyond the image)
+    double m_area_scale = 1.0;   ///< window / image area
     const PixelImportance* m_importance = nullptr;
     const BdptTracer* m_bdpt = nullptr;
     const Camera& m_camera;

@@ -3,6 +3,7 @@
 
 #include "cameras/camera.h"
 #include "film/film.h"
+#include "film/filter.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"
@@ -16,6 +17,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     const int W = settings.width, H = settings.height;
     const Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
+    const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     const PathTracer tracer(scene, settings.max_depth);
     const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
     std::vector<Tile> tiles = image_tiles(W, H);
@@ -48,9 +50,10 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x)
                             for (int s = s0; s < s1; ++s) {
-                                const Spectrum L =
-                                    tracer.pixel_sample(camera, motion_blur, settings.seed, x, y, W, uint32_t(s), c);
-                                film.add_sample(x, y, uint32_t(s), L);
+                                float w = 1.f;
+                                const Spectrum L = tracer.pixel_sample(camera, filter, motion_blur, settings.seed, x,
+                                                                       y, W, uint32_t(s), c, &w);
+                                film.add_sample(x, y, uint32_t(s), L, w);
                             }
                 }
                 counters.add(c);

@@ -1,16 +1,17 @@
 #include "integrators/path/path_tracer.h"
 
 #include "cameras/camera.h"
+#include "film/filter.h"
 #include "integrators/path/path_tracer_impl.h"
 
 namespace cmlt {
 
-Spectrum PathTracer::pixel_sample(const Camera& camera, bool motion_blur, uint64_t seed, int x,
-                                  int y, int width, uint32_t s, PathCounters& counters) const {
+Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur,
+                                  uint64_t seed, int x, int y, int width, uint32_t s,
+                                  PathCounters& counters, float* weight) const {
     const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
     PixelSampler sampler(seed, pixel, s);
-    const Vec2 u = sampler.get2d();
-    const Vec2 p_film(float(x) + u.x, float(y) + u.y);
+    const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), weight);
     Ray ray = camera.generate_ray(p_film);
     if (camera.has_lens()) {  // thin lens: its own dimension
         PixelSampler ls(seed, pixel, s);

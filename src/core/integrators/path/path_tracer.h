@@ -35,6 +35,7 @@
 namespace cmlt {
 
 class Camera;
+class PixelFilter;
 class Scene;
 struct SceneHit;
 
@@ -57,11 +58,12 @@ public:
                 const SceneHit* first_hit = nullptr) const;
 
     /// One independent pixel sample of pixel (x, y), sample index `s`: film position
-    /// (dimension 0), lens (k_lens_dimension, with a thin lens), shutter time
+    /// (dimension 0: the pixel's centre + an offset drawn from `filter`, whose f/pdf goes
+    /// to *weight for the film; PixelFilter::film_position), lens (k_lens_dimension, with a thin lens), shutter time
     /// (k_shutter_time_dimension, when `motion_blur`), then li — the numbers keyed by
     /// (seed, pixel, s) through PixelSampler.
-    Spectrum pixel_sample(const Camera& camera, bool motion_blur, uint64_t seed, int x, int y,
-                          int width, uint32_t s, PathCounters& counters) const;
+    Spectrum pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur, uint64_t seed,
+                          int x, int y, int width, uint32_t s, PathCounters& counters, float* weight) const;
 
 private:
     const Scene& m_scene;

@@ -90,7 +90,7 @@ public:
         const auto target = [](const PathSample& s) { return s.f; };
         auto splat = [&](const PathSample& s, double w) {
             if (s.f > 0.0) {
-                m_film.add(s.pixel, s.L, w / s.f, st.layer);
+                m_film.add_filtered(m_tracer.filter(), s.p_film, s.pixel, s.L, w / s.f, st.layer);
                 st.record_splat(s.L, s.f, w, &s == &st.chain.x);
             }
         };

@@ -175,6 +175,9 @@ TEST(Pssmlt, FurnaceMeanIsBWithinItsStandardError) {
     Scene s;
     furnace_scene(s, 0.5f, 1.f);
     RenderSettings st = mlt_settings(16, 16, 64);
+    // the image mean is b for the one-pixel box; a wider filter's chains cover the film
+    // window beyond the image, so b is the window's (larger) integral
+    st.pixel_filter = "box";
     st.bootstrap_samples = 8192;
     st.importance = "luminance";  // the image mean is b only for f* = luminance and
     st.direct_fraction = 0;       // chains that render every depth
