@@ -128,14 +128,15 @@ _channels = exr_channels
 def test05_cli_writes_aov_channels_with_standard_names(plane_shot, tmp_path, capsys):
     out = str(tmp_path / "r" / "p.####.exr")
     code = main(["render", plane_shot, "--frames", "1", "--out", out, "--spp", "4",
-                 "--res", f"{W}x{H}", "--aov", "albedo,normal,depth,variance", "--quiet"])
+                 "--res", f"{W}x{H}", "--aov", "albedo,normal,depth,variance", "--quiet",
+                 "--pixel-filter", "gaussian"])
     assert code == 0, capsys.readouterr().err
     spec, ch = _channels(str(tmp_path / "r" / "p.0001.exr"))
     names = set(spec.channelnames)
     assert {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z",
             "variance.R", "variance.G", "variance.B"} == names
     assert spec.z_channel == list(spec.channelnames).index("Z")
-    ref = _aovs(plane_shot, pixel_filter="gaussian")   # the CLI's default filter
+    ref = _aovs(plane_shot, pixel_filter="gaussian")   # the filter asked for
     np.testing.assert_array_equal(ch["Z"], ref["Z"])
     np.testing.assert_array_equal(np.stack([ch["N.X"], ch["N.Y"], ch["N.Z"]], -1), ref["N"])
     np.testing.assert_array_equal(np.stack([ch["albedo.R"], ch["albedo.G"], ch["albedo.B"]], -1),
