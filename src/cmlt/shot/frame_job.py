@@ -22,6 +22,7 @@ from .analyse import frame_effects
 from .bridge import BridgeError, SceneBridge
 from .core_settings import settings_message
 from .errors import RenderError, UsageError
+from .memory import scene_memory
 from .options import preview_path
 from .output import aov_images, header_metadata, to_output
 from .progress import Reporter
@@ -323,6 +324,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         "stats": stats, "scene_update": job.bridge.last_update.as_dict(),
         "warnings": list(fs.warnings), "cmlt_version": __version__, "temporal": trec,
         "effects": frame_effects(fs, scene, core, opts.resolution, job.effects_cache),
+        "memory": scene_memory(core, scene),
     }
     metadata = header_metadata(frame, fs, job.shot_abs, camera, job.resolved, stats,
                                temporal=trec)

@@ -55,6 +55,13 @@ public:
 
     size_t mesh_count() const;
     size_t instance_count() const;
+    /// Bytes Embree holds for mesh `mesh_id` (its scene, geometry and BVH; not the shared
+    /// vertex and index buffers), as its memory monitor counted them around the mesh's
+    /// creation and commits. Exact while one thread at a time builds BVHs on the
+    /// process's device (the renderer builds one scene at a time).
+    size_t mesh_bvh_bytes(uint32_t mesh_id) const;
+    /// The same for the top-level scene (instance geometries and their BVH).
+    size_t top_level_bytes() const;
 
     /// Closest hit in (tnear, tfar).
     Hit intersect(const Ray& ray) const;
