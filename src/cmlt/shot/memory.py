@@ -24,14 +24,20 @@ def scene_memory(core, scene) -> Optional[Dict[str, float]]:
     return dict(core.scene_memory(scene))
 
 
+def _size(n: float) -> str:
+    for unit, scale in (("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if n >= scale:
+            return f"{n / scale:.2f} {unit}"
+    return f"{int(n)} B"
+
+
 def format_memory(mem: Optional[Dict[str, float]]) -> str:
     """One line for ``cmlt inspect``."""
     if not mem:
         return "memory: no scene (no camera)"
-    mb = 1.0 / (1 << 20)
-    parts = ", ".join(f"{k[:-6].replace('_', ' ')} {mem[k] * mb:.2f}" for k in MESH_PARTS
+    parts = ", ".join(f"{k[:-6].replace('_', ' ')} {_size(mem[k])}" for k in MESH_PARTS
                       if mem.get(k))
     return (f"memory: {mem['triangles']:,} triangles in {mem['meshes']} mesh(es), "
             f"{mem['instances']} instance(s): {mem['bytes_per_triangle']:.1f} bytes/triangle "
-            f"(BVH {mem['bvh_bytes'] * mb:.2f} MiB; mesh arrays {mem['mesh_bytes'] * mb:.2f} MiB: "
+            f"(BVH {_size(mem['bvh_bytes'])}; mesh arrays {_size(mem['mesh_bytes'])}: "
             f"{parts or 'none'})")

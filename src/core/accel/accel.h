@@ -21,6 +21,10 @@ namespace cmlt {
 
 constexpr uint32_t k_invalid_id = 0xFFFFFFFFu;
 
+/// Meshes with at least this many triangles get a compact BVH (accel.cpp: less memory,
+/// slower queries); smaller ones the default, faster leaves.
+constexpr size_t k_compact_bvh_triangles = size_t(1) << 16;
+
 /// Result of a closest-hit query. Barycentrics (u, v) weight vertices 1 and 2.
 struct Hit {
     float t = k_infinity;
