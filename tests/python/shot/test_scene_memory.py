@@ -3,7 +3,6 @@ the mesh arrays are counted exactly, Embree's BVH as its memory monitor sees it 
 against the process's resident memory), and a dense 1M-triangle mesh stays compact."""
 import importlib.util
 import json
-import os
 
 import numpy as np
 import pytest
@@ -37,11 +36,6 @@ def _sphere_scene(rings, segments, *, normals=True, uvs=True, material_ids=None)
     return scene, len(pts), len(tri)
 
 
-def _rss():
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-
-
 def test_01_mesh_arrays_counted_exactly():
     scene, nv, nt = _sphere_scene(40, 80, material_ids=lambda n: np.arange(n, dtype=np.uint32) % 1)
     m = core.scene_memory(scene)
@@ -73,20 +67,40 @@ def test_02_one_material_id_for_a_uniform_mesh_through_the_bridge():
     assert core.scene_memory(scene)["material_id_bytes"] == 0
 
 
+_RSS_CHILD = """
+import os, sys
+import numpy as np
+import cmlt._core as core
+from cmlt.scene import padded_points
+sys.path.insert(0, sys.argv[1])
+from make_shot import sphere_grid
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+pts, nrm, uv, counts, quads = sphere_grid(300, 600, 1.0)
+q = quads.reshape(-1, 4)
+tri = np.ascontiguousarray(np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]).astype(np.uint32))
+p = padded_points(pts)
+scene = core.Scene()
+mid = scene.add_mesh("sphere", p, tri)
+scene.add_instance(mid, np.eye(4))
+before = rss()
+scene.commit()
+grown = rss() - before
+print(core.scene_memory(scene)["bvh_bytes"], grown)
+"""
+
+
 def test_03_bvh_bytes_match_resident_memory():
-    """The monitor's count of Embree's memory agrees with what the process gains in
-    resident memory while the BVH is built (the arrays exist before)."""
-    pts, nrm, uv, counts, quads = dense.sphere_grid(300, 600, 1.0)
-    q = quads.reshape(-1, 4)
-    tri = np.ascontiguousarray(np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]).astype(np.uint32))
-    p = padded_points(pts)
-    scene = core.Scene()
-    mid = scene.add_mesh("sphere", p, tri)
-    scene.add_instance(mid, np.eye(4))
-    before = _rss()
-    scene.commit()
-    grown = _rss() - before
-    bvh = core.scene_memory(scene)["bvh_bytes"]
+    """The monitor's count of Embree's memory agrees with what a fresh process gains in
+    resident memory while the BVH is built (the arrays exist before; a fresh process, so
+    that no freed heap of earlier tests is reused)."""
+    import subprocess
+    import sys
+    out = subprocess.run([sys.executable, "-c", _RSS_CHILD,
+                          str(support.ROOT / "sequences" / "dense")],
+                         capture_output=True, text=True, check=True).stdout
+    bvh, grown = (int(v) for v in out.split())
     assert bvh > 0
     assert 0.7 * bvh < grown < 1.3 * bvh, (bvh, grown)
 
