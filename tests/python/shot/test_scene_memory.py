@@ -138,5 +138,9 @@ def test_05_inspect_and_sidecar_report_memory(tmp_path):
     img = tmp_path / "f.####.exr"
     assert main(["render", shot, "--frames", "1", "--res", "16x16", "--spp", "1",
                  "--integrator", "pt", "--out", str(img), "--quiet"]) == 0
-    side = json.loads((tmp_path / "f.0001.exr.json").read_text())
-    assert side["memory"] == mem
+    side = json.loads((tmp_path / "f.0001.exr.json").read_text())["memory"]
+    # the same scene: the same mesh arrays; Embree's allocations for the small top level
+    # depend on its build threads, so the BVH agrees to a few per cent
+    for key in ("meshes", "instances", "triangles", "vertices", "mesh_bytes"):
+        assert side[key] == mem[key], key
+    assert side["bvh_bytes"] == pytest.approx(mem["bvh_bytes"], rel=0.05)
