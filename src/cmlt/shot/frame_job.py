@@ -304,6 +304,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
             scene = job.bridge.update(fs)
     except (core.SceneError, BridgeError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
+    memory = scene_memory(core, scene)        # the sidecar's: before the render
     bridge_warnings = [str(w.message) for w in caught]
     if bridge_warnings:
         job.warn(list(dict.fromkeys(bridge_warnings)))
@@ -324,7 +325,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         "stats": stats, "scene_update": job.bridge.last_update.as_dict(),
         "warnings": list(fs.warnings), "cmlt_version": __version__, "temporal": trec,
         "effects": frame_effects(fs, scene, core, opts.resolution, job.effects_cache),
-        "memory": scene_memory(core, scene),
+        "memory": memory,
     }
     metadata = header_metadata(frame, fs, job.shot_abs, camera, job.resolved, stats,
                                temporal=trec)
