@@ -5,6 +5,7 @@
 #include "analysis/kernel_select.h"
 #include "analysis/scene_probes.h"
 #include "scene/scene.h"
+#include "scene/scene_memory.h"
 #include "util/error.h"
 
 #include <nanobind/stl/string.h>
@@ -64,6 +65,30 @@ std::vector<bool> lambert_kernel_py(const Scene& scene) {
     return out;
 }
 
+nb::dict scene_memory_py(const Scene& scene) {
+    if (scene.dirty())
+        throw SceneError("scene_memory: the scene changed since the last commit(); call commit()");
+    const SceneMemory m = scene_memory(scene);
+    nb::dict d;
+    d["meshes"] = m.meshes;
+    d["instances"] = m.instances;
+    d["triangles"] = m.triangles;
+    d["vertices"] = m.vertices;
+    d["bvh_bytes"] = m.bvh_bytes;
+    d["top_level_bytes"] = m.top_level_bytes;
+    d["point_bytes"] = m.point_bytes;
+    d["index_bytes"] = m.index_bytes;
+    d["normal_bytes"] = m.normal_bytes;
+    d["uv_bytes"] = m.uv_bytes;
+    d["material_id_bytes"] = m.material_id_bytes;
+    d["primvar_bytes"] = m.primvar_bytes;
+    d["light_map_bytes"] = m.light_map_bytes;
+    d["mesh_bytes"] = m.mesh_bytes();
+    d["total_bytes"] = m.total_bytes();
+    d["bytes_per_triangle"] = m.bytes_per_triangle();
+    return d;
+}
+
 }  // namespace
 
 void bind_analysis(nb::module_& m) {
@@ -76,6 +101,11 @@ void bind_analysis(nb::module_& m) {
     m.def("lambert_kernel_materials", &lambert_kernel_py, "scene"_a,
           "Per material of the scene: whether RenderSettings.kernel = 'auto' renders it with "
           "the diffuse-only kernel (an exact Lambertian, analysis/kernel_select.h).");
+    m.def("scene_memory", &scene_memory_py, "scene"_a,
+          "What the committed scene's geometry takes (scene/scene_memory.h): Embree's BVHs "
+          "(bvh_bytes, its memory monitor) and the mesh arrays the core reads (points, "
+          "indices, normals, uvs, material ids, primvars, light map), in bytes, with "
+          "triangles (of the meshes, an instanced mesh once) and bytes_per_triangle.");
 }
 
 }  // namespace cmlt::bindings

@@ -41,8 +41,14 @@ uint32_t add_mesh(Scene& s, const std::string& name, nb::handle points, nb::hand
     }
     if (!material_ids.is_none()) {
         AnyArray ma = as_array(material_ids, fn, "material_ids");
-        d.material_ids = checked_matrix<uint32_t>(ma, fn, "material_ids", long(d.n_tris), 0, "uint32");
-        keep.push_back(nb::borrow(material_ids));
+        if (ma.ndim() == 1 && ma.shape(0) == 1 && d.n_tris != 1) {
+            // one id for the whole mesh: no per-triangle array
+            d.material_id_all = checked_matrix<uint32_t>(ma, fn, "material_ids", 1, 0, "uint32")[0];
+        } else {
+            d.material_ids =
+                checked_matrix<uint32_t>(ma, fn, "material_ids", long(d.n_tris), 0, "uint32");
+            keep.push_back(nb::borrow(material_ids));
+        }
     }
     if (!primvars.is_none()) {
         AnyArray va = as_array(primvars, fn, "primvars");
@@ -303,7 +309,8 @@ void bind_scene(nb::module_& m) {
         .def("add_mesh", &add_mesh, "name"_a, "points"_a, "indices"_a, "normals"_a = nb::none(),
              "uvs"_a = nb::none(), "material_ids"_a = nb::none(), "primvars"_a = nb::none(),
              "Add a mesh without copying: points float32 (N,3) from padded_points, indices uint32 "
-             "(M,3), normals float32 (N,3), uvs float32 (N,2), material_ids uint32 (M,), primvars "
+             "(M,3), normals float32 (N,3), uvs float32 (N,2), material_ids uint32 (M,) (or (1,): one "
+             "material for every triangle), primvars "
              "float32 (N,K) per-vertex primvar columns (K <= 8) that material inputs driven by a "
              "UsdPrimvarReader read (set_materials params columns 25-31). The arrays "
              "are kept alive and must not be modified afterwards. Returns the mesh id.")

@@ -20,14 +20,17 @@ __all__ = ["analyse_frames", "resolve_auto", "auto_frames", "resolve_auto_settin
 
 def analyse_frames(stage, frames: Sequence[float], core, camera: Optional[str] = None,
                    resolution=None, cache: Optional[Dict[float, FrameEffects]] = None,
-                   skip_bad: bool = False) -> List[FrameEffects]:
+                   skip_bad: bool = False,
+                   memory: Optional[Dict[float, dict]] = None) -> List[FrameEffects]:
     """The effects of each of ``frames`` (time codes) of ``stage``; ``cache`` (time ->
     FrameEffects) is read and filled. Raises RenderError naming the frame when the frame
     cannot be loaded or the core refuses its scene; with ``skip_bad`` such frames are
     left out instead, unless all are bad (then the first one's error): a render decides
     from the frames it can read and reports a bad frame when it reaches it, after the
-    frames before it are written."""
+    frames before it are written. ``memory`` (time -> record), when given, gets the memory
+    of each frame's scene built here (:func:`cmlt.shot.memory.scene_memory`)."""
     from ..color import ColorError
+    from .memory import scene_memory
     from ..usd import UsdLoadError, load_frame
 
     out: List[FrameEffects] = []
@@ -58,6 +61,8 @@ def analyse_frames(stage, frames: Sequence[float], core, camera: Optional[str] =
                 raise
             first_error = first_error or err
             continue
+        if memory is not None:
+            memory[f] = scene_memory(core, scene)
         fe = analyse_frame(fs, scene, core=core, resolution=resolution)
         if cache is not None:
             cache[f] = fe
@@ -129,7 +134,8 @@ def inspect_effects(stage, info, frames_spec: Optional[str] = None, camera: Opti
     else:
         frames = parse_frames(frames_spec, info.start, info.end, info.has_authored_time_range)
     cache: Dict[float, FrameEffects] = {}
-    per_frame = analyse_frames(stage, frames, core, camera, resolution, cache)
+    memory: Dict[float, dict] = {}
+    per_frame = analyse_frames(stage, frames, core, camera, resolution, cache, memory=memory)
     auto = resolve_auto(stage, info, core, frames, camera, resolution, cache)
     details = {}
     for name in EFFECT_NAMES:
@@ -146,5 +152,9 @@ def inspect_effects(stage, info, frames_spec: Optional[str] = None, camera: Opti
         "unsupported": unsupported,
         "integrator_auto": auto.as_dict(),
         "per_frame": [fe.as_dict() for fe in per_frame],
+        # the scene memory of each frame inspected, and of the first one as the summary
+        "memory": memory.get(float(frames[0])) if len(frames) else None,
+        "memory_per_frame": [memory.get(float(f)) for f in frames],
     }
-    return obj, format_effects_table(per_frame, auto)
+    from .memory import format_memory
+    return obj, format_effects_table(per_frame, auto) + "\n" + format_memory(obj["memory"])

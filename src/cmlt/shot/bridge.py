@@ -126,6 +126,17 @@ def _same(new, old_src, old) -> bool:
     return _optional_equal(None if new is None else np.asarray(new), old)
 
 
+def _material_ids(ids) -> Optional[np.ndarray]:
+    """The per-triangle material ids as the core takes them: uint32, and one entry for a
+    mesh whose triangles all share a material (no 4 bytes per triangle then)."""
+    if ids is None:
+        return None
+    ids = np.ascontiguousarray(np.asarray(ids, dtype=np.uint32).reshape(-1))
+    if len(ids) > 1 and (ids == ids[0]).all():
+        return ids[:1].copy()
+    return ids
+
+
 def _topology_key(mesh: Mesh) -> Tuple:
     return (
         mesh.name,
@@ -283,7 +294,8 @@ class SceneBridge:
                 return f"{mesh.name}: indices changed"
             if not _same(mesh.uvs, old.src[1], old.uvs):
                 return f"{mesh.name}: uvs changed"
-            if not _same(mesh.material_ids, old.src[2], old.material_ids):
+            if mesh.material_ids is not old.src[2] and \
+                    not _optional_equal(_material_ids(mesh.material_ids), old.material_ids):
                 return f"{mesh.name}: material ids changed"
             old.src = (mesh.indices, mesh.uvs, mesh.material_ids)
         layout = primvar_layout(fs.materials or [])
@@ -315,8 +327,7 @@ class SceneBridge:
             indices = np.ascontiguousarray(np.asarray(mesh.indices, dtype=np.uint32).reshape(-1, 3))
             normals = None if mesh.normals is None else padded_points(mesh.normals)
             uvs = None if mesh.uvs is None else _f32(mesh.uvs, 2)
-            mids = (None if mesh.material_ids is None else
-                    np.ascontiguousarray(np.asarray(mesh.material_ids, dtype=np.uint32).reshape(-1)))
+            mids = _material_ids(mesh.material_ids)
             pv = primvar_array(mesh, self._layout)
             kwargs = {} if pv is None else {"primvars": pv}
             with _naming(core, mesh.name, "mesh"):

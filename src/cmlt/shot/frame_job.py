@@ -22,6 +22,7 @@ from .analyse import frame_effects
 from .bridge import BridgeError, SceneBridge
 from .core_settings import settings_message
 from .errors import RenderError, UsageError
+from .memory import scene_memory
 from .options import preview_path
 from .output import aov_images, header_metadata, product_channels, to_output
 from .progress import Reporter
@@ -324,6 +325,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         phases["scene update"] = time.perf_counter() - t0 - phases["load"]
     except (core.SceneError, BridgeError) as exc:
         raise RenderError(f"{job.shot}: frame {frame:g}: {exc}") from None
+    memory = scene_memory(core, scene)        # the sidecar's: before the render
     bridge_warnings = [str(w.message) for w in caught]
     if bridge_warnings:
         job.warn(list(dict.fromkeys(bridge_warnings)))
@@ -344,6 +346,7 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         "stats": stats, "scene_update": job.bridge.last_update.as_dict(),
         "warnings": list(fs.warnings), "cmlt_version": __version__, "temporal": trec,
         "effects": frame_effects(fs, scene, core, opts.resolution, job.effects_cache),
+        "memory": memory,
     }
     metadata = header_metadata(frame, fs, job.shot_abs, camera, job.resolved, stats,
                                temporal=trec)

@@ -21,6 +21,10 @@ namespace cmlt {
 
 constexpr uint32_t k_invalid_id = 0xFFFFFFFFu;
 
+/// Meshes with at least this many triangles get a compact BVH (accel.cpp: less memory,
+/// slower queries); smaller ones the default, faster leaves.
+constexpr size_t k_compact_bvh_triangles = size_t(1) << 16;
+
 /// Result of a closest-hit query. Barycentrics (u, v) weight vertices 1 and 2.
 struct Hit {
     float t = k_infinity;
@@ -55,6 +59,13 @@ public:
 
     size_t mesh_count() const;
     size_t instance_count() const;
+    /// Bytes Embree holds for mesh `mesh_id` (its scene, geometry and BVH; not the shared
+    /// vertex and index buffers), as its memory monitor counted them around the mesh's
+    /// creation and commits. Exact while one thread at a time builds BVHs on the
+    /// process's device (the renderer builds one scene at a time).
+    size_t mesh_bvh_bytes(uint32_t mesh_id) const;
+    /// The same for the top-level scene (instance geometries and their BVH).
+    size_t top_level_bytes() const;
 
     /// Closest hit in (tnear, tfar).
     Hit intersect(const Ray& ray) const;

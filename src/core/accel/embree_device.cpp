@@ -36,6 +36,7 @@ EmbreeDevice::EmbreeDevice() {
         CMLT_THROW(SceneError, "cannot create the Embree device: " << embree_error_name(code));
     }
     rtcSetDeviceErrorFunction(m_device, &EmbreeDevice::error_callback, this);
+    rtcSetDeviceMemoryMonitorFunction(m_device, &EmbreeDevice::memory_callback, this);
 }
 
 EmbreeDevice::~EmbreeDevice() {
@@ -48,6 +49,12 @@ void EmbreeDevice::error_callback(void* user, RTCError code, const char* str) {
     if (self->m_error.empty()) {
         self->m_error = std::string(embree_error_name(code)) + ": " + (str ? str : "");
     }
+}
+
+bool EmbreeDevice::memory_callback(void* user, ssize_t bytes, bool /*post*/) {
+    // Called for every allocation (bytes > 0) and release (bytes < 0); never refuses.
+    static_cast<EmbreeDevice*>(user)->m_bytes.fetch_add(int64_t(bytes), std::memory_order_relaxed);
+    return true;
 }
 
 void EmbreeDevice::check(const char* what) {

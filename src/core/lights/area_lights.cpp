@@ -23,7 +23,7 @@ LightSample PlanarLight::sample_li(const Vec3& p, const Vec2& u) const {
     LightSample s;
     if (!(m_area > 0.f)) return s;
     Vec2 l = sample_local(u);
-    Vec3 q = m_xf.m.transform_point(Vec3(l.x, l.y, 0.f));
+    Vec3 q = m_xf.m.transform_affine_point(Vec3(l.x, l.y, 0.f));  // m is affine (Transform)
     Vec3 d = q - p;
     float dist2 = length_squared(d);
     if (!(dist2 > 0.f)) return s;

@@ -21,9 +21,11 @@
 /// opacityThreshold > 0 turns opacity into a cutout (UsdPreviewSurface spec): opacity below
 /// the threshold is no surface at all (an ior-1 pass-through), anything else is opaque.
 /// Otherwise (1 - opacity) weights the dielectric (glass) lobe with `ior`.
+#include "materials/preview_surface.h"
 #include "math/vec.h"
 
 #include <cstdint>
+#include <optional>
 
 namespace cmlt {
 
@@ -53,6 +55,12 @@ struct Material {
     /// Lambertian on this frame (analysis/kernel_select.h); set per render by the core,
     /// never by the caller. The image is the preview model's to float rounding.
     bool lambert_kernel = false;
+    /// The preview model of a material none of whose model inputs varies over the surface
+    /// (no texture or primvar drives them): built once per render by the core
+    /// (Scene::select_kernels, materials/material_eval.h prepare_constant_bsdf) and copied
+    /// at every hit instead of rebuilt from the inputs; the same object, so the same
+    /// image. Empty otherwise, and for the Lambert kernels.
+    std::optional<PreviewSurfaceBsdf> constant_bsdf;
 
     bool is_emissive() const { return max_component(emission) > 0.f || tex_emission >= 0; }
 };

@@ -128,8 +128,28 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
                         si.primvars, si.primvars ? si.n_primvars : 0))),
                     ns, si.ng);
     }
+    if (mat.constant_bsdf) return Bsdf(*mat.constant_bsdf, ns, si.ng);
     return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures, si.primvars, si.n_primvars)),
                 ns, si.ng);
+}
+
+void prepare_constant_bsdf(Material* mat) {
+    mat->constant_bsdf.reset();
+    if (!mat->preview || mat->lambert_kernel) return;
+    const int32_t tex[] = {mat->tex_diffuse,   mat->tex_specular,  mat->tex_metallic,
+                           mat->tex_roughness, mat->tex_clearcoat, mat->tex_clearcoat_roughness,
+                           mat->tex_opacity};
+    const int8_t pv[] = {mat->pv_diffuse,   mat->pv_specular,           mat->pv_metallic,
+                         mat->pv_roughness, mat->pv_clearcoat,          mat->pv_clearcoat_roughness,
+                         mat->pv_opacity};
+    for (int32_t t : tex)
+        if (t >= 0) return;
+    for (int8_t p : pv)
+        if (p >= 0) return;
+    // what preview_params gives at every hit when no input reads a texture or a primvar
+    PreviewSurfaceParams p = constant_params(*mat);
+    apply_cutout(&p, mat->opacity_threshold);
+    mat->constant_bsdf.emplace(p);
 }
 
 bool may_pass_rays(const Material& mat) {

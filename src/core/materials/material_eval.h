@@ -28,6 +28,11 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
 Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures,
                         const float* primvars = nullptr, int n_primvars = 0);
 
+/// Sets mat->constant_bsdf to the preview model of a preview material whose model inputs
+/// are all constants (textures and primvars may drive only the normal and the emission),
+/// rendered by the general kernel; clears it otherwise. make_bsdf then copies it.
+void prepare_constant_bsdf(Material* mat);
+
 /// Can a hit on `mat` let a ray through without scattering (a pass-through lobe:
 /// opacityThreshold cut-out, or an ior-1 interface with opacity < 1, constant or
 /// textured)? Conservative per material; Scene::transmittance evaluates the hit itself.

@@ -117,23 +117,6 @@ bool Mat4::is_affine() const {
     return m[3][0] == 0 && m[3][1] == 0 && m[3][2] == 0 && m[3][3] == 1;
 }
 
-Vec3 Mat4::transform_point(const Vec3& p) const {
-    double x = p.x, y = p.y, z = p.z;
-    double rx = m[0][0] * x + m[0][1] * y + m[0][2] * z + m[0][3];
-    double ry = m[1][0] * x + m[1][1] * y + m[1][2] * z + m[1][3];
-    double rz = m[2][0] * x + m[2][1] * y + m[2][2] * z + m[2][3];
-    double rw = m[3][0] * x + m[3][1] * y + m[3][2] * z + m[3][3];
-    if (rw != 1.0 && rw != 0.0) { rx /= rw; ry /= rw; rz /= rw; }
-    return {float(rx), float(ry), float(rz)};
-}
-
-Vec3 Mat4::transform_vector(const Vec3& v) const {
-    double x = v.x, y = v.y, z = v.z;
-    return {float(m[0][0] * x + m[0][1] * y + m[0][2] * z),
-            float(m[1][0] * x + m[1][1] * y + m[1][2] * z),
-            float(m[2][0] * x + m[2][1] * y + m[2][2] * z)};
-}
-
 Transform::Transform(const Mat4& mat, const char* what) : m(mat) {
     if (!mat.is_finite()) CMLT_THROW(SceneError, what << ": transform has NaN or Inf entries");
     if (!mat.is_affine())

@@ -27,10 +27,38 @@ struct Mat4 {
     bool is_affine() const;
 
     Vec3 transform_point(const Vec3& p) const;
+    /// transform_point of an affine matrix (is_affine(), as every Transform::m): without
+    /// the homogeneous row, which is exactly 1 there for a finite p, so the same floats.
+    Vec3 transform_affine_point(const Vec3& p) const;
     Vec3 transform_vector(const Vec3& v) const;
     /// Transform a normal with *this* being the inverse-transpose (the normal matrix).
     Vec3 transform_normal(const Vec3& n) const { return transform_vector(n); }
 };
+
+// Inline: every hit places its triangle with these (scene/scene_queries.cpp).
+inline Vec3 Mat4::transform_point(const Vec3& p) const {
+    double x = p.x, y = p.y, z = p.z;
+    double rx = m[0][0] * x + m[0][1] * y + m[0][2] * z + m[0][3];
+    double ry = m[1][0] * x + m[1][1] * y + m[1][2] * z + m[1][3];
+    double rz = m[2][0] * x + m[2][1] * y + m[2][2] * z + m[2][3];
+    double rw = m[3][0] * x + m[3][1] * y + m[3][2] * z + m[3][3];
+    if (rw != 1.0 && rw != 0.0) { rx /= rw; ry /= rw; rz /= rw; }
+    return {float(rx), float(ry), float(rz)};
+}
+
+inline Vec3 Mat4::transform_affine_point(const Vec3& p) const {
+    double x = p.x, y = p.y, z = p.z;
+    return {float(m[0][0] * x + m[0][1] * y + m[0][2] * z + m[0][3]),
+            float(m[1][0] * x + m[1][1] * y + m[1][2] * z + m[1][3]),
+            float(m[2][0] * x + m[2][1] * y + m[2][2] * z + m[2][3])};
+}
+
+inline Vec3 Mat4::transform_vector(const Vec3& v) const {
+    double x = v.x, y = v.y, z = v.z;
+    return {float(m[0][0] * x + m[0][1] * y + m[0][2] * z),
+            float(m[1][0] * x + m[1][1] * y + m[1][2] * z),
+            float(m[2][0] * x + m[2][1] * y + m[2][2] * z)};
+}
 
 /// A transform with its inverse and normal matrix (inverse transpose).
 struct Transform {

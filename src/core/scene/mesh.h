@@ -18,7 +18,8 @@ struct MeshData {
     size_t n_tris = 0;
     const float* normals = nullptr;        ///< (n_points, 3) or null
     const float* uvs = nullptr;            ///< (n_points, 2) or null
-    const uint32_t* material_ids = nullptr;  ///< (n_tris,) or null (material 0)
+    const uint32_t* material_ids = nullptr;  ///< (n_tris,) or null: every triangle material_id_all
+    uint32_t material_id_all = 0;            ///< the material of every triangle without material_ids
     /// (n_points, n_primvar_columns) per-vertex primvar values, or null: the columns that
     /// material inputs driven by a UsdPrimvarReader read (Material::pv_*), interpolated
     /// at a hit into SurfaceInteraction::primvars. At most k_max_primvar_columns.
@@ -52,7 +53,7 @@ struct Mesh {
         v[0] = t[0]; v[1] = t[1]; v[2] = t[2];
     }
     uint32_t material_id(uint32_t prim) const {
-        return data.material_ids ? data.material_ids[prim] : 0u;
+        return data.material_ids ? data.material_ids[prim] : data.material_id_all;
     }
 };
 

@@ -184,6 +184,7 @@ int Scene::select_kernels(bool general) {
     int n = 0;
     for (Material& m : m_materials) {
         m.lambert_kernel = !general && exact_lambertian(m);
+        prepare_constant_bsdf(&m);
         n += m.lambert_kernel ? 1 : 0;
     }
     return n;
@@ -383,6 +384,10 @@ void Scene::build_lights() {
 void Scene::commit() {
     for (size_t mi = 0; mi < m_meshes.size(); ++mi) {
         const Mesh& mesh = m_meshes[mi];
+        if (mesh.data.material_id_all >= m_materials.size())
+            CMLT_THROW(SceneError, "mesh '" << mesh.name << "': material id "
+                                            << mesh.data.material_id_all << " but there are "
+                                            << m_materials.size() << " materials");
         if (!mesh.data.material_ids) continue;
         for (size_t t = 0; t < mesh.data.n_tris; ++t) {
             if (mesh.data.material_ids[t] >= m_materials.size())

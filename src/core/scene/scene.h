@@ -115,6 +115,13 @@ public:
     /// Light index of an emissive triangle, or -1.
     int32_t triangle_light_index(uint32_t instance_id, uint32_t prim_id) const;
     const TriangleLight& triangle_light(size_t light_index) const;
+    /// Entries of the per-instance emissive-triangle maps (one per triangle of an
+    /// instance with an emitter), for scene_memory().
+    size_t light_map_entries() const {
+        size_t n = 0;
+        for (const auto& map : m_tri_light_index) n += map.size();
+        return n;
+    }
 
     // ---- queries (after commit) ----------------------------------------------------
     SceneHit intersect(const Ray& ray) const;

@@ -22,9 +22,10 @@ namespace {
 void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mesh& mesh,
                  const uint32_t* v, const Transform& xf, SurfaceInteraction* si) {
     si->time = ray.time;
-    Vec3 p0 = xf.m.transform_point(mesh.point(v[0]));
-    Vec3 p1 = xf.m.transform_point(mesh.point(v[1]));
-    Vec3 p2 = xf.m.transform_point(mesh.point(v[2]));
+    // xf.m is affine (Transform checks it) and mesh points are finite (add_mesh checks)
+    Vec3 p0 = xf.m.transform_affine_point(mesh.point(v[0]));
+    Vec3 p1 = xf.m.transform_affine_point(mesh.point(v[1]));
+    Vec3 p2 = xf.m.transform_affine_point(mesh.point(v[2]));
     float b1 = hit.u, b2 = hit.v, b0 = 1.f - b1 - b2;
     si->p = p0 * b0 + p1 * b1 + p2 * b2;
     si->t = hit.t;
