@@ -35,7 +35,7 @@ from .spaces import (USD_TOKEN_ALIASES, Chromaticities,
                      chromaticities_for_interop_id)
 from .errors import ColorError
 from .rendering_space import choose_rendering_space, luminance_weights
-from .stage_config import stage_config_path
+from .stage_config import stage_color_warnings, stage_config_path
 
 __all__ = [
     "ColorError", "ColorConfig", "load_config", "get_config", "set_config",

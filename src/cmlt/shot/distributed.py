@@ -50,7 +50,7 @@ import os
 import time
 import uuid
 from types import SimpleNamespace
-from typing import Any, Dict, List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 

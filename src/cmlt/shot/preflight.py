@@ -18,7 +18,6 @@
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from typing import Iterable, List, Optional, Sequence, Tuple

@@ -26,7 +26,6 @@ values bit for bit.
 """
 from __future__ import annotations
 
-import math
 import time
 from typing import List, Optional, Tuple
 

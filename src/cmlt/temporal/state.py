@@ -42,7 +42,7 @@ import os
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence
+from typing import List, Optional
 
 from .normalization import NormRecord
 

@@ -16,10 +16,10 @@ kept as the camera's pose.
 from __future__ import annotations
 
 import math
-from typing import List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom
+from pxr import Usd, UsdGeom
 
 from ..scene import Camera
 from .errors import UsdLoadError

@@ -18,7 +18,7 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdLux
+from pxr import Sdf, UsdGeom
 
 from ..scene import Light
 from .color import to_rendering_space

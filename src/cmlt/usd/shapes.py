@@ -10,7 +10,7 @@ normals, caps and cube faces flat ones. Resolution: 64 segments around,
 from __future__ import annotations
 
 import math
-from typing import List, Optional, Tuple
+from typing import List, Tuple
 
 import numpy as np
 from pxr import UsdGeom

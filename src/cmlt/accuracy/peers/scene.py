@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import time
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
 
