@@ -11,6 +11,21 @@
 
 namespace cmlt::test {
 
+/// A uniform dome of radiance `dome`, then a distant light of radiance `sun` whose
+/// direction is `orient` applied to -Z and whose cone is `angle` degrees (0: delta).
+inline void add_dome_and_sun(Scene& s, Spectrum dome, Spectrum sun, float angle, const Mat4& orient) {
+    LightDesc d;
+    d.kind = LightDesc::Kind::dome;
+    d.radiance = dome;
+    s.add_light(d);
+    LightDesc sun_light;
+    sun_light.kind = LightDesc::Kind::distant;
+    sun_light.angle = angle;
+    sun_light.radiance = sun;
+    sun_light.transform = orient;
+    s.add_light(sun_light);
+}
+
 /// Cube [-1,1]^3 seen from inside: coloured walls (Cornell-like), camera at +Z looking -Z.
 /// Materials: 0 white, 1 red, 2 green, 3 emitter (le).
 inline void box_scene(Scene& s, float le, bool emissive_quad) {

@@ -50,16 +50,7 @@ inline void dome_scene(Scene& s) {
     s.add_instance(floor, Mat4());
     uint32_t b = s.add_mesh("/block", cube_mesh(0.5f, 1));
     s.add_instance(b, Mat4::translate(0, 0.5, 0) * Mat4::rotate(30, 0, 1, 0));
-    LightDesc dome;
-    dome.kind = LightDesc::Kind::dome;
-    dome.radiance = Spectrum(0.8f, 0.9f, 1.f);
-    s.add_light(dome);
-    LightDesc sun;
-    sun.kind = LightDesc::Kind::distant;
-    sun.angle = 5.f;
-    sun.radiance = Spectrum(300.f);
-    sun.transform = Mat4::rotate(-50, 1, 0.3, 0);
-    s.add_light(sun);
+    add_dome_and_sun(s, Spectrum(0.8f, 0.9f, 1.f), Spectrum(300.f), 5.f, Mat4::rotate(-50, 1, 0.3, 0));
     s.set_camera(camera_at(Mat4::translate(0, 1.5, 3.5) * Mat4::rotate(-20, 1, 0, 0), 20.f, 36.f));
     s.commit();
 }

@@ -237,16 +237,7 @@ void mirror_scene(Scene& s) {
     disk.radius = 0.3f;
     disk.radiance = Spectrum(10.f);
     s.add_light(disk);
-    LightDesc dome;
-    dome.kind = LightDesc::Kind::dome;
-    dome.radiance = Spectrum(0.5f, 0.6f, 0.8f);
-    s.add_light(dome);
-    LightDesc sun;
-    sun.kind = LightDesc::Kind::distant;
-    sun.angle = 0.f;
-    sun.radiance = Spectrum(3.f);
-    sun.transform = Mat4::rotate(-60, 1, 0.4, 0);
-    s.add_light(sun);
+    add_dome_and_sun(s, Spectrum(0.5f, 0.6f, 0.8f), Spectrum(3.f), 0.f, Mat4::rotate(-60, 1, 0.4, 0));
     s.set_camera(camera_at(Mat4::translate(0, 1.2, 1.9) * Mat4::rotate(-30, 1, 0, 0), 22.f, 36.f));
     s.commit();
 }
@@ -256,16 +247,7 @@ void mirror_scene(Scene& s) {
 void glass_dome_scene(Scene& s) {
     glass_scene(s);
     s.clear_lights();
-    LightDesc dome;
-    dome.kind = LightDesc::Kind::dome;
-    dome.radiance = Spectrum(0.8f, 0.9f, 1.f);
-    s.add_light(dome);
-    LightDesc sun;
-    sun.kind = LightDesc::Kind::distant;
-    sun.angle = 5.f;
-    sun.radiance = Spectrum(200.f);
-    sun.transform = Mat4::rotate(-30, 1, 0.2, 0);
-    s.add_light(sun);
+    add_dome_and_sun(s, Spectrum(0.8f, 0.9f, 1.f), Spectrum(200.f), 5.f, Mat4::rotate(-30, 1, 0.2, 0));
     s.commit();
 }
 
