@@ -83,6 +83,7 @@ nb::dict scene_memory_py(const Scene& scene) {
     d["material_id_bytes"] = m.material_id_bytes;
     d["primvar_bytes"] = m.primvar_bytes;
     d["light_map_bytes"] = m.light_map_bytes;
+    d["placed_point_bytes"] = m.placed_point_bytes;
     d["mesh_bytes"] = m.mesh_bytes();
     d["total_bytes"] = m.total_bytes();
     d["bytes_per_triangle"] = m.bytes_per_triangle();

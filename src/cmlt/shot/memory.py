@@ -2,8 +2,8 @@
 
 The figure comes from the core (``cmlt._core.scene_memory``, src/core/scene/scene_memory.h):
 Embree's BVHs as its memory monitor counted them, plus the mesh arrays the core reads at
-hits (points, indices, normals, uvs, material ids, primvars) and its per-triangle light
-map, divided by the triangles of the meshes (an instanced mesh counts once).
+hits (points, indices, normals, uvs, material ids, primvars), its per-triangle light
+map and the world-space points of meshes placed once by a static instance, divided by the triangles of the meshes (an instanced mesh counts once).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ __all__ = ["scene_memory", "format_memory"]
 
 #: the parts of ``mesh_bytes``, in the order the text report lists them
 MESH_PARTS = ("point_bytes", "index_bytes", "normal_bytes", "uv_bytes", "material_id_bytes",
-              "primvar_bytes", "light_map_bytes")
+              "primvar_bytes", "light_map_bytes", "placed_point_bytes")
 
 
 def scene_memory(core, scene) -> Optional[Dict[str, float]]:

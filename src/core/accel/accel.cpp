@@ -385,6 +385,116 @@ void Accel::occluded_packet(int width, const int* valid, const Ray* rays, bool* 
     }
 }
 
+namespace {
+
+/// Width of the packet for `left` pending lanes: the smallest native one holding them.
+inline int packet_width(size_t left, int max_width) {
+    return std::min(left <= 4 ? 4 : (left <= 8 ? 8 : 16), max_width);
+}
+
+template <int N, typename RayN>
+inline void gather_rays(RayN& p, const Ray* rays, const uint32_t* lanes, size_t k, int* mask) {
+    for (int i = 0; i < N; ++i) {
+        // inactive lanes repeat the first ray (Embree reads every lane)
+        const Ray& r = rays[lanes[size_t(i) < k ? size_t(i) : 0]];
+        mask[i] = size_t(i) < k ? -1 : 0;
+        p.org_x[i] = r.o.x; p.org_y[i] = r.o.y; p.org_z[i] = r.o.z;
+        p.dir_x[i] = r.d.x; p.dir_y[i] = r.d.y; p.dir_z[i] = r.d.z;
+        p.tnear[i] = r.tnear;
+        p.tfar[i] = r.tfar;
+        p.time[i] = r.time;
+        p.mask[i] = 0xFFFFFFFFu;
+        p.id[i] = unsigned(i);
+        p.flags[i] = 0;
+    }
+}
+
+template <int N, typename RayHitN>
+inline void intersect_n(RTCScene scene, const Ray* rays, const uint32_t* lanes, size_t k, Hit* hits) {
+    alignas(64) int mask[N];
+    RayHitN p;
+    gather_rays<N>(p.ray, rays, lanes, k, mask);
+    for (int i = 0; i < N; ++i) {
+        p.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        p.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    if constexpr (N == 4) rtcIntersect4(mask, scene, &ctx, &p);
+    else if constexpr (N == 8) rtcIntersect8(mask, scene, &ctx, &p);
+    else rtcIntersect16(mask, scene, &ctx, &p);
+    for (size_t i = 0; i < k; ++i) {
+        Hit h;
+        if (p.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID) {
+            h.t = p.ray.tfar[i];
+            h.u = p.hit.u[i];
+            h.v = p.hit.v[i];
+            h.prim_id = p.hit.primID[i];
+            h.instance_id = p.hit.instID[0][i];
+        }
+        hits[lanes[i]] = h;
+    }
+}
+
+template <int N, typename RayN>
+inline void occluded_n(RTCScene scene, const Ray* rays, const uint32_t* lanes, size_t k, uint8_t* occluded) {
+    alignas(64) int mask[N];
+    RayN p;
+    gather_rays<N>(p, rays, lanes, k, mask);
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    if constexpr (N == 4) rtcOccluded4(mask, scene, &ctx, &p);
+    else if constexpr (N == 8) rtcOccluded8(mask, scene, &ctx, &p);
+    else rtcOccluded16(mask, scene, &ctx, &p);
+    for (size_t i = 0; i < k; ++i) occluded[lanes[i]] = p.tfar[i] < 0.f;
+}
+
+}  // namespace
+
+size_t Accel::intersect_lanes(const Ray* rays, const uint32_t* lanes, size_t n, Hit* hits, int max_width,
+                              size_t min_lanes) const {
+    size_t packets = 0;
+    for (size_t p = 0; p < n;) {
+        const size_t left = n - p;
+        const int width = max_width >= 4 ? packet_width(left, max_width) : 1;
+        const size_t k = std::min(left, size_t(width));
+        if (width == 1 || k < min_lanes) {
+            hits[lanes[p]] = intersect(rays[lanes[p]]);
+            ++p;
+            continue;
+        }
+        const TraceScope timer;
+        if (width == 4) intersect_n<4, RTCRayHit4>(m_impl->top, rays, lanes + p, k, hits);
+        else if (width == 8) intersect_n<8, RTCRayHit8>(m_impl->top, rays, lanes + p, k, hits);
+        else intersect_n<16, RTCRayHit16>(m_impl->top, rays, lanes + p, k, hits);
+        ++packets;
+        p += k;
+    }
+    return packets;
+}
+
+size_t Accel::occluded_lanes(const Ray* rays, const uint32_t* lanes, size_t n, uint8_t* occluded, int max_width,
+                             size_t min_lanes) const {
+    size_t packets = 0;
+    for (size_t p = 0; p < n;) {
+        const size_t left = n - p;
+        const int width = max_width >= 4 ? packet_width(left, max_width) : 1;
+        const size_t k = std::min(left, size_t(width));
+        if (width == 1 || k < min_lanes) {
+            occluded[lanes[p]] = this->occluded(rays[lanes[p]]);
+            ++p;
+            continue;
+        }
+        const TraceScope timer;
+        if (width == 4) occluded_n<4, RTCRay4>(m_impl->top, rays, lanes + p, k, occluded);
+        else if (width == 8) occluded_n<8, RTCRay8>(m_impl->top, rays, lanes + p, k, occluded);
+        else occluded_n<16, RTCRay16>(m_impl->top, rays, lanes + p, k, occluded);
+        ++packets;
+        p += k;
+    }
+    return packets;
+}
+
 int Accel::max_packet_width() {
     auto dev = EmbreeDevice::get();
     RTCDevice d = dev->handle();

@@ -85,6 +85,16 @@ public:
     void occluded_packet(int width, const int* valid, const Ray* rays, bool* occluded,
                          bool coherent = false) const;
 
+    /// Queries for lanes of a batch: rays[lanes[i]] for i < n, answered in packets of up
+    /// to `max_width` lanes (the smallest native width holding the lanes left; fewer
+    /// than `min_lanes` left go one by one), written to hits[lanes[i]] /
+    /// occluded[lanes[i]]. Returns the number of packet queries made. Hits may differ
+    /// from intersect()'s in the last ulp (Embree's packet and single-ray kernels).
+    size_t intersect_lanes(const Ray* rays, const uint32_t* lanes, size_t n, Hit* hits, int max_width,
+                           size_t min_lanes = 4) const;
+    size_t occluded_lanes(const Ray* rays, const uint32_t* lanes, size_t n, uint8_t* occluded, int max_width,
+                          size_t min_lanes = 4) const;
+
     /// Ticks (util/cycle_clock.h) the calling thread spent in the queries above since
     /// the previous call; resets the thread's count. For the trace / shade split of
     /// the render stats.

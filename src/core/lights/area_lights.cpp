@@ -54,6 +54,17 @@ bool PlanarLight::intersect(const Ray& ray, float* t, Spectrum* le) const {
     return true;
 }
 
+bool PlanarLight::bounding_sphere(Vec3* center, float* radius) const {
+    const Vec2 e = local_half_extent();
+    *center = m_xf.m.transform_point(Vec3(0.f));
+    float r = 0.f;
+    for (float sx : {-1.f, 1.f})
+        for (float sy : {-1.f, 1.f})
+            r = std::max(r, length(m_xf.m.transform_point(Vec3(sx * e.x, sy * e.y, 0.f)) - *center));
+    *radius = r;
+    return std::isfinite(r);
+}
+
 float PlanarLight::pdf_li(const Vec3& p, const Vec3& wi) const {
     float t;
     Spectrum le;

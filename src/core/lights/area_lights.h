@@ -21,6 +21,7 @@ public:
     LightLeSample sample_le(const Vec2& u_pos, const Vec2& u_dir) const override;
     void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
     Vec3 emitter_normal(const Vec3& p) const override;
+    bool bounding_sphere(Vec3* center, float* radius) const override;
     /// Radiance emitted at local point (x, y) (textured rect lights vary).
     Spectrum radiance_at(float x, float y) const;
 
@@ -30,6 +31,8 @@ protected:
     virtual bool inside(float x, float y) const = 0;
     /// Map u to a local point in the shape.
     virtual Vec2 sample_local(const Vec2& u) const = 0;
+    /// Half extents of a local rectangle containing the shape.
+    virtual Vec2 local_half_extent() const = 0;
 
     Transform m_xf;
     Spectrum m_radiance;
@@ -49,6 +52,7 @@ public:
 protected:
     bool inside(float x, float y) const override;
     Vec2 sample_local(const Vec2& u) const override;
+    Vec2 local_half_extent() const override { return {0.5f * m_w, 0.5f * m_h}; }
 
 private:
     float m_w, m_h;
@@ -61,6 +65,7 @@ public:
 protected:
     bool inside(float x, float y) const override;
     Vec2 sample_local(const Vec2& u) const override;
+    Vec2 local_half_extent() const override { return {m_r, m_r}; }
 
 private:
     float m_r;

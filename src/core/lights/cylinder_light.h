@@ -10,6 +10,8 @@
 #include "lights/light.h"
 #include "lights/shaping.h"
 
+#include <cmath>
+
 namespace cmlt {
 
 class CylinderLight final : public Light {
@@ -23,6 +25,11 @@ public:
     void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
     Vec3 emitter_normal(const Vec3& p) const override;
     float area() const { return m_area; }
+    bool bounding_sphere(Vec3* center, float* radius) const override {
+        *center = m_center;
+        *radius = std::sqrt(0.25f * m_length * m_length + m_radius * m_radius);
+        return std::isfinite(*radius);
+    }
 
 private:
     /// World point and outward normal for u in [0,1)^2 (x along the axis, angle).

@@ -76,6 +76,10 @@ public:
     virtual float pdf_li(const Vec3& p, const Vec3& wi) const = 0;
     /// Nearest hit of the emitting side in (ray.tnear, ray.tfar): t and emitted radiance.
     virtual bool intersect(const Ray& /*ray*/, float* /*t*/, Spectrum* /*le*/) const { return false; }
+    /// A world-space sphere containing everything `intersect` can hit (analytic area
+    /// lights): the scene skips `intersect` for rays that cannot come near it
+    /// (Scene::resolve_hit). False: no bound, always test.
+    virtual bool bounding_sphere(Vec3* /*center*/, float* /*radius*/) const { return false; }
     /// Radiance reaching an escaped ray travelling in direction `d` (infinite lights).
     virtual Spectrum le_escape(const Vec3& /*d*/) const { return Spectrum(0.f); }
     /// Called at commit with the scene bounding sphere (infinite lights need it for power).

@@ -40,6 +40,13 @@ public:
 
     Spectrum eval(const Vec3& wo, const Vec3& wi,
                   TransportMode mode = TransportMode::Radiance) const {
+        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
+            // Only the cosines enter: the z of the local directions, without the rest of
+            // the frame (the same floats as to_local's z).
+            float lz, iz;
+            if (!consistent_cosines(wo, wi, &lz, &iz)) return Spectrum(0.f);
+            return lambert->eval(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
+        }
         Vec3 lo, li;
         if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
         return std::visit(
@@ -52,6 +59,11 @@ public:
             m_model);
     }
     float pdf(const Vec3& wo, const Vec3& wi) const {
+        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
+            float lz, iz;
+            if (!consistent_cosines(wo, wi, &lz, &iz)) return 0.f;
+            return lambert->pdf(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
+        }
         Vec3 lo, li;
         if (!consistent_sides(wo, wi, &lo, &li)) return 0.f;
         return std::visit([&](const auto& m) { return m.pdf(lo, li); }, m_model);
@@ -131,6 +143,14 @@ public:
     const Vec3& geometric_normal() const { return m_ng; }
 
 private:
+    /// consistent_sides for models that read only the local z (cos theta) of wo and wi.
+    bool consistent_cosines(const Vec3& wo, const Vec3& wi, float* lz, float* iz) const {
+        float go = dot(wo, m_ng), gi = dot(wi, m_ng);
+        if (go == 0.f || gi == 0.f) return false;
+        *lz = dot(wo, m_frame.n);
+        *iz = dot(wi, m_frame.n);
+        return (go * gi > 0.f) == (*lz * *iz > 0.f);
+    }
     /// Local directions, if the shading-frame side classification of (wo, wi) agrees with
     /// the geometric one (and neither lies in the geometric plane).
     bool consistent_sides(const Vec3& wo, const Vec3& wi, Vec3* lo, Vec3* li) const {

@@ -133,6 +133,15 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
                 ns, si.ng);
 }
 
+bool constant_lambert(const Material& mat, const std::vector<Texture>& textures, Spectrum* reflectance) {
+    // make_bsdf's Lambertian cases whose inputs are all constants
+    const bool lambert = !mat.preview || (mat.lambert_kernel && mat.pv_diffuse < 0);
+    if (!lambert || lookup(textures, mat.tex_diffuse) || lookup(textures, mat.tex_normal) || mat.is_emissive())
+        return false;
+    *reflectance = mat.preview ? preview_colour(mat.diffuse) : mat.diffuse;
+    return true;
+}
+
 void prepare_constant_bsdf(Material* mat) {
     mat->constant_bsdf.reset();
     if (!mat->preview || mat->lambert_kernel) return;

@@ -28,6 +28,12 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
 Spectrum diffuse_colour(const Material& mat, const Vec2& st, const std::vector<Texture>& textures,
                         const float* primvars = nullptr, int n_primvars = 0);
 
+/// Is the BSDF make_bsdf builds for `mat` at every hit the same LambertianBsdf, with an
+/// unperturbed shading normal and no emission? Then *reflectance is its colour. (Legacy
+/// Lambert and diffuse-kernel preview materials without textures, primvar inputs,
+/// normal map or emission.)
+bool constant_lambert(const Material& mat, const std::vector<Texture>& textures, Spectrum* reflectance);
+
 /// Sets mat->constant_bsdf to the preview model of a preview material whose model inputs
 /// are all constants (textures and primvars may drive only the normal and the emission),
 /// rendered by the general kernel; clears it otherwise. make_bsdf then copies it.

@@ -44,7 +44,13 @@ inline double wrap01(double v) {
 
 /// Random numbers of one pixel sample: dimension d of (seed, pixel, sample, stream).
 /// `get1d`/`get2d` consume dimensions in order; `set_dimension` jumps to a fixed
-/// dimension so that e.g. each bounce owns a fixed dimension range.
+/// dimension so that e.g. each bounce owns a fixed dimension range. A dimension's
+/// numbers are the first words (one for get1d, two for get2d) of the Philox output of
+/// counter (pixel, sample, d, stream).
+///
+/// `prefetch` hands the sampler the words of a range of dimensions computed ahead
+/// (philox4x32_lanes: many samples' dimensions at once, vectorised); reading them gives
+/// the same numbers as calling Philox here.
 class PixelSampler {
 public:
     PixelSampler(uint64_t seed, uint32_t pixel, uint32_t sample, RngStream stream = RngStream::camera_path)
@@ -53,20 +59,48 @@ public:
     void set_dimension(uint32_t d) { m_dim = d; }
     uint32_t dimension() const { return m_dim; }
 
-    float get1d() { return uint_to_unit_float(draw()[0]); }
-    Vec2 get2d() {
-        Philox4x32Counter r = draw();
-        return {uint_to_unit_float(r[0]), uint_to_unit_float(r[1])};
+    float get1d() {
+        uint32_t w[2];
+        draw(w);
+        return uint_to_unit_float(w[0]);
     }
-    /// Raw 4x32 bits of the next dimension.
-    Philox4x32Counter get_bits() { return draw(); }
+    Vec2 get2d() {
+        uint32_t w[2];
+        draw(w);
+        return {uint_to_unit_float(w[0]), uint_to_unit_float(w[1])};
+    }
+
+    /// Dimensions [first, first + n) read from `words` (words[2 (d - first)] and
+    /// words[2 (d - first) + 1]: the first two words of dimension d's Philox output);
+    /// `words` outlives their reads. Other dimensions still call Philox.
+    void prefetch(uint32_t first, uint32_t n, const uint32_t* words) {
+        m_pre_first = first;
+        m_pre_n = n;
+        m_pre = words;
+    }
+    uint32_t pixel() const { return m_pixel; }
+    uint32_t sample() const { return m_sample; }
+    RngStream stream() const { return m_stream; }
+    Philox4x32Key key() const { return m_key; }
 
 private:
-    Philox4x32Counter draw() { return philox4x32(pixel_counter(m_pixel, m_sample, m_dim++, m_stream), m_key); }
+    void draw(uint32_t* w) {
+        const uint32_t d = m_dim++;
+        if (d - m_pre_first < m_pre_n) {  // unsigned: d >= first and d < first + n
+            w[0] = m_pre[2 * (d - m_pre_first)];
+            w[1] = m_pre[2 * (d - m_pre_first) + 1];
+            return;
+        }
+        const Philox4x32Counter r = philox4x32(pixel_counter(m_pixel, m_sample, d, m_stream), m_key);
+        w[0] = r[0];
+        w[1] = r[1];
+    }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
     RngStream m_stream;
     uint32_t m_dim = 0;
+    uint32_t m_pre_first = 0, m_pre_n = 0;
+    const uint32_t* m_pre = nullptr;
 };
 
 /// Sequential counter-based generator with the kernels' RNG interface (uniform(),

@@ -42,25 +42,13 @@ inline Vec3 shadow_target(const Vec3& p_light, const Vec3& n_light, float error_
 /// Error scale of a point given by itself (analytic shapes).
 inline float point_error_scale(const Vec3& p) { return max_component(vabs(p)); }
 
-struct SurfaceInteraction {
+/// A point on a surface as rays leave it: position, geometric normal, offset scale,
+/// shutter time; what spawning a ray needs.
+struct SurfacePoint {
     Vec3 p;            ///< world position (from barycentrics, not from the ray)
     Vec3 ng;           ///< unit geometric normal (CCW winding in world space)
-    Vec3 ns;           ///< unit shading normal, flipped to the side of ng
-    Vec2 uv;
-    Vec3 dpdu;         ///< world dp/du from the triangle's uvs (zero without uvs / degenerate)
-    Vec3 wo;           ///< unit direction toward the ray origin
-    float t = 0.f;
-    float time = 0.f;  ///< shutter time of the ray that hit (spawned rays inherit it)
     float error_scale = 0.f;
-    uint32_t instance_id = 0;
-    uint32_t mesh_id = 0;
-    uint32_t prim_id = 0;
-    uint32_t material_id = 0;
-    /// The mesh's per-vertex primvar columns (MeshData::primvars) interpolated at the hit
-    /// with its barycentrics; the first `n_primvars` are set (0 for a mesh without them).
-    /// Material inputs read by a UsdPrimvarReader take their value from here.
-    uint8_t n_primvars = 0;
-    float primvars[k_max_primvar_columns] = {};
+    float time = 0.f;  ///< shutter time of the ray that hit (spawned rays inherit it)
 
     Ray spawn_ray(const Vec3& d) const {
         Ray r(offset_ray_origin(p, ng, error_scale, d), d, 0.f, k_infinity);
@@ -75,6 +63,23 @@ struct SurfaceInteraction {
         r.time = time;
         return r;
     }
+};
+
+struct SurfaceInteraction : SurfacePoint {
+    Vec3 ns;           ///< unit shading normal, flipped to the side of ng
+    Vec2 uv;
+    Vec3 dpdu;         ///< world dp/du from the triangle's uvs (zero without uvs / degenerate)
+    Vec3 wo;           ///< unit direction toward the ray origin
+    float t = 0.f;
+    uint32_t instance_id = 0;
+    uint32_t mesh_id = 0;
+    uint32_t prim_id = 0;
+    uint32_t material_id = 0;
+    /// The mesh's per-vertex primvar columns (MeshData::primvars) interpolated at the hit
+    /// with its barycentrics; the first `n_primvars` are set (0 for a mesh without them).
+    /// Material inputs read by a UsdPrimvarReader take their value from here.
+    uint8_t n_primvars = 0;
+    float primvars[k_max_primvar_columns] = {};
 };
 
 }  // namespace cmlt

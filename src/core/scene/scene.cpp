@@ -97,6 +97,8 @@ void Scene::update_mesh_points(uint32_t mesh_id, const float* points, size_t n_p
     point_bounds(points, n_points, &mesh.bbox_min, &mesh.bbox_max);
     m_point_owners[mesh_id] = std::move(owner);
     m_accel->update_mesh_points(mesh_id, points);
+    for (size_t i = 0; i < m_instances.size(); ++i)
+        if (m_instances[i].mesh_id == mesh_id) m_placed_stale[i] = 1;
     m_dirty = true;
 }
 
@@ -111,6 +113,8 @@ uint32_t Scene::add_instance(uint32_t mesh_id, const Mat4& object_to_world) {
     uint32_t id = m_accel->add_instance(mesh_id, object_to_world);
     CMLT_CHECK(id == m_instances.size());
     m_instances.push_back(inst);
+    m_placed.emplace_back();
+    m_placed_stale.push_back(1);
     m_dirty = true;
     return id;
 }
@@ -124,6 +128,7 @@ void Scene::set_instance_transform(uint32_t instance_id, const Mat4& object_to_w
                        m_meshes[inst.mesh_id].name + "'";
     inst.xf = Transform(object_to_world, what.c_str());
     inst.motion.clear();
+    m_placed_stale[instance_id] = 1;
     m_accel->set_instance_transform(instance_id, object_to_world);
     m_dirty = true;
 }
@@ -156,6 +161,7 @@ void Scene::set_instance_motion(uint32_t instance_id, const std::vector<Mat4>& s
     for (const Mat4& m : steps) Transform(m, what.c_str());  // validates every step
     inst.xf = Transform(steps[0], what.c_str());
     inst.motion = steps;
+    m_placed_stale[instance_id] = 1;
     m_accel->set_instance_motion(instance_id, steps.data(), uint32_t(steps.size()));
     m_dirty = true;
 }
@@ -187,7 +193,18 @@ int Scene::select_kernels(bool general) {
         prepare_constant_bsdf(&m);
         n += m.lambert_kernel ? 1 : 0;
     }
+    classify_constant_lambert();
     return n;
+}
+
+void Scene::classify_constant_lambert() {
+    const size_t n = m_materials.size();
+    m_constant_lambert.assign(n, 0);
+    m_lambert_r.assign(n, Spectrum(0.f));
+    for (size_t i = 0; i < n; ++i) {
+        if (i < m_material_passes.size() && m_material_passes[i]) continue;
+        m_constant_lambert[i] = cmlt::constant_lambert(m_materials[i], m_textures, &m_lambert_r[i]) ? 1 : 0;
+    }
 }
 
 uint32_t Scene::add_texture(TextureDesc desc, const std::string& name) {
@@ -324,6 +341,7 @@ void Scene::build_lights() {
     m_lights.clear();
     m_infinite.clear();
     m_analytic_area.clear();
+    m_area_bounds.clear();
     m_triangle_lights.clear();
     m_tri_light_index.assign(m_instances.size(), {});
     for (auto& l : m_analytic) {
@@ -332,7 +350,20 @@ void Scene::build_lights() {
         l->preprocess(m_center, m_radius);
         uint32_t idx = uint32_t(m_lights.size());
         if (l->is_infinite()) m_infinite.push_back(idx);
-        if (l->is_analytic_area()) m_analytic_area.push_back(idx);
+        if (l->is_analytic_area()) {
+            m_analytic_area.push_back(idx);
+            AreaBound b;
+            Vec3 c;
+            float r = 0.f;
+            if (l->bounding_sphere(&c, &r) && std::isfinite(r) && is_finite(c)) {
+                // 0.1 % more radius and an absolute margin of the light's scale: the
+                // culling test is float, the lights' own tests are not all.
+                const float rr = r * 1.001f + 1e-6f * (max_component(vabs(c)) + r);
+                b.center = c;
+                b.r2 = rr * rr;
+            }
+            m_area_bounds.push_back(b);
+        }
         m_lights.push_back(l.get());
     }
     m_first_triangle_light = m_lights.size();
@@ -425,10 +456,35 @@ void Scene::commit() {
         m_material_passes[i] = 1;
         m_pass_through = true;
     }
+    classify_constant_lambert();
     m_accel->commit();
+    place_static_instances();
     compute_bounds();
     build_lights();
     m_dirty = false;
+}
+
+void Scene::place_static_instances() {
+    std::vector<uint32_t> uses(m_meshes.size(), 0);
+    for (const Instance& inst : m_instances) ++uses[inst.mesh_id];
+    for (size_t i = 0; i < m_instances.size(); ++i) {
+        const Instance& inst = m_instances[i];
+        const Mesh& mesh = m_meshes[inst.mesh_id];
+        std::vector<float>& placed = m_placed[i];
+        if (uses[inst.mesh_id] != 1 || inst.motion.size() > 1) {
+            std::vector<float>().swap(placed);
+            continue;
+        }
+        if (!m_placed_stale[i] && !placed.empty()) continue;
+        placed.resize(3 * mesh.data.n_points);
+        for (uint32_t k = 0; k < mesh.data.n_points; ++k) {
+            const Vec3 q = inst.xf.m.transform_affine_point(mesh.point(k));  // as fill_interaction does
+            placed[3 * k] = q.x;
+            placed[3 * k + 1] = q.y;
+            placed[3 * k + 2] = q.z;
+        }
+        m_placed_stale[i] = 0;
+    }
 }
 
 void Scene::require_committed(const char* what) const {

@@ -45,6 +45,16 @@ struct SceneHit {
     float t = k_infinity;
 };
 
+/// The surface geometry of a mesh hit, what Scene::fill_interaction computes first
+/// (point, normals, direction to the ray origin, offset scale) and the hit triangle's
+/// material: all the diffuse fast path of the path tracer reads (Scene::hit_geometry).
+struct HitGeometry {
+    SurfacePoint sp;
+    Vec3 ns;  ///< unit shading normal, on the side of sp.ng
+    Vec3 wo;  ///< unit direction toward the ray origin
+    uint32_t material_id = 0;
+};
+
 /// Fraction of the mean light power given to every light at least (so none has pmf 0).
 constexpr double k_light_power_floor = 1e-3;
 
@@ -117,6 +127,12 @@ public:
     const TriangleLight& triangle_light(size_t light_index) const;
     /// Entries of the per-instance emissive-triangle maps (one per triangle of an
     /// instance with an emitter), for scene_memory().
+    /// Bytes of the world-space point caches of static instances (m_placed).
+    size_t placed_point_bytes() const {
+        size_t n = 0;
+        for (const auto& p : m_placed) n += p.capacity() * sizeof(float);
+        return n;
+    }
     size_t light_map_entries() const {
         size_t n = 0;
         for (const auto& map : m_tri_light_index) n += map.size();
@@ -162,6 +178,21 @@ public:
     /// `ray` within (tnear, tfar), seen from a side it stops rays on (Light::intersect)?
     bool blocked_by_light(const Ray& ray) const;
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
+    /// The part of fill_interaction a diffuse shading point needs (the same floats).
+    void hit_geometry(const Ray& ray, const Hit& hit, HitGeometry* g) const;
+    /// The nearest analytic area light `ray` sees within (tnear, tmax): its t (k_infinity
+    /// if none), index and emitted radiance (resolve_hit's test).
+    float nearest_light(const Ray& ray, float tmax, uint32_t* light_index, Spectrum* le) const;
+    /// Some analytic area light (not in the BVH: nearest_light tests them) exists.
+    bool has_analytic_area_lights() const { return !m_analytic_area.empty(); }
+    /// The constant Lambertian reflectance a hit on `material_id` shades with, if the
+    /// material is one the path tracer's diffuse fast path takes: a Lambertian (legacy
+    /// Lambert, or a preview material the diffuse-only kernel renders) without textures,
+    /// primvars, normal map or emission, opaque. Null otherwise. After commit() and
+    /// select_kernels().
+    const Spectrum* constant_lambert(uint32_t material_id) const {
+        return m_constant_lambert[material_id] ? &m_lambert_r[material_id] : nullptr;
+    }
 
 private:
     /// transmittance() past a BVH occlusion: step through the hits in order.
@@ -179,8 +210,18 @@ private:
     std::vector<Mesh> m_meshes;
     std::vector<std::shared_ptr<void>> m_point_owners;  ///< per mesh, latest update_mesh_points
     std::vector<Instance> m_instances;
+    /// Per instance: its mesh's points placed in world space (3 floats each), cached at
+    /// commit for a static instance of a mesh placed once (place_static_instances), so a
+    /// hit needs no transform; empty otherwise. The same floats fill_interaction
+    /// computed per hit before (Mat4::transform_affine_point).
+    std::vector<std::vector<float>> m_placed;
+    std::vector<uint8_t> m_placed_stale;  ///< per instance: transform or points changed
+    void place_static_instances();
     std::vector<Material> m_materials;
     std::vector<uint8_t> m_material_passes;  ///< per material: may_pass_rays (at commit)
+    std::vector<uint8_t> m_constant_lambert;  ///< per material: constant_lambert applies
+    std::vector<Spectrum> m_lambert_r;        ///< its reflectance
+    void classify_constant_lambert();
     bool m_pass_through = false;             ///< some entry of m_material_passes is set
     std::vector<Texture> m_textures;
     std::vector<std::unique_ptr<Light>> m_analytic;  ///< as added
@@ -189,6 +230,16 @@ private:
     std::vector<const Light*> m_lights;               ///< analytic, then triangles
     std::vector<uint32_t> m_infinite;
     std::vector<uint32_t> m_analytic_area;
+    /// Per entry of m_analytic_area: a sphere around what the light's intersect can hit
+    /// (Light::bounding_sphere), radius squared; r2 = inf: no bound.
+    struct AreaBound {
+        Vec3 center;
+        float r2 = k_infinity;
+    };
+    std::vector<AreaBound> m_area_bounds;
+    /// Can `ray` (within (tnear, tmax)) reach analytic light k (m_analytic_area[k])?
+    /// Conservative: false only when the segment stays clear of the light's sphere.
+    bool may_reach_light(const Ray& ray, float tmax, size_t k) const;
     std::vector<std::vector<int32_t>> m_tri_light_index;  ///< per instance: prim -> light
     size_t m_first_triangle_light = 0;
     DiscreteDistribution m_light_dist;

@@ -24,6 +24,7 @@ SceneMemory scene_memory(const Scene& scene) {
         if (d.material_ids) m.material_id_bytes += sizeof(uint32_t) * nt;
         if (d.primvars) m.primvar_bytes += sizeof(float) * uint64_t(d.n_primvar_columns) * nv;
     }
+    m.placed_point_bytes = scene.placed_point_bytes();
     m.light_map_bytes = scene.light_map_entries() * sizeof(int32_t);
     return m;
 }

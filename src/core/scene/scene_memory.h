@@ -4,7 +4,8 @@
 /// Two parts: the BVHs Embree built (counted by the device's memory monitor around each
 /// commit, accel/accel.h) and the mesh arrays the core reads at hits (points, indices,
 /// normals, uvs, material ids, primvars: zero-copy views of the caller's arrays, counted
-/// at their size) plus the core's own per-triangle tables (emissive-triangle light map).
+/// at their size) plus the core's own tables (emissive-triangle light map, world-space
+/// points of static instances).
 /// Triangles are those of the meshes (an instanced mesh counts once: that is what is
 /// stored), so bytes_per_triangle = total / triangles.
 #include <cstddef>
@@ -27,9 +28,11 @@ struct SceneMemory {
     uint64_t material_id_bytes = 0;  ///< uint32 per triangle, when the mesh has them
     uint64_t primvar_bytes = 0;      ///< float32 per vertex and primvar column
     uint64_t light_map_bytes = 0;    ///< int32 per triangle of instances with emitters
+    uint64_t placed_point_bytes = 0; ///< float32 x 3 per vertex of meshes placed once,
+                                     ///< statically: their world-space points (Scene::m_placed)
     uint64_t mesh_bytes() const {
         return point_bytes + index_bytes + normal_bytes + uv_bytes + material_id_bytes +
-               primvar_bytes + light_map_bytes;
+               primvar_bytes + light_map_bytes + placed_point_bytes;
     }
     uint64_t total_bytes() const { return bvh_bytes + mesh_bytes(); }
     double bytes_per_triangle() const {

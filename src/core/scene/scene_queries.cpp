@@ -18,27 +18,66 @@ namespace cmlt {
 
 namespace {
 
-/// Scene::fill_interaction for the triangle v of `mesh` placed by `xf`.
-void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mesh& mesh,
-                 const uint32_t* v, const Transform& xf, SurfaceInteraction* si) {
-    si->time = ray.time;
-    // xf.m is affine (Transform checks it) and mesh points are finite (add_mesh checks)
-    Vec3 p0 = xf.m.transform_affine_point(mesh.point(v[0]));
-    Vec3 p1 = xf.m.transform_affine_point(mesh.point(v[1]));
-    Vec3 p2 = xf.m.transform_affine_point(mesh.point(v[2]));
-    float b1 = hit.u, b2 = hit.v, b0 = 1.f - b1 - b2;
-    si->p = p0 * b0 + p1 * b1 + p2 * b2;
-    si->t = hit.t;
-    si->wo = -normalize(ray.d);
+/// A mesh hit's triangle placed in world space (vertices p0..p2, barycentrics b0..b2,
+/// vertex indices v) and its surface geometry, as fill_interaction reports it.
+struct PlacedTriangle {
+    Vec3 p0, p1, p2;
+    float b0, b1, b2;
+    uint32_t v[3];
+};
+
+/// Places the triangle of `hit` by `xf` (or reads it from `placed`, the mesh's points
+/// already placed by xf: Scene::m_placed, the same floats) and computes the geometry:
+/// point, geometric and shading normal, direction to the ray origin, offset scale.
+void place_triangle(const Ray& ray, const Hit& hit, const Mesh& mesh, const Transform& xf, const float* placed,
+                    PlacedTriangle* tri, HitGeometry* g) {
+    mesh.triangle(hit.prim_id, tri->v);
+    const uint32_t* v = tri->v;
+    Vec3 &p0 = tri->p0, &p1 = tri->p1, &p2 = tri->p2;
+    if (placed) {
+        const float *w0 = placed + 3 * size_t(v[0]), *w1 = placed + 3 * size_t(v[1]),
+                    *w2 = placed + 3 * size_t(v[2]);
+        p0 = Vec3(w0[0], w0[1], w0[2]);
+        p1 = Vec3(w1[0], w1[1], w1[2]);
+        p2 = Vec3(w2[0], w2[1], w2[2]);
+    } else {
+        // xf.m is affine (Transform checks it) and mesh points are finite (add_mesh checks)
+        p0 = xf.m.transform_affine_point(mesh.point(v[0]));
+        p1 = xf.m.transform_affine_point(mesh.point(v[1]));
+        p2 = xf.m.transform_affine_point(mesh.point(v[2]));
+    }
+    const float b1 = hit.u, b2 = hit.v, b0 = 1.f - b1 - b2;
+    tri->b0 = b0;
+    tri->b1 = b1;
+    tri->b2 = b2;
+    g->sp.time = ray.time;
+    g->sp.p = p0 * b0 + p1 * b1 + p2 * b2;
+    g->wo = -normalize(ray.d);
     Vec3 ng = normalize(cross(p1 - p0, p2 - p0));
-    if (is_black(ng) || !is_finite(ng)) ng = si->wo;  // degenerate triangle: face the ray
-    si->ng = ng;
-    si->ns = ng;
+    if (is_black(ng) || !is_finite(ng)) ng = g->wo;  // degenerate triangle: face the ray
+    g->sp.ng = ng;
+    g->ns = ng;
     if (mesh.data.normals) {
         Vec3 n = mesh.normal(v[0]) * b0 + mesh.normal(v[1]) * b1 + mesh.normal(v[2]) * b2;
         n = normalize(xf.normal.transform_normal(n));
-        if (!is_black(n) && is_finite(n)) si->ns = face_forward(n, ng);
+        if (!is_black(n) && is_finite(n)) g->ns = face_forward(n, ng);
     }
+    g->sp.error_scale = max_component(vmax(vabs(p0), vmax(vabs(p1), vabs(p2))));
+    g->material_id = mesh.material_id(hit.prim_id);
+}
+
+/// Scene::fill_interaction for the triangle of `hit` (place_triangle's arguments).
+void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mesh& mesh, const Transform& xf,
+                 const float* placed, SurfaceInteraction* si) {
+    PlacedTriangle tri;
+    HitGeometry g;
+    place_triangle(ray, hit, mesh, xf, placed, &tri, &g);
+    static_cast<SurfacePoint&>(*si) = g.sp;
+    si->ns = g.ns;
+    si->wo = g.wo;
+    si->t = hit.t;
+    const uint32_t* v = tri.v;
+    const float b0 = tri.b0, b1 = tri.b1, b2 = tri.b2;
     if (mesh.data.uvs) {
         Vec2 t0 = mesh.uv(v[0]), t1 = mesh.uv(v[1]), t2 = mesh.uv(v[2]);
         si->uv = Vec2(t0.x * b0 + t1.x * b1 + t2.x * b2, t0.y * b0 + t1.y * b1 + t2.y * b2);
@@ -47,18 +86,17 @@ void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mes
         float det = du02 * dv12 - dv02 * du12;
         si->dpdu = Vec3(0.f);
         if (std::fabs(det) > 1e-12f) {
-            Vec3 d = ((p0 - p2) * dv12 - (p1 - p2) * dv02) * (1.f / det);
+            Vec3 d = ((tri.p0 - tri.p2) * dv12 - (tri.p1 - tri.p2) * dv02) * (1.f / det);
             if (is_finite(d)) si->dpdu = d;
         }
     } else {
         si->uv = Vec2(b1, b2);
         si->dpdu = Vec3(0.f);
     }
-    si->error_scale = max_component(vmax(vabs(p0), vmax(vabs(p1), vabs(p2))));
     si->instance_id = hit.instance_id;
     si->mesh_id = inst.mesh_id;
     si->prim_id = hit.prim_id;
-    si->material_id = mesh.material_id(hit.prim_id);
+    si->material_id = g.material_id;
     si->n_primvars = uint8_t(mesh.data.n_primvar_columns);
     if (si->n_primvars) {
         const float *q0 = mesh.primvar_row(v[0]), *q1 = mesh.primvar_row(v[1]),
@@ -72,15 +110,42 @@ void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mes
 void Scene::fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const {
     const Instance& inst = m_instances[hit.instance_id];
     const Mesh& mesh = m_meshes[inst.mesh_id];
-    uint32_t v[3];
-    mesh.triangle(hit.prim_id, v);
     // A moving instance is placed where it is at the ray's time (as Embree placed it);
     // only then is a Transform built (a default-constructed one per hit showed in
     // profiles).
     if (inst.motion.size() > 1)
-        fill_placed(ray, hit, inst, mesh, v, Transform(inst.matrix_at(ray.time), "moving instance"), si);
+        fill_placed(ray, hit, inst, mesh, Transform(inst.matrix_at(ray.time), "moving instance"), nullptr, si);
     else
-        fill_placed(ray, hit, inst, mesh, v, inst.xf, si);
+        fill_placed(ray, hit, inst, mesh, inst.xf,
+                    m_placed[hit.instance_id].empty() ? nullptr : m_placed[hit.instance_id].data(), si);
+}
+
+void Scene::hit_geometry(const Ray& ray, const Hit& hit, HitGeometry* g) const {
+    const Instance& inst = m_instances[hit.instance_id];
+    const Mesh& mesh = m_meshes[inst.mesh_id];
+    PlacedTriangle tri;
+    if (inst.motion.size() > 1)
+        place_triangle(ray, hit, mesh, Transform(inst.matrix_at(ray.time), "moving instance"), nullptr, &tri, g);
+    else
+        place_triangle(ray, hit, mesh, inst.xf,
+                       m_placed[hit.instance_id].empty() ? nullptr : m_placed[hit.instance_id].data(), &tri, g);
+}
+
+float Scene::nearest_light(const Ray& ray, float tmax, uint32_t* light_index, Spectrum* le) const {
+    float t_best = k_infinity;
+    for (size_t k = 0; k < m_analytic_area.size(); ++k) {
+        if (!may_reach_light(ray, tmax, k)) continue;
+        const uint32_t li = m_analytic_area[k];
+        float t;
+        Spectrum l;
+        if (m_lights[li]->intersect(Ray(ray.o, ray.d, ray.tnear, tmax), &t, &l) && t < tmax) {
+            tmax = t;
+            t_best = t;
+            *light_index = li;
+            *le = l;
+        }
+    }
+    return t_best;
 }
 
 bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
@@ -90,11 +155,26 @@ bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
     return true;
 }
 
+bool Scene::may_reach_light(const Ray& ray, float tmax, size_t k) const {
+    const AreaBound& b = m_area_bounds[k];
+    if (!(b.r2 < k_infinity)) return true;
+    // The point of the segment nearest the centre, and its distance; the float
+    // rounding of that distance grows with the distance from the ray origin to the
+    // centre, so the radius gets a margin of 1e-4 of it.
+    const Vec3 oc = b.center - ray.o;
+    const float dd = dot(ray.d, ray.d);
+    float t = dot(oc, ray.d) / dd;
+    t = std::min(std::max(t, ray.tnear), tmax);
+    const Vec3 q = oc - ray.d * t;
+    return !(dot(q, q) > b.r2 + 1e-8f * dot(oc, oc));  // NaN: test the light
+}
+
 bool Scene::blocked_by_light(const Ray& ray) const {
-    for (uint32_t li : m_analytic_area) {
+    for (size_t k = 0; k < m_analytic_area.size(); ++k) {
+        if (!may_reach_light(ray, ray.tfar, k)) continue;
         float t;
         Spectrum le;
-        if (m_lights[li]->intersect(ray, &t, &le)) return true;
+        if (m_lights[m_analytic_area[k]]->intersect(ray, &t, &le)) return true;
     }
     return false;
 }
@@ -144,20 +224,17 @@ SceneHit Scene::intersect(const Ray& ray) const { return resolve_hit(ray, m_acce
 
 SceneHit Scene::resolve_hit(const Ray& ray, const Hit& h) const {
     SceneHit out;
-    float tmax = h.valid() ? h.t : ray.tfar;
     // Analytic emitters are not in the BVH: test them and keep the nearest.
-    for (uint32_t li : m_analytic_area) {
-        float t;
-        Spectrum le;
-        if (m_lights[li]->intersect(Ray(ray.o, ray.d, ray.tnear, tmax), &t, &le) && t < tmax) {
-            tmax = t;
-            out.kind = SceneHit::Kind::light;
-            out.light_index = li;
-            out.le = le;
-            out.t = t;
-        }
+    uint32_t li = 0;
+    Spectrum le;
+    const float tl = m_analytic_area.empty() ? k_infinity : nearest_light(ray, h.valid() ? h.t : ray.tfar, &li, &le);
+    if (tl < k_infinity) {
+        out.kind = SceneHit::Kind::light;
+        out.light_index = li;
+        out.le = le;
+        out.t = tl;
+        return out;
     }
-    if (out.kind == SceneHit::Kind::light) return out;
     if (h.valid()) {
         out.kind = SceneHit::Kind::surface;
         out.t = h.t;

@@ -221,8 +221,11 @@ TEST(Furnace, LosslessUnderUniformDomePt) {
 }
 
 TEST(Furnace, LosslessUnderUniformDomeBdpt) {
+    // 512 spp: half_lambert_half_smooth_glass is heavy-tailed in bdpt under the dome; at
+    // 128 spp its mean is resolved to 1 % in only ~half the seeds (40 seeds, either
+    // random-number layout), at 512 spp in all 40 (worst 0.87 %).
     for (const FurnaceMaterial& fm : lossless_materials())
-        expect_lossless(render_furnace(fm.m, Surround::dome, "bdpt", 128), fm.name + " dome bdpt");
+        expect_lossless(render_furnace(fm.m, Surround::dome, "bdpt", 512), fm.name + " dome bdpt");
 }
 
 TEST(Furnace, LosslessInsideEmittingBoxPt) {

@@ -46,9 +46,12 @@ def test_01_mesh_arrays_counted_exactly():
     assert m["index_bytes"] == 12 * nt
     assert m["normal_bytes"] == 12 * nv and m["uv_bytes"] == 8 * nv
     assert m["material_id_bytes"] == 4 * nt
+    # the one static instance: its points placed in world space, float32 x 3 per point
+    assert m["placed_point_bytes"] == 12 * nv
     assert m["mesh_bytes"] == sum(m[k] for k in ("point_bytes", "index_bytes", "normal_bytes",
                                                    "uv_bytes", "material_id_bytes",
-                                                   "primvar_bytes", "light_map_bytes"))
+                                                   "primvar_bytes", "light_map_bytes",
+                                                   "placed_point_bytes"))
     assert m["total_bytes"] == m["mesh_bytes"] + m["bvh_bytes"]
     assert m["bytes_per_triangle"] == pytest.approx(m["total_bytes"] / nt)
     bare, _, _ = _sphere_scene(40, 80, normals=False, uvs=False)
@@ -87,22 +90,25 @@ scene.add_instance(mid, np.eye(4))
 before = rss()
 scene.commit()
 grown = rss() - before
-print(core.scene_memory(scene)["bvh_bytes"], grown)
+m = core.scene_memory(scene)
+print(m["bvh_bytes"], m["placed_point_bytes"], grown)
 """
 
 
 def test_03_bvh_bytes_match_resident_memory():
-    """The monitor's count of Embree's memory agrees with what a fresh process gains in
-    resident memory while the BVH is built (the arrays exist before; a fresh process, so
-    that no freed heap of earlier tests is reused)."""
+    """The monitor's count of Embree's memory, plus the world-space points the commit
+    places for the static instance, agrees with what a fresh process gains in resident
+    memory while the commit builds them (the arrays exist before; a fresh process, so that
+    no freed heap of earlier tests is reused)."""
     import subprocess
     import sys
     out = subprocess.run([sys.executable, "-c", _RSS_CHILD,
                           str(support.ROOT / "sequences" / "dense")],
                          capture_output=True, text=True, check=True).stdout
-    bvh, grown = (int(v) for v in out.split())
-    assert bvh > 0
-    assert 0.7 * bvh < grown < 1.3 * bvh, (bvh, grown)
+    bvh, placed, grown = (int(v) for v in out.split())
+    assert bvh > 0 and placed > 0
+    built = bvh + placed
+    assert 0.7 * built < grown < 1.3 * built, (bvh, placed, grown)
 
 
 def test_04_dense_mesh_compact():

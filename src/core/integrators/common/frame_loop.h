@@ -86,6 +86,7 @@ inline void fill_frame_stats(RenderStats& st, const FrameCounters& c, const Cycl
     st.shadow_rays = c.shadow_rays.load();
     st.rays = c.rays.load();
     st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
+    st.packets = c.packets.load();
     const double per_s = rate.per_second();
     st.busy_s = double(c.busy_ticks.load()) / per_s;
     st.trace_s = std::min(st.busy_s, double(c.trace_ticks.load()) / per_s);

@@ -117,9 +117,9 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
     INT(threads, 0, 0, settings_limits::k_int_max, "", "--threads N",                        \
         "worker threads, 0 = all cores; the image does not depend on it")                    \
     BOOL(packets, true, "", "--no-packets",                                                  \
-         "cmlt: trace a bundle's rays (camera rays, subpath bounces, shadow rays) as "       \
-         "Embree packets; off: one by one, the same image bit for bit (for timing "          \
-         "comparisons)")                                                                     \
+         "pt and cmlt: trace a batch's or bundle's rays (camera rays, bounces, shadow rays) "  \
+         "as Embree packets; off: one by one (cmlt: the same image bit for bit; pt: the "     \
+         "scalar reference, the same estimator) (for timing comparisons)")                                                                   \
     TOKEN(kernel, "auto", "auto general", "", "--kernel",                                   \
           "material kernels: auto (materials that are exact Lambertians on the frame take "  \
           "the diffuse-only kernel; the same image to float rounding, fewer instructions) "  \
@@ -263,6 +263,7 @@ struct RenderStats {
     uint64_t camera_rays = 0;
     uint64_t shadow_rays = 0;
     uint64_t rays = 0;          ///< every BVH query (camera + bounce + shadow)
+    uint64_t packets = 0;       ///< pt: packet queries (rtcIntersectN + rtcOccludedN calls)
     uint64_t splats = 0;        ///< bdpt: light-tracing (t = 1) contributions splatted
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)

@@ -5,6 +5,8 @@
 #include "film/film.h"
 #include "film/filter.h"
 #include "integrators/common/frame_loop.h"
+#include "accel/accel.h"
+#include "integrators/path/path_batch.h"
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"
 
@@ -40,23 +42,31 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     const auto t0 = std::chrono::steady_clock::now();
     bool cancelled = false;
     PassTarget target(settings, film);
+    // Paths in batches of a tile's pixel samples, queries in Embree packets
+    // (path_batch.h); without packets one query at a time, li's image bit for bit.
+    const int packet_width = settings.packets ? Accel::max_packet_width() : 1;
     const int done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
         parallel_tasks(
             arena, counters, tiles.size(), size_t(1),
             [&](const tbb::blocked_range<size_t>& r) {
                 PathCounters c;
+                PathBatch batch(tracer, scene, camera, filter, motion_blur, settings.seed, W, packet_width);
+                Spectrum L[k_tile_size * k_tile_size];
+                float w[k_tile_size * k_tile_size];
                 for (size_t ti = r.begin(); ti != r.end(); ++ti) {
                     const Tile& tile = tiles[ti];
-                    for (int y = tile.y0; y < tile.y1; ++y)
-                        for (int x = tile.x0; x < tile.x1; ++x)
-                            for (int s = s0; s < s1; ++s) {
-                                float w = 1.f;
-                                const Spectrum L = tracer.pixel_sample(camera, filter, motion_blur, settings.seed, x,
-                                                                       y, W, uint32_t(s), c, &w);
-                                film.add_sample(x, y, uint32_t(s), L, w);
+                    const int tw = tile.x1 - tile.x0;
+                    for (int s = s0; s < s1; ++s) {
+                        batch.trace_tile(tile, uint32_t(s), c, L, w);
+                        // a pixel's samples arrive in sample order (film.h)
+                        for (int y = tile.y0; y < tile.y1; ++y)
+                            for (int x = tile.x0; x < tile.x1; ++x) {
+                                const int i = (y - tile.y0) * tw + (x - tile.x0);
+                                film.add_sample(x, y, uint32_t(s), L[i], w[i]);
                             }
+                    }
                 }
-                counters.add(c);
+                counters.add(c, 0, batch.packets());
             },
             tbb::simple_partitioner());
     }, &target);

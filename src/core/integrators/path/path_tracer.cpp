@@ -6,11 +6,9 @@
 
 namespace cmlt {
 
-Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur,
-                                  uint64_t seed, int x, int y, int width, uint32_t s,
-                                  PathCounters& counters, float* weight) const {
+Ray PathTracer::camera_ray(const Camera& camera, const PixelFilter& filter, bool motion_blur, PixelSampler& sampler,
+                           uint64_t seed, int x, int y, int width, uint32_t s, float* weight) const {
     const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
-    PixelSampler sampler(seed, pixel, s);
     const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), weight);
     Ray ray = camera.generate_ray(p_film);
     if (camera.has_lens()) {  // thin lens: its own dimension
@@ -23,10 +21,21 @@ Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filte
         ts.set_dimension(k_shutter_time_dimension);
         ray.time = ts.get1d();
     }
+    return ray;
+}
+
+Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur,
+                                  uint64_t seed, int x, int y, int width, uint32_t s,
+                                  PathCounters& counters, float* weight) const {
+    const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
+    PixelSampler sampler(seed, pixel, s);
+    const Ray ray = camera_ray(camera, filter, motion_blur, sampler, seed, x, y, width, s, weight);
     return li(ray, sampler, counters);
 }
 
 template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&, PathCounters&,
                                               const SceneHit*) const;
+template void PathTracer::step<PixelSampler>(PathState&, const SceneHit&, PixelSampler&, PathCounters&) const;
+template void PathTracer::step<PixelSampler>(PathState&, const LambertHit&, PixelSampler&, PathCounters&) const;
 
 }  // namespace cmlt

@@ -24,20 +24,61 @@
 /// sampling routine runs on independent numbers (PixelSampler) or on a Markov chain's
 /// primary samples (mlt::MltSampler, coherent::PointSampler). The definition is in
 /// path_tracer_impl.h; path_tracer.cpp instantiates PixelSampler.
+///
+/// The routine is resumable (PathState): `begin` starts a path at a camera ray, `step`
+/// takes the hit of the current ray and leaves the path's next ray and, when next-event
+/// estimation wants one, a shadow ray; `finish_shadow` takes that shadow ray's
+/// visibility. `li` runs it with one scalar query at a time; the batched path tracer
+/// (path_batch.h) runs many paths in lockstep and answers their queries in Embree
+/// packets — the same arithmetic on the same answers, so the same estimator.
 #include "base/sampler.h"
 #include "integrators/common/path_counters.h"
 #include "math/ray.h"
 #include "math/vec.h"
+#include "sampling/mis.h"
 #include "sampling/rng.h"
 
 #include <cstdint>
 
 namespace cmlt {
 
+class Bsdf;
 class Camera;
 class PixelFilter;
 class Scene;
+struct HitGeometry;
 struct SceneHit;
+struct SurfacePoint;
+
+/// A surface hit whose material is a constant Lambertian (Scene::constant_lambert):
+/// what the path tracer's diffuse fast path shades (PathBatch), the same path as
+/// step(SceneHit) on the full hit.
+struct LambertHit {
+    const HitGeometry* geometry;
+    const Spectrum* reflectance;
+};
+
+/// One path of PathTracer between two ray queries (path_tracer.h).
+struct PathState {
+    Spectrum L{0.f}, beta{1.f};
+    Ray ray;                    ///< the ray whose hit `step` takes next
+    Vec3 prev_p;                ///< the last scattering vertex (MIS of emission hits)
+    float prev_bsdf_pdf = 0.f;  ///< BSDF density of `ray` (times crossed pass-through probabilities)
+    float eta_scale = 1.f;      ///< product of eta^2 over refractions: undoes radiance scaling for RR
+    uint32_t bounce = 0;        ///< hits so far, pass-through crossings included (keys the dimensions)
+    int depth = 0;              ///< scattering events so far
+    bool specular_bounce = false;
+    bool done = false;
+    /// Next-event estimation pending on a shadow ray: if `shadow` is unblocked (through
+    /// pass-through surfaces with transmittance tr and crossing probability pass_pdf),
+    /// L += shadow_f * (tr * w / shadow_light_pdf), w the power heuristic of
+    /// shadow_light_pdf against shadow_bsdf_pdf * pass_pdf (1 for a Dirac light).
+    bool has_shadow = false;
+    bool shadow_delta = false;
+    Ray shadow;
+    Spectrum shadow_f{0.f};
+    float shadow_light_pdf = 0.f, shadow_bsdf_pdf = 0.f;
+};
 
 class PathTracer {
 public:
@@ -57,6 +98,28 @@ public:
     Spectrum li(const Ray& camera_ray, Sampler& sampler, PathCounters& counters,
                 const SceneHit* first_hit = nullptr) const;
 
+    /// Start a path at `camera_ray` (counted as a sample and a camera ray).
+    void begin(PathState& st, const Ray& camera_ray, PathCounters& counters) const;
+    /// Take `hit`, the answer to st.ray (counted as a ray): add what it sees, and leave
+    /// st.done or the next st.ray, and st.has_shadow with a pending shadow ray.
+    template <class Sampler>
+    void step(PathState& st, const SceneHit& hit, Sampler& sampler, PathCounters& counters) const;
+    /// step() for a constant-Lambertian surface hit, from its geometry alone.
+    template <class Sampler>
+    void step(PathState& st, const LambertHit& hit, Sampler& sampler, PathCounters& counters) const;
+    /// Complete a pending shadow ray: `tr` and `pass_pdf` as Scene::transmittance gives them.
+    static void finish_shadow(PathState& st, float tr, float pass_pdf) {
+        st.has_shadow = false;
+        if (!(tr > 0.f)) return;
+        const float w = st.shadow_delta ? 1.f : power_heuristic(st.shadow_light_pdf, st.shadow_bsdf_pdf * pass_pdf);
+        st.L += st.shadow_f * (tr * w / st.shadow_light_pdf);
+    }
+
+    /// The camera ray of pixel (x, y), sample `s`: film position (dimension 0, from
+    /// `filter`, whose f/pdf goes to *weight), lens and shutter time (pixel_sample).
+    Ray camera_ray(const Camera& camera, const PixelFilter& filter, bool motion_blur, PixelSampler& sampler,
+                   uint64_t seed, int x, int y, int width, uint32_t s, float* weight) const;
+
     /// One independent pixel sample of pixel (x, y), sample index `s`: film position
     /// (dimension 0: the pixel's centre + an offset drawn from `filter`, whose f/pdf goes
     /// to *weight for the film; PixelFilter::film_position), lens (k_lens_dimension, with a thin lens), shutter time
@@ -66,6 +129,13 @@ public:
                           int x, int y, int width, uint32_t s, PathCounters& counters, float* weight) const;
 
 private:
+    /// The scattering part of step at a surface point: next-event estimation, BSDF
+    /// sampling, Russian roulette. `passes`: the material may let the ray through;
+    /// `last`: the path has its max_depth scattering events (only a crossing goes on).
+    template <class Sampler>
+    void scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp, const Vec3& wo, const Bsdf& bsdf,
+                 bool passes, bool last, Sampler& sampler, PathCounters& counters) const;
+
     const Scene& m_scene;
     int m_max_depth;
     int m_min_depth;
@@ -73,5 +143,9 @@ private:
 
 extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,
                                                      PathCounters&, const SceneHit*) const;
+extern template void PathTracer::step<PixelSampler>(PathState&, const SceneHit&, PixelSampler&,
+                                                    PathCounters&) const;
+extern template void PathTracer::step<PixelSampler>(PathState&, const LambertHit&, PixelSampler&,
+                                                    PathCounters&) const;
 
 }  // namespace cmlt

@@ -1,0 +1,75 @@
+#pragma once
+/// \file Path tracing in batches: the paths of one tile's pixel samples run in lockstep,
+/// and each round's ray queries — the closest hits of every live path, then the shadow
+/// rays of their next-event estimation — are answered together in Embree packets
+/// (Accel::intersect_lanes / occluded_lanes: rtcIntersect4/8/16, rtcOccluded4/8/16).
+///
+/// Each path is PathTracer's resumable routine (PathState: begin / step /
+/// finish_shadow), so a lane computes what PathTracer::li computes from the same
+/// answers; without packets (RenderSettings::packets off) every query is a scalar one
+/// and the image is li's bit for bit. Embree's packet and single-ray kernels may differ
+/// in the last ulp of a hit, so with packets the image is the same estimator, not the
+/// same bits (tests/cpp/integrators: the two agree within their confidence intervals).
+///
+/// Lanes are the pixels of a tile in 4×4 blocks, so that a packet's camera rays (and
+/// the first bounces' shadow rays toward a light) are neighbours; a lane whose path ends
+/// leaves the batch (the live lanes stay in that order), so packets stay full.
+/// Everything a lane computes depends only on its (seed, pixel, sample), never on the
+/// packets it shared: the image does not depend on the thread count.
+#include "integrators/common/frame_loop.h"
+#include "integrators/path/path_tracer.h"
+#include "sampling/rng.h"
+
+#include <cstdint>
+#include <vector>
+
+namespace cmlt {
+
+class Camera;
+class PixelFilter;
+class Scene;
+struct Hit;
+
+class PathBatch {
+public:
+    /// `packet_width` 4, 8 or 16 answers queries in packets of up to that width; 1 one
+    /// by one.
+    PathBatch(const PathTracer& tracer, const Scene& scene, const Camera& camera, const PixelFilter& filter,
+              bool motion_blur, uint64_t seed, int width, int packet_width);
+
+    /// Sample `s` of every pixel of `tile`: L[i] and the filter weight w[i] of the i-th
+    /// pixel of the tile in row-major order.
+    void trace_tile(const Tile& tile, uint32_t s, PathCounters& counters, Spectrum* L, float* w);
+
+    uint64_t packets() const { return m_packets; }
+
+private:
+    const PathTracer& m_tracer;
+    const Scene& m_scene;
+    const Camera& m_camera;
+    const PixelFilter& m_filter;
+    bool m_motion_blur;
+    uint64_t m_seed;
+    int m_width;
+    int m_packet_width;
+    uint64_t m_packets = 0;
+
+    // per lane (capacity: a tile)
+    std::vector<PathState> m_state;
+    std::vector<PixelSampler> m_sampler;
+    std::vector<uint32_t> m_pixel;  ///< index into the tile (row-major)
+    std::vector<Ray> m_rays;
+    std::vector<Hit> m_hits;
+    std::vector<uint8_t> m_occluded;
+    std::vector<uint32_t> m_live, m_shadowed;
+    // random numbers computed ahead for every live lane (prefetch_dimensions)
+    std::vector<uint32_t> m_c0, m_c1, m_c2, m_w0, m_w1;
+    std::vector<uint32_t> m_words;  ///< per lane: k_prefetch dimensions x 2 words
+
+    /// Hands every lane of `lanes` the numbers of dimensions [first(lane), first(lane) +
+    /// count) (PixelSampler::prefetch), computed for all of them at once.
+    template <class First>
+    void prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t count, First&& first);
+};
+
+}  // namespace cmlt
