@@ -76,7 +76,8 @@ test-sanitize: install
 	  -Dnanobind_ROOT="$$($(PY) -m nanobind --cmake_dir)" >/dev/null
 	cmake --build $(SAN_BUILD) -j $(THREADS)
 	$(SAN_ASAN) $(SAN_UBSAN) ctest --test-dir $(SAN_BUILD) --no-tests=error --output-on-failure -j $(THREADS)
-	LD_PRELOAD=$$($(CXX) -print-file-name=libasan.so) $(SAN_ASAN):detect_leaks=0 $(SAN_UBSAN) \
+	LD_PRELOAD="$$($(CXX) -print-file-name=libasan.so) $$($(CXX) -print-file-name=libstdc++.so)" \
+	  $(SAN_ASAN):detect_leaks=0 $(SAN_UBSAN) \
 	  $(PY) tests/sanitize/renders.py $(SAN_BUILD)
 
 bench: install

@@ -1,11 +1,14 @@
 """A few renders with the ASan + UBSan build of the core (``make test-sanitize``).
 
-    LD_PRELOAD=$(g++ -print-file-name=libasan.so) \\
+    LD_PRELOAD="$(g++ -print-file-name=libasan.so) $(g++ -print-file-name=libstdc++.so)" \\
     ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \\
     .venv/bin/python tests/sanitize/renders.py build/sanitize
 
 Why the environment: the sanitized module links libasan, which must be the first
-library in the process, so it is preloaded into the (uninstrumented) Python; CPython
+library in the process, so it is preloaded into the (uninstrumented) Python, together
+with libstdc++ (which Python itself does not load: without it ASan's __cxa_throw
+interceptor finds no real __cxa_throw and aborts at the first C++ exception, e.g. the
+one usd-core's prim iterator raises to end a loop); CPython
 and its extensions keep memory alive on purpose until exit, so leak detection is off
 (the C++ suite under ctest keeps it on). Any ASan or UBSan report aborts the process
 with a non-zero status.
