@@ -47,7 +47,7 @@ from typing import Dict, List
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-CMLT = [sys.executable, "-m", "cmlt.cli"]
+CMLT = [str(Path(sys.executable).with_name("cmlt"))]  # the console script beside this Python
 
 #: mi.cornell_box() of Mitsuba 3.x (used when Mitsuba is not installed): to_world
 #: matrices row by row, reflectances, the emitter's radiance.

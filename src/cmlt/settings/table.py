@@ -84,7 +84,7 @@ BY_NAME: Dict[str, SettingField] = {f.name: f for f in TABLE}
 FIELDS: Tuple[SettingField, ...] = tuple(f for f in TABLE if f.attr)
 BY_ATTR: Dict[str, SettingField] = {f.attr: f for f in FIELDS}
 #: settings of the machine, not the shot: a flag but no stage attribute (threads,
-#: packets); they never change the image
+#: packets); they never change the estimator (threads not even the image)
 MACHINE_FIELDS: Tuple[SettingField, ...] = tuple(f for f in TABLE if f.flag and not f.attr)
 #: the core's default image size: the resolution without any settings prim
 DEFAULT_RESOLUTION: Tuple[int, int] = (BY_NAME["width"].default, BY_NAME["height"].default)

@@ -163,8 +163,9 @@ SETTING_NAMES = tuple(f.name for f in FIELDS + MACHINE_FIELDS)
 
 #: What the command line asked for. The table's stage settings (``None``: flag
 #: not given; precedence flag > stage > default) and machine settings
-#: (``threads``: 0 = all cores; ``packets``: cmlt's packet tracing; neither changes
-#: the image), then the options of :class:`_FrameOptions`.
+#: (``threads``: 0 = all cores; ``packets``: pt's and cmlt's packet tracing; neither
+#: changes the estimator — cmlt's image not at all, pt's hits may differ in the last
+#: ulp), then the options of :class:`_FrameOptions`.
 RenderOptions = make_dataclass(
     "RenderOptions",
     [(f.name, Optional[type(f.default)], field(default=None)) for f in FIELDS]
@@ -173,6 +174,6 @@ RenderOptions = make_dataclass(
     namespace={"__module__": __name__, "__doc__": (
         "What the command line asked for: a field per stage setting of the table "
         "(None = flag not given: the stage's value, else the default), threads and "
-        "packets (the machine's; the image does not depend on them), and how frames "
+        "packets (the machine's; the estimator does not depend on them), and how frames "
         "are written (resolution, camera, EXR, AOV, preview and state options).")})
 

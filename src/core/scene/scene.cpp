@@ -465,13 +465,17 @@ void Scene::commit() {
 }
 
 void Scene::place_static_instances() {
+    // Large meshes keep placing their triangles per hit: a world-space copy of a big
+    // mesh is one more array the hits miss the cache on (on the 1M-triangle dense
+    // shot it made pt slower), while the transform it saves is small next to their
+    // traversal.
     std::vector<uint32_t> uses(m_meshes.size(), 0);
     for (const Instance& inst : m_instances) ++uses[inst.mesh_id];
     for (size_t i = 0; i < m_instances.size(); ++i) {
         const Instance& inst = m_instances[i];
         const Mesh& mesh = m_meshes[inst.mesh_id];
         std::vector<float>& placed = m_placed[i];
-        if (uses[inst.mesh_id] != 1 || inst.motion.size() > 1) {
+        if (uses[inst.mesh_id] != 1 || inst.motion.size() > 1 || mesh.data.n_points > k_place_max_points) {
             std::vector<float>().swap(placed);
             continue;
         }

@@ -211,10 +211,12 @@ private:
     std::vector<std::shared_ptr<void>> m_point_owners;  ///< per mesh, latest update_mesh_points
     std::vector<Instance> m_instances;
     /// Per instance: its mesh's points placed in world space (3 floats each), cached at
-    /// commit for a static instance of a mesh placed once (place_static_instances), so a
+    /// commit for a static instance of a small mesh placed once (place_static_instances), so a
     /// hit needs no transform; empty otherwise. The same floats fill_interaction
     /// computed per hit before (Mat4::transform_affine_point).
     std::vector<std::vector<float>> m_placed;
+    /// Meshes with more points than this are not placed (place_static_instances).
+    static constexpr uint32_t k_place_max_points = 1u << 16;
     std::vector<uint8_t> m_placed_stale;  ///< per instance: transform or points changed
     void place_static_instances();
     std::vector<Material> m_materials;

@@ -36,6 +36,7 @@ Texture::Texture(TextureDesc desc, const char* name) : m_d(std::move(desc)) {
 
 bool Texture::wrap(int* i, int n, WrapMode mode) {
     int v = *i;
+    if (unsigned(v) < unsigned(n)) return true;  // inside: every mode keeps it (no division)
     switch (mode) {
         case WrapMode::repeat:
             v %= n;

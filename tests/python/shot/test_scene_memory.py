@@ -96,17 +96,19 @@ print(m["bvh_bytes"], m["placed_point_bytes"], grown)
 
 
 def test_03_bvh_bytes_match_resident_memory():
-    """The monitor's count of Embree's memory, plus the world-space points the commit
-    places for the static instance, agrees with what a fresh process gains in resident
-    memory while the commit builds them (the arrays exist before; a fresh process, so that
-    no freed heap of earlier tests is reused)."""
+    """The monitor's count of Embree's memory (plus the world-space points the commit
+    places for a static instance of a small mesh: none for this large one) agrees with
+    what a fresh process gains in resident memory while the commit builds them (the
+    arrays exist before; a fresh process, so that no freed heap of earlier tests is
+    reused)."""
     import subprocess
     import sys
     out = subprocess.run([sys.executable, "-c", _RSS_CHILD,
                           str(support.ROOT / "sequences" / "dense")],
                          capture_output=True, text=True, check=True).stdout
     bvh, placed, grown = (int(v) for v in out.split())
-    assert bvh > 0 and placed > 0
+    assert bvh > 0
+    assert placed == 0  # 180,000 points: too many to keep placed (Scene::k_place_max_points)
     built = bvh + placed
     assert 0.7 * built < grown < 1.3 * built, (bvh, placed, grown)
 

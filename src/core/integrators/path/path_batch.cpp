@@ -51,6 +51,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_occluded.resize(n);
     m_live.reserve(n);
     m_shadowed.reserve(n);
+    m_scattering.reserve(n);
     for (auto* v : {&m_c0, &m_c1, &m_c2, &m_w0, &m_w1}) v->resize(n * k_prefetch);
     m_words.resize(n * 2 * k_prefetch);
 }
@@ -88,9 +89,13 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         for (uint32_t l : m_live) m_rays[l] = m_state[l].ray;
         m_packets += accel.intersect_lanes(m_rays.data(), m_live.data(), m_live.size(), m_hits.data(),
                                            m_packet_width);
-        // Shade: emission, the next ray, a pending shadow ray; each lane reads the
-        // dimensions of its bounce (PathTracer::scatter), computed here for all lanes.
-        prefetch_dimensions(m_live, k_prefetch,
+        // Shade: emission, the next ray, a pending shadow ray. A lane that scatters reads
+        // the dimensions of its bounce (PathTracer::scatter): computed here, for every
+        // lane that hit a mesh, at once (a miss or an analytic light ends the path).
+        m_scattering.clear();
+        for (uint32_t l : m_live)
+            if (m_hits[l].valid()) m_scattering.push_back(l);
+        prefetch_dimensions(m_scattering, k_prefetch,
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();
         const bool lights = m_scene.has_analytic_area_lights();
