@@ -139,6 +139,12 @@ void CylinderLight::pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* 
     *pdf_dir = c > 0.f ? c * k_inv_pi : 0.f;
 }
 
+bool CylinderLight::le_toward(const Vec3& p, const Vec3& d, Spectrum* le) const {
+    *le = Spectrum(0.f);
+    if (dot(emitter_normal(p), d) > 0.f) *le = m_radiance * m_shaping.eval(d);
+    return true;
+}
+
 Vec3 CylinderLight::emitter_normal(const Vec3& p) const {
     Vec3 r = p - m_center;
     r = r - m_axis * dot(r, m_axis);

@@ -100,6 +100,14 @@ public:
     }
     /// Unit normal of the emitting side at a point on the light (zero for a point light).
     virtual Vec3 emitter_normal(const Vec3& /*p*/) const { return Vec3(0.f); }
+    /// Radiance leaving the point `p` on the light along the unit direction `d` (0 where
+    /// `d` leaves the back of a one-sided emitter): what a camera ray arriving at `p`
+    /// from `-d` sees, texture and shaping included. BDPT's (1, 1) strategy (a light
+    /// point connected to the lens) needs it; a light without it (the default: false)
+    /// keeps that strategy off, and the camera's own hits carry its whole weight.
+    virtual bool le_toward(const Vec3& /*p*/, const Vec3& /*d*/, Spectrum* /*le*/) const {
+        return false;
+    }
 
     /// Texture this light was created with (LightDesc::texture_id), or -1.
     int32_t texture_id() const { return m_texture_id; }

@@ -44,6 +44,15 @@ void PlanarLight::pdf_le(const Vec3&, const Vec3& d, float* pdf_pos, float* pdf_
 
 Vec3 PlanarLight::emitter_normal(const Vec3&) const { return m_n_emit; }
 
+bool PlanarLight::le_toward(const Vec3& p, const Vec3& d, Spectrum* le) const {
+    *le = Spectrum(0.f);
+    if (dot(m_n_emit, d) > 0.f) {
+        const Vec3 l = m_xf.inv.transform_point(p);
+        *le = radiance_at(l.x, l.y) * m_shaping.eval(d);
+    }
+    return true;
+}
+
 // ---- sphere (and point) -----------------------------------------------------------------
 
 LightLeSample SphereLight::sample_le(const Vec2& u_pos, const Vec2& u_dir) const {
@@ -82,6 +91,13 @@ void SphereLight::pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pd
     float c = dot(emitter_normal(p), d);
     *pdf_pos = 1.f / (4.f * k_pi * m_radius * m_radius);
     *pdf_dir = c > 0.f ? c * k_inv_pi : 0.f;
+}
+
+bool SphereLight::le_toward(const Vec3& p, const Vec3& d, Spectrum* le) const {
+    *le = Spectrum(0.f);
+    if (m_point) return false;  // a Dirac position: no camera ray sees it either
+    if (dot(emitter_normal(p), d) > 0.f) *le = m_radiance * m_shaping.eval(d);
+    return true;
 }
 
 Vec3 SphereLight::emitter_normal(const Vec3& p) const {
@@ -123,5 +139,18 @@ void TriangleLight::pdf_le(const Vec3&, const Vec3& d, float* pdf_pos, float* pd
 }
 
 Vec3 TriangleLight::emitter_normal(const Vec3&) const { return m_n; }
+
+bool TriangleLight::le_toward(const Vec3& p, const Vec3&, Spectrum* le) const {
+    // both faces emit; the barycentrics of p (on the triangle) pick the texel
+    const Vec3 v = p - m_p0;
+    const float d00 = dot(m_e1, m_e1), d01 = dot(m_e1, m_e2), d11 = dot(m_e2, m_e2);
+    const float d20 = dot(v, m_e1), d21 = dot(v, m_e2);
+    const float den = d00 * d11 - d01 * d01;
+    Vec2 b(1.f / 3.f, 1.f / 3.f);
+    if (den > 0.f && std::isfinite(den))
+        b = Vec2((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den);
+    *le = radiance_at(b);
+    return true;
+}
 
 }  // namespace cmlt

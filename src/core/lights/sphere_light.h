@@ -18,6 +18,7 @@ public:
     LightLeSample sample_le(const Vec2& u_pos, const Vec2& u_dir) const override;
     void pdf_le(const Vec3& p, const Vec3& d, float* pdf_pos, float* pdf_dir) const override;
     Vec3 emitter_normal(const Vec3& p) const override;
+    bool le_toward(const Vec3& p, const Vec3& d, Spectrum* le) const override;
     bool bounding_sphere(Vec3* center, float* radius) const override {
         *center = m_center;
         *radius = m_radius;

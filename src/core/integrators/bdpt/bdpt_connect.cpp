@@ -109,7 +109,18 @@ bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex*
         // We G / p_lens, G = cos_cam / d2 (the lens point has no cosine at qs's end
         // beyond scatter's): the lens density cancels We's 1 / A_lens.
         const float cos_cam = m_importance.cos_axis(-w);
-        L = qs.beta * scatter(qs, w, true) * (we * cos_cam / (d2 * m_importance.pdf_lens()));
+        if (qs.type == VertexType::light) {
+            // (1, 1): the light's origin vertex itself, Le toward the lens times its
+            // cosine over the density of the point (pdf_fwd: light pmf x area density)
+            if (!direct_light_tracing(qs)) return false;
+            Spectrum le;
+            m_scene.light(size_t(qs.light_index)).le_toward(qs.p, w, &le);
+            const float cos_l = std::fabs(dot(qs.ng, w));
+            if (!(qs.pdf_fwd > 0.f)) return false;
+            L = le * (cos_l / qs.pdf_fwd) * (we * cos_cam / (d2 * m_importance.pdf_lens()));
+        } else {
+            L = qs.beta * scatter(qs, w, true) * (we * cos_cam / (d2 * m_importance.pdf_lens()));
+        }
         if (is_black(L)) return false;
         k.p_raster = pr;
         return visibility(qs, sampled);

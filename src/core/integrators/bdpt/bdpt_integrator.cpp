@@ -24,7 +24,8 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     // light tracing reaches the film window (the image and the filter's margin), its
     // importance normalised over the window: splats scaled by window / image area
-    const BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
+    BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
+    tracer.enable_direct_light_tracing(true);
     const double splat_scale = filter.window_area(W, H) / (double(W) * double(H));
     const std::vector<Tile> tiles = image_tiles(W, H);
     const int threads = frame_threads(settings);

@@ -87,7 +87,9 @@ float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* c
                              const PathVertex& sampled, float conn_pass_pdf,
                              const PathVertex* pt_override) const {
     const int n = s + t;
-    if (n == 2) return 1.f;
+    // A path of depth 0: (0, 2) alone, or with (1, 1) where that strategy is on.
+    if (n == 2 && !direct_light_tracing(s == 0 ? (pt_override ? *pt_override : camera[1]) : light[0]))
+        return 1.f;
     // Path vertices x_0 (light end) .. x_{n-1} (camera), with their light-side (pl) and
     // camera-side (pe) area densities; the four vertices next to the connection get the
     // densities this connection implies.
@@ -98,7 +100,9 @@ float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* c
     if (n > k_max) return 0.f;
     for (int i = 0; i < n; ++i) {
         if (i < s) {
-            x[i] = (s == 1 && i == 0) ? &sampled : &light[i];
+            // s = 1 samples its light vertex (`sampled`) except for (1, 1), whose light
+            // vertex is the light subpath's origin and whose `sampled` is the lens point
+            x[i] = (s == 1 && i == 0 && t != 1) ? &sampled : &light[i];
             pl[i] = x[i]->pdf_fwd;
             pe[i] = x[i]->pdf_rev;
         } else {
@@ -171,7 +175,7 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
     const int n = s + t;
     // The whole path, light end first.
     std::vector<PathVertex> x(static_cast<size_t>(n));
-    for (int i = 0; i < s; ++i) x[size_t(i)] = (s == 1) ? sampled : light[i];
+    for (int i = 0; i < s; ++i) x[size_t(i)] = (s == 1 && t != 1) ? sampled : light[i];
     for (int j = 0; j < t; ++j) x[size_t(n - 1 - j)] = (t == 1 && j == 0) ? sampled : camera[j];
     // Pass-through crossings of each segment x_i - x_{i+1}: their probability product, as
     // a connection over that segment would find it (x_{i+1} is never an infinite light).
@@ -208,7 +212,7 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
     for (int sp = 0; sp < n; ++sp) {
         const int tp = n - sp;
         // Can strategy (sp, tp) make this path?
-        bool ok = !(sp == 1 && tp == 1);
+        bool ok = !(sp == 1 && tp == 1) || direct_light_tracing(x[0]);
         if (sp == 0) {
             ok = ok && x[0].type == VertexType::light && !is_delta_light(x[0]);
         } else {
@@ -241,7 +245,7 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
             v.pass_pdf = j > 0 ? seg[size_t(i)] : 1.f;
             C[size_t(j)] = v;
         }
-        const PathVertex& samp = sp == 1 ? L[0] : (tp == 1 ? C[0] : sampled);
+        const PathVertex& samp = tp == 1 ? C[0] : (sp == 1 ? L[0] : sampled);
         weights[size_t(sp)] =
             mis_weight(L.data(), sp, C.data(), tp, samp, sp > 0 ? seg[size_t(sp - 1)] : 1.f);
     }

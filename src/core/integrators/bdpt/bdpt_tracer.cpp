@@ -48,7 +48,8 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     for (int t = 1; t <= nc; ++t) {
         for (int s = 0; s <= nl; ++s) {
             int depth = s + t - 2;
-            if ((s == 1 && t == 1) || depth < 0 || depth > m_max_depth) continue;
+            if ((s == 1 && t == 1 && !m_direct_light_tracing) || depth < 0 || depth > m_max_depth)
+                continue;
             Vec2 pr;
             Spectrum lp = connect(ws.light.data(), s, ws.camera.data(), t, sampler, &pr, true, c);
             if (is_black(lp)) continue;
@@ -61,6 +62,14 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
         }
     }
     return L;
+}
+
+bool BdptTracer::direct_light_tracing(const PathVertex& x0) const {
+    if (!m_direct_light_tracing || !m_importance.connectable() || x0.infinite || x0.light_index < 0)
+        return false;
+    const Light& l = m_scene.light(size_t(x0.light_index));
+    Spectrum le;
+    return !l.is_delta() && l.le_toward(x0.p, Vec3(0.f, 0.f, 1.f), &le);
 }
 
 bool BdptTracer::start_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,

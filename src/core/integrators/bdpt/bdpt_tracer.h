@@ -13,7 +13,14 @@
 ///    stream) and We = 1 / (A A_lens cos^4), the raster position being where the ray
 ///    from the lens point through the vertex meets the plane of focus;
 ///  * otherwise: connect the two subpath ends by a shadow ray.
-/// (s, t) = (1, 1) is not used (lights seen directly come from (0, 2) with weight 1).
+/// (s, t) = (1, 1) -- a point on a light connected to the lens, the only strategy that
+/// finds a light too small for camera rays to hit (a sub-millimetre bulb seen directly)
+/// -- is on where enable_direct_light_tracing says so (the BDPT integrator; the
+/// Metropolis integrators leave depth 0 to their direct pass or to (0, 2) alone) and
+/// the light can give its radiance toward the lens (Light::le_toward: area, sphere,
+/// cylinder and mesh lights; not point or infinite lights, which camera rays cannot
+/// hit or which a point camera cannot connect to). Where it is off, lights seen
+/// directly come from (0, 2) with weight 1.
 /// An orthographic camera cannot be connected to: t = 1 is disabled and the camera
 /// vertex is treated as a Dirac vertex in the MIS weights, so the remaining strategies'
 /// weights still sum to 1. A lens camera vertex is not Dirac: its lens-position density
@@ -221,6 +228,12 @@ public:
                      PathVertex* sampled = nullptr) const;
 
     int max_depth() const { return m_max_depth; }
+    /// Turn the (1, 1) strategy on (li and the MIS weights of paths of depth 0); off by
+    /// default (file comment).
+    void enable_direct_light_tracing(bool on) { m_direct_light_tracing = on; }
+    /// Whether (1, 1) is a strategy for the depth-0 path ending at `x0`: on, a camera
+    /// one can connect to, and a finite, non-Dirac light that gives le_toward.
+    bool direct_light_tracing(const PathVertex& x0) const;
     /// The scene has motion blur (Scene::motion_blur() at construction): each sample
     /// draws a shutter time (see the random-number layout in the file comment).
     bool motion_blur() const { return m_motion_blur; }
@@ -295,6 +308,7 @@ private:
     float m_margin;
     int m_max_depth;
     bool m_motion_blur;
+    bool m_direct_light_tracing = false;
 };
 
 }  // namespace cmlt

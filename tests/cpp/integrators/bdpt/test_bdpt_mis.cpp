@@ -27,7 +27,12 @@ TEST(Bdpt, MisWeightsSumToOne) {
     // Scenes 3-5: light tracing (t = 1) through a thin lens; cut-out and
     // ior-1 pass-through surfaces crossed by subpaths and connections (their crossing
     // probabilities enter the densities); motion blur (one shutter time per sample).
-    for (int scene_kind = 0; scene_kind < 6; ++scene_kind) {
+    // Each scene twice: without and with the (1, 1) strategy (a light point connected to
+    // the lens, which then shares the depth-0 paths with (0, 2)).
+    int checked_11 = 0;
+    for (int run = 0; run < 12; ++run) {
+        const int scene_kind = run % 6;
+        const bool direct = run >= 6;
         Scene s;
         if (scene_kind == 0) cornell(s);
         else if (scene_kind == 1) sphere_light_box(s);
@@ -47,6 +52,7 @@ TEST(Bdpt, MisWeightsSumToOne) {
         }
         Camera cam(s.camera_desc(), 16, 16);
         BdptTracer tr(s, cam, 16, 16, 6);
+        tr.enable_direct_light_tracing(direct);
         BdptWorkspace ws;
         ws.camera.resize(8);
         ws.light.resize(7);
@@ -66,7 +72,7 @@ TEST(Bdpt, MisWeightsSumToOne) {
             sampler.start_stream(2);
             for (int t = 1; t <= nc; ++t)
                 for (int sl = 0; sl <= nl; ++sl) {
-                    if ((sl == 1 && t == 1) || sl + t < 2 || sl + t - 2 > 6) continue;
+                    if ((sl == 1 && t == 1 && !direct) || sl + t < 2 || sl + t - 2 > 6) continue;
                     if (sl == 0 && ws.camera[size_t(t - 1)].infinite) continue;
                     Vec2 pr;
                     PathVertex sampled;
@@ -87,6 +93,7 @@ TEST(Bdpt, MisWeightsSumToOne) {
                         << "scene " << scene_kind << " s " << sl << " t " << t;
                     ++checked;
                     checked_t1 += t == 1;
+                    checked_11 += sl == 1 && t == 1;
                 }
         }
         EXPECT_GT(checked, 200) << "scene " << scene_kind;
@@ -94,9 +101,13 @@ TEST(Bdpt, MisWeightsSumToOne) {
         EXPECT_GT(checked_t1, 20) << "scene " << scene_kind;
         // The walks did cross the pass-through surfaces with probability < 1.
         if (scene_kind == 4) EXPECT_GT(crossed, 20);
-        std::printf("scene %d: %d connections checked, %d of them t = 1, %d vertices after crossings\n",
-                    scene_kind, checked, checked_t1, crossed);
+        std::printf("scene %d%s: %d connections checked, %d of them t = 1, %d vertices after "
+                    "crossings\n", scene_kind, direct ? " with (1, 1)" : "", checked, checked_t1,
+                    crossed);
     }
+    // (1, 1) made paths (lights in view) and its weights were checked with (0, 2)'s.
+    EXPECT_GT(checked_11, 20);
+    std::printf("(1, 1): %d connections checked\n", checked_11);
 }
 
 namespace {
