@@ -6,7 +6,7 @@ numbers do not depend on the machine's load).
 
     .venv/bin/python tests/bench/flicker.py [--sequences a,b] [--seeds 4] [--res 48]
         [--frames SPEC] [--spp N] [--ref-spp N] [--chains 256] [--integrator cmlt]
-        [--configs independent,...] [--cvvdp] [--out bench_out/flicker]
+        [--configs independent,...] [--pixel-filter gaussian] [--cvvdp] [--out bench_out/flicker]
 
 Every configuration runs with ``--seeds`` shot seeds (1..N) and the table gives the
 mean over seeds and its standard error: one seed's relMSE is mostly that seed's luck
@@ -59,10 +59,14 @@ def config_dir(name: str) -> str:
     return name.replace(" + ", "_").replace(" ", "_")
 
 
-def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int):
-    """Per-frame references (F, H, W, 3), rendered once and cached in ``out``."""
+def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int,
+              pixel_filter=None):
+    """Per-frame references (F, H, W, 3), rendered once and cached in ``out``, with the
+    renders' pixel filter (None: the stage's)."""
     key = {"shot": os.path.abspath(shot), "frames": frames, "integrator": integrator,
            "res": list(res), "spp": int(spp)}
+    if pixel_filter:
+        key["pixel_filter"] = pixel_filter
     meta = os.path.join(out, "ref.json")
     if os.path.exists(meta):
         with open(meta) as fh:
@@ -70,7 +74,8 @@ def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int):
         if old.get("key") == key and all(os.path.exists(p) for p in old["written"]):
             return np.stack([load_image(p) for p in old["written"]])
     r = render_sequence(shot, frames, os.path.join(out, "r.####.exr"),
-                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp),
+                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
+                                      pixel_filter=pixel_filter),
                         progress=False, quiet=True)
     os.makedirs(out, exist_ok=True)
     with open(meta, "w") as fh:
@@ -206,6 +211,8 @@ def main(argv=None):
     ap.add_argument("--ref-integrator", default="bdpt",
                     help="per-frame references (bdpt: light through the door's slit is what "
                     "the path tracer finds slowly)")
+    ap.add_argument("--pixel-filter", default=None, dest="pixel_filter",
+                    help="every render's and reference's pixel filter (default: the stage's)")
     ap.add_argument("--cvvdp", action="store_true",
                     help="also ColorVideoVDP JOD against the references (cmlt.metrics.cvvdp; "
                     "needs the optional cvvdp package)")
@@ -230,7 +237,7 @@ def main(argv=None):
         frames = a.frames or frames
         shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
         refs = reference(shot, frames, os.path.join(a.out, seq, "ref"), a.ref_integrator,
-                         res, ref_spp)
+                         res, ref_spp, a.pixel_filter)
         flow = screen_flow(shot, frames, res)
         dseq = dump["sequences"].setdefault(seq, {"spp": spp, "ref_spp": ref_spp, "frames": frames,
                                                   "reference_mean": refs.mean(axis=(1, 2, 3)).tolist(),
@@ -239,8 +246,11 @@ def main(argv=None):
             per_seed = []
             for seed in range(1, a.seeds + 1):
                 out = os.path.join(a.out, seq, config_dir(name), f"seed{seed}")
+                kw = dict(CONFIGS[name])
+                if a.pixel_filter:
+                    kw["pixel_filter"] = a.pixel_filter
                 imgs, recs, dt = render_config(shot, frames, out, a.integrator, res, spp,
-                                               a.chains, seed, **CONFIGS[name])
+                                               a.chains, seed, **kw)
                 rep = flicker(imgs, refs)
                 tf_mc = motion_compensated_tf(imgs, refs, flow)
                 j = None
@@ -280,7 +290,8 @@ def main(argv=None):
     cmd = " ".join(["tests/bench/flicker.py"] + list(dump["argv"]))
     with open(os.path.join(a.out, "flicker.md"), "w") as fh:
         fh.write(f"`{cmd}` ({a.integrator}, {a.res}x{a.res}, {a.chains} "
-                 f"chains, seeds 1..{a.seeds}: mean ± standard error over seeds)\n\n"
+                 f"chains, pixel filter {a.pixel_filter or 'of the stage'}, "
+                 f"seeds 1..{a.seeds}: mean ± standard error over seeds)\n\n"
                  + table + "\n")
     with open(os.path.join(a.out, "flicker.json"), "w") as fh:
         json.dump(dump, fh, indent=1)

@@ -135,6 +135,8 @@ def main(argv=None) -> int:
                     help="time of each renderer's converged reference (cached)")
     ap.add_argument("--repeats", type=int, default=1, help="timed renders per integrator (median)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--pixel-filter", default="box", choices=("box", "gaussian"), dest="pixel_filter",
+                    help="every renderer's pixel filter (box: one pixel; gaussian: sigma 0.5 px)")
     ap.add_argument("--keep-specular", action="store_true",
                     help="leave cmlt's 4%% specular layer on opaque materials (peers stay Lambert)")
     ap.add_argument("--out", default="renders/bench/peers")
@@ -162,7 +164,7 @@ def main(argv=None) -> int:
     log_dir.mkdir(parents=True, exist_ok=True)
     first = shot_paths[shots[0]]
     probe_c = CmltRenderer(first, args.frame if args.frame is not None else _stage_start(first),
-                           (16, 16), True, args.threads)
+                           (16, 16), True, args.threads, args.pixel_filter)
     for r in renderers:
         if r == "cmlt":
             continue
@@ -188,7 +190,8 @@ def main(argv=None) -> int:
         print(f"\n== {shot} ({path}, frame {frame:g}, {w}x{h}, {args.seconds:g} s, "
               f"{args.threads} threads)", flush=True)
         rend: Dict[str, object] = {}
-        c = CmltRenderer(path, frame, (w, h), not args.keep_specular, args.threads)
+        c = CmltRenderer(path, frame, (w, h), not args.keep_specular, args.threads,
+                         args.pixel_filter)
         rend["cmlt"] = c
         ps = c.peer_scene
         conversions[shot] = {"triangles": ps.triangle_count(), "meshes": len(ps.meshes),

@@ -231,13 +231,17 @@ class CmltRenderer:
 
     name = "cmlt"
 
-    def __init__(self, shot_path: str, frame: float, res, lambert: bool, threads: int):
+    def __init__(self, shot_path: str, frame: float, res, lambert: bool, threads: int,
+                 pixel_filter: str = "box"):
         from .._version import __version__
         self.sf = ShotFrame(shot_path, frame, res, threads, lambert=lambert, peer_scene=True)
+        self.pixel_filter = pixel_filter
         self.core = self.sf.core
         self.version = __version__
         self.fs = self.sf.fs
         self.peer_scene = self.sf.peer_scene
+        if self.peer_scene is not None and self.peer_scene.camera is not None:
+            self.peer_scene.camera.pixel_filter = pixel_filter
         self.lambert_materials = self.sf.lambert_materials
         self.setup_s = self.sf.setup_s
         self.res = self.sf.resolution
@@ -245,7 +249,8 @@ class CmltRenderer:
 
     def render(self, integrator: str, budget: float, seed: int) -> dict:
         from .peers import MAX_DEPTH
-        spec = parse_integrator(f"{integrator}:max_depth={MAX_DEPTH}", self.core)
+        spec = parse_integrator(f"{integrator}:max_depth={MAX_DEPTH}:pixel_filter={self.pixel_filter}",
+                                self.core)
         c0 = time.process_time()
         run = self.sf.render(spec, seconds=budget, seed=seed)
         cpu = time.process_time() - c0

@@ -117,7 +117,15 @@ class LuxCoreRenderer:
         P("native.threads.count", int(self.threads))
         P("film.width", int(self.res[0]))
         P("film.height", int(self.res[1]))
-        P("film.filter.type", "NONE")
+        pf = self.ps.camera.pixel_filter
+        if pf == "gaussian":
+            P("film.filter.type", "GAUSSIAN")
+            P("film.filter.width", 1.5)
+            P("film.filter.gaussian.alpha", 2.0)
+        elif pf == "box":
+            P("film.filter.type", "NONE")
+        else:
+            raise ValueError(f"pixel filter {pf!r}: the peers know box and gaussian")
         P("film.imagepipelines.0.0.type", "TONEMAP_LINEAR")
         P("film.imagepipelines.0.0.scale", 1.0)
         P("film.outputs.0.type", "RGB")

@@ -66,6 +66,14 @@ class MitsubaRenderer:
         except TypeError:
             return T.look_at(origin=list(origin), target=list(target), up=list(up))
 
+    @staticmethod
+    def _rfilter(name: str) -> dict:
+        if name == "box":
+            return {"type": "box"}
+        if name == "gaussian":
+            return {"type": "gaussian", "stddev": 0.5}
+        raise ValueError(f"pixel filter {name!r}: the peers know box and gaussian")
+
     def _scene_dict(self, ps: PScene) -> dict:
         mi = self.mi
         c = ps.camera
@@ -74,7 +82,8 @@ class MitsubaRenderer:
                         "near_clip": c.near, "far_clip": c.far,
                         "to_world": self._look_at(c.origin, c.target, c.up),
                         "film": {"type": "hdrfilm", "width": c.width, "height": c.height,
-                                 "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+                                 "rfilter": self._rfilter(c.pixel_filter),
+                                 "pixel_format": "rgb"},
                         "sampler": {"type": "independent", "sample_count": 1}}}
         for i, m in enumerate(ps.meshes):
             mat = ps.materials[m.material]

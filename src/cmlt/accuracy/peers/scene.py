@@ -31,8 +31,11 @@ loaded :class:`cmlt.scene.FrameScene` is converted programmatically
   horizontal field of view 2 atan(horizontalAperture / (2 focalLength)), as cmlt's camera
   (its vertical extent follows the image aspect); Mitsuba ``fov_axis = x``; LuxCore gets an
   explicit screen window that also undoes its one-pixel vertical offset (see
-  LuxCoreRenderer._scene). Pixel filter: box of one pixel everywhere (Mitsuba ``box``,
-  LuxCore ``NONE``).
+  LuxCoreRenderer._scene). Pixel filter (``PCamera.pixel_filter``): ``box``, one pixel
+  everywhere (Mitsuba ``box``, LuxCore ``NONE``), or ``gaussian``, sigma 0.5 px in all three:
+  cmlt's (pbrt-v4's: radius 1.5, its value at the radius subtracted), Mitsuba's ``gaussian``
+  (``stddev`` 0.5, cut at 4 sigma = 2 px, not shifted), LuxCore's ``GAUSSIAN`` (width 1.5,
+  alpha 2 = 1 / (2 sigma^2), shifted like pbrt's).
 * path length: cmlt max_depth 64 scattering events = Mitsuba max_depth 65 (it counts the
   camera segment) = LuxCore depth 64; Russian roulette is each renderer's own.
 * colour: cmlt renders in ACEScg and converts the authored colours into it when it loads
@@ -121,6 +124,7 @@ class PCamera:
     height: int
     near: float
     far: float
+    pixel_filter: str = "box"                  # 'box' | 'gaussian' (module doc)
 
 
 @dataclass
@@ -149,6 +153,8 @@ class PScene:
         c = self.camera
         h.update(repr((c.origin.tolist(), c.target.tolist(), c.up.tolist(), c.hfov_deg,
                        c.width, c.height)).encode())
+        if c.pixel_filter != "box":
+            h.update(c.pixel_filter.encode())
         return h.hexdigest()[:12]
 
 
