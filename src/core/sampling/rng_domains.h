@@ -46,6 +46,7 @@ enum class RngStream : uint32_t {
     bdpt_camera = 16,      ///< PixelStreamSampler: BDPT's camera subpath
     bdpt_light = 17,       ///< PixelStreamSampler: BDPT's light subpath
     bdpt_connection = 18,  ///< PixelStreamSampler: BDPT's connections
+    lens_light = 19,       ///< LensLightTracing: the light sample of a direct-pass pixel sample
     test = 0xFFFF,         ///< tests' own numbers (tests/cpp)
 };
 

@@ -55,13 +55,6 @@ ALPHA = 1e-4
 BOUND = 1000.0
 MAX_CHAIN_SHARE = 0.05
 
-_BULB = ("the camera sees the 0.4 mm bulb directly (one pixel of ~385, a third of the image's "
-         "light): bdpt finds it with its (1, 1) strategy (a point on the bulb connected to the "
-         "lens), but the Metropolis direct pass is plain path tracing, whose camera rays hit it "
-         "about once in 50,000 samples of that pixel, so every render misses it (mean 0.49 "
-         "against 0.71) or, rarely, hits it with a weight of L/spp (an earlier version of the "
-         "stage, the bulb also in the mirror: 2 of 200 pssmlt seeds at 256 evaluations had one "
-         "pixel at 217,649 from the direct pass)")
 _BULB_PT = ("pt misses the bulb seen directly (camera rays hit it about once in 50,000 samples: "
             "mean 0.47 against 0.71) and the bulb's caustics that the mirror and the slab throw "
             "on the floor (a BSDF sample would have to hit the 0.4 mm bulb through them); the "
@@ -73,8 +66,6 @@ _GLINT = ("seed 7's bootstrap draws a path of the L S S D S E glint (the floor i
           "one pixel at 2,000: the image 2.3x too bright")
 #: (check, case, integrator) -> why it fails today; "*" matches every case / integrator
 XFAIL = {
-    ("mean", "bulb_room", "pssmlt"): _BULB,
-    ("mean", "bulb_room", "cmlt"): _BULB,
     ("outlier", "bulb_room", "pt"): _BULB_PT + "; pt seed 8 hits the bulb: mean 39.6",
     ("outlier", "caustic_lsdse", "pt"): (
         "pt samples the caustic only by BSDF-sampling the floor into the 2 cm light through "

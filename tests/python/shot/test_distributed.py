@@ -76,9 +76,19 @@ def _settings(integrator, **kw):
     return st
 
 
-@pytest.mark.parametrize("integrator", ["pssmlt", "cmlt"])
-def test01_mlt_parts_combine_to_the_whole_frame(integrator):
-    scene = SceneBridge(core).update(cornell_scene())
+def _with_bulb(fs):
+    """The frame with a 1 mm bulb in view (smaller than a pixel: the direct pass traces
+    it from the light side, and its splats cross the parts' row bands)."""
+    from cmlt.scene import Light
+    xf = np.eye(4)
+    xf[:3, 3] = (0.2, 1.2, -0.5)
+    fs.lights.append(Light("/bulb", "sphere", xf, radiance=(2e5, 2e5, 2e5), radius=1e-3))
+    return fs
+
+
+@pytest.mark.parametrize("integrator,bulb", [("pssmlt", False), ("cmlt", False), ("cmlt", True)])
+def test01_mlt_parts_combine_to_the_whole_frame(integrator, bulb):
+    scene = SceneBridge(core).update(_with_bulb(cornell_scene()) if bulb else cornell_scene())
     whole = core.render(scene, _settings(integrator))
     assert whole.mlt_part is None
     H = support.scenes.RES

@@ -19,8 +19,81 @@ uint64_t PtPass::evaluations() const {
     return uint64_t(m_passes) * uint64_t(m_settings.width) * uint64_t(m_settings.height);
 }
 
+void PtPass::enable_lens_light_tracing(const Scene& scene) {
+    auto lens = std::make_unique<LensLightTracing>(scene, m_camera, m_settings.width, m_settings.height,
+                                                   m_filter.margin());
+    if (!lens->active()) return;
+    m_lens = std::move(lens);
+    m_tracer.set_lens_light_tracing(m_lens.get());
+}
+
+void PtPass::render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters) {
+    const int W = m_settings.width, H = m_settings.height;
+    const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
+    const size_t n_pix = size_t(W) * size_t(H);
+    // light tracing reaches the film window; its importance is normalised over it
+    const double splat_scale = m_filter.window_area(W, H) / (double(W) * double(H));
+    std::vector<Spectrum> pass_L(n_pix);
+    std::vector<double> splat(3 * n_pix);
+    std::vector<std::vector<std::pair<Vec2, Spectrum>>> row_splats;
+    row_splats.resize(size_t(H));
+    for (int k = s0; k < s1; ++k) {
+        const uint32_t index = m_sample_base + uint32_t(k);
+        // the pixel samples of this part's rows, and the light samples of every pixel
+        // (a part's rows receive splats from the whole frame's samples)
+        parallel_tasks(arena, counters, size_t(H), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
+            PathCounters c;
+            for (size_t yy = r.begin(); yy != r.end(); ++yy) {
+                const int y = int(yy);
+                auto& out = row_splats[yy];
+                out.clear();
+                for (int x = 0; x < W; ++x) {
+                    const uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
+                    if (y >= y0 && y < y1) {
+                        float w = 1.f;
+                        const Spectrum L = m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed,
+                                                                 x, y, W, index, c, &w);
+                        pass_L[pixel] = L * w;
+                    }
+                    Vec2 pr;
+                    Spectrum v;
+                    const uint64_t shadow0 = c.shadow_rays;
+                    if (m_lens->sample(m_settings.seed, pixel, index, m_motion_blur, &pr, &v, &c.shadow_rays))
+                        out.emplace_back(pr, v);
+                    c.rays += c.shadow_rays - shadow0;
+                }
+            }
+            counters.add(c);
+        });
+        // splats in row order (deterministic sums) over the filter's footprint
+        std::fill(splat.begin(), splat.end(), 0.0);
+        for (const auto& list : row_splats)
+            for (const auto& sp : list)
+                m_filter.footprint(sp.first, W, H, [&](uint32_t pixel, double w) {
+                    double* d = &splat[3 * size_t(pixel)];
+                    w *= splat_scale;
+                    d[0] += double(sp.second.x) * w;
+                    d[1] += double(sp.second.y) * w;
+                    d[2] += double(sp.second.z) * w;
+                });
+        for (int y = y0; y < y1; ++y)
+            for (int x = 0; x < W; ++x) {
+                const size_t i = size_t(y) * size_t(W) + size_t(x);
+                const double* d = &splat[3 * i];
+                const Spectrum v(float(double(pass_L[i].x) + d[0]), float(double(pass_L[i].y) + d[1]),
+                                 float(double(pass_L[i].z) + d[2]));
+                m_film.add_sample(x, y, index, v, 1.f);
+            }
+    }
+}
+
 void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counters) {
     if (total <= m_passes) return;
+    if (m_lens) {
+        render_passes_with_lens(arena, m_passes, total, counters);
+        m_passes = total;
+        return;
+    }
     const int s0 = m_passes, s1 = total, W = m_settings.width;
     const int y0 = m_row0, y1 = m_row1 < 0 ? m_settings.height : m_row1;
     parallel_tasks(arena, counters, std::max(0, y1 - y0), 2, [&](const tbb::blocked_range<int>& r) {
@@ -65,6 +138,7 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
     : PtPass(scene, s, k_direct_sample_base, std::min(1, s.max_depth)), m_enabled(s.direct_fraction > 0.0) {
     if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
+    if (m_enabled) enable_lens_light_tracing(scene);
 }
 
 int DirectPass::passes_for(uint64_t chain_evaluations) const {

@@ -14,6 +14,7 @@
 #include "film/film.h"
 #include "film/filter.h"
 #include "integrators/common/frame_loop.h"
+#include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng_domains.h"
 
@@ -21,6 +22,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace cmlt {
@@ -57,12 +59,23 @@ public:
     }
 
 protected:
+    /// Trace the scene's sub-pixel lights from the light side too (BDPT's (1, 1)
+    /// strategy, path/lens_light_tracing.h): a light sample per pixel sample, splatted,
+    /// and the camera's hits on those lights MIS-weighted against it. Nothing changes
+    /// when the scene has no such light.
+    void enable_lens_light_tracing(const Scene& scene);
+
     const RenderSettings& m_settings;
 
 private:
+    /// render_to with lens light tracing: pass by pass, each pass's splats added to its
+    /// pixel samples (as the bdpt integrator does), so the variance sees them.
+    void render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters);
+
     Camera m_camera;
     PixelFilter m_filter;
     PathTracer m_tracer;
+    std::unique_ptr<LensLightTracing> m_lens;
     bool m_motion_blur;
     Film m_film;
     uint32_t m_sample_base;

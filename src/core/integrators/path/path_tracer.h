@@ -44,6 +44,7 @@ namespace cmlt {
 
 class Bsdf;
 class Camera;
+class LensLightTracing;
 class PixelFilter;
 class Scene;
 struct HitGeometry;
@@ -98,6 +99,11 @@ public:
     Spectrum li(const Ray& camera_ray, Sampler& sampler, PathCounters& counters,
                 const SceneHit* first_hit = nullptr) const;
 
+    /// Camera hits at depth 0 on the lights `lens` traces share those paths with its
+    /// (1, 1) light samples: their emission gets its MIS weight (the Metropolis direct
+    /// pass; lens_light_tracing.h). Null (the default): weight 1.
+    void set_lens_light_tracing(const LensLightTracing* lens) { m_lens_light = lens; }
+
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
     void begin(PathState& st, const Ray& camera_ray, PathCounters& counters) const;
     /// Take `hit`, the answer to st.ray (counted as a ray): add what it sees, and leave
@@ -139,6 +145,7 @@ private:
     const Scene& m_scene;
     int m_max_depth;
     int m_min_depth;
+    const LensLightTracing* m_lens_light = nullptr;
 };
 
 extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,

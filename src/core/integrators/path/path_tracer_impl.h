@@ -2,6 +2,7 @@
 /// \file The definition of PathTracer::li, generic over the random source (see
 /// path_tracer.h). Included by path_tracer.cpp (instantiated for PixelSampler) and by
 /// integrators that drive the same sampling routine with their own sampler (mlt/).
+#include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_tracer.h"
 
 #include "materials/bsdf.h"
@@ -39,6 +40,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
 inline void PathTracer::begin(PathState& st, const Ray& camera_ray, PathCounters& c) const {
     st = PathState();
     st.ray = camera_ray;
+    st.prev_p = camera_ray.o;  // the lens point until the first scattering
     c.samples += 1;
     c.camera_rays += 1;
 }
@@ -81,7 +83,12 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     if (hit.kind == SceneHit::Kind::light) {
         float pl = direct ? 0.f
                           : scene.light_pmf(hit.light_index) * scene.light(hit.light_index).pdf_li(st.prev_p, ray.d);
-        add_emitted(hit.le, pl);
+        if (m_lens_light && st.depth == 0) {
+            // shared with the (1, 1) light samples (prev_p: the lens point)
+            add_emitted(hit.le * m_lens_light->camera_hit_weight(st.prev_p, ray.o + ray.d * hit.t, hit.light_index), pl);
+        } else {
+            add_emitted(hit.le, pl);
+        }
         st.done = true;  // analytic lights do not reflect
         return;
     }

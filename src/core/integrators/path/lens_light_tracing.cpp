@@ -1,0 +1,120 @@
+// BDPT's (1, 1) strategy for path-traced passes; see lens_light_tracing.h.
+#include "integrators/path/lens_light_tracing.h"
+
+#include "lights/light.h"
+#include "math/frame.h"
+#include "sampling/rng.h"
+#include "sampling/rng_domains.h"
+#include "scene/interaction.h"
+#include "scene/scene.h"
+
+#include <cmath>
+
+namespace cmlt {
+
+LensLightTracing::LensLightTracing(const Scene& scene, const Camera& camera, int width, int height,
+                                   float margin)
+    : m_scene(scene), m_importance(camera, width, height, margin), m_slot(scene.light_count(), -1) {
+    if (!m_importance.connectable()) return;
+    const Vec3 eye = m_importance.sample_lens(Vec2(0.5f, 0.5f));
+    std::vector<double> power;
+    for (size_t i = 0; i < scene.light_count(); ++i) {
+        const Light& l = scene.light(i);
+        Vec3 c;
+        float r = 0.f;
+        Spectrum le;
+        if (l.is_delta() || l.is_infinite() || !l.bounding_sphere(&c, &r) || !l.le_toward(c, Vec3(0.f, 0.f, 1.f), &le))
+            continue;
+        const Vec3 d = c - eye;
+        const float dist = length(d);
+        if (!(dist > r) || !std::isfinite(dist)) continue;
+        // its size on the film: the centre's raster position and a point r off it,
+        // across the line of sight
+        const Vec3 q = c + Frame(d / dist).s * r;
+        Vec2 pc, pq;
+        if (!camera.lens_ray_to_raster(eye, d / dist, &pc) || !camera.lens_ray_to_raster(eye, normalize(q - eye), &pq))
+            continue;
+        if (pc.x < -margin || pc.y < -margin || pc.x > float(width) + margin || pc.y > float(height) + margin)
+            continue;
+        const float dx = pq.x - pc.x, dy = pq.y - pc.y;
+        if (!(2.f * std::sqrt(dx * dx + dy * dy) < k_max_pixels)) continue;
+        m_slot[i] = int32_t(m_lights.size());
+        m_lights.push_back(uint32_t(i));
+        power.push_back(std::max(double(l.power()), 0.0));
+    }
+    if (!m_lights.empty()) m_dist = DiscreteDistribution(power);
+}
+
+void LensLightTracing::densities(const Vec3& p_lens, const Vec3& p, uint32_t slot, float* p_cam,
+                                 float* p_light) const {
+    *p_cam = *p_light = 0.f;
+    const Light& l = m_scene.light(m_lights[slot]);
+    Vec3 w = p - p_lens;
+    const float d2 = length_squared(w);
+    if (!(d2 > 0.f)) return;
+    w = w / std::sqrt(d2);
+    const Vec3 n = l.emitter_normal(p);
+    *p_cam = m_importance.pdf_dir(p_lens, w) * std::fabs(dot(n, w)) / d2;
+    float pdf_pos = 0.f, pdf_dir = 0.f;
+    l.pdf_le(p, -w, &pdf_pos, &pdf_dir);
+    *p_light = m_dist.pmf(slot) * pdf_pos;
+}
+
+float LensLightTracing::camera_hit_weight(const Vec3& p_lens, const Vec3& p, uint32_t light_index) const {
+    const int32_t slot = light_index < m_slot.size() ? m_slot[light_index] : -1;
+    if (slot < 0) return 1.f;
+    float pc, pl;
+    densities(p_lens, p, uint32_t(slot), &pc, &pl);
+    const double c2 = double(pc) * double(pc), l2 = double(pl) * double(pl);
+    const double w = c2 + l2 > 0.0 ? c2 / (c2 + l2) : 1.0;
+    return std::isfinite(w) ? float(w) : 1.f;
+}
+
+bool LensLightTracing::sample(uint64_t seed, uint32_t pixel, uint32_t index, bool motion_blur,
+                              Vec2* p_raster, Spectrum* value, uint64_t* shadow_rays) const {
+    if (m_lights.empty()) return false;
+    const Philox4x32Key key = seed_key(seed);
+    const Philox4x32Counter a = philox4x32(pixel_counter(pixel, index, 0, RngStream::lens_light), key);
+    const Philox4x32Counter b = philox4x32(pixel_counter(pixel, index, 1, RngStream::lens_light), key);
+    float pmf = 0.f;
+    const size_t slot = m_dist.sample(uint_to_unit_float(a[0]), &pmf);
+    const Light& l = m_scene.light(m_lights[slot]);
+    // the point (sample_le's direction is not used: the lens gives it)
+    const LightLeSample les = l.sample_le(Vec2(uint_to_unit_float(a[1]), uint_to_unit_float(a[2])),
+                                          Vec2(0.5f, 0.5f));
+    if (!(les.pdf_pos > 0.f) || !(pmf > 0.f)) return false;
+    const Vec3 p_lens = m_importance.sample_lens(m_importance.has_lens()
+                                                     ? Vec2(uint_to_unit_float(b[0]), uint_to_unit_float(b[1]))
+                                                     : Vec2(0.f, 0.f));
+    Vec3 w = p_lens - les.p;  // toward the lens
+    const float d2 = length_squared(w);
+    if (!(d2 > 0.f)) return false;
+    w = w / std::sqrt(d2);
+    Spectrum le;
+    l.le_toward(les.p, w, &le);
+    if (is_black(le)) return false;
+    Vec2 pr;
+    const float we = m_importance.we(p_lens, -w, &pr);
+    if (!(we > 0.f)) return false;
+    const float cos_cam = m_importance.cos_axis(-w);
+    const float cos_l = std::fabs(dot(les.n, w));
+    float pc, pl;
+    densities(p_lens, les.p, uint32_t(slot), &pc, &pl);
+    const double c2 = double(pc) * double(pc), l2 = double(pl) * double(pl);
+    const float mis = c2 + l2 > 0.0 ? float(l2 / (c2 + l2)) : 0.f;
+    const Spectrum v = le * (cos_l * we * cos_cam * mis / (pmf * les.pdf_pos * d2 * m_importance.pdf_lens()));
+    if (is_black(v) || !is_finite(v)) return false;
+    // visibility: the segment lens - light point (analytic lights are not in the BVH and
+    // do not block it); pass-through surfaces on the way are crossed with their weight
+    Ray ray(p_lens, les.p - p_lens, 0.f, 1.f - k_shadow_epsilon);
+    ray.time = motion_blur ? uint_to_unit_float(a[3]) : 0.f;
+    *shadow_rays += 1;
+    float pass_pdf = 1.f;
+    const float tr = m_scene.transmittance(ray, &pass_pdf);
+    if (!(tr > 0.f)) return false;
+    *value = v * tr;
+    *p_raster = pr;
+    return true;
+}
+
+}  // namespace cmlt

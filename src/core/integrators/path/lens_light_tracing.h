@@ -1,0 +1,73 @@
+#pragma once
+/// \file BDPT's (1, 1) strategy for a path-traced pass: a point sampled on a light,
+/// connected to the lens and splatted where it lands, MIS-weighted against the camera
+/// rays that hit the same light. The Metropolis direct pass (mlt/direct_pass.h) uses it
+/// for lights smaller than a pixel, which its camera rays almost never hit: a 0.4 mm
+/// bulb seen directly covers 2e-5 of its pixel, so a render either misses a third of
+/// the image or, once in ~50,000 samples, hits it with a weight of L/spp
+/// (sequences/hard/bulb_room).
+///
+/// Which lights: the analytic lights (sphere, rect, disk, cylinder) whose bounding
+/// sphere projects to less than a pixel across (`k_max_pixels`), centre inside the
+/// film window. Only they take part, sampled by power among themselves; every other
+/// light's camera hits keep weight 1, and a scene with none renders exactly as without
+/// this class (active() false).
+///
+/// Weights (power heuristic over the two strategies of a depth-0 path from lens point
+/// p_lens to light point x with normal n): p_cam = the camera's solid-angle density of
+/// the direction (CameraImportance::pdf_dir) · |cos_x| / d², p_light = the light's pmf
+/// among the traced lights · its area density at x; camera hit w = p_cam² / (p_cam² +
+/// p_light²), light sample 1 - w. Both sides compute the same function of the path, so
+/// the weights sum to 1 whatever the film sampling (the camera density is the whole
+/// window's, as in BDPT, where one light sample per pixel sample makes it the right
+/// ratio).
+///
+/// One light sample per pixel sample, keyed (seed, pixel, sample index) in its own
+/// stream (RngStream::lens_light): a splat of value Le(x → lens) |cos_x| We cos_cam /
+/// (pmf pdf_pos d² pdf_lens) · w, which over the W·H samples of a pass estimates the
+/// image's (1, 1) share (times window / image area, as bdpt's splats).
+#include "cameras/camera.h"
+#include "integrators/bdpt/camera_importance.h"
+#include "math/vec.h"
+#include "sampling/discrete_distribution.h"
+
+#include <cstdint>
+#include <vector>
+
+namespace cmlt {
+
+class Scene;
+
+class LensLightTracing {
+public:
+    /// A light is traced when its bounding sphere is less than this many pixels across.
+    static constexpr float k_max_pixels = 1.f;
+
+    /// `margin`: the film window's (PixelFilter::margin).
+    LensLightTracing(const Scene& scene, const Camera& camera, int width, int height, float margin);
+    /// Some light is traced.
+    bool active() const { return !m_lights.empty(); }
+    /// Lights traced (indices into Scene::light).
+    const std::vector<uint32_t>& lights() const { return m_lights; }
+
+    /// MIS weight of a camera ray from `p_lens` that hits light `light_index` at `p`
+    /// (1 for a light not traced).
+    float camera_hit_weight(const Vec3& p_lens, const Vec3& p, uint32_t light_index) const;
+
+    /// The light sample keyed (seed, pixel, sample): false if it makes no contribution,
+    /// else its weighted value and raster position. `shadow_rays` counts the connection.
+    bool sample(uint64_t seed, uint32_t pixel, uint32_t sample, bool motion_blur, Vec2* p_raster,
+                Spectrum* value, uint64_t* shadow_rays) const;
+
+private:
+    /// p_cam and p_light of the path (p_lens, p on light `slot`).
+    void densities(const Vec3& p_lens, const Vec3& p, uint32_t slot, float* p_cam, float* p_light) const;
+
+    const Scene& m_scene;
+    CameraImportance m_importance;
+    std::vector<uint32_t> m_lights;  ///< traced lights
+    std::vector<int32_t> m_slot;     ///< Scene light index -> index into m_lights, or -1
+    DiscreteDistribution m_dist;     ///< over m_lights, by power
+};
+
+}  // namespace cmlt
