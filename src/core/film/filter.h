@@ -113,6 +113,19 @@ public:
         }
     }
 
+    /// Add a light-tracing splat of value `L` at film position `p` to the W x H x 3
+    /// double image `img` over footprint(), each weight times `scale` (the bdpt
+    /// integrator's and the Metropolis direct pass's (1, 1) splats).
+    void splat(const Vec2& p, const Vec3& L, double scale, int width, int height, double* img) const {
+        footprint(p, width, height, [&](uint32_t pixel, double w) {
+            double* d = &img[3 * size_t(pixel)];
+            w *= scale;
+            d[0] += double(L.x) * w;
+            d[1] += double(L.y) * w;
+            d[2] += double(L.z) * w;
+        });
+    }
+
 private:
     double profile(double x) const;  ///< unnormalised g(x), |x| <= r
     /// Pixels [*first, *first + *n) of an axis of `size` pixels around coordinate p, with

@@ -5,6 +5,7 @@
 #include "film/filter.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/common/frame_loop.h"
+#include "integrators/path/lens_light_tracing.h"
 #include "scene/scene.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -25,7 +26,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     // light tracing reaches the film window (the image and the filter's margin), its
     // importance normalised over the window: splats scaled by window / image area
     BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
-    tracer.enable_direct_light_tracing(true);
+    tracer.set_direct_light_tracing(LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin()));
     const double splat_scale = filter.window_area(W, H) / (double(W) * double(H));
     const std::vector<Tile> tiles = image_tiles(W, H);
     const int threads = frame_threads(settings);
@@ -83,14 +84,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const auto merge_splats = [&] {
         std::fill(splat_img.begin(), splat_img.end(), 0.0);
         for (const auto& list : tile_splats)
-            for (const BdptSplat& sp : list)
-                filter.footprint(sp.p_raster, W, H, [&](uint32_t pixel, double w) {
-                    double* d = &splat_img[3 * size_t(pixel)];
-                    w *= splat_scale;
-                    d[0] += double(sp.L.x) * w;
-                    d[1] += double(sp.L.y) * w;
-                    d[2] += double(sp.L.z) * w;
-                });
+            for (const BdptSplat& sp : list) filter.splat(sp.p_raster, sp.L, splat_scale, W, H, splat_img.data());
     };
     // One film sample per pixel: pass estimate + its splats.
     const auto add_pass = [&](int pass) {

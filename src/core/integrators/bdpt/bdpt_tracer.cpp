@@ -48,8 +48,7 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     for (int t = 1; t <= nc; ++t) {
         for (int s = 0; s <= nl; ++s) {
             int depth = s + t - 2;
-            if ((s == 1 && t == 1 && !m_direct_light_tracing) || depth < 0 || depth > m_max_depth)
-                continue;
+            if ((s == 1 && t == 1 && m_direct_light.empty()) || depth < 0 || depth > m_max_depth) continue;
             Vec2 pr;
             Spectrum lp = connect(ws.light.data(), s, ws.camera.data(), t, sampler, &pr, true, c);
             if (is_black(lp)) continue;
@@ -64,8 +63,18 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     return L;
 }
 
+void BdptTracer::set_direct_light_tracing(const std::vector<uint32_t>& lights) {
+    m_direct_light.clear();
+    if (lights.empty()) return;
+    m_direct_light.assign(m_scene.light_count(), 0);
+    for (uint32_t i : lights)
+        if (i < m_direct_light.size()) m_direct_light[i] = 1;
+}
+
 bool BdptTracer::direct_light_tracing(const PathVertex& x0) const {
-    if (!m_direct_light_tracing || !m_importance.connectable() || x0.infinite || x0.light_index < 0)
+    if (m_direct_light.empty() || x0.infinite || x0.light_index < 0 ||
+        size_t(x0.light_index) >= m_direct_light.size() || !m_direct_light[size_t(x0.light_index)] ||
+        !m_importance.connectable())
         return false;
     const Light& l = m_scene.light(size_t(x0.light_index));
     Spectrum le;

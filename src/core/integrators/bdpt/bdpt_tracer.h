@@ -15,11 +15,13 @@
 ///  * otherwise: connect the two subpath ends by a shadow ray.
 /// (s, t) = (1, 1) -- a point on a light connected to the lens, the only strategy that
 /// finds a light too small for camera rays to hit (a sub-millimetre bulb seen directly)
-/// -- is on where enable_direct_light_tracing says so (the BDPT integrator; the
-/// Metropolis integrators leave depth 0 to their direct pass or to (0, 2) alone) and
-/// the light can give its radiance toward the lens (Light::le_toward: area, sphere,
-/// cylinder and mesh lights; not point or infinite lights, which camera rays cannot
-/// hit or which a point camera cannot connect to). Where it is off, lights seen
+/// -- is on for the lights set_direct_light_tracing names (the bdpt integrator: the
+/// lights under a pixel across, LensLightTracing::sub_pixel_lights; for a light camera
+/// rays hit easily it would add a connection and a splat per sample for little; the
+/// Metropolis integrators leave depth 0 to their direct pass or to (0, 2) alone) that
+/// can give their radiance toward the lens (Light::le_toward: area, sphere, cylinder
+/// and mesh lights; not point or infinite lights, which camera rays cannot hit or
+/// which a point camera cannot connect to). For every other light, lights seen
 /// directly come from (0, 2) with weight 1.
 /// An orthographic camera cannot be connected to: t = 1 is disabled and the camera
 /// vertex is treated as a Dirac vertex in the MIS weights, so the remaining strategies'
@@ -228,11 +230,12 @@ public:
                      PathVertex* sampled = nullptr) const;
 
     int max_depth() const { return m_max_depth; }
-    /// Turn the (1, 1) strategy on (li and the MIS weights of paths of depth 0); off by
-    /// default (file comment).
-    void enable_direct_light_tracing(bool on) { m_direct_light_tracing = on; }
-    /// Whether (1, 1) is a strategy for the depth-0 path ending at `x0`: on, a camera
-    /// one can connect to, and a finite, non-Dirac light that gives le_toward.
+    /// Turn the (1, 1) strategy on for these lights (indices into Scene::light; li and
+    /// the MIS weights of paths of depth 0); none by default (file comment).
+    void set_direct_light_tracing(const std::vector<uint32_t>& lights);
+    /// Whether (1, 1) is a strategy for the depth-0 path ending at `x0`: its light is
+    /// on, the camera one can connect to, and the light finite, not Dirac and giving
+    /// le_toward.
     bool direct_light_tracing(const PathVertex& x0) const;
     /// The scene has motion blur (Scene::motion_blur() at construction): each sample
     /// draws a shutter time (see the random-number layout in the file comment).
@@ -308,7 +311,7 @@ private:
     float m_margin;
     int m_max_depth;
     bool m_motion_blur;
-    bool m_direct_light_tracing = false;
+    std::vector<uint8_t> m_direct_light;  ///< per light: (1, 1) on; empty: on for none
 };
 
 }  // namespace cmlt

@@ -68,14 +68,7 @@ void PtPass::render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, Fra
         // splats in row order (deterministic sums) over the filter's footprint
         std::fill(splat.begin(), splat.end(), 0.0);
         for (const auto& list : row_splats)
-            for (const auto& sp : list)
-                m_filter.footprint(sp.first, W, H, [&](uint32_t pixel, double w) {
-                    double* d = &splat[3 * size_t(pixel)];
-                    w *= splat_scale;
-                    d[0] += double(sp.second.x) * w;
-                    d[1] += double(sp.second.y) * w;
-                    d[2] += double(sp.second.z) * w;
-                });
+            for (const auto& sp : list) m_filter.splat(sp.first, sp.second, splat_scale, W, H, splat.data());
         for (int y = y0; y < y1; ++y)
             for (int x = 0; x < W; ++x) {
                 const size_t i = size_t(y) * size_t(W) + size_t(x);

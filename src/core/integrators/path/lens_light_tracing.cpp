@@ -12,12 +12,12 @@
 
 namespace cmlt {
 
-LensLightTracing::LensLightTracing(const Scene& scene, const Camera& camera, int width, int height,
-                                   float margin)
-    : m_scene(scene), m_importance(camera, width, height, margin), m_slot(scene.light_count(), -1) {
-    if (!m_importance.connectable()) return;
-    const Vec3 eye = m_importance.sample_lens(Vec2(0.5f, 0.5f));
-    std::vector<double> power;
+std::vector<uint32_t> LensLightTracing::sub_pixel_lights(const Scene& scene, const Camera& camera, int width,
+                                                        int height, float margin) {
+    std::vector<uint32_t> out;
+    const CameraImportance importance(camera, width, height, margin);
+    if (!importance.connectable()) return out;
+    const Vec3 eye = importance.sample_lens(Vec2(0.5f, 0.5f));
     for (size_t i = 0; i < scene.light_count(); ++i) {
         const Light& l = scene.light(i);
         Vec3 c;
@@ -38,9 +38,19 @@ LensLightTracing::LensLightTracing(const Scene& scene, const Camera& camera, int
             continue;
         const float dx = pq.x - pc.x, dy = pq.y - pc.y;
         if (!(2.f * std::sqrt(dx * dx + dy * dy) < k_max_pixels)) continue;
-        m_slot[i] = int32_t(m_lights.size());
-        m_lights.push_back(uint32_t(i));
-        power.push_back(std::max(double(l.power()), 0.0));
+        out.push_back(uint32_t(i));
+    }
+    return out;
+}
+
+LensLightTracing::LensLightTracing(const Scene& scene, const Camera& camera, int width, int height,
+                                   float margin)
+    : m_scene(scene), m_importance(camera, width, height, margin),
+      m_lights(sub_pixel_lights(scene, camera, width, height, margin)), m_slot(scene.light_count(), -1) {
+    std::vector<double> power;
+    for (size_t k = 0; k < m_lights.size(); ++k) {
+        m_slot[m_lights[k]] = int32_t(k);
+        power.push_back(std::max(double(scene.light(m_lights[k]).power()), 0.0));
     }
     if (!m_lights.empty()) m_dist = DiscreteDistribution(power);
 }

@@ -45,6 +45,11 @@ public:
 
     /// `margin`: the film window's (PixelFilter::margin).
     LensLightTracing(const Scene& scene, const Camera& camera, int width, int height, float margin);
+    /// The lights traced (file comment): analytic, not Dirac, bounding sphere less than
+    /// k_max_pixels across on the film, centre inside the window. Also the lights of
+    /// the bdpt integrator's (1, 1) strategy.
+    static std::vector<uint32_t> sub_pixel_lights(const Scene& scene, const Camera& camera, int width,
+                                                  int height, float margin);
     /// Some light is traced.
     bool active() const { return !m_lights.empty(); }
     /// Lights traced (indices into Scene::light).

@@ -52,7 +52,9 @@ TEST(Bdpt, MisWeightsSumToOne) {
         }
         Camera cam(s.camera_desc(), 16, 16);
         BdptTracer tr(s, cam, 16, 16, 6);
-        tr.enable_direct_light_tracing(direct);
+        std::vector<uint32_t> every_light;
+        for (uint32_t li = 0; li < uint32_t(s.light_count()); ++li) every_light.push_back(li);
+        if (direct) tr.set_direct_light_tracing(every_light);
         BdptWorkspace ws;
         ws.camera.resize(8);
         ws.light.resize(7);
