@@ -449,50 +449,51 @@ inline void occluded_n(RTCScene scene, const Ray* rays, const uint32_t* lanes, s
     for (size_t i = 0; i < k; ++i) occluded[lanes[i]] = p.tfar[i] < 0.f;
 }
 
-}  // namespace
-
-size_t Accel::intersect_lanes(const Ray* rays, const uint32_t* lanes, size_t n, Hit* hits, int max_width,
-                              size_t min_lanes) const {
+/// Lanes [0, n) in packets of the widths packet_width picks (at most max_width; one at a
+/// time below 4 or when fewer than min_lanes are left): one(i) traces lane i alone,
+/// packet(width, i, k) the k lanes from i (timed as trace). Returns the packets traced.
+template <class One, class Packet>
+size_t split_packets(size_t n, int max_width, size_t min_lanes, One&& one, Packet&& packet) {
     size_t packets = 0;
     for (size_t p = 0; p < n;) {
         const size_t left = n - p;
         const int width = max_width >= 4 ? packet_width(left, max_width) : 1;
         const size_t k = std::min(left, size_t(width));
         if (width == 1 || k < min_lanes) {
-            hits[lanes[p]] = intersect(rays[lanes[p]]);
+            one(p);
             ++p;
             continue;
         }
         const TraceScope timer;
-        if (width == 4) intersect_n<4, RTCRayHit4>(m_impl->top, rays, lanes + p, k, hits);
-        else if (width == 8) intersect_n<8, RTCRayHit8>(m_impl->top, rays, lanes + p, k, hits);
-        else intersect_n<16, RTCRayHit16>(m_impl->top, rays, lanes + p, k, hits);
+        packet(width, p, k);
         ++packets;
         p += k;
     }
     return packets;
 }
 
+}  // namespace
+
+size_t Accel::intersect_lanes(const Ray* rays, const uint32_t* lanes, size_t n, Hit* hits, int max_width,
+                              size_t min_lanes) const {
+    return split_packets(
+        n, max_width, min_lanes, [&](size_t p) { hits[lanes[p]] = intersect(rays[lanes[p]]); },
+        [&](int width, size_t p, size_t k) {
+            if (width == 4) intersect_n<4, RTCRayHit4>(m_impl->top, rays, lanes + p, k, hits);
+            else if (width == 8) intersect_n<8, RTCRayHit8>(m_impl->top, rays, lanes + p, k, hits);
+            else intersect_n<16, RTCRayHit16>(m_impl->top, rays, lanes + p, k, hits);
+        });
+}
+
 size_t Accel::occluded_lanes(const Ray* rays, const uint32_t* lanes, size_t n, uint8_t* occluded, int max_width,
                              size_t min_lanes) const {
-    size_t packets = 0;
-    for (size_t p = 0; p < n;) {
-        const size_t left = n - p;
-        const int width = max_width >= 4 ? packet_width(left, max_width) : 1;
-        const size_t k = std::min(left, size_t(width));
-        if (width == 1 || k < min_lanes) {
-            occluded[lanes[p]] = this->occluded(rays[lanes[p]]);
-            ++p;
-            continue;
-        }
-        const TraceScope timer;
-        if (width == 4) occluded_n<4, RTCRay4>(m_impl->top, rays, lanes + p, k, occluded);
-        else if (width == 8) occluded_n<8, RTCRay8>(m_impl->top, rays, lanes + p, k, occluded);
-        else occluded_n<16, RTCRay16>(m_impl->top, rays, lanes + p, k, occluded);
-        ++packets;
-        p += k;
-    }
-    return packets;
+    return split_packets(
+        n, max_width, min_lanes, [&](size_t p) { occluded[lanes[p]] = this->occluded(rays[lanes[p]]); },
+        [&](int width, size_t p, size_t k) {
+            if (width == 4) occluded_n<4, RTCRay4>(m_impl->top, rays, lanes + p, k, occluded);
+            else if (width == 8) occluded_n<8, RTCRay8>(m_impl->top, rays, lanes + p, k, occluded);
+            else occluded_n<16, RTCRay16>(m_impl->top, rays, lanes + p, k, occluded);
+        });
 }
 
 int Accel::max_packet_width() {
