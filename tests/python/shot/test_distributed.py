@@ -91,6 +91,7 @@ def test01_mlt_parts_combine_to_the_whole_frame(integrator, bulb):
     scene = SceneBridge(core).update(_with_bulb(cornell_scene()) if bulb else cornell_scene())
     whole = core.render(scene, _settings(integrator))
     assert whole.mlt_part is None
+    assert whole.stats.get("lens_lights", 0) == (1 if bulb else 0)  # the bulb is traced
     H = support.scenes.RES
     splits = [((0, 5), (0, 3)), ((5, 30), (3, 20)), ((30, 48), (20, H))]  # uneven
     parts, direct = [], np.zeros((H, H, 3), np.float32)

@@ -26,7 +26,8 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     // light tracing reaches the film window (the image and the filter's margin), its
     // importance normalised over the window: splats scaled by window / image area
     BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
-    tracer.set_direct_light_tracing(LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin()));
+    const std::vector<uint32_t> lens_lights = LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin());
+    tracer.set_direct_light_tracing(lens_lights);
     const double splat_scale = filter.window_area(W, H) / (double(W) * double(H));
     const std::vector<Tile> tiles = image_tiles(W, H);
     const int threads = frame_threads(settings);
@@ -113,6 +114,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
 
     RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
     res.stats.splats = counters.splats.load();
+    res.stats.lens_lights = uint32_t(lens_lights.size());
     res.stats.nan_samples += counters.bad_splats.load();
     return res;
 }

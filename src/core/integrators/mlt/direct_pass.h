@@ -45,6 +45,8 @@ public:
     PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth);
 
     int passes() const { return m_passes; }
+    /// Lights traced from the light side (enable_lens_light_tracing; 0 without).
+    uint32_t lens_lights() const { return m_lens ? uint32_t(m_lens->lights().size()) : 0u; }
     /// Path evaluations so far (passes · W·H).
     uint64_t evaluations() const;
     /// Render passes up to `total` (no-op if already there), rays into `counters`.

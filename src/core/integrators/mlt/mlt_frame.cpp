@@ -147,6 +147,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.importance = settings.importance;
     m.pilot_evaluations = budget.pilot;
     m.direct_evaluations = direct_pass.evaluations();
+    st.lens_lights = direct_pass.lens_lights();
     m.min_depth = MltContext::min_depth(settings);
     m.time_budget = settings.time_budget;
     m.chains = chains.chains;
