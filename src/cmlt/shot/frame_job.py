@@ -104,8 +104,17 @@ def render_interruptible(core, scene, st, reporter: Reporter, on_estimate=None):
             finished.set()
 
     worker = threading.Thread(target=work, name="cmlt-render", daemon=True)
-    worker.start()
     interrupted = False
+    try:
+        worker.start()
+    except KeyboardInterrupt:
+        # Ctrl-C inside start(): the thread may be running already. It must never be
+        # left rendering while the process exits (the core's threads would meet its
+        # static destructors: "terminate called"), so cancel it and wait below.
+        interrupted = True
+        cancel.set()
+        if worker.ident is None:        # it never started
+            raise
     # Wait on an Event, not Thread.join: an interrupted join can leave the
     # thread looking finished while it still runs.
     while not finished.is_set():
