@@ -301,19 +301,24 @@ void read_packet(const RayHitN& p, const int* mask, Hit* hits) {
     }
 }
 
+/// Lane i of an Embree ray packet from `r` (every ray mask bit, id i, no flags).
+template <typename RayN>
+inline void set_ray_lane(RayN& p, int i, const Ray& r) {
+    p.org_x[i] = r.o.x; p.org_y[i] = r.o.y; p.org_z[i] = r.o.z;
+    p.dir_x[i] = r.d.x; p.dir_y[i] = r.d.y; p.dir_z[i] = r.d.z;
+    p.tnear[i] = r.tnear;
+    p.tfar[i] = r.tfar;
+    p.time[i] = r.time;
+    p.mask[i] = 0xFFFFFFFFu;
+    p.id[i] = unsigned(i);
+    p.flags[i] = 0;
+}
+
 template <int N, typename RayN>
 void fill_ray_packet(RayN& p, const int* valid, const Ray* rays, int* mask) {
     for (int i = 0; i < N; ++i) {
         mask[i] = valid[i] ? -1 : 0;
-        const Ray& r = rays[i];
-        p.org_x[i] = r.o.x; p.org_y[i] = r.o.y; p.org_z[i] = r.o.z;
-        p.dir_x[i] = r.d.x; p.dir_y[i] = r.d.y; p.dir_z[i] = r.d.z;
-        p.tnear[i] = r.tnear;
-        p.tfar[i] = r.tfar;
-        p.time[i] = r.time;
-        p.mask[i] = 0xFFFFFFFFu;
-        p.id[i] = unsigned(i);
-        p.flags[i] = 0;
+        set_ray_lane(p, i, rays[i]);
     }
 }
 
@@ -396,16 +401,8 @@ template <int N, typename RayN>
 inline void gather_rays(RayN& p, const Ray* rays, const uint32_t* lanes, size_t k, int* mask) {
     for (int i = 0; i < N; ++i) {
         // inactive lanes repeat the first ray (Embree reads every lane)
-        const Ray& r = rays[lanes[size_t(i) < k ? size_t(i) : 0]];
         mask[i] = size_t(i) < k ? -1 : 0;
-        p.org_x[i] = r.o.x; p.org_y[i] = r.o.y; p.org_z[i] = r.o.z;
-        p.dir_x[i] = r.d.x; p.dir_y[i] = r.d.y; p.dir_z[i] = r.d.z;
-        p.tnear[i] = r.tnear;
-        p.tfar[i] = r.tfar;
-        p.time[i] = r.time;
-        p.mask[i] = 0xFFFFFFFFu;
-        p.id[i] = unsigned(i);
-        p.flags[i] = 0;
+        set_ray_lane(p, i, rays[lanes[size_t(i) < k ? size_t(i) : 0]]);
     }
 }
 
