@@ -70,14 +70,18 @@ void LensLightTracing::densities(const Vec3& p_lens, const Vec3& p, uint32_t slo
     *p_light = m_dist.pmf(slot) * pdf_pos;
 }
 
-float LensLightTracing::camera_hit_weight(const Vec3& p_lens, const Vec3& p, uint32_t light_index) const {
-    const int32_t slot = light_index < m_slot.size() ? m_slot[light_index] : -1;
-    if (slot < 0) return 1.f;
+float LensLightTracing::camera_share(const Vec3& p_lens, const Vec3& p, uint32_t slot) const {
     float pc, pl;
-    densities(p_lens, p, uint32_t(slot), &pc, &pl);
+    densities(p_lens, p, slot, &pc, &pl);
     const double c2 = double(pc) * double(pc), l2 = double(pl) * double(pl);
     const double w = c2 + l2 > 0.0 ? c2 / (c2 + l2) : 1.0;
     return std::isfinite(w) ? float(w) : 1.f;
+}
+
+float LensLightTracing::camera_hit_weight(const Vec3& p_lens, const Vec3& p, uint32_t light_index) const {
+    const int32_t slot = light_index < m_slot.size() ? m_slot[light_index] : -1;
+    if (slot < 0) return 1.f;
+    return camera_share(p_lens, p, uint32_t(slot));
 }
 
 bool LensLightTracing::sample(uint64_t seed, uint32_t pixel, uint32_t index, bool motion_blur,
@@ -108,10 +112,7 @@ bool LensLightTracing::sample(uint64_t seed, uint32_t pixel, uint32_t index, boo
     if (!(we > 0.f)) return false;
     const float cos_cam = m_importance.cos_axis(-w);
     const float cos_l = std::fabs(dot(les.n, w));
-    float pc, pl;
-    densities(p_lens, les.p, uint32_t(slot), &pc, &pl);
-    const double c2 = double(pc) * double(pc), l2 = double(pl) * double(pl);
-    const float mis = c2 + l2 > 0.0 ? float(l2 / (c2 + l2)) : 0.f;
+    const float mis = 1.f - camera_share(p_lens, les.p, uint32_t(slot));
     const Spectrum v = le * (cos_l * we * cos_cam * mis / (pmf * les.pdf_pos * d2 * m_importance.pdf_lens()));
     if (is_black(v) || !is_finite(v)) return false;
     // visibility: the segment lens - light point (analytic lights are not in the BVH and

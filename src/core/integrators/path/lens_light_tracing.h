@@ -65,6 +65,9 @@ public:
                 Spectrum* value, uint64_t* shadow_rays) const;
 
 private:
+    /// The camera's power-heuristic weight p_cam² / (p_cam² + p_light²) of the path
+    /// (p_lens, p on light `slot`): the light sample's is 1 minus it, so the two sum to 1.
+    float camera_share(const Vec3& p_lens, const Vec3& p, uint32_t slot) const;
     /// p_cam and p_light of the path (p_lens, p on light `slot`).
     void densities(const Vec3& p_lens, const Vec3& p, uint32_t slot, float* p_cam, float* p_light) const;
 
