@@ -14,11 +14,7 @@ Film::Film(int width, int height)
 bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, float weight) {
     size_t idx = size_t(y) * size_t(m_width) + size_t(x);
     if (!is_finite(L) || !std::isfinite(weight)) {
-        m_nan_count.fetch_add(1, std::memory_order_relaxed);
-        uint64_t key = (uint64_t(idx) << 32) | sample_index;
-        uint64_t cur = m_first_nan_key.load(std::memory_order_relaxed);
-        while (key < cur && !m_first_nan_key.compare_exchange_weak(cur, key)) {
-        }
+        count_bad_sample(x, y, sample_index);
         return false;
     }
     Pixel& p = m_pixels[idx];
@@ -34,6 +30,15 @@ bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, fl
         p.m2[c] += w * delta * (v - p.mean[c]);
     }
     return true;
+}
+
+void Film::count_bad_sample(int x, int y, uint32_t sample_index) {
+    const size_t idx = size_t(y) * size_t(m_width) + size_t(x);
+    m_nan_count.fetch_add(1, std::memory_order_relaxed);
+    const uint64_t key = (uint64_t(idx) << 32) | sample_index;
+    uint64_t cur = m_first_nan_key.load(std::memory_order_relaxed);
+    while (key < cur && !m_first_nan_key.compare_exchange_weak(cur, key)) {
+    }
 }
 
 void Film::develop(float* image, float* variance) const {

@@ -29,6 +29,10 @@ public:
     /// counts it) if not finite.
     bool add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, float weight = 1.f);
 
+    /// Count a non-finite sample of pixel (x, y) that was dropped before it got here
+    /// (a splatted source sample: film/pass_splatter.h).
+    void count_bad_sample(int x, int y, uint32_t sample_index);
+
     /// Write mean (H, W, 3) and variance of the mean (H, W, 3) as float32, row 0 on top.
     void develop(float* image, float* variance) const;
 

@@ -91,6 +91,10 @@ PixelFilter::PixelFilter(FilterKind kind, double radius) : m_kind(kind), m_radiu
     }
     const double r = m_radius;
     m_norm = 1.0 / integrate_profile([&](double x) { return profile(x); }, r, -r, r, 1024);
+    if (!m_unit_box) {
+        const double f2 = integrate_profile([&](double x) { return evaluate_1d(x) * evaluate_1d(x); }, r, -r, r, 1024);
+        m_splat_correlation = 1.0 / (f2 * f2);
+    }
 
     // inverse-CDF table of |f1|: each bin's mean |f1|
     const int n = k_table_bins;

@@ -74,6 +74,12 @@ public:
     /// ∫_{-r}^{x} f1: the filtered unit step's profile (numerical, 1e-9 accurate).
     double integral_1d(double x) const;
 
+    /// 1 / ∫∫ f²: a splatting film's (film/pass_splatter.h) pixels average about this
+    /// many samples each, so a sum over many neighbouring pixels has about this times
+    /// the sum of their variances (1 for the unit box; 9 for a box of radius 1.5; ~3.1
+    /// for the default gaussian).
+    double splat_correlation() const { return m_splat_correlation; }
+
     struct Sample {
         Vec2 offset;        ///< from the pixel centre, in pixels, within [-r, r]^2
         float weight = 1.f; ///< f(offset) / pdf(offset), with f's sign
@@ -137,6 +143,7 @@ private:
     bool m_unit_box;
     double m_norm = 1.0;        ///< 1 / ∫ g
     double m_gauss_floor = 0.0; ///< gaussian: exp(-r²/2σ²)
+    double m_splat_correlation = 1.0;
     std::vector<double> m_cdf;  ///< k_table_bins + 1 entries of the |f1| table
     std::vector<double> m_pdf;  ///< per bin, density per pixel
 };

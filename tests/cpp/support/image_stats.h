@@ -16,7 +16,10 @@
 // seeds, true / estimated variance of the per-channel image means: 0.77-0.80 (Cornell),
 // 1.19 (glass caustic), 1.01-1.11 (dome + sun), 1.19-1.21 (sphere light), PT 0.84-1.33;
 // per-channel 8x8 blocks 0.97-1.05 on average; the sampling sd of each ratio is 0.18.
-// The per-channel variance AOV is used as is.
+// The per-channel variance AOV is used as is — times RenderStats::pixel_correlation where
+// a wide filter splats every camera sample to its neighbours (film/pass_splatter.h): a
+// sum over many neighbouring pixels then has about that times the sum of their variances
+// (each sample counted once in the sum but spread over ~1/∫f² pixels' variances).
 #include "integrators/common/render.h"
 
 #include <gtest/gtest.h>
@@ -53,13 +56,14 @@ inline BlockStats block_stats(const RenderResult& r, int bs) {
     b.mean.assign(size_t(bw * bh * 3), 0.0);
     b.var.assign(size_t(bw * bh * 3), 0.0);
     const double n = double(bx) * by;
+    const double corr = r.stats.pixel_correlation;
     for (int y = 0; y < bh * by; ++y)
         for (int x = 0; x < bw * bx; ++x)
             for (int c = 0; c < 3; ++c) {
                 size_t i = (size_t(y) * r.width + x) * 3 + c;
                 size_t k = (size_t(y / by) * bw + x / bx) * 3 + c;
                 b.mean[k] += r.image[i] / n;
-                b.var[k] += r.variance[i] / (n * n);
+                b.var[k] += corr * r.variance[i] / (n * n);
             }
     return b;
 }

@@ -3,6 +3,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "film/filter.h"
+#include "film/pass_splatter.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/lens_light_tracing.h"
@@ -24,12 +25,21 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     Film film(W, H);
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     // light tracing reaches the film window (the image and the filter's margin), its
-    // importance normalised over the window: splats scaled by window / image area
+    // importance normalised over the window
     BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
     const std::vector<uint32_t> lens_lights = LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin());
     tracer.set_direct_light_tracing(lens_lights);
-    const double splat_scale = filter.window_area(W, H) / (double(W) * double(H));
-    const std::vector<Tile> tiles = image_tiles(W, H);
+    // a wide filter splats every camera sample to its neighbours (film/pass_splatter.h):
+    // the window's source pixels are traced, each sampled uniformly in its pixel
+    PassSplatter splatter(filter, film);
+    const PixelFilter unit_box;
+    const PixelFilter& camera_filter = splatter.active() ? unit_box : filter;
+    const std::vector<Tile> tiles = splatter.active() ? splatter.source_tiles() : image_tiles(W, H);
+    // one light subpath per traced pixel sample: the splats are scaled by the window's
+    // area over their number (the image's pixels, or the splatter's source pixels)
+    double light_paths = 0.0;
+    for (const Tile& t : tiles) light_paths += double(t.x1 - t.x0) * double(t.y1 - t.y0);
+    const double splat_scale = filter.window_area(W, H) / light_paths;
     const int threads = frame_threads(settings);
     tbb::task_arena arena(threads);
 
@@ -55,16 +65,19 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
                     out.clear();
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x) {
-                            uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
+                            const uint32_t pixel = splatter.key(x, y);
                             PixelStreamSampler sampler(settings.seed, pixel, uint32_t(pass));
                             sampler.start_stream(BdptSampler::k_camera);
-                            // the film position from the filter, its weight f/pdf on the
-                            // pixel's own estimate (the light-tracing splats below are
-                            // filtered where they land instead)
+                            // the film position (the light-tracing splats below are
+                            // filtered where they land)
                             float weight = 1.f;
-                            const Vec2 p_film = filter.film_position(x, y, sampler.next2d(), &weight);
+                            const Vec2 p_film = camera_filter.film_position(x, y, sampler.next2d(), &weight);
                             ws.splats.clear();
-                            pass_L[pixel] = tracer.li(p_film, sampler, ws, c) * weight;
+                            const Spectrum L = tracer.li(p_film, sampler, ws, c);
+                            if (splatter.active())
+                                splatter.set(x, y, p_film, L, uint32_t(pass));
+                            else
+                                pass_L[pixel] = L * weight;
                             for (const BdptSplat& sp : ws.splats) {
                                 if (!is_finite(sp.L)) {
                                     c.bad_splats += 1;
@@ -89,6 +102,10 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     };
     // One film sample per pixel: pass estimate + its splats.
     const auto add_pass = [&](int pass) {
+        if (splatter.active()) {
+            splatter.gather(arena, uint32_t(pass), splat_img.data());
+            return;
+        }
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& r) {
                 for (int y = r.begin(); y != r.end(); ++y)
@@ -113,6 +130,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     }, &target);
 
     RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
+    if (splatter.active()) res.stats.pixel_correlation = filter.splat_correlation();
     res.stats.splats = counters.splats.load();
     res.stats.lens_lights = uint32_t(lens_lights.size());
     res.stats.nan_samples += counters.bad_splats.load();

@@ -270,6 +270,11 @@ struct RenderStats {
     uint32_t lens_lights = 0;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
+    /// pt, bdpt: the variance of a sum of many neighbouring pixels over the sum of their
+    /// variance-AOV entries — 1 for independent pixels (the one-pixel box), the filter's
+    /// PixelFilter::splat_correlation when camera samples are splatted to neighbours
+    /// (film/pass_splatter.h). Block and image-mean standard errors multiply by its root.
+    double pixel_correlation = 1;
     double rays_per_s = 0;
     /// CPU time summed over the worker threads: busy in the frame's parallel work, of it
     /// inside BVH queries (tracing), and the rest (shading: BSDFs, lights, sampling, MIS,

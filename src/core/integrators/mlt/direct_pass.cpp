@@ -27,34 +27,49 @@ void PtPass::enable_lens_light_tracing(const Scene& scene) {
     m_tracer.set_lens_light_tracing(m_lens.get());
 }
 
-void PtPass::render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters) {
+void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters) {
     const int W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
+    if (!m_splatter) m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
+    const bool splat = m_splatter->active();
+    const int R = m_splatter->reach();
+    // camera samples: this part's rows (and, splatting, the source rows around them, the
+    // whole window's columns), each uniform in its pixel when splatting
+    const int cy0 = splat ? m_splatter->source_row_begin() : y0, cy1 = splat ? m_splatter->source_row_end() : y1;
+    const PixelFilter unit_box;
+    const PixelFilter& camera_filter = splat ? unit_box : m_filter;
+    // light samples (lens light tracing): every pixel of the frame, since a part's rows
+    // receive splats from the whole frame's samples
+    const int ry0 = m_lens ? std::min(0, cy0) : cy0, ry1 = m_lens ? std::max(H, cy1) : cy1;
     const size_t n_pix = size_t(W) * size_t(H);
     // light tracing reaches the film window; its importance is normalised over it
     const double splat_scale = m_filter.window_area(W, H) / (double(W) * double(H));
-    std::vector<Spectrum> pass_L(n_pix);
-    std::vector<double> splat(3 * n_pix);
-    std::vector<std::vector<std::pair<Vec2, Spectrum>>> row_splats;
-    row_splats.resize(size_t(H));
+    std::vector<Spectrum> pass_L(splat ? 0 : n_pix);
+    std::vector<double> splat_img(m_lens ? 3 * n_pix : 0);
+    std::vector<std::vector<std::pair<Vec2, Spectrum>>> row_splats(m_lens ? size_t(H) : 0);
     for (int k = s0; k < s1; ++k) {
         const uint32_t index = m_sample_base + uint32_t(k);
-        // the pixel samples of this part's rows, and the light samples of every pixel
-        // (a part's rows receive splats from the whole frame's samples)
-        parallel_tasks(arena, counters, size_t(H), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
+        parallel_tasks(arena, counters, size_t(ry1 - ry0), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
             PathCounters c;
             for (size_t yy = r.begin(); yy != r.end(); ++yy) {
-                const int y = int(yy);
-                auto& out = row_splats[yy];
+                const int y = ry0 + int(yy);
+                if (y >= cy0 && y < cy1)
+                    for (int x = -R; x < W + R; ++x) {
+                        float w = 1.f;
+                        Vec2 p;
+                        const uint32_t key = m_splatter->key(x, y);
+                        const Spectrum L = m_tracer.pixel_sample(m_camera, camera_filter, m_motion_blur,
+                                                                 m_settings.seed, x, y, key, index, c, &w, &p);
+                        if (splat)
+                            m_splatter->set(x, y, p, L, index);
+                        else
+                            pass_L[key] = L * w;
+                    }
+                if (!m_lens || y < 0 || y >= H) continue;
+                auto& out = row_splats[size_t(y)];
                 out.clear();
                 for (int x = 0; x < W; ++x) {
                     const uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
-                    if (y >= y0 && y < y1) {
-                        float w = 1.f;
-                        const Spectrum L = m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed,
-                                                                 x, y, W, index, c, &w);
-                        pass_L[pixel] = L * w;
-                    }
                     Vec2 pr;
                     Spectrum v;
                     const uint64_t shadow0 = c.shadow_rays;
@@ -65,14 +80,20 @@ void PtPass::render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, Fra
             }
             counters.add(c);
         });
-        // splats in row order (deterministic sums) over the filter's footprint
-        std::fill(splat.begin(), splat.end(), 0.0);
-        for (const auto& list : row_splats)
-            for (const auto& sp : list) m_filter.splat(sp.first, sp.second, splat_scale, W, H, splat.data());
+        if (m_lens) {
+            // splats in row order (deterministic sums) over the filter's footprint
+            std::fill(splat_img.begin(), splat_img.end(), 0.0);
+            for (const auto& list : row_splats)
+                for (const auto& sp : list) m_filter.splat(sp.first, sp.second, splat_scale, W, H, splat_img.data());
+        }
+        if (splat) {
+            m_splatter->gather(arena, index, m_lens ? splat_img.data() : nullptr);
+            continue;
+        }
         for (int y = y0; y < y1; ++y)
             for (int x = 0; x < W; ++x) {
                 const size_t i = size_t(y) * size_t(W) + size_t(x);
-                const double* d = &splat[3 * i];
+                const double* d = &splat_img[3 * i];
                 const Spectrum v(float(double(pass_L[i].x) + d[0]), float(double(pass_L[i].y) + d[1]),
                                  float(double(pass_L[i].z) + d[2]));
                 m_film.add_sample(x, y, index, v, 1.f);
@@ -82,8 +103,8 @@ void PtPass::render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, Fra
 
 void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counters) {
     if (total <= m_passes) return;
-    if (m_lens) {
-        render_passes_with_lens(arena, m_passes, total, counters);
+    if (m_lens || !m_filter.unit_box()) {
+        render_passes_indexed(arena, m_passes, total, counters);
         m_passes = total;
         return;
     }
@@ -96,8 +117,8 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
                 for (int k = s0; k < s1; ++k) {
                     const uint32_t index = m_sample_base + uint32_t(k);
                     float w = 1.f;
-                    const Spectrum L =
-                        m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x, y, W, index, c, &w);
+                    const Spectrum L = m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x,
+                                                             y, uint32_t(y * W + x), index, c, &w);
                     m_film.add_sample(x, y, index, L, w);
                 }
         counters.add(c);

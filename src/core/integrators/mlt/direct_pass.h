@@ -13,6 +13,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "film/filter.h"
+#include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_tracer.h"
@@ -70,9 +71,11 @@ protected:
     const RenderSettings& m_settings;
 
 private:
-    /// render_to with lens light tracing: pass by pass, each pass's splats added to its
-    /// pixel samples (as the bdpt integrator does), so the variance sees them.
-    void render_passes_with_lens(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters);
+    /// render_to with lens light tracing or a wide filter: pass by pass, each pass's
+    /// light-tracing splats added to its pixel samples (as the bdpt integrator does), so
+    /// the variance sees them, and its camera samples splatted over the filter's
+    /// footprint (film/pass_splatter.h).
+    void render_passes_indexed(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters);
 
     Camera m_camera;
     PixelFilter m_filter;
@@ -80,6 +83,7 @@ private:
     std::unique_ptr<LensLightTracing> m_lens;
     bool m_motion_blur;
     Film m_film;
+    std::unique_ptr<PassSplatter> m_splatter;  ///< made at the first indexed pass (rows known)
     uint32_t m_sample_base;
     int m_passes = 0;
     int m_row0 = 0, m_row1 = -1;  ///< rows rendered (-1: the image's height)

@@ -4,6 +4,7 @@
 #include "accel/accel.h"
 #include "cameras/camera.h"
 #include "film/filter.h"
+#include "film/pass_splatter.h"
 #include "integrators/path/path_tracer_impl.h"
 #include "scene/scene.h"
 
@@ -39,9 +40,9 @@ void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t
 }
 
 PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera& camera, const PixelFilter& filter,
-                     bool motion_blur, uint64_t seed, int width, int packet_width)
+                     bool motion_blur, uint64_t seed, int width, int height, int reach, int packet_width)
     : m_tracer(tracer), m_scene(scene), m_camera(camera), m_filter(filter), m_motion_blur(motion_blur),
-      m_seed(seed), m_width(width), m_packet_width(packet_width) {
+      m_seed(seed), m_width(width), m_height(height), m_reach(reach), m_packet_width(packet_width) {
     const size_t n = size_t(k_tile_size) * size_t(k_tile_size);
     m_state.resize(n);
     m_sampler.assign(n, PixelSampler(0, 0, 0));
@@ -56,7 +57,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_words.resize(n * 2 * k_prefetch);
 }
 
-void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectrum* L, float* w) {
+void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectrum* L, float* w, Vec2* p) {
     const int tw = tile.x1 - tile.x0, th = tile.y1 - tile.y0;
     // Lanes: the tile's pixels in 4x4 blocks (camera rays of a packet are neighbours).
     m_live.clear();
@@ -65,7 +66,8 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         for (int bx = 0; bx < tw; bx += 4)
             for (int y = by; y < std::min(by + 4, th); ++y)
                 for (int x = bx; x < std::min(bx + 4, tw); ++x) {
-                    const uint32_t pixel = uint32_t(tile.y0 + y) * uint32_t(m_width) + uint32_t(tile.x0 + x);
+                    const uint32_t pixel =
+                        PassSplatter::window_key(tile.x0 + x, tile.y0 + y, m_width, m_height, m_reach);
                     m_pixel[lane] = uint32_t(y * tw + x);
                     m_sampler[lane] = PixelSampler(m_seed, pixel, s);
                     m_live.push_back(lane);
@@ -79,7 +81,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         float& weight = w[i];
         weight = 1.f;
         const Ray ray = m_tracer.camera_ray(m_camera, m_filter, m_motion_blur, m_sampler[l], m_seed, px, py,
-                                            m_width, s, &weight);
+                                            m_sampler[l].pixel(), s, &weight, p ? &p[i] : nullptr);
         m_tracer.begin(m_state[l], ray, c);
     }
 

@@ -33,13 +33,15 @@ struct Hit;
 class PathBatch {
 public:
     /// `packet_width` 4, 8 or 16 answers queries in packets of up to that width; 1 one
-    /// by one.
+    /// by one. Pixels are keyed PassSplatter::window_key(x, y, width, height, reach):
+    /// tiles may reach `reach` pixels beyond the W x H image (a splatting film's ring).
     PathBatch(const PathTracer& tracer, const Scene& scene, const Camera& camera, const PixelFilter& filter,
-              bool motion_blur, uint64_t seed, int width, int packet_width);
+              bool motion_blur, uint64_t seed, int width, int height, int reach, int packet_width);
 
     /// Sample `s` of every pixel of `tile`: L[i] and the filter weight w[i] of the i-th
-    /// pixel of the tile in row-major order.
-    void trace_tile(const Tile& tile, uint32_t s, PathCounters& counters, Spectrum* L, float* w);
+    /// pixel of the tile in row-major order, and its film position p[i] if p is given.
+    void trace_tile(const Tile& tile, uint32_t s, PathCounters& counters, Spectrum* L, float* w,
+                    Vec2* p = nullptr);
 
     uint64_t packets() const { return m_packets; }
 
@@ -50,7 +52,7 @@ private:
     const PixelFilter& m_filter;
     bool m_motion_blur;
     uint64_t m_seed;
-    int m_width;
+    int m_width, m_height, m_reach;
     int m_packet_width;
     uint64_t m_packets = 0;
 

@@ -4,6 +4,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "film/filter.h"
+#include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
 #include "accel/accel.h"
 #include "integrators/path/path_batch.h"
@@ -45,32 +46,72 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     // Paths in batches of a tile's pixel samples, queries in Embree packets
     // (path_batch.h); without packets one query at a time, li's image bit for bit.
     const int packet_width = settings.packets ? Accel::max_packet_width() : 1;
-    const int done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
-        parallel_tasks(
-            arena, counters, tiles.size(), size_t(1),
-            [&](const tbb::blocked_range<size_t>& r) {
-                PathCounters c;
-                PathBatch batch(tracer, scene, camera, filter, motion_blur, settings.seed, W, packet_width);
-                Spectrum L[k_tile_size * k_tile_size];
-                float w[k_tile_size * k_tile_size];
-                for (size_t ti = r.begin(); ti != r.end(); ++ti) {
-                    const Tile& tile = tiles[ti];
-                    const int tw = tile.x1 - tile.x0;
-                    for (int s = s0; s < s1; ++s) {
-                        batch.trace_tile(tile, uint32_t(s), c, L, w);
-                        // a pixel's samples arrive in sample order (film.h)
-                        for (int y = tile.y0; y < tile.y1; ++y)
-                            for (int x = tile.x0; x < tile.x1; ++x) {
-                                const int i = (y - tile.y0) * tw + (x - tile.x0);
-                                film.add_sample(x, y, uint32_t(s), L[i], w[i]);
-                            }
+    int done = 0;
+    PassSplatter splatter(filter, film, settings.partial ? settings.part_row_begin : 0,
+                          settings.partial ? settings.part_row_end : H);
+    if (!splatter.active()) {
+        done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
+            parallel_tasks(
+                arena, counters, tiles.size(), size_t(1),
+                [&](const tbb::blocked_range<size_t>& r) {
+                    PathCounters c;
+                    PathBatch batch(tracer, scene, camera, filter, motion_blur, settings.seed, W, H, 0, packet_width);
+                    Spectrum L[k_tile_size * k_tile_size];
+                    float w[k_tile_size * k_tile_size];
+                    for (size_t ti = r.begin(); ti != r.end(); ++ti) {
+                        const Tile& tile = tiles[ti];
+                        const int tw = tile.x1 - tile.x0;
+                        for (int s = s0; s < s1; ++s) {
+                            batch.trace_tile(tile, uint32_t(s), c, L, w);
+                            // a pixel's samples arrive in sample order (film.h)
+                            for (int y = tile.y0; y < tile.y1; ++y)
+                                for (int x = tile.x0; x < tile.x1; ++x) {
+                                    const int i = (y - tile.y0) * tw + (x - tile.x0);
+                                    film.add_sample(x, y, uint32_t(s), L[i], w[i]);
+                                }
+                        }
                     }
-                }
-                counters.add(c, 0, batch.packets());
-            },
-            tbb::simple_partitioner());
-    }, &target);
-    return film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
+                    counters.add(c, 0, batch.packets());
+                },
+                tbb::simple_partitioner());
+        }, &target);
+    } else {
+        // A wide filter: pass by pass, every source pixel of the window (the image and
+        // the filter's ring) sampled uniformly in its pixel, then splatted to its
+        // neighbours (film/pass_splatter.h).
+        const PixelFilter unit_box;
+        const std::vector<Tile>& src_tiles = splatter.source_tiles();
+        done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
+            for (int s = s0; s < s1; ++s) {
+                parallel_tasks(
+                    arena, counters, src_tiles.size(), size_t(1),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                        PathCounters c;
+                        PathBatch batch(tracer, scene, camera, unit_box, motion_blur, settings.seed, W, H,
+                                        splatter.reach(), packet_width);
+                        Spectrum L[k_tile_size * k_tile_size];
+                        float w[k_tile_size * k_tile_size];
+                        Vec2 p[k_tile_size * k_tile_size];
+                        for (size_t ti = r.begin(); ti != r.end(); ++ti) {
+                            const Tile& tile = src_tiles[ti];
+                            const int tw = tile.x1 - tile.x0;
+                            batch.trace_tile(tile, uint32_t(s), c, L, w, p);
+                            for (int y = tile.y0; y < tile.y1; ++y)
+                                for (int x = tile.x0; x < tile.x1; ++x) {
+                                    const int i = (y - tile.y0) * tw + (x - tile.x0);
+                                    splatter.set(x, y, p[i], L[i], uint32_t(s));
+                                }
+                        }
+                        counters.add(c, 0, batch.packets());
+                    },
+                    tbb::simple_partitioner());
+                splatter.gather(arena, uint32_t(s));
+            }
+        }, &target);
+    }
+    RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
+    if (splatter.active()) res.stats.pixel_correlation = filter.splat_correlation();
+    return res;
 }
 
 }  // namespace cmlt

@@ -7,9 +7,10 @@
 namespace cmlt {
 
 Ray PathTracer::camera_ray(const Camera& camera, const PixelFilter& filter, bool motion_blur, PixelSampler& sampler,
-                           uint64_t seed, int x, int y, int width, uint32_t s, float* weight) const {
-    const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
+                           uint64_t seed, int x, int y, uint32_t pixel, uint32_t s, float* weight,
+                           Vec2* p_film_out) const {
     const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), weight);
+    if (p_film_out) *p_film_out = p_film;
     Ray ray = camera.generate_ray(p_film);
     if (camera.has_lens()) {  // thin lens: its own dimension
         PixelSampler ls(seed, pixel, s);
@@ -25,11 +26,10 @@ Ray PathTracer::camera_ray(const Camera& camera, const PixelFilter& filter, bool
 }
 
 Spectrum PathTracer::pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur,
-                                  uint64_t seed, int x, int y, int width, uint32_t s,
-                                  PathCounters& counters, float* weight) const {
-    const uint32_t pixel = uint32_t(y) * uint32_t(width) + uint32_t(x);
+                                  uint64_t seed, int x, int y, uint32_t pixel, uint32_t s,
+                                  PathCounters& counters, float* weight, Vec2* p_film) const {
     PixelSampler sampler(seed, pixel, s);
-    const Ray ray = camera_ray(camera, filter, motion_blur, sampler, seed, x, y, width, s, weight);
+    const Ray ray = camera_ray(camera, filter, motion_blur, sampler, seed, x, y, pixel, s, weight, p_film);
     return li(ray, sampler, counters);
 }
 

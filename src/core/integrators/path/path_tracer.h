@@ -121,18 +121,22 @@ public:
         st.L += st.shadow_f * (tr * w / st.shadow_light_pdf);
     }
 
-    /// The camera ray of pixel (x, y), sample `s`: film position (dimension 0, from
-    /// `filter`, whose f/pdf goes to *weight), lens and shutter time (pixel_sample).
+    /// The camera ray of pixel (x, y), sample `s`, its numbers keyed by `pixel` (y W + x
+    /// in the image; PassSplatter::window_key beyond it): film position (dimension 0,
+    /// from `filter`, whose f/pdf goes to *weight; the position to *p_film if given),
+    /// lens and shutter time (pixel_sample).
     Ray camera_ray(const Camera& camera, const PixelFilter& filter, bool motion_blur, PixelSampler& sampler,
-                   uint64_t seed, int x, int y, int width, uint32_t s, float* weight) const;
+                   uint64_t seed, int x, int y, uint32_t pixel, uint32_t s, float* weight,
+                   Vec2* p_film = nullptr) const;
 
     /// One independent pixel sample of pixel (x, y), sample index `s`: film position
     /// (dimension 0: the pixel's centre + an offset drawn from `filter`, whose f/pdf goes
     /// to *weight for the film; PixelFilter::film_position), lens (k_lens_dimension, with a thin lens), shutter time
     /// (k_shutter_time_dimension, when `motion_blur`), then li — the numbers keyed by
-    /// (seed, pixel, s) through PixelSampler.
+    /// (seed, pixel, s) through PixelSampler (`pixel` as in camera_ray).
     Spectrum pixel_sample(const Camera& camera, const PixelFilter& filter, bool motion_blur, uint64_t seed,
-                          int x, int y, int width, uint32_t s, PathCounters& counters, float* weight) const;
+                          int x, int y, uint32_t pixel, uint32_t s, PathCounters& counters, float* weight,
+                          Vec2* p_film = nullptr) const;
 
 private:
     /// The scattering part of step at a surface point: next-event estimation, BSDF

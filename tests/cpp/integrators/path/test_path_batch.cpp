@@ -48,7 +48,8 @@ std::vector<float> reference_image(const Scene& scene, const RenderSettings& st,
             for (int s = 0; s < st.spp; ++s) {
                 float w = 1.f;
                 const Spectrum L =
-                    tracer.pixel_sample(camera, filter, scene.motion_blur(), st.seed, x, y, st.width, uint32_t(s), c, &w);
+                    tracer.pixel_sample(camera, filter, scene.motion_blur(), st.seed, x, y,
+                                        uint32_t(y * st.width + x), uint32_t(s), c, &w);
                 film.add_sample(x, y, uint32_t(s), L, w);
             }
     std::vector<float> image(size_t(3) * st.width * st.height);

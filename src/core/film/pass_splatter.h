@@ -1,0 +1,85 @@
+#pragma once
+/// \file Reconstruction of pixel-sample passes with a wide filter by splatting.
+///
+/// With a filter wider than the one-pixel box, every camera sample of a pass reaches
+/// all the pixels whose filter footprint covers it (Mitsuba's and pbrt-v3's film; not
+/// filter importance sampling, which keeps a sample in its pixel and so lets no pixel
+/// share its neighbours' samples: tests/bench/results/filters.md measures both).
+///
+/// A pass s places one sample in every *source* pixel k of the film window — the image
+/// and a ring of `reach()` pixels around it, so that every pixel's footprint is covered
+/// — at a uniform position p_k in the pixel, with radiance L_k. Pixel j's pass value is
+/// the ratio of its weighted sums over the source pixels k within reach,
+///
+///     A_j = Σ_k f(c_j − p_k) L_k,    B_j = Σ_k f(c_j − p_k),
+///
+/// added to the Film as one sample of value A_j / B_j and weight B_j: the film's weighted
+/// mean is then Σ_s A / Σ_s B over the passes (a consistent ratio estimator of the
+/// filtered image ∫ f(c_j − p) L(p) dp, since E[B] = ∫ f = 1 for uniform positions), and
+/// its weighted variance still measures each pixel's error (the passes are independent).
+/// Each sum runs over the source pixels in a fixed order and the film gets pixel j's
+/// passes in index order: the image is bit-identical over thread counts and over row
+/// parts of a frame (a part traces the source rows its rows need).
+///
+/// Source pixels outside the image are keyed after the image's (window_key()), so a
+/// pixel's numbers are the same whatever the filter: the image's sources are exactly the
+/// unit box's samples.
+#include "film/filter.h"
+#include "integrators/common/frame_loop.h"
+#include "math/vec.h"
+
+#include <tbb/task_arena.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace cmlt {
+
+class Film;
+
+class PassSplatter {
+public:
+    /// Output rows [row_begin, row_end) of `film` (row_end < 0: every row).
+    PassSplatter(const PixelFilter& filter, Film& film, int row_begin = 0, int row_end = -1);
+
+    /// False for the one-pixel box: samples go to their own pixel, nothing to splat.
+    bool active() const { return m_reach > 0 || !m_filter.unit_box(); }
+    /// Source pixels reach pixels up to this many rows/columns away: ceil(r + 1/2) - 1.
+    int reach() const { return m_reach; }
+    /// The sample key of source pixel (x, y) of the window [-R, W + R) x [-R, H + R):
+    /// y W + x inside the image, W H + the window's row-major index outside it.
+    static uint32_t window_key(int x, int y, int width, int height, int reach);
+    uint32_t key(int x, int y) const { return window_key(x, y, m_width, m_height, m_reach); }
+
+    /// The source pixels the output rows need, in tiles of at most k_tile_size²
+    /// (columns [-R, W + R), rows [row_begin - R, row_end + R) within the window).
+    const std::vector<Tile>& source_tiles() const { return m_tiles; }
+    int source_row_begin() const { return m_src_y0; }
+    int source_row_end() const { return m_src_y1; }
+
+    /// The sample of source pixel (x, y) of the current pass: film position `p` (within
+    /// the pixel) and radiance `L`. Safe from several threads for different pixels. A
+    /// non-finite L is dropped (counted by the film as a bad sample of pass `s`).
+    void set(int x, int y, const Vec2& p, const Spectrum& L, uint32_t s);
+
+    /// Add pass `s` to the film: pixel j of the output rows gets A_j / B_j (+ extra_j, a
+    /// W x H x 3 image of the pass's light-tracing splats, or null) with weight B_j.
+    void gather(tbb::task_arena& arena, uint32_t s, const double* extra = nullptr);
+
+private:
+    size_t index(int x, int y) const {
+        return size_t(y - m_src_y0) * size_t(m_width + 2 * m_reach) + size_t(x + m_reach);
+    }
+
+    const PixelFilter& m_filter;
+    Film& m_film;
+    int m_width, m_height, m_reach;
+    int m_row0, m_row1, m_src_y0, m_src_y1;
+    std::vector<Tile> m_tiles;
+    // per source pixel (index()): L, and f1 toward columns x - R .. x + R then rows
+    // y - R .. y + R (2 (2R + 1) weights; all 0 for a dropped sample)
+    std::vector<Spectrum> m_L;
+    std::vector<float> m_w;
+};
+
+}  // namespace cmlt
