@@ -7,9 +7,9 @@ reference integrator at a high budget: their mean image, the mean of each render
 image mean, and the standard error of that mean over the K seeds (independent
 renders, so a t-interval with K - 1 degrees of freedom is exact for normal
 means). References are cached in ``renders/hard/refs/`` (never committed), keyed by
-a hash of the stage file, the reference settings and the core module's binary, so a
-changed stage or core renders them again. ``tests/python/hard/`` builds what is
-missing on first use.
+a hash of the stage file, the reference settings, the core module's binary and this
+file, so a changed stage, core or way of making them renders them again.
+``tests/python/hard/`` builds what is missing on first use.
 
 Pixels that hold a sub-millimetre sphere light seen directly are integrated apart
 (:func:`refine_tiny_lights`): no integrator here finds a 0.4 mm bulb that covers
@@ -18,6 +18,11 @@ split into 16 x 16 strata, the strata around the bulb's projected disk are rende
 as a window of their own at 64 x 64 sub-pixels (where the bulb covers dozens of
 them), and the pixel is the area-weighted sum of both (stratified sampling of the
 pixel integral: exact, and converged at a few hundred thousand camera rays).
+
+Every render here (references, refinements, the tests' renders) uses the one-pixel box
+filter: a refined pixel is the integral over its own square, which is what a box pixel
+is; under a wider filter the bulb's pixel would be a weighted sum over its neighbours'
+squares too.
 """
 from __future__ import annotations
 
@@ -105,6 +110,7 @@ def core_settings(core, fs, integrator: str, spp: int, seed: int, threads: int =
     st = core.RenderSettings()
     st.width, st.height = fs.resolution
     st.spp, st.seed, st.threads, st.integrator = int(spp), int(seed), int(threads), integrator
+    st.pixel_filter = "box"  # the refined pixels are box pixels (file comment)
     for key, value in extra:
         setattr(st, key, value)
     return st
@@ -231,6 +237,8 @@ def cache_key(case: Case) -> str:
     spec = {k: v for k, v in dataclasses.asdict(case).items() if k.startswith("ref_") or k == "settings"}
     h.update(json.dumps(spec, sort_keys=True, default=str).encode())
     h.update(_core_hash().encode())
+    with open(__file__, "rb") as fh:   # how references are made (settings, refinement)
+        h.update(fh.read())
     return h.hexdigest()[:20]
 
 

@@ -132,7 +132,8 @@ def test07_header_metadata(tiny_shot, tmp_path, capsys):
     assert md["integrator"] == "pt" and md["seed"] == 9 and md["spp"] == 4
     params = json.loads(md["integratorParameters"])
     assert params["spp"] == 4 and params["seed"] == 9 and params["integrator"] == "pt"
-    assert md["samples"] == 32 * 24 * 4 and md["renderTime"] > 0 and md["rays"] > 0
+    # paths traced: the image and the default gaussian's one-pixel ring, 4 passes
+    assert md["samples"] == (32 + 2) * (24 + 2) * 4 and md["renderTime"] > 0 and md["rays"] > 0
     assert md["version"] == __version__
     assert h["colorspace"] == "lin_ap1_scene" and len(h["chromaticities"]) == 8
 

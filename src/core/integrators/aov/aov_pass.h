@@ -4,9 +4,12 @@
 /// For each pixel, `samples` camera rays are traced to their first hit only (no light
 /// transport, so the pass is cheap and the same for every integrator). Sample s of pixel
 /// p uses the film position of `PixelSampler(seed, p, s)` under the pixel filter
-/// (PixelFilter::film_position), i.e. exactly the camera ray of pt's sample s:
-/// deterministic, independent of thread count. Albedo and normal are filtered as the
-/// beauty image is (each sample weighted by the filter's f/pdf); depth is not (below).
+/// (PixelFilter::film_position: for the one-pixel box exactly the camera ray of pt's
+/// sample s; for a wider filter drawn from the filter, filter importance sampling, where
+/// the beauty splats uniform samples to its neighbours — film/pass_splatter.h — the same
+/// filtered quantity): deterministic, independent of thread count. Albedo and normal are
+/// filtered with the beauty image's filter (each sample weighted by its f/pdf); depth is
+/// not (below).
 ///
 /// Conventions (per pixel, over its samples):
 ///  * albedo: filter-weighted mean (as the film's) over all samples of the first hit's diffuse colour (rendering-space RGB,

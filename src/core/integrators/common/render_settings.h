@@ -137,11 +137,11 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "below a quarter of it), or when --spp/--time run out first; 0 = off")              \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
          "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
-    TOKEN(pixel_filter, "box", "box triangle gaussian mitchell blackman-harris",             \
+    TOKEN(pixel_filter, "gaussian", "box triangle gaussian mitchell blackman-harris",        \
           "cmlt:pixelFilter", "--pixel-filter",                                              \
-          "pixel reconstruction filter (film/filter.h): box (radius 0.5: the one-pixel box; " \
-          "the default, see tests/bench/results/filters.md), gaussian (pbrt-v4's, sigma = "  \
-          "radius/3), triangle, mitchell (B = C = 1/3, negative lobes) or blackman-harris")  \
+          "pixel reconstruction filter (film/filter.h): gaussian (the default: pbrt-v4's, "  \
+          "radius 1.5, sigma = radius/3), box (radius 0.5: the one-pixel box), triangle, "   \
+          "mitchell (B = C = 1/3, negative lobes) or blackman-harris")                       \
     REAL(filter_radius, 0.0, 0.0, 3.5, false, "cmlt:filterRadius", "--filter-radius PIXELS", \
          "radius of the pixel filter in pixels, 0 = the filter's default (box 0.5, "          \
          "triangle 1, gaussian 1.5, mitchell 2, blackman-harris 1.5)")

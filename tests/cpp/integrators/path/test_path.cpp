@@ -104,8 +104,12 @@ TEST(PathTracer, DeterministicAcrossThreadCounts) {
     EXPECT_NE(std::memcmp(a.image.data(), c.image.data(), a.image.size() * sizeof(float)), 0);
     double m = image_mean(a, 1).mean;
     EXPECT_GT(m, 0.0);
-    EXPECT_EQ(a.stats.samples, uint64_t(32 * 24 * 8));
+    // the default gaussian (radius 1.5) traces the image and a one-pixel ring around it
+    // (film/pass_splatter.h); the one-pixel box the image's pixels only
+    EXPECT_EQ(a.stats.samples, uint64_t(34 * 26 * 8));
     EXPECT_EQ(a.stats.camera_rays, a.stats.samples);
+    st.pixel_filter = "box";
+    EXPECT_EQ(render(s, st).stats.samples, uint64_t(32 * 24 * 8));
     EXPECT_GT(a.stats.shadow_rays, 0u);
 }
 

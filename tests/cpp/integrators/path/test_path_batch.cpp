@@ -9,6 +9,7 @@
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "film/filter.h"
+#include "film/pass_splatter.h"
 #include "integrators/common/render.h"
 #include "integrators/path/path_tracer.h"
 
@@ -17,6 +18,9 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <string>
+
+#include <tbb/task_arena.h>
 
 using namespace cmlt;
 using namespace cmlt::test;
@@ -36,22 +40,40 @@ RenderSettings settings(int spp, bool packets) {
 }
 
 /// The image of the scalar reference: every pixel's samples through pixel_sample, added
-/// to a film in sample order as the integrator does.
+/// to a film in sample order as the integrator does; for a wide filter, pass by pass,
+/// every source pixel of the window sampled uniformly and splatted (film/pass_splatter.h).
 std::vector<float> reference_image(const Scene& scene, const RenderSettings& st, std::vector<float>* variance) {
     const Camera camera(scene.camera_desc(), st.width, st.height);
     const PixelFilter filter = PixelFilter::from_settings(st.pixel_filter, st.filter_radius);
     const PathTracer tracer(scene, st.max_depth);
     Film film(st.width, st.height);
     PathCounters c;
-    for (int y = 0; y < st.height; ++y)
-        for (int x = 0; x < st.width; ++x)
-            for (int s = 0; s < st.spp; ++s) {
-                float w = 1.f;
-                const Spectrum L =
-                    tracer.pixel_sample(camera, filter, scene.motion_blur(), st.seed, x, y,
-                                        uint32_t(y * st.width + x), uint32_t(s), c, &w);
-                film.add_sample(x, y, uint32_t(s), L, w);
-            }
+    PassSplatter splatter(filter, film);
+    if (!splatter.active()) {
+        for (int y = 0; y < st.height; ++y)
+            for (int x = 0; x < st.width; ++x)
+                for (int s = 0; s < st.spp; ++s) {
+                    float w = 1.f;
+                    const Spectrum L = tracer.pixel_sample(camera, filter, scene.motion_blur(), st.seed, x, y,
+                                                           uint32_t(y * st.width + x), uint32_t(s), c, &w);
+                    film.add_sample(x, y, uint32_t(s), L, w);
+                }
+    } else {
+        const PixelFilter unit_box;
+        const int R = splatter.reach();
+        tbb::task_arena arena(1);
+        for (int s = 0; s < st.spp; ++s) {
+            for (int y = -R; y < st.height + R; ++y)
+                for (int x = -R; x < st.width + R; ++x) {
+                    float w = 1.f;
+                    Vec2 p;
+                    const Spectrum L = tracer.pixel_sample(camera, unit_box, scene.motion_blur(), st.seed, x, y,
+                                                           splatter.key(x, y), uint32_t(s), c, &w, &p);
+                    splatter.set(x, y, p, L, uint32_t(s));
+                }
+            splatter.gather(arena, uint32_t(s));
+        }
+    }
     std::vector<float> image(size_t(3) * st.width * st.height);
     variance->resize(image.size());
     film.develop(image.data(), variance->data());
@@ -62,32 +84,39 @@ void check_scene(const std::function<void(Scene&)>& build, const char* what) {
     Scene scene;
     build(scene);
     scene.select_kernels(false);
-    // 1. no packets: the reference's image bit for bit
-    RenderSettings st = settings(8, false);
-    std::vector<float> ref_var;
-    const std::vector<float> ref = reference_image(scene, st, &ref_var);
-    const RenderResult scalar = render(scene, st);
-    ASSERT_EQ(scalar.image.size(), ref.size());
-    EXPECT_EQ(std::memcmp(scalar.image.data(), ref.data(), ref.size() * sizeof(float)), 0) << what;
-    // 2. packets: the same estimator; image means per channel within 4.5 standard errors
-    // of the difference (two independent-looking renders: different last-ulp hits
-    // decorrelate them only where a hit changes, so this is conservative)
-    st.packets = true;
-    const RenderResult packets = render(scene, st);
-    EXPECT_GT(packets.stats.packets, 0u) << what;
-    for (int c = 0; c < 3; ++c) {
-        double a = 0, b = 0, va = 0, vb = 0;
-        const size_t n = size_t(st.width) * st.height;
-        for (size_t i = 0; i < n; ++i) {
-            a += ref[3 * i + c];
-            b += packets.image[3 * i + c];
-            va += ref_var[3 * i + c];
-            vb += packets.variance[3 * i + c];
+    for (const char* filter : {"box", "gaussian"}) {
+        const std::string name = std::string(what) + " (" + filter + ")";
+        // 1. no packets: the reference's image bit for bit
+        RenderSettings st = settings(8, false);
+        st.pixel_filter = filter;
+        std::vector<float> ref_var;
+        const std::vector<float> ref = reference_image(scene, st, &ref_var);
+        const RenderResult scalar = render(scene, st);
+        ASSERT_EQ(scalar.image.size(), ref.size());
+        EXPECT_EQ(std::memcmp(scalar.image.data(), ref.data(), ref.size() * sizeof(float)), 0) << name;
+        EXPECT_EQ(std::memcmp(scalar.variance.data(), ref_var.data(), ref.size() * sizeof(float)), 0) << name;
+        // 2. packets: the same estimator; image means per channel within 4.5 standard
+        // errors of the difference (two independent-looking renders: different last-ulp
+        // hits decorrelate them only where a hit changes, so this is conservative; the
+        // splatted pixels' correlation in the standard error: image_stats.h)
+        st.packets = true;
+        const RenderResult packets = render(scene, st);
+        EXPECT_GT(packets.stats.packets, 0u) << name;
+        const double corr = packets.stats.pixel_correlation;
+        for (int c = 0; c < 3; ++c) {
+            double a = 0, b = 0, va = 0, vb = 0;
+            const size_t n = size_t(st.width) * st.height;
+            for (size_t i = 0; i < n; ++i) {
+                a += ref[3 * i + c];
+                b += packets.image[3 * i + c];
+                va += ref_var[3 * i + c];
+                vb += packets.variance[3 * i + c];
+            }
+            const double se = std::sqrt(corr * (va + vb)) / double(n);
+            EXPECT_LT(std::fabs(a - b) / double(n), 4.5 * se + 1e-6) << name << " channel " << c;
         }
-        const double se = std::sqrt(va + vb) / double(n);
-        EXPECT_LT(std::fabs(a - b) / double(n), 4.5 * se + 1e-6) << what << " channel " << c;
+        EXPECT_EQ(packets.stats.nan_samples, 0u) << name;
     }
-    EXPECT_EQ(packets.stats.nan_samples, 0u) << what;
 }
 
 }  // namespace
