@@ -11,6 +11,8 @@
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"
 
+#include <tbb/enumerable_thread_specific.h>
+
 #include <algorithm>
 #include <chrono>
 
@@ -81,14 +83,19 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
         // neighbours (film/pass_splatter.h).
         const PixelFilter unit_box;
         const std::vector<Tile>& src_tiles = splatter.source_tiles();
+        // a batch per thread for the frame (a pass is short: no allocation per tile)
+        tbb::enumerable_thread_specific<PathBatch> batches([&] {
+            return PathBatch(tracer, scene, camera, unit_box, motion_blur, settings.seed, W, H, splatter.reach(),
+                             packet_width);
+        });
         done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
             for (int s = s0; s < s1; ++s) {
                 parallel_tasks(
                     arena, counters, src_tiles.size(), size_t(1),
                     [&](const tbb::blocked_range<size_t>& r) {
                         PathCounters c;
-                        PathBatch batch(tracer, scene, camera, unit_box, motion_blur, settings.seed, W, H,
-                                        splatter.reach(), packet_width);
+                        PathBatch& batch = batches.local();
+                        const uint64_t packets0 = batch.packets();
                         Spectrum L[k_tile_size * k_tile_size];
                         float w[k_tile_size * k_tile_size];
                         Vec2 p[k_tile_size * k_tile_size];
@@ -102,7 +109,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                                     splatter.set(x, y, p[i], L[i], uint32_t(s));
                                 }
                         }
-                        counters.add(c, 0, batch.packets());
+                        counters.add(c, 0, batch.packets() - packets0);
                     },
                     tbb::simple_partitioner());
                 splatter.gather(arena, uint32_t(s));
