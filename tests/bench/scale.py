@@ -72,6 +72,9 @@ def main(argv=None) -> int:
     ap.add_argument("--chains", type=int, default=256)
     ap.add_argument("--bootstrap-samples", type=int, default=8192, dest="bootstrap_samples")
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--dask-parts", type=int, default=0, dest="dask_parts",
+                    help="parts per frame on the cluster (0: one per worker; 1: whole frames, "
+                         "side by side)")
     ap.add_argument("--out", default=str(HERE / "results" / "scale"))
     args = ap.parse_args(argv)
 
@@ -85,7 +88,7 @@ def main(argv=None) -> int:
     def opts(threads):
         return RenderOptions(integrator="cmlt", resolution=(w, h), spp=args.spp,
                              chains=args.chains, bootstrap_samples=args.bootstrap_samples,
-                             threads=threads)
+                             threads=threads, dask_parts=args.dask_parts)
 
     t = time.perf_counter()
     clusters = {n: LocalCluster(n_workers=n, threads_per_worker=1, processes=True,

@@ -70,7 +70,10 @@ Profile render_profile(const std::string& integrator, const std::string& filter,
         }
         const double m = s1 / k_size, var = std::max(0.0, s2 / k_size - m * m) * k_size / (k_size - 1);
         p.mean[x] = m;
-        p.se[x] = std::sqrt(var / k_size + (b_rel * m) * (b_rel * m));
+        // the rows of a splatted column share samples (pt, bdpt: film/pass_splatter.h):
+        // the mean over many rows has about sqrt(pixel_correlation) (= 1 / ∫ f1²) times
+        // the variance the rows' spread says
+        p.se[x] = std::sqrt(std::sqrt(r.stats.pixel_correlation) * var / k_size + (b_rel * m) * (b_rel * m));
     }
     return p;
 }
