@@ -156,6 +156,9 @@ def test04_cmlt_sequence_on_two_workers_is_bit_identical(tmp_path, client):
         assert s["temporal"]["b_used"] == r["temporal"]["b_used"]
         assert s["temporal"]["carried_chains"] == r["temporal"]["carried_chains"]
         assert s["stats"]["mutations"] == r["stats"]["mutations"]
+    # the parts are placed on different workers (not where the preparation ran)
+    assert all(1 <= s["stats"]["dask"]["part_workers"] <= 2 for s in side)
+    assert max(s["stats"]["dask"]["part_workers"] for s in side) == 2
     assert side[2]["temporal"]["carried_chains"] > 0       # frames 2, 3 did carry
     # frames 2 and 3 were submitted while the frame before rendered, their preparations
     # chained on the workers
