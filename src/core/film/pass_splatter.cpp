@@ -47,6 +47,10 @@ void PassSplatter::set(int x, int y, const Vec2& p, const Spectrum& L, uint32_t 
         return;
     }
     m_L[i] = L;
+    if (m_filter.unit_box()) {  // the one-pixel box: the sample's own pixel, weight exactly 1
+        w[0] = w[1] = 1.f;
+        return;
+    }
     for (int d = -m_reach; d <= m_reach; ++d) {
         // toward column x + d (centre x + d + 1/2) and row y + d
         w[d + m_reach] = float(m_filter.evaluate_1d(double(x + d) + 0.5 - double(p.x)));

@@ -42,7 +42,8 @@ public:
     /// Output rows [row_begin, row_end) of `film` (row_end < 0: every row).
     PassSplatter(const PixelFilter& filter, Film& film, int row_begin = 0, int row_end = -1);
 
-    /// False for the one-pixel box: samples go to their own pixel, nothing to splat.
+    /// False for the one-pixel box: each sample goes to its own pixel with weight 1 (the
+    /// film then gets value L + extra, weight 1: the unfiltered film bit for bit).
     bool active() const { return m_reach > 0 || !m_filter.unit_box(); }
     /// Source pixels reach pixels up to this many rows/columns away: ceil(r + 1/2) - 1.
     int reach() const { return m_reach; }

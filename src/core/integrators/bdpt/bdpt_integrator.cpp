@@ -29,12 +29,12 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
     const std::vector<uint32_t> lens_lights = LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin());
     tracer.set_direct_light_tracing(lens_lights);
-    // a wide filter splats every camera sample to its neighbours (film/pass_splatter.h):
-    // the window's source pixels are traced, each sampled uniformly in its pixel
+    // every pass's camera samples go to the film through the splatter (film/pass_splatter.h):
+    // a wide filter splats each to its neighbours (the window's source pixels are traced,
+    // each sampled uniformly in its pixel); the one-pixel box keeps it in its pixel
     PassSplatter splatter(filter, film);
     const PixelFilter unit_box;
-    const PixelFilter& camera_filter = splatter.active() ? unit_box : filter;
-    const std::vector<Tile> tiles = splatter.active() ? splatter.source_tiles() : image_tiles(W, H);
+    const std::vector<Tile>& tiles = splatter.source_tiles();
     // one light subpath per traced pixel sample: the splats are scaled by the window's
     // area over their number (the image's pixels, or the splatter's source pixels)
     double light_paths = 0.0;
@@ -44,7 +44,6 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     tbb::task_arena arena(threads);
 
     const size_t n_pix = size_t(W) * size_t(H);
-    std::vector<Spectrum> pass_L(n_pix);
     std::vector<double> splat_img(3 * n_pix);
     std::vector<std::vector<BdptSplat>> tile_splats(tiles.size());
     tbb::enumerable_thread_specific<BdptWorkspace> workspaces;
@@ -65,19 +64,14 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
                     out.clear();
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x) {
-                            const uint32_t pixel = splatter.key(x, y);
-                            PixelStreamSampler sampler(settings.seed, pixel, uint32_t(pass));
+                            PixelStreamSampler sampler(settings.seed, splatter.key(x, y), uint32_t(pass));
                             sampler.start_stream(BdptSampler::k_camera);
-                            // the film position (the light-tracing splats below are
-                            // filtered where they land)
+                            // the film position, uniform in the pixel (the light-tracing
+                            // splats below are filtered where they land)
                             float weight = 1.f;
-                            const Vec2 p_film = camera_filter.film_position(x, y, sampler.next2d(), &weight);
+                            const Vec2 p_film = unit_box.film_position(x, y, sampler.next2d(), &weight);
                             ws.splats.clear();
-                            const Spectrum L = tracer.li(p_film, sampler, ws, c);
-                            if (splatter.active())
-                                splatter.set(x, y, p_film, L, uint32_t(pass));
-                            else
-                                pass_L[pixel] = L * weight;
+                            splatter.set(x, y, p_film, tracer.li(p_film, sampler, ws, c), uint32_t(pass));
                             for (const BdptSplat& sp : ws.splats) {
                                 if (!is_finite(sp.L)) {
                                     c.bad_splats += 1;
@@ -100,25 +94,8 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
         for (const auto& list : tile_splats)
             for (const BdptSplat& sp : list) filter.splat(sp.p_raster, sp.L, splat_scale, W, H, splat_img.data());
     };
-    // One film sample per pixel: pass estimate + its splats.
-    const auto add_pass = [&](int pass) {
-        if (splatter.active()) {
-            splatter.gather(arena, uint32_t(pass), splat_img.data());
-            return;
-        }
-        arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& r) {
-                for (int y = r.begin(); y != r.end(); ++y)
-                    for (int x = 0; x < W; ++x) {
-                        size_t i = size_t(y) * size_t(W) + size_t(x);
-                        const double* d = &splat_img[3 * i];
-                        Spectrum v(float(double(pass_L[i].x) + d[0]), float(double(pass_L[i].y) + d[1]),
-                                   float(double(pass_L[i].z) + d[2]));
-                        film.add_sample(x, y, uint32_t(pass), v);
-                    }
-            });
-        });
-    };
+    // One film sample per pixel: its pass estimate (splatted) + the light splats.
+    const auto add_pass = [&](int pass) { splatter.gather(arena, uint32_t(pass), splat_img.data()); };
     bool cancelled = false;
     PassTarget target(settings, film);
     const int done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {

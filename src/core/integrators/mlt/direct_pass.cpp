@@ -31,20 +31,17 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
     const int W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
     if (!m_splatter) m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
-    const bool splat = m_splatter->active();
     const int R = m_splatter->reach();
-    // camera samples: this part's rows (and, splatting, the source rows around them, the
-    // whole window's columns), each uniform in its pixel when splatting
-    const int cy0 = splat ? m_splatter->source_row_begin() : y0, cy1 = splat ? m_splatter->source_row_end() : y1;
+    // camera samples, each uniform in its pixel: this part's rows (and, with a wide
+    // filter, the source rows around them and the window's columns: film/pass_splatter.h)
+    const int cy0 = m_splatter->source_row_begin(), cy1 = m_splatter->source_row_end();
     const PixelFilter unit_box;
-    const PixelFilter& camera_filter = splat ? unit_box : m_filter;
     // light samples (lens light tracing): every pixel of the frame, since a part's rows
     // receive splats from the whole frame's samples
     const int ry0 = m_lens ? std::min(0, cy0) : cy0, ry1 = m_lens ? std::max(H, cy1) : cy1;
     const size_t n_pix = size_t(W) * size_t(H);
     // light tracing reaches the film window; its importance is normalised over it
     const double splat_scale = m_filter.window_area(W, H) / (double(W) * double(H));
-    std::vector<Spectrum> pass_L(splat ? 0 : n_pix);
     std::vector<double> splat_img(m_lens ? 3 * n_pix : 0);
     std::vector<std::vector<std::pair<Vec2, Spectrum>>> row_splats(m_lens ? size_t(H) : 0);
     for (int k = s0; k < s1; ++k) {
@@ -57,13 +54,9 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
                     for (int x = -R; x < W + R; ++x) {
                         float w = 1.f;
                         Vec2 p;
-                        const uint32_t key = m_splatter->key(x, y);
-                        const Spectrum L = m_tracer.pixel_sample(m_camera, camera_filter, m_motion_blur,
-                                                                 m_settings.seed, x, y, key, index, c, &w, &p);
-                        if (splat)
-                            m_splatter->set(x, y, p, L, index);
-                        else
-                            pass_L[key] = L * w;
+                        const Spectrum L = m_tracer.pixel_sample(m_camera, unit_box, m_motion_blur, m_settings.seed,
+                                                                 x, y, m_splatter->key(x, y), index, c, &w, &p);
+                        m_splatter->set(x, y, p, L, index);
                     }
                 if (!m_lens || y < 0 || y >= H) continue;
                 auto& out = row_splats[size_t(y)];
@@ -86,18 +79,7 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
             for (const auto& list : row_splats)
                 for (const auto& sp : list) m_filter.splat(sp.first, sp.second, splat_scale, W, H, splat_img.data());
         }
-        if (splat) {
-            m_splatter->gather(arena, index, m_lens ? splat_img.data() : nullptr);
-            continue;
-        }
-        for (int y = y0; y < y1; ++y)
-            for (int x = 0; x < W; ++x) {
-                const size_t i = size_t(y) * size_t(W) + size_t(x);
-                const double* d = &splat_img[3 * i];
-                const Spectrum v(float(double(pass_L[i].x) + d[0]), float(double(pass_L[i].y) + d[1]),
-                                 float(double(pass_L[i].z) + d[2]));
-                m_film.add_sample(x, y, index, v, 1.f);
-            }
+        m_splatter->gather(arena, index, m_lens ? splat_img.data() : nullptr);
     }
 }
 
