@@ -23,7 +23,9 @@
 ///
 /// Source pixels outside the image are keyed after the image's (window_key()), so a
 /// pixel's numbers are the same whatever the filter: the image's sources are exactly the
-/// unit box's samples.
+/// unit box's samples. The one-pixel box goes through here too (bdpt, the Metropolis
+/// pixel passes): reach 0, each sample to its own pixel with weight exactly 1, the
+/// unfiltered film bit for bit; gather() adds a pass's light-tracing splats (`extra`).
 #include "film/filter.h"
 #include "integrators/common/frame_loop.h"
 #include "math/vec.h"
