@@ -51,6 +51,9 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--cache", default="renders/cache/accuracy")
     ap.add_argument("--out", default="renders/bench/target_error")
+    ap.add_argument("--target-scale", type=float, default=1.0, dest="target_scale",
+                    help="multiply every target (the gaussian film's error after the minimum "
+                         "work is ~0.4x the box's, for which TARGETS were chosen)")
     args = ap.parse_args(argv)
     w, h = (int(v) for v in args.res.lower().split("x"))
     os.makedirs(args.out, exist_ok=True)
@@ -63,7 +66,7 @@ def main(argv=None) -> int:
               f"{ref.relmse_floor:.3g}", flush=True)
         for integ in [s for s in args.integrators.split(",") if s]:
             spec = parse_integrator(integ, sf.core)
-            for target in TARGETS[shot]:
+            for target in (t * args.target_scale for t in TARGETS[shot]):
                 group = []
                 for seed in range(args.seeds):
                     st = sf.settings(spec, None, args.spp, seed)
