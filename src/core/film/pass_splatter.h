@@ -59,6 +59,8 @@ public:
     const std::vector<Tile>& source_tiles() const { return m_tiles; }
     int source_row_begin() const { return m_src_y0; }
     int source_row_end() const { return m_src_y1; }
+    /// How many source pixels a pass samples (the tiles' pixels).
+    double source_pixels() const { return double(m_L.size()); }
 
     /// The sample of source pixel (x, y) of the current pass: film position `p` (within
     /// the pixel) and radiance `L`. Safe from several threads for different pixels. A

@@ -18,6 +18,14 @@ using namespace cmlt;
 
 namespace {
 
+/// Calls fn(x, y) for every source pixel of the splatter's rows, row-major (the window's
+/// columns [-R, W + R)).
+template <class Fn>
+void for_sources(const PassSplatter& sp, int width, Fn&& fn) {
+    for (int y = sp.source_row_begin(); y < sp.source_row_end(); ++y)
+        for (int x = -sp.reach(); x < width + sp.reach(); ++x) fn(x, y);
+}
+
 /// A deterministic "sample" of source pixel (x, y), pass s: a position in the pixel
 /// and a radiance, from the keyed generator (as the integrators' samples are).
 void source_sample(const PassSplatter& sp, int x, int y, uint32_t s, Vec2* p, Spectrum* L) {
@@ -35,11 +43,9 @@ std::vector<float> render(const PixelFilter& f, int W, int H, int y0, int y1, in
     Film film(W, H);
     PassSplatter sp(f, film, y0, y1);
     tbb::task_arena arena(threads);
-    const int R = sp.reach();
     for (int s = 0; s < passes; ++s) {
         std::vector<std::pair<int, int>> order;
-        for (int y = sp.source_row_begin(); y < sp.source_row_end(); ++y)
-            for (int x = -R; x < W + R; ++x) order.emplace_back(x, y);
+        for_sources(sp, W, [&](int x, int y) { order.emplace_back(x, y); });
         if (reverse) std::reverse(order.begin(), order.end());
         for (auto [x, y] : order) {
             Vec2 p;
@@ -87,12 +93,11 @@ TEST(PassSplatter, OneSourceGivesTheFilterRatio) {
     PassSplatter sp(f, film);
     tbb::task_arena arena(1);
     std::vector<Vec2> pos;
-    for (int y = -1; y < H + 1; ++y)
-        for (int x = -1; x < W + 1; ++x) {
-            const Vec2 p(float(x) + 0.3f + 0.05f * float(x + 1), float(y) + 0.7f - 0.1f * float(y + 1));
-            pos.push_back(p);
-            sp.set(x, y, p, x == 2 && y == 1 ? Spectrum(1.f, 2.f, 3.f) : Spectrum(0.f), 0);
-        }
+    for_sources(sp, W, [&](int x, int y) {
+        const Vec2 p(float(x) + 0.3f + 0.05f * float(x + 1), float(y) + 0.7f - 0.1f * float(y + 1));
+        pos.push_back(p);
+        sp.set(x, y, p, x == 2 && y == 1 ? Spectrum(1.f, 2.f, 3.f) : Spectrum(0.f), 0);
+    });
     sp.gather(arena, 0);
     std::vector<float> img(size_t(W) * H * 3);
     film.develop(img.data(), nullptr);
@@ -122,14 +127,12 @@ TEST(PassSplatter, ConstantRadianceStaysExact) {
         Film film(W, H);
         PassSplatter sp(f, film);
         tbb::task_arena arena(2);
-        const int R = sp.reach();
         for (uint32_t s = 0; s < 4; ++s) {
-            for (int y = -R; y < H + R; ++y)
-                for (int x = -R; x < W + R; ++x) {
-                    PixelSampler smp(3, sp.key(x, y), s);
-                    const Vec2 u = smp.get2d();
-                    sp.set(x, y, Vec2(float(x) + u.x, float(y) + u.y), Spectrum(0.25f, 1.f, 4.f), s);
-                }
+            for_sources(sp, W, [&](int x, int y) {
+                PixelSampler smp(3, sp.key(x, y), s);
+                const Vec2 u = smp.get2d();
+                sp.set(x, y, Vec2(float(x) + u.x, float(y) + u.y), Spectrum(0.25f, 1.f, 4.f), s);
+            });
             sp.gather(arena, s);
         }
         std::vector<float> img(size_t(W) * H * 3), var(img.size());
@@ -166,11 +169,10 @@ TEST(PassSplatter, NonFiniteSourcesAreDroppedAndCounted) {
     Film film(W, H);
     PassSplatter sp(f, film);
     tbb::task_arena arena(1);
-    for (int y = -1; y < H + 1; ++y)
-        for (int x = -1; x < W + 1; ++x) {
-            const float bad = std::numeric_limits<float>::quiet_NaN();
-            sp.set(x, y, Vec2(float(x) + 0.5f, float(y) + 0.5f), x == 3 && y == 2 ? Spectrum(bad) : Spectrum(1.f), 9);
-        }
+    const float bad = std::numeric_limits<float>::quiet_NaN();
+    for_sources(sp, W, [&](int x, int y) {
+        sp.set(x, y, Vec2(float(x) + 0.5f, float(y) + 0.5f), x == 3 && y == 2 ? Spectrum(bad) : Spectrum(1.f), 9);
+    });
     sp.gather(arena, 9);
     std::vector<float> img(size_t(W) * H * 3);
     film.develop(img.data(), nullptr);

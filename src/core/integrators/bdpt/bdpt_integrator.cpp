@@ -37,9 +37,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const std::vector<Tile>& tiles = splatter.source_tiles();
     // one light subpath per traced pixel sample: the splats are scaled by the window's
     // area over their number (the image's pixels, or the splatter's source pixels)
-    double light_paths = 0.0;
-    for (const Tile& t : tiles) light_paths += double(t.x1 - t.x0) * double(t.y1 - t.y0);
-    const double splat_scale = filter.window_area(W, H) / light_paths;
+    const double splat_scale = filter.window_area(W, H) / splatter.source_pixels();
     const int threads = frame_threads(settings);
     tbb::task_arena arena(threads);
 
