@@ -161,7 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "processes here, else a scheduler address (tcp://host:8786); the images "
                    "are bit-identical to one process")
     r.add_argument("--dask-parts", metavar="N", type=int, default=0, dest="dask_parts",
-                   help="part tasks per frame with --dask (default: one per worker)")
+                   help="part tasks per frame with --dask (default 0: one per frame, frames side "
+                   "by side, while at least as many frames are left as there are workers; "
+                   "else one per worker)")
     loud = r.add_mutually_exclusive_group()
     loud.add_argument("--quiet", "-q", action="store_true",
                       help="print nothing but errors")

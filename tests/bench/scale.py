@@ -73,8 +73,9 @@ def main(argv=None) -> int:
     ap.add_argument("--bootstrap-samples", type=int, default=8192, dest="bootstrap_samples")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--dask-parts", type=int, default=0, dest="dask_parts",
-                    help="parts per frame on the cluster (0: one per worker; 1: whole frames, "
-                         "side by side)")
+                    help="parts per frame of the '2 workers' runs (0: automatic, one per "
+                    "frame while the frames left cover the workers; 1: whole frames, side "
+                    "by side); the '2 workers, split' runs always use 2")
     ap.add_argument("--out", default=str(HERE / "results" / "scale"))
     args = ap.parse_args(argv)
 
@@ -85,10 +86,10 @@ def main(argv=None) -> int:
 
     w, h = (int(v) for v in args.res.split("x"))
 
-    def opts(threads):
+    def opts(threads, parts):
         return RenderOptions(integrator="cmlt", resolution=(w, h), spp=args.spp,
                              chains=args.chains, bootstrap_samples=args.bootstrap_samples,
-                             threads=threads, dask_parts=args.dask_parts)
+                             threads=threads, dask_parts=parts)
 
     t = time.perf_counter()
     clusters = {n: LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
@@ -107,14 +108,18 @@ def main(argv=None) -> int:
     client_per_task = (time.process_time() - c) / 100
 
     tmp = tempfile.mkdtemp(prefix="cmlt-scale-")
-    walls = {"one process": [], "1 worker": [], "2 workers": []}
+    # "2 workers, split": every frame in 2 parts (the fixed cost of a further part)
+    runs = (("1 worker", 1, args.dask_parts), ("2 workers", 2, args.dask_parts),
+            ("2 workers, split", 2, 2), ("one process", 0, 0))
+    walls = {name: [] for name, _, _ in runs}
     recs = {}
     cpus = {}               # the client process's CPU seconds per run
     ref_images = None
     for rep in range(args.repeats):
-        for name, n in (("1 worker", 1), ("2 workers", 2), ("one process", 0)):
-            out = os.path.join(tmp, f"{name.replace(' ', '_')}_{rep}", "f.####.exr")
-            wall, cpu, res, rr = run(SHOT, args.frames, out, opts(2 if n == 0 else 1),
+        for name, n, parts in runs:
+            out = os.path.join(tmp, f"{name.replace(' ', '_').replace(',', '')}_{rep}",
+                               "f.####.exr")
+            wall, cpu, res, rr = run(SHOT, args.frames, out, opts(2 if n == 0 else 1, parts),
                                      clients[n] if n else None)
             walls[name].append(wall)
             cpus.setdefault(name, []).append(cpu)
@@ -126,7 +131,7 @@ def main(argv=None) -> int:
             print(f"{name:12s} run {rep + 1}: {wall:7.2f} s", flush=True)
     identical = all(
         all(np.array_equal(a, b) for a, b in zip(ref_images, recs[f"{n} images"]))
-        for n in ("1 worker", "2 workers"))
+        for n in ("1 worker", "2 workers", "2 workers, split"))
 
     med = {k: statistics.median(v) for k, v in walls.items()}
     n_frames = len(recs["2 workers"])
@@ -140,11 +145,12 @@ def main(argv=None) -> int:
     keys = ("bytes_to_workers", "bytes_from_workers", "tasks", "parts", "wait_s", "combine_s",
             "prepare_task_s", "prepare_cpu_s", "prepare_thread_cpu_s", "part_render_s",
             "part_task_s", "part_scene_s", "part_cpu_s", "part_thread_cpu_s")
-    d = {name: {k: mean(per_frame(name, k)) for k in keys} for name in ("1 worker", "2 workers")}
-    d1, d2 = d["1 worker"], d["2 workers"]
+    d = {name: {k: mean(per_frame(name, k)) for k in keys}
+         for name in ("1 worker", "2 workers", "2 workers, split")}
+    d1, d2, dsplit = d["1 worker"], d["2 workers"], d["2 workers, split"]
     ahead = sum(per_frame("2 workers", "submitted_ahead"))
     frame_wall2 = mean([r["stats"]["wall_time_s"] for r in recs["2 workers"]])
-    extra_parts = max(1.0, d2["parts"] - d1["parts"])
+    extra_parts = max(1.0, dsplit["parts"] - d1["parts"])
 
     def model(client, prep, work, fixed, per_task):
         cluster = {n: max(client + per_task * (n + 1), prep,
@@ -161,7 +167,7 @@ def main(argv=None) -> int:
     # the tasks' own threads (a one-thread render runs on it): the worker process's other
     # threads (Dask's event loop, profiler, heartbeats) cost CPU per second of wall time,
     # which the load of a shared machine stretches; their share is reported beside
-    fixed_cpu = max(0.0, (d2["part_thread_cpu_s"] - d1["part_thread_cpu_s"]) / extra_parts)
+    fixed_cpu = max(0.0, (dsplit["part_thread_cpu_s"] - d1["part_thread_cpu_s"]) / extra_parts)
     base_cpu = max(0.0, cpu_client["1 worker"] - 2 * client_per_task)   # without its 2 tasks
     est_cpu, mach_cpu = model(base_cpu, d1["prepare_thread_cpu_s"], d1["part_thread_cpu_s"],
                               fixed_cpu, client_per_task)
@@ -174,7 +180,7 @@ def main(argv=None) -> int:
                  2: max(cpu_client["2 workers"], d2["prepare_cpu_s"],
                         (cpu_client["2 workers"] + d2["prepare_cpu_s"] + d2["part_cpu_s"]) / 2)}
     # wall seconds of the tasks (the client's part stays its CPU seconds)
-    fixed = max(0.0, (d2["part_task_s"] - d1["part_task_s"]) / extra_parts)
+    fixed = max(0.0, (dsplit["part_task_s"] - d1["part_task_s"]) / extra_parts)
     est, _ = model(base_cpu, d1["prepare_task_s"], d1["part_task_s"], fixed,
                    latency)
     summary = {
@@ -183,6 +189,10 @@ def main(argv=None) -> int:
         "wall_s": walls, "median_wall_s": med,
         "ratio_2_over_1_workers": med["2 workers"] / med["1 worker"],
         "ratio_2_workers_over_one_process": med["2 workers"] / med["one process"],
+        "ratio_2_workers_split_over_1_worker": med["2 workers, split"] / med["1 worker"],
+        "ratios_per_round_2_over_1": [a / b for a, b in zip(walls["2 workers"],
+                                                             walls["1 worker"])],
+        "per_frame_2_workers_split": dsplit,
         "bit_identical": identical, "cluster_startup_s": startup,
         "noop_task_latency_s": latency, "client_cpu_per_task_s": client_per_task,
         "per_frame_2_workers": d2, "per_frame_1_worker": d1,
@@ -212,10 +222,13 @@ def main(argv=None) -> int:
         f"end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1 / 5 / 15 min) on "
         f"{os.cpu_count()} cores (shared machine).", "",
         "| run | wall s (median) | runs |", "|---|---|---|"]
-    for k in ("one process", "1 worker", "2 workers"):
+    for k in ("one process", "1 worker", "2 workers", "2 workers, split"):
         md.append(f"| {k} | {med[k]:.1f} | {', '.join(f'{v:.1f}' for v in walls[k])} |")
     md += ["",
-           f"2 workers / 1 worker: **{summary['ratio_2_over_1_workers']:.2f}x**; "
+           f"2 workers / 1 worker: **{summary['ratio_2_over_1_workers']:.2f}x** "
+           f"(per round: {', '.join(f'{v:.2f}' for v in summary['ratios_per_round_2_over_1'])}); "
+           f"2 workers, every frame split in 2 parts / 1 worker: "
+           f"{summary['ratio_2_workers_split_over_1_worker']:.2f}x; "
            f"2 workers / one process: {summary['ratio_2_workers_over_one_process']:.2f}x. "
            f"Dask images bit-identical to the one-process run: **{identical}**.", "",
            "Per frame (2 workers, mean): "
@@ -231,7 +244,8 @@ def main(argv=None) -> int:
            f"Per-task costs: no-op round trip {latency * 1e3:.2f} ms, of it "
            f"{client_per_task * 1e3:.2f} ms CPU on the client (with its scheduler); fixed cost "
            f"of a part {fixed_cpu * 1e3:.1f} ms CPU ({fixed * 1e3:.1f} ms wall: growth of the "
-           f"parts' worker time from {d1['parts']:.0f} to {d2['parts']:.0f} parts per frame).",
+           f"parts' worker time from {d1['parts']:.0f} to {dsplit['parts']:.0f} parts per frame, "
+           "'2 workers, split' against '1 worker').",
            "",
            "CPU-seconds model (module doc; the other load on this shared machine does not "
            f"enter): client {cpu_client['1 worker']:.3f} / {cpu_client['2 workers']:.3f} CPU-s "

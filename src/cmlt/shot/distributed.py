@@ -30,6 +30,10 @@ What runs where, per frame (the workers' side is :mod:`cmlt.shot.dask_worker`):
     a pass, so a pass does not split without moving W·H values per pass); frames
     still run side by side, one per worker.
 
+* **parts per frame** (``--dask-parts``; 0, the default, is :meth:`DaskRenderer.auto_parts`):
+  one per frame while the run of frames left covers the workers, so frames run side by
+  side and none pays a further part's fixed cost; one per worker for a single frame and
+  the last frames of a run.
 * **pipelining**: while frame f renders, the tasks of the next frames are submitted
   (``AHEAD`` of them, more when a frame has fewer parts than there are workers), each
   when it follows the one before in the loop and the settings match (else a frame's
@@ -133,7 +137,7 @@ AHEAD, AHEAD_MAX = 2, 64
 class DaskRenderer:
     """Renders the frames of one shot on a Dask cluster, part by part, one frame ahead.
 
-    ``parts``: part tasks per frame (0: one per worker). ``on_part``: called on
+    ``parts``: part tasks per frame (0: :meth:`auto_parts`). ``on_part``: called on
     the client as ``on_part(done, total, futures)`` after each part arrives (the
     progress bar; tests use it to kill a worker mid-frame).
 
@@ -159,6 +163,7 @@ class DaskRenderer:
         self._fields = None
         self.warm_s = 0.0
         self._next: Dict[float, float] = {}     # frame -> the frame rendered after it
+        self._run_left: Dict[float, int] = {}   # frame -> pipelined frames from it on
         self._ahead: Dict[float, dict] = {}     # frame -> its submitted tasks
         self._frame: Optional[dict] = None      # the frame being rendered
         self._submitted = 0                     # frames submitted so far
@@ -183,6 +188,18 @@ class DaskRenderer:
         its carried state comes from) is the one rendered just before it is submitted
         while that one renders."""
         self._next = {f: n for f, n in zip(frames, frames[1:]) if predecessor.get(n) == f}
+        # frames in the run of pipelined frames from each frame on (itself included)
+        self._run_left = {}
+        for f in reversed(frames):
+            n = self._next.get(f)
+            self._run_left[f] = 1 + (self._run_left.get(n, 0) if n is not None else 0)
+
+    def auto_parts(self, frame: float, n_workers: int) -> int:
+        """Parts of ``frame`` with ``--dask-parts 0``: one while at least as many
+        pipelined frames remain (itself included) as there are workers — the frames then
+        run side by side, one per worker, and no frame pays for a further part — else
+        one per worker (a single frame, and the last frames of a run, still spread)."""
+        return 1 if self._run_left.get(float(frame), 1) >= n_workers else n_workers
 
     def close(self) -> None:
         """Cancel what was submitted ahead and not used (an interrupted loop)."""
@@ -210,7 +227,7 @@ class DaskRenderer:
         W, H = int(settings["width"]), int(settings["height"])
         addresses = self.worker_addresses()
         n_workers = max(1, len(addresses))
-        n_parts = 1 if integ == "bdpt" else (self.parts or n_workers)
+        n_parts = 1 if integ == "bdpt" else (self.parts or self.auto_parts(frame, n_workers))
         n_parts = max(1, min(n_parts, H))
         mlt = integ in ("pssmlt", "cmlt")
         config = temporal.config()

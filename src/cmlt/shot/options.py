@@ -74,7 +74,7 @@ class _FrameOptions:
     #: render the frames' parts as Dask tasks: a scheduler address or local:N
     #: (cmlt.shot.distributed); None renders in this process
     dask: Optional[str] = None
-    #: part tasks per frame with --dask (0: one per worker)
+    #: part tasks per frame with --dask (0: automatic, DaskRenderer.auto_parts)
     dask_parts: int = 0
     #: a UsdRender.Settings prim path to use (husk's -R): authored as the stage's
     #: renderSettingsPrimPath in the session layer (None: the stage's own choice)
@@ -108,7 +108,7 @@ class _FrameOptions:
                 raise UsageError(f"--aov {name!r}: unknown AOV; choose from "
                                  f"{', '.join(AOV_NAMES)}")
         if int(self.dask_parts) < 0:
-            raise UsageError(f"--dask-parts {self.dask_parts}: must be 0 (one per worker) "
+            raise UsageError(f"--dask-parts {self.dask_parts}: must be 0 (automatic) "
                              "or more")
         if int(self.aov_samples) < 1:
             raise UsageError(f"--aov-samples {self.aov_samples}: must be at least 1")

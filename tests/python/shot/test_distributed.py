@@ -146,10 +146,12 @@ def test04_cmlt_sequence_on_two_workers_is_bit_identical(tmp_path, client):
     _same_images(one, dask)
     side = [json.load(open(p + ".json")) for p in dask.written]
     ref = [json.load(open(p + ".json")) for p in one.written]
+    # the automatic parts: one part per frame while two or more frames are left (they
+    # run side by side), the last frame one part per worker; and each frame's preparation
+    assert [s["stats"]["dask"]["parts"] for s in side] == [1, 1, 2]
     for s, r in zip(side, ref):
         d = s["stats"]["dask"]
-        # one part per worker and the frame's preparation
-        assert d["workers"] == 2 and d["parts"] == 2 and d["tasks"] == 3
+        assert d["workers"] == 2 and d["tasks"] == d["parts"] + 1
         assert d["split"] == "chains+rows"
         assert d["bytes_from_workers"] > 0 and d["bytes_to_workers"] > 0
         # the temporal record (carried starts, b used) is the single process's
@@ -256,7 +258,20 @@ def test10_pt_bdpt_sequences_pipelined_bit_identical(tmp_path, client, integrato
     _same_images(one, dask)
     side = [json.load(open(p + ".json"))["stats"]["dask"] for p in dask.written]
     assert [d["submitted_ahead"] for d in side] == [False, True, True]
-    assert all(d["tasks"] == (1 if integrator == "bdpt" else 2) for d in side)
+    # pt: one row band per frame while two frames are left, the last frame two
+    assert [d["tasks"] for d in side] == ([1, 1, 1] if integrator == "bdpt" else [1, 1, 2])
+
+
+def test12_auto_parts_follow_the_frames_left():
+    from cmlt.shot.distributed import DaskRenderer
+    r = DaskRenderer(None, CORNELL)
+    frames = [1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 8.0]
+    pred = {1.0: 0.0, 2.0: 1.0, 3.0: 2.0, 4.0: 3.0, 5.0: 4.0, 7.0: 6.0, 8.0: 7.0}
+    r.plan(frames, pred)        # 5 -> 7 is not a pipelined step (7's state is 6's)
+    assert [r.auto_parts(f, 2) for f in frames] == [1, 1, 1, 1, 2, 1, 2]
+    assert [r.auto_parts(f, 3) for f in frames] == [1, 1, 1, 3, 3, 3, 3]
+    assert r.auto_parts(9.0, 2) == 2               # not in the plan: a single frame
+    assert all(r.auto_parts(f, 1) == 1 for f in frames)
 
 
 def test11_one_part_per_frame_frames_side_by_side(tmp_path, client):
