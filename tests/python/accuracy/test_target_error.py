@@ -137,3 +137,27 @@ def test_error_groups_flag_is_checked(tiny_shot, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "error_groups" in err.replace("-", "_")
     assert not os.path.exists(tmp_path / "e.0001.exr")
+
+
+def test_pt_target_error_on_caustics_warns(tmp_path, capsys):
+    # caustic_glass: the glass ball's caustic on the floor carries well over 1 % of the
+    # light on what the camera sees; pt's estimate cannot see it (caveat in frame_job)
+    shot = os.path.join(ROOT, "sequences", "caustic_glass", "shot.usda")
+    out = str(tmp_path / "c.####.exr")
+    assert main(["render", shot, *FAST, "--integrator", "pt", "--target-error", "0.01",
+                 "--out", out]) == 0
+    err = capsys.readouterr().err
+    assert "--target-error with pt: caustics carry" in err
+    rec = json.load(open(out.replace("####", "0001") + ".json"))
+    assert rec["effects"]["effects"]["caustics"] and rec["effects"]["caustic_share"] >= 0.01
+    # the same frame without a target, and bdpt with one: no caveat
+    for extra in (["--integrator", "pt"], ["--integrator", "bdpt", "--target-error", "0.01"]):
+        assert main(["render", shot, *FAST, *extra, "--out", out]) == 0
+        assert "--target-error with pt" not in capsys.readouterr().err
+
+
+def test_pt_target_error_without_caustics_does_not_warn(tmp_path, capsys):
+    out = str(tmp_path / "n.####.exr")
+    assert main(["render", CORNELL, *FAST, "--integrator", "pt", "--target-error", "0.01",
+                 "--out", out]) == 0
+    assert "--target-error with pt" not in capsys.readouterr().err
