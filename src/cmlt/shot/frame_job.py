@@ -70,6 +70,10 @@ class ShotJob:
                 self.result.warnings.append(w)
 
 
+#: how the caveat of target_error_caveat begins
+CAVEAT_PT_TARGET = "--target-error with pt: caustics carry"
+
+
 def target_error_caveat(resolved, effects: dict) -> Optional[str]:
     """The warning for ``--target-error`` with pt on a frame whose caustics carry at least
     :data:`cmlt.analysis.auto.CAUSTIC_SHARE` of the flux onto what the camera sees: pt
@@ -87,7 +91,7 @@ def target_error_caveat(resolved, effects: dict) -> Optional[str]:
     share = float(effects.get("caustic_share", 0.0))
     if share < CAUSTIC_SHARE:
         return None
-    return (f"--target-error with pt: caustics carry {share:.0%} of the light on what the "
+    return (f"{CAVEAT_PT_TARGET} {share:.0%} of the light on what the "
             "camera sees, and pt samples them too rarely for its error estimate to see "
             "their error: the frame may stop well above the target (bdpt or cmlt estimate "
             "it; --integrator auto picks bdpt here)")
@@ -368,8 +372,8 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
     prepare_temporal()
     effects = frame_effects(fs, scene, core, opts.resolution, job.effects_cache)
     caveat = target_error_caveat(job.resolved, effects)
-    if caveat and caveat not in job.result.warnings:
-        job.warn([caveat])
+    if caveat and not any(w.startswith(CAVEAT_PT_TARGET) for w in job.result.warnings):
+        job.warn([caveat])              # once per render (the share varies by frame)
     r, stats, image, trec, state_bytes, units = _render(job, scene, frame, width, height)
     aovs = aov_images(core, scene, job.st, r, job.aovs, opts, stats)
     stats["wall_time_s"] = time.perf_counter() - t0
