@@ -23,11 +23,13 @@ F per further part (the growth of W from 1 to 2 parts per frame). On a cluster
 
     T(N) = max(C + c·(N + 1), R, (R + W + F·(N − 1)) / N)
 
-with N parts per frame (the default), and with one part per frame and frames side by
-side (``--dask-parts 1``, enough frames in flight) max(C + 2c, R, (R + W) / N);
+with N parts per frame (``--dask-parts N``), and with one part per frame and frames side
+by side (the default while the frames left cover the workers, or ``--dask-parts 1``;
+enough frames in flight) max(C + 2c, R, (R + W) / N);
 
 and on this machine's 2 cores, which the client shares with the workers:
-T(1) = max(C, R + W), T(2) = max(C, R, (C + R + W + F) / 2). The same formulas on the
+T(1) = max(C, R + W), T(2) = max(C, R, (C + R + W + F) / 2) for split frames (F = 0 side
+by side; the reported figure takes the measured 2-worker CPU seconds instead). The same formulas on the
 tasks' wall seconds (which the other load on a shared machine inflates) give the
 wall estimate.
 """
