@@ -19,8 +19,8 @@ FrameScene, so usd-core never runs under valgrind):
 Each shot renders with ``RenderSettings.kernel`` ``general`` (the full UsdPreviewSurface
 model for every material) and ``auto`` (the kernels chosen for the frame,
 src/core/analysis/kernel_select.h). Callgrind collects inside the integrator's
-per-sample entry only (``--toggle-collect``), one thread, so the counts are exact and the
-same on every run; ``--time N`` adds wall time per sample outside valgrind, the variants
+frame function only (``--toggle-collect``), one thread, so the instruction counts are exact
+and the same on every run; ``--time N`` adds wall time per sample outside valgrind, the variants
 interleaved N times (median).
 
     .venv/bin/python tests/bench/kernel_instructions.py --shots cornell --res 64x64 --spp 4
@@ -43,9 +43,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests" / "python" / "effects"))
-#: where collection starts (callgrind --toggle-collect): pt per sample; bdpt its frame
-#: function (BdptTracer methods nest, and a nested match would toggle collection off)
-ENTRY = {"pt": "cmlt::PathTracer::pixel_sample*", "bdpt": "cmlt::render_bdpt*"}
+#: where collection starts (callgrind --toggle-collect): the integrator's frame function
+#: (pt traces a tile's samples in lockstep, so there is no per-sample function to enter;
+#: BdptTracer methods nest, and a nested match would toggle collection off); Ir per sample
+#: is the frame's count over its samples
+ENTRY = {"pt": "cmlt::render_pt*", "bdpt": "cmlt::render_bdpt*"}
 SHOTS = ("cornell", "room", "motion_blur", "depth_of_field", "textures", "dome",
          "dome_textured", "caustics")
 GLASS = {"opacity": 0.0, "roughness": 0.0, "ior": 1.5}
