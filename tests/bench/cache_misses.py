@@ -9,9 +9,10 @@ answers "not supported"), so the caches are simulated: callgrind with
 results: valgrind reads this VM's last level as a 256 MB direct-mapped cache), collecting inside the integrator's frame function only
 (``--toggle-collect=cmlt::render_<integrator>*``), one thread. Instruction counts repeat
 exactly; the miss counts move a little between runs (the core's thread pool still has
-helper threads that valgrind interleaves: pt and the Metropolis integrators within 2 %,
-bdpt's D1 misses by up to a third). The frame is built outside valgrind and handed to the child as
-a pickled FrameScene, so usd-core never runs under valgrind.
+helper threads that valgrind interleaves: over three runs on cornell pt and the
+Metropolis integrators within 7 %, bdpt's D1 misses 43-83 per evaluation). The frame is
+built outside valgrind and handed to the child as a pickled FrameScene, so usd-core never
+runs under valgrind.
 
 Last-level misses are split into reads and writes: on these frames every read hits the
 32 MB L3 after its first touch (the scene, film and chain states fit), and the write
@@ -33,15 +34,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pickle
 import re
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from callgrind_child import cache_geometry, run_child  # noqa: E402
+
 SHOTS = {"cornell": "sequences/cornell/shot.usda",
          "caustic_glass": "sequences/caustic_glass/shot.usda"}
 #: (label, integrator, settings)
@@ -76,23 +78,11 @@ def child(frame_file: str, integrator: str, settings: dict, res, spp: int, out: 
 def callgrind(frame_file: Path, label: str, integrator: str, settings: dict, args, tmp: Path):
     tag = re.sub(r"[^a-z0-9]+", "_", f"{frame_file.stem}_{label}".lower())
     cg, out = tmp / f"{tag}.callgrind", tmp / f"{tag}.json"
-    cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", f"--I1={args.l1}",
-           f"--D1={args.l1}", f"--LL={args.ll}", "--collect-atstart=no",
-           f"--toggle-collect=cmlt::render_{integrator}*", f"--callgrind-out-file={cg}",
-           sys.executable, __file__, "--child", str(frame_file), "--integrator", integrator,
-           "--settings", json.dumps(settings), "--out", str(out), "--res", args.res,
-           "--spp", str(args.spp)]
-    p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT,
-                       env=dict(os.environ, PYTHONWARNINGS="ignore"))
-    if p.returncode != 0 or not out.exists():
-        sys.stderr.write(p.stderr[-3000:])
-        raise SystemExit(1)
-    text = cg.read_text()
-    events = re.search(r"^events: (.*)$", text, re.M).group(1).split()
-    totals = [int(v) for v in re.search(r"^(?:summary|totals): (.*)$", text, re.M).group(1).split()]
-    counts = dict(zip(events, totals))
-    caches = re.findall(r"^desc: (I1|D1|LL) cache: +(.*)$", text, re.M)
-    return counts, json.loads(out.read_text()), dict(caches)
+    counts = run_child(__file__, f"cmlt::render_{integrator}*", cg,
+                       [frame_file, "--integrator", integrator, "--settings", json.dumps(settings),
+                        "--out", out, "--res", args.res, "--spp", args.spp],
+                       ["--cache-sim=yes", f"--I1={args.l1}", f"--D1={args.l1}", f"--LL={args.ll}"])
+    return counts, json.loads(out.read_text()), cache_geometry(cg)
 
 
 def main(argv=None) -> int:

@@ -31,11 +31,8 @@ Needs valgrind (Debian: ``apt-get install valgrind``).
 from __future__ import annotations
 
 import argparse
-import os
 import pickle
-import re
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -43,6 +40,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests" / "python" / "effects"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from callgrind_child import run_child  # noqa: E402
 #: where collection starts (callgrind --toggle-collect): the integrator's frame function
 #: (pt traces a tile's samples in lockstep, so there is no per-sample function to enter;
 #: BdptTracer methods nest, and a nested match would toggle collection off); Ir per sample
@@ -113,19 +112,11 @@ def callgrind(frame_file: Path, kernel: str, args, res, tmp: Path):
     import numpy as np
     tag = f"{frame_file.stem}.{kernel}"
     cg, img = tmp / f"{tag}.callgrind", tmp / f"{tag}.npy"
-    cmd = ["valgrind", "--tool=callgrind", "--collect-atstart=no",
-           f"--toggle-collect={ENTRY[args.integrator]}", f"--callgrind-out-file={cg}",
-           sys.executable, __file__, "--child", str(frame_file), "--kernel", kernel,
-           "--out", str(img), "--res", args.res, "--spp", str(args.spp),
-           "--integrator", args.integrator]
-    p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT,
-                       env=dict(os.environ, PYTHONWARNINGS="ignore"))
-    m = re.search(r"Collected : (\d+)", p.stderr)
-    if p.returncode != 0 or not m:
-        sys.stderr.write(p.stderr[-3000:])
-        raise SystemExit(1)
+    counts = run_child(__file__, ENTRY[args.integrator], cg,
+                       [frame_file, "--kernel", kernel, "--out", img, "--res", args.res,
+                        "--spp", args.spp, "--integrator", args.integrator])
     rays = int(Path(str(img) + ".rays").read_text())
-    return int(m.group(1)), np.load(img), rays
+    return counts["Ir"], np.load(img), rays
 
 
 def main(argv=None) -> int:

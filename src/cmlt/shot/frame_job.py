@@ -86,9 +86,7 @@ def target_error_caveat(resolved, effects: dict) -> Optional[str]:
         return None
     if str(getattr(resolved, "integrator", "")) != "pt":
         return None
-    if not effects.get("effects", {}).get("caustics"):
-        return None
-    share = float(effects.get("caustic_share", 0.0))
+    share = float(effects.get("caustic_share", 0.0))      # auto's rule (analysis/auto.py)
     if share < CAUSTIC_SHARE:
         return None
     return (f"{CAVEAT_PT_TARGET} {share:.0%} of the light on what the "
