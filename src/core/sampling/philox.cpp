@@ -1,11 +1,21 @@
 // Philox over many counters at once; see philox.h.
 #include "sampling/philox.h"
 
+// The lanes are integer arithmetic, so a wider instruction set gives the same bits
+// faster: with GCC on x86-64 the function is also compiled for AVX2 and AVX-512 (8 and
+// 16 lanes per 32 x 32 -> 64 bit multiply instead of SSE2's 4) and the loader picks the
+// widest the CPU runs (an ifunc). The rest of the core stays at the portable baseline.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CMLT_PHILOX_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define CMLT_PHILOX_CLONES
+#endif
+
 namespace cmlt {
 
+CMLT_PHILOX_CLONES
 void philox4x32_lanes(size_t n, const uint32_t* __restrict c0, const uint32_t* __restrict c1,
-                      const uint32_t* __restrict c2, uint32_t c3, Philox4x32Key key, uint32_t* __restrict w0,
-                      uint32_t* __restrict w1) {
+                      const uint32_t* __restrict c2, uint32_t c3, Philox4x32Key key, uint32_t* __restrict out) {
     constexpr uint32_t M0 = 0xD2511F53u, M1 = 0xCD9E8D57u;
     constexpr uint32_t W0 = 0x9E3779B9u, W1 = 0xBB67AE85u;
     // The rounds of philox4x32 on one lane's words; lanes are independent, so the loop
@@ -24,8 +34,10 @@ void philox4x32_lanes(size_t n, const uint32_t* __restrict c0, const uint32_t* _
             k0 += W0;
             k1 += W1;
         }
-        w0[i] = a;
-        w1[i] = b;
+        out[4 * i] = a;
+        out[4 * i + 1] = b;
+        out[4 * i + 2] = c;
+        out[4 * i + 3] = d;
     }
 }
 
