@@ -15,7 +15,8 @@ namespace cmlt {
 
 CMLT_PHILOX_CLONES
 void philox4x32_lanes(size_t n, const uint32_t* __restrict c0, const uint32_t* __restrict c1,
-                      const uint32_t* __restrict c2, uint32_t c3, Philox4x32Key key, uint32_t* __restrict out) {
+                      const uint32_t* __restrict c2, uint32_t c3, Philox4x32Key key, uint32_t* __restrict w0,
+                      uint32_t* __restrict w1) {
     constexpr uint32_t M0 = 0xD2511F53u, M1 = 0xCD9E8D57u;
     constexpr uint32_t W0 = 0x9E3779B9u, W1 = 0xBB67AE85u;
     // The rounds of philox4x32 on one lane's words; lanes are independent, so the loop
@@ -34,10 +35,8 @@ void philox4x32_lanes(size_t n, const uint32_t* __restrict c0, const uint32_t* _
             k0 += W0;
             k1 += W1;
         }
-        out[4 * i] = a;
-        out[4 * i + 1] = b;
-        out[4 * i + 2] = c;
-        out[4 * i + 3] = d;
+        w0[i] = a;
+        w1[i] = b;
     }
 }
 

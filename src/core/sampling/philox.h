@@ -30,13 +30,13 @@ inline Philox4x32Counter philox4x32(Philox4x32Counter c, Philox4x32Key k) {
     return c;
 }
 
-/// Philox-4x32-10 of n counters (c0[i], c1[i], c2[i], c3) under one key: output i's four
-/// words in out[4 i] .. out[4 i + 3] (philox4x32's bits). A plain loop over the lanes
+/// Philox-4x32-10 of n counters (c0[i], c1[i], c2[i], c3) under one key: the first two
+/// words of each output in w0[i], w1[i] (philox4x32's bits). A plain loop over the lanes
 /// that the compiler vectorises (SSE2 and up: 2–2.7x fewer cycles per counter than one
 /// call at a time on this project's machines; where the CPU has AVX2 or AVX-512 a clone
 /// compiled for it is chosen at load time, the same bits); philox.cpp.
 void philox4x32_lanes(size_t n, const uint32_t* c0, const uint32_t* c1, const uint32_t* c2, uint32_t c3,
-                      Philox4x32Key key, uint32_t* out);
+                      Philox4x32Key key, uint32_t* w0, uint32_t* w1);
 
 /// The Philox key of a 64-bit seed: its low and high words.
 inline Philox4x32Key seed_key(uint64_t seed) { return {uint32_t(seed), uint32_t(seed >> 32)}; }

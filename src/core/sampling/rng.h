@@ -44,11 +44,9 @@ inline double wrap01(double v) {
 
 /// Random numbers of one pixel sample: dimension d of (seed, pixel, sample, stream).
 /// `get1d`/`get2d` consume dimensions in order; `set_dimension` jumps to a fixed
-/// dimension so that e.g. each bounce owns a fixed dimension range. One Philox output
-/// (four words) serves two dimensions: dimension d's numbers (one word for get1d, two
-/// for get2d) are words 2 (d & 1) and 2 (d & 1) + 1 of the output of counter (pixel,
-/// sample, d >> 1, stream) (pixel_counter, sampling/rng_domains.h). The last output
-/// drawn is kept, so reading dimensions in order calls Philox once per two of them.
+/// dimension so that e.g. each bounce owns a fixed dimension range. A dimension's
+/// numbers are the first words (one for get1d, two for get2d) of the Philox output of
+/// counter (pixel, sample, d, stream).
 ///
 /// `prefetch` hands the sampler the words of a range of dimensions computed ahead
 /// (philox4x32_lanes: many samples' dimensions at once, vectorised); reading them gives
@@ -72,14 +70,13 @@ public:
         return {uint_to_unit_float(w[0]), uint_to_unit_float(w[1])};
     }
 
-    /// Dimensions [first, first + n) read from `blocks`: the Philox outputs of blocks
-    /// first >> 1 .. (first + n - 1) >> 1, four words each, in order (dimension d's words
-    /// at blocks[4 ((d >> 1) - (first >> 1)) + 2 (d & 1)] and the word after it);
-    /// `blocks` outlives their reads. Other dimensions still call Philox.
-    void prefetch(uint32_t first, uint32_t n, const uint32_t* blocks) {
+    /// Dimensions [first, first + n) read from `words` (words[2 (d - first)] and
+    /// words[2 (d - first) + 1]: the first two words of dimension d's Philox output);
+    /// `words` outlives their reads. Other dimensions still call Philox.
+    void prefetch(uint32_t first, uint32_t n, const uint32_t* words) {
         m_pre_first = first;
         m_pre_n = n;
-        m_pre = blocks;
+        m_pre = words;
     }
     uint32_t pixel() const { return m_pixel; }
     uint32_t sample() const { return m_sample; }
@@ -90,19 +87,13 @@ private:
     void draw(uint32_t* w) {
         const uint32_t d = m_dim++;
         if (d - m_pre_first < m_pre_n) {  // unsigned: d >= first and d < first + n
-            // 4 ((d >> 1) - (first >> 1)) + 2 (d & 1) = 2 (d - (first & ~1))
-            const uint32_t* b = m_pre + 2 * (d - (m_pre_first & ~1u));
-            w[0] = b[0];
-            w[1] = b[1];
+            w[0] = m_pre[2 * (d - m_pre_first)];
+            w[1] = m_pre[2 * (d - m_pre_first) + 1];
             return;
         }
-        const uint32_t block = d >> 1;
-        if (block != m_block) {
-            m_block_words = philox4x32(pixel_counter(m_pixel, m_sample, block, m_stream), m_key);
-            m_block = block;
-        }
-        w[0] = m_block_words[2 * (d & 1)];
-        w[1] = m_block_words[2 * (d & 1) + 1];
+        const Philox4x32Counter r = philox4x32(pixel_counter(m_pixel, m_sample, d, m_stream), m_key);
+        w[0] = r[0];
+        w[1] = r[1];
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
@@ -110,8 +101,6 @@ private:
     uint32_t m_dim = 0;
     uint32_t m_pre_first = 0, m_pre_n = 0;
     const uint32_t* m_pre = nullptr;
-    uint32_t m_block = ~0u;  ///< whose output m_block_words holds (~0u: none; d >> 1 never is)
-    Philox4x32Counter m_block_words{};
 };
 
 /// Sequential counter-based generator with the kernels' RNG interface (uniform(),

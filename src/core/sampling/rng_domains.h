@@ -13,9 +13,7 @@
 ///    * sample index: the pt and bdpt integrators use 0, 1, ..; the Metropolis passes
 ///      start at their own bases (k_direct_sample_base, k_pilot_sample_base), far above
 ///      any sample count, so they never meet the integrators' samples or each other;
-///    * dimension: a path reads dimensions 0, 1, .. in order (PixelSampler puts two
-///      dimensions in one counter: the third word is d >> 1, and the output's words
-///      0-1 serve even d, words 2-3 odd d; PixelStreamSampler one per counter); the camera's lens and
+///    * dimension: a path reads dimensions 0, 1, .. in order; the camera's lens and
 ///      shutter-time numbers have reserved dimensions far above (k_lens_dimension,
 ///      k_shutter_time_dimension), so drawing them or not leaves every other number as
 ///      it is (a scene without the feature renders bit-identically).

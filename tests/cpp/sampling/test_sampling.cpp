@@ -11,13 +11,11 @@
 #include "math/frame.h"
 #include "sampling/discrete_distribution.h"
 #include "sampling/mis.h"
-#include "sampling/rng.h"
 #include "sampling/warp.h"
 
 #include <gtest/gtest.h>
 
 #include <functional>
-#include <vector>
 
 using namespace cmlt;
 using namespace cmlt::test;
@@ -229,39 +227,6 @@ TEST(Rng, PhiloxKnownAnswers) {
     EXPECT_EQ(f, (Philox4x32Counter{0x408f276du, 0x41c83b0eu, 0xa20bc7c6u, 0x6d5451fdu}));
     auto p = philox4x32({0x243f6a88u, 0x85a308d3u, 0x13198a2eu, 0x03707344u}, {0xa4093822u, 0x299f31d0u});
     EXPECT_EQ(p, (Philox4x32Counter{0xd16cfe09u, 0x94fdccebu, 0x5001e420u, 0x24126ea1u}));
-}
-
-TEST(Rng, PixelSamplerReadsTwoDimensionsPerPhiloxOutput) {
-    // dimension d: words 2 (d & 1), 2 (d & 1) + 1 of the output of counter (pixel, sample,
-    // d >> 1, stream); the same whichever order the dimensions are read in, and the same
-    // through prefetch.
-    const uint64_t seed = 0x0123456789ABCDEFull;
-    PixelSampler in_order(seed, 10, 3);
-    std::vector<Vec2> seen;
-    for (uint32_t d = 0; d < 9; ++d) seen.push_back(in_order.get2d());
-    for (uint32_t d = 0; d < 9; ++d) {
-        const Philox4x32Counter r = philox4x32(pixel_counter(10, 3, d >> 1, RngStream::camera_path), seed_key(seed));
-        EXPECT_EQ(seen[d].x, uint_to_unit_float(r[2 * (d & 1)])) << d;
-        EXPECT_EQ(seen[d].y, uint_to_unit_float(r[2 * (d & 1) + 1])) << d;
-    }
-    PixelSampler backwards(seed, 10, 3);
-    for (int d = 8; d >= 0; --d) {
-        backwards.set_dimension(uint32_t(d));
-        EXPECT_EQ(backwards.get1d(), seen[size_t(d)].x) << d;
-    }
-    // prefetched dimensions 3..7: the outputs of blocks 1..3, as PathBatch lays them out
-    std::vector<uint32_t> words;
-    for (uint32_t b = 1; b <= 3; ++b) {
-        const Philox4x32Counter r = philox4x32(pixel_counter(10, 3, b, RngStream::camera_path), seed_key(seed));
-        words.insert(words.end(), r.begin(), r.end());
-    }
-    PixelSampler pre(seed, 10, 3);
-    pre.prefetch(3, 5, words.data());
-    for (uint32_t d = 0; d < 9; ++d) {
-        const Vec2 u = pre.get2d();
-        EXPECT_EQ(u.x, seen[d].x) << d;
-        EXPECT_EQ(u.y, seen[d].y) << d;
-    }
 }
 
 TEST(Rng, StreamsAreKeyedNotSequential) {

@@ -67,13 +67,10 @@ _GLINT = ("seed 7's bootstrap draws a path of the L S S D S E glint (the floor i
 #: (check, case, integrator) -> why it fails today; "*" matches every case / integrator
 XFAIL = {
     ("outlier", "bulb_room", "pt"): _BULB_PT + "; pt seed 8 hits the bulb: mean 39.6",
-    ("mean", "caustic_lsdse", "pt"): (
+    ("outlier", "caustic_lsdse", "pt"): (
         "pt samples the caustic only by BSDF-sampling the floor into the 2 cm light through "
-        "the ball, so whether a render sees it is luck: with these seeds none does, and the "
-        "8 renders' mean is 2.284 against the reference's 2.314 +- 0.0014 (the caustic's "
-        "1.3 %); with the pixel samplers' earlier random-number layout seed 7 found it in a "
-        "few pixels and was an outlier instead (mean 3.45) (bdpt and the Metropolis "
-        "integrators are the ones for caustics)"),
+        "the ball; seed 7 finds it in a few pixels: mean 3.45 against 2.28 (bdpt and the "
+        "Metropolis integrators are the ones for caustics)"),
     ("outlier", "caustic_sds", "pssmlt"): _GLINT,
     ("outlier", "caustic_sds", "cmlt"): _GLINT,
 }

@@ -17,21 +17,26 @@ constexpr uint32_t k_prefetch = PathTracer::k_dims_per_bounce;
 
 template <class First>
 void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t count, First&& first) {
-    // Dimensions [d0, d0 + count) lie in Philox outputs (blocks) d0 >> 1 .. (d0 + count -
-    // 1) >> 1, two dimensions per output (PixelSampler's layout); a lane's blocks are
-    // consecutive in m_words, which the sampler reads in place.
     size_t n = 0;
     for (uint32_t l : lanes) {
         const uint32_t d0 = first(l);
-        m_sampler[l].prefetch(d0, count, &m_words[4 * n]);
-        for (uint32_t b = d0 >> 1; b <= (d0 + count - 1) >> 1; ++b, ++n) {
+        for (uint32_t k = 0; k < count; ++k, ++n) {
             m_c0[n] = m_sampler[l].pixel();
             m_c1[n] = m_sampler[l].sample();
-            m_c2[n] = b;
+            m_c2[n] = d0 + k;
         }
     }
     philox4x32_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path),
-                     seed_key(m_seed), m_words.data());
+                     seed_key(m_seed), m_w0.data(), m_w1.data());
+    n = 0;
+    for (uint32_t l : lanes) {
+        uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
+        for (uint32_t k = 0; k < count; ++k, ++n) {
+            w[2 * k] = m_w0[n];
+            w[2 * k + 1] = m_w1[n];
+        }
+        m_sampler[l].prefetch(first(l), count, w);
+    }
 }
 
 PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera& camera, const PixelFilter& filter,
@@ -48,10 +53,8 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_live.reserve(n);
     m_shadowed.reserve(n);
     m_scattering.reserve(n);
-    // a lane's count dimensions span at most count / 2 + 1 blocks
-    const size_t blocks = n * (k_prefetch / 2 + 1);
-    for (auto* v : {&m_c0, &m_c1, &m_c2}) v->resize(blocks);
-    m_words.resize(4 * blocks);
+    for (auto* v : {&m_c0, &m_c1, &m_c2, &m_w0, &m_w1}) v->resize(n * k_prefetch);
+    m_words.resize(n * 2 * k_prefetch);
 }
 
 void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectrum* L, float* w, Vec2* p) {
@@ -92,12 +95,8 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         // the dimensions of its bounce (PathTracer::scatter): computed here, for every
         // lane that hit a mesh, at once (a miss or an analytic light ends the path).
         m_scattering.clear();
-        for (uint32_t l : m_live) {
-            if (m_hits[l].valid())
-                m_scattering.push_back(l);
-            else
-                m_sampler[l].prefetch(0, 0, nullptr);  // its last round's words are overwritten now
-        }
+        for (uint32_t l : m_live)
+            if (m_hits[l].valid()) m_scattering.push_back(l);
         prefetch_dimensions(m_scattering, k_prefetch,
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();

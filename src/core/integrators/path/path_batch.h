@@ -65,8 +65,8 @@ private:
     std::vector<uint8_t> m_occluded;
     std::vector<uint32_t> m_live, m_shadowed, m_scattering;
     // random numbers computed ahead for every live lane (prefetch_dimensions)
-    std::vector<uint32_t> m_c0, m_c1, m_c2;  ///< counters of the Philox blocks, lane by lane
-    std::vector<uint32_t> m_words;           ///< their outputs, 4 words each (the samplers read them)
+    std::vector<uint32_t> m_c0, m_c1, m_c2, m_w0, m_w1;
+    std::vector<uint32_t> m_words;  ///< per lane: k_prefetch dimensions x 2 words
 
     /// Hands every lane of `lanes` the numbers of dimensions [first(lane), first(lane) +
     /// count) (PixelSampler::prefetch), computed for all of them at once.
