@@ -1,5 +1,6 @@
 #include "integrators/bdpt/bdpt_integrator.h"
 
+#include "accel/accel.h"
 #include "cameras/camera.h"
 #include "film/film.h"
 #include "film/filter.h"
@@ -29,6 +30,8 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
     const std::vector<uint32_t> lens_lights = LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin());
     tracer.set_direct_light_tracing(lens_lights);
+    // a sample's shadow rays in Embree packets (--no-packets: one by one, bit for bit the scalar connect)
+    tracer.set_packet_width(settings.packets ? Accel::max_packet_width() : 1);
     // every pass's camera samples go to the film through the splatter (film/pass_splatter.h):
     // a wide filter splats each to its neighbours (the window's source pixels are traced,
     // each sampled uniformly in its pixel); the one-pixel box keeps it in its pixel

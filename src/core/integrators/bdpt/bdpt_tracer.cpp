@@ -44,20 +44,60 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     const float time = nc > 0 ? ws.camera[0].time : 0.f;  // the sample's shutter time
     int nl = generate_light_subpath(sampler, max_light, true, ws.light.data(), c, time);
     sampler.start_stream(BdptSampler::k_connection);
-    Spectrum L(0.f);
-    for (int t = 1; t <= nc; ++t) {
+    // The connections of connect(), in three steps: every connection begun in the
+    // scalar order (they draw their numbers in it), their shadow rays answered together
+    // (Scene::transmittance split around the BVH query, as PathBatch does: analytic
+    // lights, then Embree in packets, then pass-through surfaces), every connection
+    // finished and summed in the same order.
+    size_t n = 0;
+    for (int t = 1; t <= nc; ++t)
         for (int s = 0; s <= nl; ++s) {
-            int depth = s + t - 2;
+            const int depth = s + t - 2;
             if ((s == 1 && t == 1 && m_direct_light.empty()) || depth < 0 || depth > m_max_depth) continue;
-            Vec2 pr;
-            Spectrum lp = connect(ws.light.data(), s, ws.camera.data(), t, sampler, &pr, true, c);
-            if (is_black(lp)) continue;
-            if (t == 1) {
-                ws.splats.push_back({pr, lp});
-                c.splats += 1;
-            } else {
-                L += lp;
+            if (ws.conns.size() <= n) {
+                ws.conns.resize(n + 1);
+                ws.pending.resize(n + 1);
+                ws.rays.resize(n + 1);
+                ws.occluded.resize(n + 1);
             }
+            ws.pending[n] = begin_connect(ws.light.data(), s, ws.camera.data(), t, sampler, true, c, ws.conns[n]);
+            ++n;
+        }
+    ws.queries.clear();
+    for (size_t i = 0; i < n; ++i) {
+        ws.occluded[i] = 0;
+        if (!ws.pending[i]) continue;
+        const Ray& shadow = ws.conns[i].shadow;
+        if (m_scene.has_analytic_area_lights() && m_scene.blocked_by_light(shadow)) {
+            ws.occluded[i] = 2;  // stopped by a lamp: transmittance 0
+            continue;
+        }
+        ws.rays[i] = shadow;
+        ws.queries.push_back(uint32_t(i));
+    }
+    if (m_packet_width > 1) {
+        m_scene.accel().occluded_lanes(ws.rays.data(), ws.queries.data(), ws.queries.size(), ws.occluded.data(),
+                                       m_packet_width);
+    } else {
+        for (uint32_t i : ws.queries) ws.occluded[i] = m_scene.accel().occluded(ws.rays[i]) ? 1 : 0;
+    }
+    Spectrum L(0.f);
+    for (size_t i = 0; i < n; ++i) {
+        BdptConnection& k = ws.conns[i];
+        Vec2 pr;
+        Spectrum lp = k.result;
+        if (ws.pending[i]) {
+            float pass_pdf = 1.f;
+            const float tr =
+                ws.occluded[i] == 2 ? 0.f : m_scene.transmittance_given(ws.rays[i], ws.occluded[i] != 0, &pass_pdf);
+            lp = finish_connect(k, tr, pass_pdf, &pr);
+        }
+        if (is_black(lp)) continue;
+        if (k.t == 1) {
+            ws.splats.push_back({pr, lp});
+            c.splats += 1;
+        } else {
+            L += lp;
         }
     }
     return L;

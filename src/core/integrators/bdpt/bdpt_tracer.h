@@ -94,11 +94,6 @@ struct BdptSplat {
 };
 
 /// Per-thread scratch memory (vertex arrays), reused across samples.
-struct BdptWorkspace {
-    std::vector<PathVertex> camera, light;
-    std::vector<BdptSplat> splats;
-};
-
 /// A subpath's random walk between two ray queries: everything BdptTracer's walk step
 /// needs to consume the hit of `ray` and produce the next ray. The scalar walk
 /// (generate_camera_subpath, generate_light_subpath) is a loop over that step; coherent
@@ -130,6 +125,18 @@ struct BdptConnection {
     PathVertex sampled;      ///< the new endpoint of s = 1 / t = 1
     Vec2 p_raster;           ///< t = 1: raster position of the connection
     Ray shadow;              ///< the visibility query (Scene::transmittance semantics)
+};
+
+/// Per-thread scratch of BdptTracer::li: the two subpaths, the t = 1 splats, and the
+/// sample's connections with their shadow rays (answered together).
+struct BdptWorkspace {
+    std::vector<PathVertex> camera, light;
+    std::vector<BdptSplat> splats;
+    std::vector<BdptConnection> conns;
+    std::vector<uint8_t> pending;    ///< per connection: its shadow ray is still to be answered
+    std::vector<Ray> rays;           ///< per connection: its shadow ray
+    std::vector<uint32_t> queries;   ///< connections whose rays go to the BVH
+    std::vector<uint8_t> occluded;   ///< per connection: the BVH's answer
 };
 
 /// The query a resumable BDPT evaluation (BdptStrategyLane) waits for.
@@ -230,6 +237,11 @@ public:
                      PathVertex* sampled = nullptr) const;
 
     int max_depth() const { return m_max_depth; }
+    /// li's shadow rays: a sample's connections ask theirs together, in Embree packets
+    /// of up to `width` rays (Accel::occluded_lanes); 1 (the default): one at a time.
+    /// The same numbers in the same order either way; the image can differ only where
+    /// Embree's packet and single-ray kernels answer a ray differently.
+    void set_packet_width(int width) { m_packet_width = width; }
     /// Turn the (1, 1) strategy on for these lights (indices into Scene::light; li and
     /// the MIS weights of paths of depth 0); none by default (file comment).
     void set_direct_light_tracing(const std::vector<uint32_t>& lights);
@@ -312,6 +324,7 @@ private:
     int m_max_depth;
     bool m_motion_blur;
     std::vector<uint8_t> m_direct_light;  ///< per light: (1, 1) on; empty: on for none
+    int m_packet_width = 1;
 };
 
 }  // namespace cmlt
