@@ -362,6 +362,7 @@ void Scene::build_lights() {
                 b.center = c;
                 b.r2 = rr * rr;
             }
+            b.planar = dynamic_cast<const PlanarLight*>(l.get()) != nullptr;
             m_area_bounds.push_back(b);
         }
         m_lights.push_back(l.get());

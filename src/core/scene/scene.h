@@ -177,6 +177,15 @@ public:
     /// Does an analytic area light (rect, disk, sphere, cylinder: not in the BVH) lie on
     /// `ray` within (tnear, tfar), seen from a side it stops rays on (Light::intersect)?
     bool blocked_by_light(const Ray& ray) const;
+    /// blocked_by_light for next-event estimation's shadow ray toward a point sampled on
+    /// light `target` (a Scene::light index) and aimed by shadow_target: a planar light
+    /// (rect, disk) is not tested against its own ray, which ends on the ray's side of
+    /// its plane short of it (the offset target and 1 - k_shadow_epsilon) and so never
+    /// meets it (test LightSampling.PlanarLightBlocksItsOwnShadowRayOnlyByRoundingAtGrazingAngles): the same answer for
+    /// one light test less per shadow ray.
+    bool blocked_by_light(const Ray& ray, size_t target) const;
+    /// transmittance() of such a shadow ray (the same value).
+    float transmittance(const Ray& ray, size_t target, float* pass_pdf) const;
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
     /// The part of fill_interaction a diffuse shading point needs (the same floats).
     void hit_geometry(const Ray& ray, const Hit& hit, HitGeometry* g) const;
@@ -237,6 +246,7 @@ private:
     struct AreaBound {
         Vec3 center;
         float r2 = k_infinity;
+        bool planar = false;  ///< a PlanarLight (blocked_by_light(ray, target))
     };
     std::vector<AreaBound> m_area_bounds;
     /// Can `ray` (within (tnear, tmax)) reach analytic light k (m_analytic_area[k])?

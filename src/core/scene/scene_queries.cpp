@@ -179,6 +179,24 @@ bool Scene::blocked_by_light(const Ray& ray) const {
     return false;
 }
 
+bool Scene::blocked_by_light(const Ray& ray, size_t target) const {
+    for (size_t k = 0; k < m_analytic_area.size(); ++k) {
+        if (m_analytic_area[k] == target && m_area_bounds[k].planar) continue;
+        if (!may_reach_light(ray, ray.tfar, k)) continue;
+        float t;
+        Spectrum le;
+        if (m_lights[m_analytic_area[k]]->intersect(ray, &t, &le)) return true;
+    }
+    return false;
+}
+
+float Scene::transmittance(const Ray& shadow, size_t target, float* pass_pdf) const {
+    *pass_pdf = 1.f;
+    if (!m_analytic_area.empty() && blocked_by_light(shadow, target)) return 0.f;
+    if (!m_accel->occluded(shadow)) return 1.f;
+    return transmittance_through(shadow, pass_pdf);
+}
+
 float Scene::transmittance(const Ray& shadow, float* pass_pdf) const {
     *pass_pdf = 1.f;
     // An analytic emitter stops camera and BSDF rays (resolve_hit), so it stops shadow

@@ -121,7 +121,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             }
             if (!st.has_shadow) continue;
             // Scene::transmittance, split around the BVH query: analytic lights first.
-            if (m_scene.blocked_by_light(st.shadow)) {
+            if (m_scene.blocked_by_light(st.shadow, st.shadow_light)) {
                 PathTracer::finish_shadow(st, 0.f, 1.f);
                 continue;
             }

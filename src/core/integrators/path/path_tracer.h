@@ -75,6 +75,7 @@ struct PathState {
     /// L += shadow_f * (tr * w / shadow_light_pdf), w the power heuristic of
     /// shadow_light_pdf against shadow_bsdf_pdf * pass_pdf (1 for a Dirac light).
     bool has_shadow = false;
+    uint32_t shadow_light = 0;  ///< the light `shadow` aims at (Scene::blocked_by_light(ray, target))
     bool shadow_delta = false;
     Ray shadow;
     Spectrum shadow_f{0.f};

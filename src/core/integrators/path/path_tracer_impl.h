@@ -29,7 +29,7 @@ Spectrum PathTracer::li(const Ray& camera_ray, Sampler& sampler, PathCounters& c
         }
         if (st.has_shadow) {
             float pass_pdf = 1.f;
-            const float tr = m_scene.transmittance(st.shadow, &pass_pdf);
+            const float tr = m_scene.transmittance(st.shadow, st.shadow_light, &pass_pdf);
             finish_shadow(st, tr, pass_pdf);
         }
         if (st.done) break;
@@ -161,6 +161,7 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
                 // Through pass-through surfaces: attenuated by tr; BSDF sampling
                 // would make this path with density bsdf.pdf * pass_pdf.
                 st.has_shadow = true;
+                st.shadow_light = uint32_t(li);
                 st.shadow_delta = ls.is_delta;
                 st.shadow_light_pdf = pmf * ls.pdf;
                 st.shadow_bsdf_pdf = ls.is_delta ? 0.f : bsdf.pdf(wo, ls.wi);
