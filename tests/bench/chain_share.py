@@ -1,0 +1,49 @@
+#!/usr/bin/env python3
+"""How close the hard stages' Metropolis renders come to the no-stuck-chain bound
+(tests/python/hard/test_hard_stages.py, test05: no chain holds more than 5 % of the
+chains' image): per stage and integrator, the sidecar's ``max_chain_share`` of each
+test seed, its maximum and median. The renders are the test's own (same seeds and
+budget), so a margin read here is the margin the test has.
+
+    .venv/bin/python tests/bench/chain_share.py                       # every stage
+    .venv/bin/python tests/bench/chain_share.py scale_unit,scale_1e5  # some
+"""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    spec = importlib.util.spec_from_file_location("cmlt_hard_references",
+                                                  ROOT / "sequences" / "hard" / "make_references.py")
+    refs = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = refs
+    spec.loader.exec_module(refs)
+    from cmlt.shot.bridge import SceneBridge
+    names = argv[0].split(",") if argv else list(refs.CASES)
+    for name in names:
+        if name not in refs.CASES:
+            print(f"chain_share.py: no hard stage '{name}' (stages: {', '.join(refs.CASES)})", file=sys.stderr)
+            return 2
+        case = refs.CASES[name]
+        core, fs = refs.load(case)
+        scene = SceneBridge(core).update(fs)
+        for integ in ("pssmlt", "cmlt"):
+            shares = []
+            for seed in range(1, case.test_seeds + 1):
+                _, stats, _ = refs.render(case, integ, case.test_spp, seed, fs=fs, scene=scene)
+                shares.append(float(stats.get("max_chain_share", float("nan"))))
+            print(f"{name:20s} {integ:7s} max {max(shares):.4f}  median {float(np.median(shares)):.4f}  "
+                  + " ".join(f"{x:.3f}" for x in shares), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
