@@ -178,13 +178,15 @@ public:
     /// `ray` within (tnear, tfar), seen from a side it stops rays on (Light::intersect)?
     bool blocked_by_light(const Ray& ray) const;
     /// blocked_by_light for next-event estimation's shadow ray toward a point sampled on
-    /// light `target` (a Scene::light index) and aimed by shadow_target: a planar light
-    /// (rect, disk) is not tested against its own ray, which ends on the ray's side of
-    /// its plane short of it (the offset target and 1 - k_shadow_epsilon) and so never
-    /// meets it (test LightSampling.PlanarLightBlocksItsOwnShadowRayOnlyByRoundingAtGrazingAngles): the same answer for
-    /// one light test less per shadow ray.
+    /// light `target` (a Scene::light index; k_no_light: none) and aimed by
+    /// shadow_target: a planar light (rect, disk) is not tested against its own ray. The
+    /// ray ends short of its plane on the ray's side (1 - k_shadow_epsilon of the way),
+    /// so the light cannot block it; its float intersect reported a block where rounding
+    /// eats that margin (grazing rays, points close to a light far from the origin: test
+    /// LightSampling.NextEventShadowRaysAreNotBlockedByTheirOwnPlanarLight).
     bool blocked_by_light(const Ray& ray, size_t target) const;
-    /// transmittance() of such a shadow ray (the same value).
+    static constexpr size_t k_no_light = ~size_t(0);
+    /// transmittance() of such a shadow ray.
     float transmittance(const Ray& ray, size_t target, float* pass_pdf) const;
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
     /// The part of fill_interaction a diffuse shading point needs (the same floats).

@@ -169,15 +169,7 @@ bool Scene::may_reach_light(const Ray& ray, float tmax, size_t k) const {
     return !(dot(q, q) > b.r2 + 1e-8f * dot(oc, oc));  // NaN: test the light
 }
 
-bool Scene::blocked_by_light(const Ray& ray) const {
-    for (size_t k = 0; k < m_analytic_area.size(); ++k) {
-        if (!may_reach_light(ray, ray.tfar, k)) continue;
-        float t;
-        Spectrum le;
-        if (m_lights[m_analytic_area[k]]->intersect(ray, &t, &le)) return true;
-    }
-    return false;
-}
+bool Scene::blocked_by_light(const Ray& ray) const { return blocked_by_light(ray, k_no_light); }
 
 bool Scene::blocked_by_light(const Ray& ray, size_t target) const {
     for (size_t k = 0; k < m_analytic_area.size(); ++k) {
@@ -192,19 +184,16 @@ bool Scene::blocked_by_light(const Ray& ray, size_t target) const {
 
 float Scene::transmittance(const Ray& shadow, size_t target, float* pass_pdf) const {
     *pass_pdf = 1.f;
+    // An analytic emitter stops camera and BSDF rays (resolve_hit), so it stops shadow
+    // rays and BDPT connections too: otherwise light tracing sees surfaces behind a lamp
+    // that the camera cannot, and PT and BDPT disagree where a lamp is in view.
     if (!m_analytic_area.empty() && blocked_by_light(shadow, target)) return 0.f;
     if (!m_accel->occluded(shadow)) return 1.f;
     return transmittance_through(shadow, pass_pdf);
 }
 
 float Scene::transmittance(const Ray& shadow, float* pass_pdf) const {
-    *pass_pdf = 1.f;
-    // An analytic emitter stops camera and BSDF rays (resolve_hit), so it stops shadow
-    // rays and BDPT connections too: otherwise light tracing sees surfaces behind a lamp
-    // that the camera cannot, and PT and BDPT disagree where a lamp is in view.
-    if (!m_analytic_area.empty() && blocked_by_light(shadow)) return 0.f;
-    if (!m_accel->occluded(shadow)) return 1.f;
-    return transmittance_through(shadow, pass_pdf);
+    return transmittance(shadow, k_no_light, pass_pdf);
 }
 
 float Scene::transmittance_through(const Ray& shadow, float* pass_pdf) const {

@@ -93,7 +93,6 @@ struct BdptSplat {
     Spectrum L;
 };
 
-/// Per-thread scratch memory (vertex arrays), reused across samples.
 /// A subpath's random walk between two ray queries: everything BdptTracer's walk step
 /// needs to consume the hit of `ray` and produce the next ray. The scalar walk
 /// (generate_camera_subpath, generate_light_subpath) is a loop over that step; coherent
