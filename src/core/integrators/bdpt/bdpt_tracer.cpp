@@ -63,13 +63,15 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
             ws.pending[n] = begin_connect(ws.light.data(), s, ws.camera.data(), t, sampler, true, c, ws.conns[n]);
             ++n;
         }
+    // ws.occluded: 0 clear, 1 the BVH reports a hit, k_lamp stopped by an analytic light
+    constexpr uint8_t k_lamp = 2;
     ws.queries.clear();
     for (size_t i = 0; i < n; ++i) {
         ws.occluded[i] = 0;
         if (!ws.pending[i]) continue;
         const Ray& shadow = ws.conns[i].shadow;
         if (m_scene.has_analytic_area_lights() && m_scene.blocked_by_light(shadow)) {
-            ws.occluded[i] = 2;  // stopped by a lamp: transmittance 0
+            ws.occluded[i] = k_lamp;  // transmittance 0
             continue;
         }
         ws.rays[i] = shadow;
@@ -89,7 +91,8 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
         if (ws.pending[i]) {
             float pass_pdf = 1.f;
             const float tr =
-                ws.occluded[i] == 2 ? 0.f : m_scene.transmittance_given(ws.rays[i], ws.occluded[i] != 0, &pass_pdf);
+                ws.occluded[i] == k_lamp ? 0.f
+                                         : m_scene.transmittance_given(ws.rays[i], ws.occluded[i] != 0, &pass_pdf);
             lp = finish_connect(k, tr, pass_pdf, &pr);
         }
         if (is_black(lp)) continue;
