@@ -249,6 +249,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["pilot_evaluations"] = m.pilot_evaluations;
         d["direct_evaluations"] = m.direct_evaluations;
         d["min_depth"] = m.min_depth;
+        d["camera_technique"] = m.camera_technique;
         d["states_visited"] = m.states_visited;
         d["top_occupancy"] = m.top_occupancy;
         d["stuck_chains"] = m.stuck_chains;

@@ -50,6 +50,16 @@ bool may_be_specular(const Material& m, float max_roughness) {
     return metal || mirror || glass;
 }
 
+}  // namespace
+
+bool scene_may_be_specular(const Scene& scene, float max_roughness) {
+    for (size_t k = 0; k < scene.material_count(); ++k)
+        if (may_be_specular(scene.material(uint32_t(k)), max_roughness)) return true;
+    return false;
+}
+
+namespace {
+
 /// The rule of the header, on the parameters at the hit.
 bool near_specular(const PreviewSurfaceParams& p, float max_roughness) {
     if (!(p.roughness < max_roughness)) return false;

@@ -45,6 +45,11 @@
 
 namespace cmlt {
 
+/// Can any material of the scene be near-specular somewhere (the rule above with
+/// roughness below `max_roughness`, constants or the deciding inputs textured / read
+/// from primvars)? The Metropolis integrators' auto camera technique asks (mlt/technique.h).
+bool scene_may_be_specular(const Scene& scene, float max_roughness = 0.2f);
+
 struct ProbeOptions {
     int width = 64, height = 64;     ///< image the camera covers (its aspect frames it)
     uint64_t seed = 0;

@@ -150,6 +150,30 @@ Spectrum BdptTracer::evaluate_strategy(int depth, int s, int t, BdptSampler& sam
     return connect(ws.light.data(), s, ws.camera.data(), t, sampler, p_raster, mis, c);
 }
 
+Spectrum BdptTracer::evaluate_camera_strategies(const std::vector<float>& weights, BdptSampler& sampler,
+                                                BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const {
+    if (!start_strategy(0, 0, 2, sampler, ws, p_raster, c)) return Spectrum(0.f);
+    const int max_cam = m_max_depth + 2;
+    if (int(ws.camera.size()) < max_cam) ws.camera.resize(size_t(max_cam));
+    const int nc = generate_camera_subpath(*p_raster, sampler, max_cam, true, ws.camera.data(), c);
+    if (nc < 2) return Spectrum(0.f);
+    sampler.start_stream(BdptSampler::k_light);
+    const int nl = generate_light_subpath(sampler, 1, false, ws.light.data(), c, ws.camera[0].time);
+    sampler.start_stream(BdptSampler::k_connection);
+    Spectrum L(0.f);
+    for (int t = 2; t <= nc; ++t)
+        for (int s = 0; s <= std::min(nl, 1); ++s) {
+            const int depth = s + t - 2;
+            if (depth > m_max_depth || size_t(2 * depth + s) >= weights.size()) continue;
+            const float w = weights[size_t(2 * depth + s)];
+            if (!(w > 0.f)) continue;
+            Vec2 pr;
+            const Spectrum C = connect(ws.light.data(), s, ws.camera.data(), t, sampler, &pr, true, c);
+            if (!is_black(C)) L += C * w;
+        }
+    return L;
+}
+
 Spectrum BdptTracer::evaluate_strategy_unweighted(int depth, int s, int t, BdptSampler& sampler,
                                                   BdptWorkspace& ws, Vec2* p_raster,
                                                   BdptCounters& c) const {

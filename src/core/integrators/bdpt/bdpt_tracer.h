@@ -195,6 +195,15 @@ public:
     /// Scene::transmittance answering its queries inline (tested bit for bit).
     Spectrum evaluate_strategy(int depth, int s, int t, BdptSampler& sampler, BdptWorkspace& ws,
                                Vec2* p_raster, BdptCounters& c, bool mis = true) const;
+    /// The Metropolis integrators' camera technique (mlt/technique.h): every strategy
+    /// with s ≤ 1 and t ≥ 2 along one camera subpath (Russian roulette on, up to
+    /// max_depth), strategy (s, t) of depth d weighted by weights[2 d + s] (0: left
+    /// out). The camera stream's first 2D is the film position over the film window
+    /// (as evaluate_strategy; *p_raster); the light stream gives the light vertex of
+    /// s = 1's MIS densities, the connection stream each s = 1 connection's light sample
+    /// in the order of t. Returns Σ weight · MIS-weighted C_st (all at *p_raster).
+    Spectrum evaluate_camera_strategies(const std::vector<float>& weights, BdptSampler& sampler,
+                                        BdptWorkspace& ws, Vec2* p_raster, BdptCounters& c) const;
     /// Resumable evaluate_strategy (BdptStrategyLane: coherent MLT answers its ray
     /// queries, the camera ray first). Returns the first query, or none when done.
     BdptQuery begin_strategy(BdptStrategyLane& lane, int depth, int s, int t, BdptSampler& sampler,

@@ -194,6 +194,15 @@ BdptQuery begin_lane(const mlt::PssmltTracer& tracer, Sampler& sampler, BdptSamp
                      BdptLane& lane) {
     lane.sample = mlt::PathSample();
     lane.pmf = tracer.choose_technique(sampler, lane.sample);
+    if (lane.sample.depth < 0) {
+        // the camera technique (mlt/technique.h): evaluated here, its queries answered
+        // inline in both modes (so packets stay bit-identical to --no-packets)
+        BdptStrategyLane& st = lane.strategy;
+        st.counters = BdptCounters();
+        st.p_raster = Vec2();
+        st.result = tracer.evaluate_technique(lane.sample, adapter, ws, &st.p_raster, st.counters);
+        return BdptQuery::none;
+    }
     return tracer.bdpt_tracer()->begin_strategy(lane.strategy, lane.sample.depth, lane.sample.s, lane.sample.t,
                                                 adapter, ws);
 }

@@ -3,6 +3,7 @@
 /// carry-over evaluations of temporal/carry.h): the camera, both path samplers, the
 /// importance function, and the PssmltTracer over them — built once, the same way
 /// everywhere, so f* in one place is f* in every other bit for bit.
+#include "analysis/scene_probes.h"
 #include "cameras/camera.h"
 #include "integrators/bdpt/bdpt_tracer.h"
 #include "integrators/common/render_settings.h"
@@ -25,7 +26,8 @@ struct MltContext {
           camera(scene.camera_desc(), s.width, s.height), pt(scene, s.max_depth, min_depth(s)),
           bdpt(scene, camera, s.width, s.height, s.max_depth, filter.margin()),
           importance(make_importance(scene, s, counters, &pilot_rendered)),
-          tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s))
+          tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s),
+                                                                     camera_technique(scene, s))
                                               : PssmltTracer(pt, camera, s.width, s.height)) {
         tracer.set_importance(importance.get());
         tracer.set_filter(&filter);
@@ -56,6 +58,16 @@ struct MltContext {
     }
     /// Shortest path the chains render: 2 with a direct pass, else 0.
     static int min_depth(const RenderSettings& s) { return s.direct_fraction > 0.0 ? 2 : 0; }
+    /// q of the camera technique (mlt/technique.h) when auto chooses it: where a
+    /// material can be near-specular (scene_may_be_specular).
+    static constexpr double k_auto_camera_technique = 0.5;
+    /// RenderSettings::mlt_camera_technique resolved: negative = auto (0 for the pt
+    /// path sampler, which has no techniques).
+    static double camera_technique(const Scene& scene, const RenderSettings& s) {
+        if (s.mlt_path_sampler != "bdpt") return 0.0;
+        if (s.mlt_camera_technique >= 0.0) return s.mlt_camera_technique;
+        return scene_may_be_specular(scene) ? k_auto_camera_technique : 0.0;
+    }
     /// Do the chains have any paths to render (not with a direct pass and max_depth 1)?
     static bool chains_needed(const RenderSettings& s) { return s.max_depth >= min_depth(s); }
     /// Path evaluations left for bootstrap and chains: spp·W·H minus the pilot and the

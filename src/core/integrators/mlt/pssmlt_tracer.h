@@ -93,11 +93,13 @@ public:
     /// The "pt" path sampler.
     PssmltTracer(const PathTracer& tracer, const Camera& camera, int width, int height)
         : m_tracer(&tracer), m_camera(camera), m_width(width), m_height(height), m_technique(0) {}
-    /// The "bdpt" path sampler (multiplexed over depth ∈ [0, bdpt.max_depth()] and (s, t)).
+    /// The "bdpt" path sampler (multiplexed over depth ∈ [0, bdpt.max_depth()] and (s, t),
+    /// and the camera technique with probability `camera`: technique.h).
     /// Depths below `min_depth` are left out (a direct pass renders them).
-    PssmltTracer(const BdptTracer& bdpt, const Camera& camera, int width, int height, int min_depth = 0)
+    PssmltTracer(const BdptTracer& bdpt, const Camera& camera, int width, int height, int min_depth = 0,
+                 double camera_technique = 0.0)
         : m_bdpt(&bdpt), m_camera(camera), m_width(width), m_height(height),
-          m_technique(bdpt.max_depth(), min_depth) {}
+          m_technique(bdpt.max_depth(), min_depth, camera_technique) {}
 
     /// The pixel filter (outliving the tracer); nullptr: the unit box.
     void set_filter(const PixelFilter* filter) {
@@ -176,8 +178,9 @@ public:
     const BdptTracer* bdpt_tracer() const { return m_bdpt; }
 
     /// Read the technique (depth, s, t) of the sampler's current proposal from the
-    /// connection stream's dimension 0 (technique.h) into `s`; returns its probability.
-    /// The bdpt sampler only.
+    /// connection stream's dimension 0 (technique.h) into `s`; returns its probability
+    /// (p_eff; 1 for the camera technique, whose depth, s and t are −1). The bdpt
+    /// sampler only.
     template <class Sampler>
     double choose_technique(Sampler& sampler, PathSample& s) const {
         sampler.start_stream(MltSampler::connection);
@@ -219,10 +222,22 @@ private:
         BdptCounters c;
         BdptStreamAdapter<Sampler> adapter(sampler, m_film_offset);
         Vec2 p_raster;
-        const Spectrum C = m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, &p_raster, c);
+        const Spectrum C = evaluate_technique(s, adapter, ws, &p_raster, c);
         finish_sample(s, pmf, C, p_raster, c, counters);
         return s;
     }
+
+public:
+    /// The technique chosen into `s` (choose_technique) evaluated with `adapter`, its
+    /// queries answered inline: the strategy's C, or the camera technique's weighted sum.
+    Spectrum evaluate_technique(const PathSample& s, BdptSampler& adapter, BdptWorkspace& ws, Vec2* p_raster,
+                                BdptCounters& c) const {
+        if (s.depth < 0)
+            return m_bdpt->evaluate_camera_strategies(m_technique.camera_weights(), adapter, ws, p_raster, c);
+        return m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, p_raster, c);
+    }
+
+private:
 
     /// The pixel containing raster position p, clamped into the image.
     uint32_t pixel_of(const Vec2& p) const {

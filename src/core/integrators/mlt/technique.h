@@ -24,6 +24,26 @@
 /// keeps every depth's interval of u0 wide (≥ 2.5e-5 at max_depth 64) against the float
 /// resolution of the samples the path routines read (u0 is read as a float: ulp ≤ 6e-8
 /// near 1, a relative pmf error ≤ 0.3% on depths > 32 only, whose energy is negligible).
+///
+/// The camera technique (RenderSettings::mlt_camera_technique = q > 0): u0 < q picks it,
+/// else the depth comes from (u0 − q)/(1 − q) as above. It evaluates, along one camera
+/// subpath with Russian roulette, every strategy with s ≤ 1 of every depth in
+/// [min_depth, max_depth] — what a path tracer with next-event estimation samples
+/// (BdptTracer::evaluate_camera_strategies). A strategy (d, s, t) with s ≤ 1 is then
+/// evaluated by two techniques: the camera technique with probability q and its own
+/// with (1 − q) p(d) p(s, t | d). Both weight its MIS-weighted contribution C_st by one
+/// over their sum (one-sample MIS over the techniques, balance heuristic),
+///   p_eff(d, s) = q + (1 − q) p(d) p(s, t | d)     (s ≤ 1),
+///   p_eff(d, s) = (1 − q) p(d) p(s, t | d)         (s ≥ 2),
+/// so E[L] sums every strategy's C_st once, as before (the MIS weights w_st of both
+/// techniques are the same functions of the path: Russian roulette is not in BDPT's
+/// densities, only in the camera technique's throughput). Why: a path that only s ≤ 1
+/// samples — a caustic seen through a mirror or glass, L S S D S E, only s = 0 — gets
+/// f* = C / (p(d) p(s, t | d)), ~70 times its path-traced contribution at depth 5, and
+/// is found ~70 times less often by the bootstrap and the large steps than a path
+/// tracer finds it: a heavy tail of b̂ (sequences/hard/caustic_sds: one render in ~18
+/// had b̂ 2.5 times too high and half its chains on one glint). With q > 0 its f* is at
+/// most C / q and the camera technique finds it as often as a path tracer does.
 #include "integrators/bdpt/bdpt_tracer.h"
 
 #include <algorithm>
@@ -44,8 +64,10 @@ class TechniqueSampler {
 public:
     /// Depths in [min_depth, max_depth] (min_depth ≤ max_depth; the Metropolis
     /// integrators use min_depth 2 when their direct pass renders depths 0 and 1).
-    explicit TechniqueSampler(int max_depth, int min_depth = 0)
-        : m_cdf(size_t(std::max(max_depth, 0)) + 2, 0.0), m_min_depth(std::min(std::max(min_depth, 0), max_depth)) {
+    /// `camera`: q, the probability of the camera technique (file comment), in [0, 1).
+    explicit TechniqueSampler(int max_depth, int min_depth = 0, double camera = 0.0)
+        : m_cdf(size_t(std::max(max_depth, 0)) + 2, 0.0), m_min_depth(std::min(std::max(min_depth, 0), max_depth)),
+          m_camera(std::min(std::max(camera, 0.0), 0.999)) {
         double w = 1.0, sum = 0.0;
         for (int d = 0; d <= max_depth; ++d) {
             if (d >= m_min_depth) {
@@ -56,6 +78,27 @@ public:
         }
         for (double& c : m_cdf) c /= sum;
         m_cdf.back() = 1.0;
+        if (m_camera > 0.0) {
+            m_camera_weights.assign(2 * (size_t(std::max(max_depth, 0)) + 1), 0.f);
+            for (int d = m_min_depth; d <= max_depth; ++d)
+                for (int s = 0; s <= 1; ++s)  // (1, 1) is no strategy of depth 0
+                    m_camera_weights[size_t(2 * d + s)] = (d == 0 && s == 1) ? 0.f : float(1.0 / strategy_pmf(d, s));
+        }
+    }
+
+    /// q: the probability of the camera technique.
+    double camera_probability() const { return m_camera; }
+    /// Whether u0 picks the camera technique.
+    bool camera(float u0) const { return double(u0) < m_camera; }
+    /// The camera technique's weight 1 / p_eff(d, s) of strategy (d, s), s ∈ {0, 1},
+    /// at [2 d + s]; 0 for depths below min_depth and for (1, 1). Empty when q = 0.
+    const std::vector<float>& camera_weights() const { return m_camera_weights; }
+
+    /// p_eff(d, s) of the file comment: the probability that strategy (d, s) is
+    /// evaluated by one state (its own technique, or the camera technique for s ≤ 1).
+    double strategy_pmf(int d, int s) const {
+        const double own = (1.0 - m_camera) * depth_pmf(d) / double(BdptTracer::strategy_count(d));
+        return s <= 1 && d >= m_min_depth ? m_camera + own : own;
     }
 
     int min_depth() const { return m_min_depth; }
@@ -74,11 +117,18 @@ public:
         return std::max(std::min(int(it - m_cdf.begin()) - 1, max_depth()), m_min_depth);
     }
 
-    /// Choose depth and (s, t) from the two technique samples; returns the technique's
-    /// probability p(depth) · p(s, t | depth) (> 0).
+    /// Choose depth and (s, t) from the two technique samples; returns the strategy's
+    /// p_eff (file comment; p(depth) · p(s, t | depth) when q = 0), > 0. The camera
+    /// technique (u0 < q) sets depth, s and t to −1 and returns 1 (its weights are
+    /// per strategy: camera_weights).
     double choose(float u0, float u1, int* depth, int* s, int* t) const {
-        *depth = this->depth(double(u0));
+        if (camera(u0)) {
+            *depth = *s = *t = -1;
+            return 1.0;
+        }
+        *depth = this->depth(m_camera > 0.0 ? (double(u0) - m_camera) / (1.0 - m_camera) : double(u0));
         BdptTracer::choose_strategy(*depth, u1, s, t);  // uniform over the strategies
+        if (m_camera > 0.0) return strategy_pmf(*depth, *s);
         const double p_st = 1.0 / double(BdptTracer::strategy_count(*depth));
         return depth_pmf(*depth) * p_st;
     }
@@ -86,6 +136,8 @@ public:
 private:
     std::vector<double> m_cdf;  ///< m_cdf[d] = P(depth < d), m_cdf[max+1] = 1
     int m_min_depth = 0;
+    double m_camera = 0.0;                ///< q
+    std::vector<float> m_camera_weights;  ///< [2 d + s] = 1 / p_eff(d, s), s ≤ 1
 };
 
 }  // namespace cmlt::mlt
