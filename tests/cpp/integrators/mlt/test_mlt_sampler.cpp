@@ -9,6 +9,7 @@
 
 #include "integrators/mlt/mlt_sampler.h"
 
+#include <map>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -410,4 +411,68 @@ TEST(Technique, DepthPmfSumsToOneAndInverseCdfMatches) {
         EXPECT_EQ(s + t, depth + 2);
         EXPECT_NEAR(p, ts.depth_pmf(depth) / BdptTracer::strategy_count(depth), 1e-12);
     }
+}
+
+TEST(Technique, CameraTechniqueSharesEveryPathTracerStrategyByItsEffectivePmf) {
+    // With q > 0, u0 < q picks the camera technique; the rest is the multiplexed pmf
+    // scaled by 1 - q. Over a regular grid of (u0, u1): the camera technique's share is
+    // q, each strategy's share (1 - q) p(d) p(s, t | d), choose() returns p_eff (q added
+    // for s <= 1) and the camera weights are 1 / p_eff: so every s <= 1 strategy is
+    // counted once in expectation, E = q w + (1 - q) p w = 1 with w = 1 / p_eff.
+    for (int min_depth : {0, 2}) {
+        const int max_depth = 6;
+        const double q = 0.35;
+        TechniqueSampler ts(max_depth, min_depth, q);
+        TechniqueSampler plain(max_depth, min_depth);
+        EXPECT_EQ(ts.camera_probability(), q);
+        const int n0 = 1 << 12, n1 = 1 << 8;
+        double camera = 0;
+        std::map<std::pair<int, int>, double> share;
+        for (int i = 0; i < n0; ++i)
+            for (int j = 0; j < n1; ++j) {
+                int depth, s, t;
+                const double p = ts.choose(float((i + 0.5) / n0), float((j + 0.5) / n1), &depth, &s, &t);
+                if (depth < 0) {
+                    EXPECT_EQ(p, 1.0);
+                    camera += 1;
+                    continue;
+                }
+                EXPECT_EQ(s + t, depth + 2);
+                EXPECT_GE(depth, min_depth);
+                EXPECT_NEAR(p, ts.strategy_pmf(depth, s), 1e-15);
+                share[{depth, s}] += 1;
+            }
+        const double n = double(n0) * n1;
+        EXPECT_NEAR(camera / n, q, 1.0 / n0);
+        const auto& w = ts.camera_weights();
+        ASSERT_EQ(w.size(), size_t(2 * (max_depth + 1)));
+        for (int d = 0; d <= max_depth; ++d)
+            for (int s = 0; s <= d + 1; ++s) {
+                if (d == 0 && s == 1) continue;  // (1, 1): no strategy
+                const double own = (1.0 - q) * plain.depth_pmf(d) / BdptTracer::strategy_count(d);
+                const double measured = share.count({d, s}) ? share[{d, s}] / n : 0.0;
+                EXPECT_NEAR(measured, own, 2.0 / n0 + 2.0 / n1) << d << " " << s;
+                if (s > 1) {
+                    EXPECT_NEAR(ts.strategy_pmf(d, s), own, 1e-15);
+                    continue;
+                }
+                if (d < min_depth) {
+                    EXPECT_EQ(w[size_t(2 * d + s)], 0.f) << d;
+                    continue;
+                }
+                // one unit of C_st per strategy in expectation over the two techniques
+                EXPECT_NEAR(q * w[size_t(2 * d + s)] + own / ts.strategy_pmf(d, s), 1.0, 1e-6) << d << " " << s;
+            }
+        EXPECT_EQ(w[1], 0.f);  // (1, 1)
+    }
+    // q = 0: the multiplexed sampler as before, bit for bit
+    TechniqueSampler a(64, 2), b(64, 2, 0.0);
+    for (float u0 : {0.f, 0.3f, 0.77f, 0.999f})
+        for (float u1 : {0.f, 0.5f, 0.99f}) {
+            int d1, s1, t1, d2, s2, t2;
+            EXPECT_EQ(a.choose(u0, u1, &d1, &s1, &t1), b.choose(u0, u1, &d2, &s2, &t2));
+            EXPECT_EQ(d1, d2);
+            EXPECT_EQ(s1, s2);
+        }
+    EXPECT_TRUE(b.camera_weights().empty());
 }
