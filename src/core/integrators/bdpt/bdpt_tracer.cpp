@@ -162,9 +162,9 @@ Spectrum BdptTracer::evaluate_camera_strategies(const std::vector<float>& weight
     sampler.start_stream(BdptSampler::k_connection);
     Spectrum L(0.f);
     for (int t = 2; t <= nc; ++t)
-        for (int s = 0; s <= std::min(nl, 1); ++s) {
+        for (int s = 0; s <= nl; ++s) {  // nl ≤ 1
             const int depth = s + t - 2;
-            if (depth > m_max_depth || size_t(2 * depth + s) >= weights.size()) continue;
+            if (size_t(2 * depth + s) >= weights.size()) continue;  // beyond max_depth
             const float w = weights[size_t(2 * depth + s)];
             if (!(w > 0.f)) continue;
             Vec2 pr;

@@ -149,7 +149,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.direct_evaluations = direct_pass.evaluations();
     st.lens_lights = direct_pass.lens_lights();
     m.min_depth = MltContext::min_depth(settings);
-    m.camera_technique = MltContext::camera_technique(scene, settings);
+    m.camera_technique = ctx.tracer.technique().camera_probability();
     m.time_budget = settings.time_budget;
     m.chains = chains.chains;
     m.mutations = chains.steps;

@@ -189,6 +189,15 @@ public:
         return m_technique.choose(ut.x, ut.y, &s.depth, &s.s, &s.t);
     }
 
+    /// The technique chosen into `s` (choose_technique) evaluated with `adapter`, its
+    /// queries answered inline: the strategy's C, or the camera technique's weighted sum.
+    Spectrum evaluate_technique(const PathSample& s, BdptSampler& adapter, BdptWorkspace& ws, Vec2* p_raster,
+                                BdptCounters& c) const {
+        if (s.depth < 0)
+            return m_bdpt->evaluate_camera_strategies(m_technique.camera_weights(), adapter, ws, p_raster, c);
+        return m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, p_raster, c);
+    }
+
     /// Pixel, L = C / p(technique) and f* of an evaluated strategy C at p_raster (the
     /// bdpt sampler; also the end of coherent MLT's resumable lanes, bundle_tracer.h).
     void finish_sample(PathSample& s, double pmf, const Spectrum& C, const Vec2& p_raster,
@@ -226,18 +235,6 @@ private:
         finish_sample(s, pmf, C, p_raster, c, counters);
         return s;
     }
-
-public:
-    /// The technique chosen into `s` (choose_technique) evaluated with `adapter`, its
-    /// queries answered inline: the strategy's C, or the camera technique's weighted sum.
-    Spectrum evaluate_technique(const PathSample& s, BdptSampler& adapter, BdptWorkspace& ws, Vec2* p_raster,
-                                BdptCounters& c) const {
-        if (s.depth < 0)
-            return m_bdpt->evaluate_camera_strategies(m_technique.camera_weights(), adapter, ws, p_raster, c);
-        return m_bdpt->evaluate_strategy(s.depth, s.s, s.t, adapter, ws, p_raster, c);
-    }
-
-private:
 
     /// The pixel containing raster position p, clamped into the image.
     uint32_t pixel_of(const Vec2& p) const {
