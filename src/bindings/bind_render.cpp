@@ -250,6 +250,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["direct_evaluations"] = m.direct_evaluations;
         d["min_depth"] = m.min_depth;
         d["camera_technique"] = m.camera_technique;
+        d["paths"] = m.paths;
         d["states_visited"] = m.states_visited;
         d["top_occupancy"] = m.top_occupancy;
         d["stuck_chains"] = m.stuck_chains;
@@ -381,6 +382,15 @@ void bind_render(nb::module_& m) {
           "pixel on the calling thread; returning False cancels. With settings.target_error, "
           "on_estimate(work, seconds, relmse) is called with each estimate as it is made (work: "
           "passes for pt/bdpt, path evaluations per pixel for pssmlt/cmlt).");
+    m.def(
+        "mlt_resolve_paths",
+        [](Scene& scene, const RenderSettings& settings) {
+            if (scene.dirty()) scene.commit();
+            return mlt::MltContext::resolve_paths(scene, settings).mlt_paths;
+        },
+        "scene"_a, "settings"_a,
+        "settings.mlt_paths with 'auto' resolved for this scene ('caustics' where a material "
+        "can be near-specular, else 'none'), as the pssmlt/cmlt frame resolves it.");
     m.def(
         "render_pilot",
         [](Scene& scene, const RenderSettings& settings) {

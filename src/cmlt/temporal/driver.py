@@ -44,7 +44,7 @@ CHAIN_SETTINGS = ("integrator", "spp", "max_depth", "sigma", "large_step_probabi
                   "bootstrap_samples", "tries", "inner_length", "inner", "importance",
                   "direct_fraction", "pilot_spp", "carry_states", "smooth_normalization",
                   "seed_per_frame", "time_budget", "error_groups", "target_error",
-                  "pixel_filter", "filter_radius", "mlt_camera_technique")
+                  "pixel_filter", "filter_radius", "mlt_camera_technique", "mlt_paths")
 #: integrators with a normalisation b (and bootstrap values, a pilot image)
 MLT_INTEGRATORS = ("pssmlt", "cmlt")
 #: Measurements behind the carry-over: tests/bench/results/flicker_baseline.md (the
@@ -138,6 +138,10 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
            "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
     pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
                "anchors": []}
+    if config["integrator"] in MLT_INTEGRATORS and hasattr(core, "mlt_resolve_paths"):
+        # what the chains render, resolved for this frame's scene as the render
+        # resolves it (the bootstrap and chain counts below depend on it)
+        st.mlt_paths = core.mlt_resolve_paths(scene, st)
     if config["integrator"] in MLT_INTEGRATORS and hasattr(st, "pilot"):
         # the pixel importance's pilot, rendered once for the render and for the
         # carry-over evaluations below (f* must be the same function in all of them)

@@ -58,6 +58,10 @@ bool scene_may_be_specular(const Scene& scene, float max_roughness) {
     return false;
 }
 
+bool material_may_be_specular(const Material& material, float max_roughness) {
+    return may_be_specular(material, max_roughness);
+}
+
 namespace {
 
 /// The rule of the header, on the parameters at the hit.

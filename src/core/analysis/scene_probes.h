@@ -49,6 +49,9 @@ namespace cmlt {
 /// roughness below `max_roughness`, constants or the deciding inputs textured / read
 /// from primvars)? The Metropolis integrators' auto camera technique asks (mlt/technique.h).
 bool scene_may_be_specular(const Scene& scene, float max_roughness = 0.2f);
+/// The same rule for one material (the Metropolis integrators' path partition asks it
+/// per material: integrators/common/path_partition.h).
+bool material_may_be_specular(const Material& material, float max_roughness = 0.2f);
 
 struct ProbeOptions {
     int width = 64, height = 64;     ///< image the camera covers (its aspect frames it)

@@ -89,7 +89,8 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
         CMLT_THROW(SettingsError, "evaluate_states: states of the '" << states.path_sampler
                                       << "' path sampler cannot be evaluated with '"
                                       << settings.mlt_path_sampler << "'");
-    const Tracers tr(scene, settings);
+    const RenderSettings resolved = mlt::MltContext::resolve_paths(scene, settings);
+    const Tracers tr(scene, resolved);
     auto out = std::make_shared<mlt::ChainStates>();
     out->path_sampler = states.path_sampler;
     out->chains.resize(states.chains.size());
@@ -127,7 +128,8 @@ uint64_t chain_count(const RenderSettings& settings) {
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
                                                    uint64_t count, PathCounters* counters) {
     check_settings(settings, "bootstrap_states");
-    const Tracers tr(scene, settings);
+    const RenderSettings resolved = mlt::MltContext::resolve_paths(scene, settings);
+    const Tracers tr(scene, resolved);
     auto out = std::make_shared<mlt::ChainStates>();
     out->path_sampler = settings.mlt_path_sampler;
     out->chains.resize(size_t(count));

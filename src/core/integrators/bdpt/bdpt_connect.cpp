@@ -41,6 +41,24 @@ Ray BdptTracer::connection_ray(const PathVertex& a, const PathVertex& b) const {
     return r;
 }
 
+bool BdptTracer::caustic_path(const PathVertex* light, int s, const PathVertex* camera, int t) const {
+    // The scattering vertices from the camera's side: camera[1 .. t-1] (camera[t-1] is
+    // the light end for s = 0), then light[s-1 .. 1] (light[0] is the light end).
+    auto specular = [&](const PathVertex& v) {
+        return v.type == VertexType::surface && m_partition->specular(v.si.material_id);
+    };
+    const int tc = s == 0 ? t - 1 : t;  // camera vertices before the light end
+    bool diffuse_before = false, last_specular = false, any = false;
+    auto visit = [&](const PathVertex& v) {
+        if (any) diffuse_before = diffuse_before || !last_specular;
+        last_specular = specular(v);
+        any = true;
+    };
+    for (int i = 1; i < tc; ++i) visit(camera[i]);
+    for (int j = s - 1; j >= 1; --j) visit(light[j]);
+    return PathPartition::caustic(last_specular, diffuse_before);
+}
+
 bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex* camera, int t,
                                BdptSampler& sampler, bool mis, BdptCounters& c,
                                BdptConnection& k) const {
@@ -56,6 +74,7 @@ bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex*
     Spectrum& L = k.L;
     PathVertex& sampled = k.sampled;
     if (t > 1 && s != 0 && camera[t - 1].type == VertexType::light) return false;
+    if (m_partition && !m_partition->wants(caustic_path(light, s, camera, t))) return false;
 
     // A shadow ray a - b to be answered before finish_connect (as a visibility query).
     auto visibility = [&](const PathVertex& a, const PathVertex& b) {

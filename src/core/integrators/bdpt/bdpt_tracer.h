@@ -71,6 +71,7 @@
 #include "integrators/bdpt/path_sampler.h"
 #include "integrators/bdpt/path_vertex.h"
 #include "integrators/common/path_counters.h"
+#include "integrators/common/path_partition.h"
 
 #include <cstdint>
 #include <vector>
@@ -250,6 +251,16 @@ public:
     /// The same numbers in the same order either way; the image can differ only where
     /// Embree's packet and single-ray kernels answer a ray differently.
     void set_packet_width(int width) { m_packet_width = width; }
+    /// Evaluate only the paths of one class (integrators/common/path_partition.h): every
+    /// strategy gives a path of the other class 0 (before its shadow ray). The
+    /// Metropolis integrators' chains with mlt_paths = "caustics". Null or
+    /// PathPart::all (the default): every path.
+    void set_partition(const PathPartition* partition) {
+        m_partition = partition && partition->part() != PathPart::all ? partition : nullptr;
+    }
+    /// Is the path of strategy (s, t) on these subpaths a caustic path (path_partition.h)?
+    /// Needs a partition (its material table).
+    bool caustic_path(const PathVertex* light, int s, const PathVertex* camera, int t) const;
     /// Turn the (1, 1) strategy on for these lights (indices into Scene::light; li and
     /// the MIS weights of paths of depth 0); none by default (file comment).
     void set_direct_light_tracing(const std::vector<uint32_t>& lights);
@@ -333,6 +344,7 @@ private:
     bool m_motion_blur;
     std::vector<uint8_t> m_direct_light;  ///< per light: (1, 1) on; empty: on for none
     int m_packet_width = 1;
+    const PathPartition* m_partition = nullptr;
 };
 
 }  // namespace cmlt

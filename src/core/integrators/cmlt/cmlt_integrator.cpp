@@ -46,7 +46,8 @@ std::string kernel_stats_json(const mcmc::KernelStats& kstats,
 
 }  // namespace
 
-RenderResult render_cmlt(const Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
+RenderResult render_cmlt(const Scene& scene, const RenderSettings& given, const ProgressCallback& progress) {
+    const RenderSettings settings = mlt::MltContext::resolve_paths(scene, given);  // mlt_paths auto
     // 1. pilot (in the context), direct pass, budget, film. Path sampler: multiplexed
     //    BDPT (default; t = 1 paths take the caustic perturbation) or the path tracer
     //    (every path takes the lens perturbation)

@@ -54,6 +54,9 @@ void RenderSettings::validate() const {
 #undef CMLT_CHECK_REAL
 #undef CMLT_CHECK_NOTHING
 #undef CMLT_CHECK_TOKEN
+    if (mlt_paths != "all" && mlt_paths != "none" && !(direct_fraction > 0.0))
+        CMLT_THROW(SettingsError, "RenderSettings.direct_fraction: must be > 0 with mlt_paths '"
+                                      << mlt_paths << "' (the direct pass renders every path the chains leave)");
     if (error_groups == 1 || error_groups == 2)
         CMLT_THROW(SettingsError, "RenderSettings.error_groups: 0 (off) or 3..64, got " << error_groups
                                       << " (a variance and its jackknife need 3 groups)");

@@ -107,6 +107,13 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "pssmlt/cmlt: share of the path evaluations spent on the path-traced direct pass "  \
          "(emitters seen directly, direct light; the chains render longer paths); 0 = the "  \
          "chains render everything")                                                         \
+    TOKEN(mlt_paths, "all", "auto all caustics none", "cmlt:mltPaths", "--mlt-paths",       \
+          "pssmlt/cmlt: the paths the chains render (integrators/common/path_partition.h): " \
+          "all (every path of depth >= 2; the direct pass renders depths 0 and 1), "         \
+          "caustics (only caustic paths, L S+ D...E: light reaching a rough surface through " \
+          "a near-specular chain; the direct pass path-traces every other path), none (no "  \
+          "chains: the direct pass renders everything), auto (caustics where a material "    \
+          "can be near-specular, else none)")                                                \
     INT(pilot_spp, 1, 1, 64, "cmlt:pilotSpp", "--pilot-spp N",                               \
         "pssmlt/cmlt: path-traced samples per pixel of the pixel importance's pilot image "  \
         "(at most spp/8; counted in the budget)")                                            \
@@ -249,6 +256,7 @@ struct MltStats {
     uint64_t direct_evaluations = 0;                 ///< budget spent on the direct pass
     int min_depth = 0;                               ///< shortest path the chains render
     double camera_technique = 0;                     ///< q of the camera technique (resolved)
+    std::string paths;                               ///< mlt_paths (resolved: all, caustics, none)
     double time_budget = 0;                          ///< seconds (0: none)
     std::string kernel_stats_json;                   ///< mlt::KernelStats::write_json (cmlt:
                                                      ///< + lens/caustic/pixel_move)

@@ -27,6 +27,8 @@ void PtPass::enable_lens_light_tracing(const Scene& scene) {
     m_tracer.set_lens_light_tracing(m_lens.get());
 }
 
+void PtPass::set_partition(const PathPartition* partition) { m_tracer.set_partition(partition); }
+
 void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters) {
     const int W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
@@ -132,8 +134,11 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 }
 
 DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
-    : PtPass(scene, s, k_direct_sample_base, std::min(1, s.max_depth)), m_enabled(s.direct_fraction > 0.0) {
+    : PtPass(scene, s, k_direct_sample_base, MltContext::direct_max_depth(s)),
+      m_enabled(MltContext::direct_spp(s) > 0),
+      m_partition(scene, MltContext::partitioned(s) ? PathPart::easy : PathPart::all) {
     if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
+    set_partition(&m_partition);
     if (m_enabled) enable_lens_light_tracing(scene);
 }
 

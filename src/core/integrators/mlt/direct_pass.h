@@ -67,6 +67,9 @@ protected:
     /// and the camera's hits on those lights MIS-weighted against it. Nothing changes
     /// when the scene has no such light.
     void enable_lens_light_tracing(const Scene& scene);
+    /// Render only the paths of one class (PathTracer::set_partition; the object must
+    /// outlive the pass).
+    void set_partition(const PathPartition* partition);
 
     const RenderSettings& m_settings;
 
@@ -94,8 +97,10 @@ private:
 std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
                                 PathCounters& counters);
 
-/// The direct pass (depths 0 and 1) of a Metropolis frame, keyed from
-/// k_direct_sample_base; disabled when direct_fraction is 0.
+/// The direct pass of a Metropolis frame, keyed from k_direct_sample_base: depths 0
+/// and 1, or, when the chains render only caustic paths (mlt_paths caustics / none),
+/// every other path at every depth (path_partition.h); disabled when direct_fraction
+/// is 0 and the chains render every longer path.
 class DirectPass : public PtPass {
 public:
     DirectPass(const Scene& scene, const RenderSettings& s);
@@ -106,6 +111,7 @@ public:
 
 private:
     bool m_enabled;
+    PathPartition m_partition;  ///< easy paths when the chains render the caustic ones
 };
 
 /// The direct pass's slices around the chain rounds: before round r of a sample budget

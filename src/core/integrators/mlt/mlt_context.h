@@ -28,7 +28,10 @@ struct MltContext {
           importance(make_importance(scene, s, counters, &pilot_rendered)),
           tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s),
                                                                      camera_technique(scene, s))
-                                              : PssmltTracer(pt, camera, s.width, s.height)) {
+                                              : PssmltTracer(pt, camera, s.width, s.height)),
+          partition(scene, partitioned(s) ? PathPart::caustic : PathPart::all) {
+        pt.set_partition(&partition);
+        bdpt.set_partition(&partition);
         tracer.set_importance(importance.get());
         tracer.set_filter(&filter);
         tracer.set_film_offset(Vec2(float(s.mlt_film_offset_x), float(s.mlt_film_offset_y)));
@@ -39,13 +42,34 @@ struct MltContext {
     /// Pilot samples per pixel: pilot_spp for the "pixel" importance (at most spp/8,
     /// at least 1), else 0.
     static int pilot_spp(const RenderSettings& s) {
+        if (chainless(s)) return 0;
         return s.importance == "pixel" ? std::max(1, std::min(s.pilot_spp, s.spp / 8)) : 0;
+    }
+    /// RenderSettings::mlt_paths with auto resolved for this scene: "caustics" where a
+    /// material can be near-specular (scene_may_be_specular), else "none" (no caustic
+    /// path exists). The frame functions resolve it on entry; the budget functions
+    /// below read an unresolved "auto" as "caustics".
+    static RenderSettings resolve_paths(const Scene& scene, const RenderSettings& s) {
+        RenderSettings out = s;
+        if (out.mlt_paths == "auto") out.mlt_paths = scene_may_be_specular(scene) ? "caustics" : "none";
+        return out;
+    }
+    /// The chains render a part of path space and the direct pass the rest of it, at
+    /// every depth (mlt_paths caustics, none or auto: path_partition.h).
+    static bool partitioned(const RenderSettings& s) { return s.mlt_paths != "all"; }
+    /// No chains: the direct pass renders every path (mlt_paths none).
+    static bool chainless(const RenderSettings& s) { return s.mlt_paths == "none"; }
+    /// Deepest path of the direct pass: 1 (depths 0 and 1) when the chains render every
+    /// longer path, else max_depth (partitioned).
+    static int direct_max_depth(const RenderSettings& s) {
+        return partitioned(s) ? s.max_depth : std::min(1, s.max_depth);
     }
     /// Direct-pass samples per pixel of a sample budget: round(direct_fraction · spp),
     /// at least 1 when the share is > 0; 0 = no direct pass. (With a time budget the pass
     /// runs alongside the chains at the same share of evaluations: direct_pass.h.)
     static int direct_spp(const RenderSettings& s) {
-        if (!(s.direct_fraction > 0.0)) return 0;
+        if (chainless(s)) return s.spp;
+        if (!(s.direct_fraction > 0.0)) return 0;  // (refused when partitioned)
         return std::max(1, int(std::lround(s.direct_fraction * double(s.spp))));
     }
     /// Path evaluations the pilot costs in the budget (whether rendered here or given).
@@ -56,8 +80,11 @@ struct MltContext {
     static uint64_t direct_cost(const RenderSettings& s) {
         return uint64_t(direct_spp(s)) * uint64_t(s.width) * uint64_t(s.height);
     }
-    /// Shortest path the chains render: 2 with a direct pass, else 0.
-    static int min_depth(const RenderSettings& s) { return s.direct_fraction > 0.0 ? 2 : 0; }
+    /// Shortest path the chains render: 2 with a direct pass (a caustic path has two
+    /// scattering vertices at least), else 0.
+    static int min_depth(const RenderSettings& s) {
+        return s.direct_fraction > 0.0 || partitioned(s) ? 2 : 0;
+    }
     /// q of the camera technique (mlt/technique.h) when auto chooses it: where a
     /// material can be near-specular (scene_may_be_specular).
     static constexpr double k_auto_camera_technique = 0.5;
@@ -68,8 +95,9 @@ struct MltContext {
         if (s.mlt_camera_technique >= 0.0) return s.mlt_camera_technique;
         return scene_may_be_specular(scene) ? k_auto_camera_technique : 0.0;
     }
-    /// Do the chains have any paths to render (not with a direct pass and max_depth 1)?
-    static bool chains_needed(const RenderSettings& s) { return s.max_depth >= min_depth(s); }
+    /// Do the chains have any paths to render (not with a direct pass and max_depth 1,
+    /// not chainless)?
+    static bool chains_needed(const RenderSettings& s) { return !chainless(s) && s.max_depth >= min_depth(s); }
     /// Path evaluations left for bootstrap and chains: spp·W·H minus the pilot and the
     /// direct pass (≥ 2).
     static uint64_t evaluation_budget(const RenderSettings& s) {
@@ -85,6 +113,8 @@ struct MltContext {
     uint64_t pilot_rendered = 0;  ///< pilot samples rendered here (0 if given or not needed)
     std::shared_ptr<const PixelImportance> importance;
     PssmltTracer tracer;
+    /// The chains' class of paths (every path unless partitioned).
+    PathPartition partition;
 };
 
 }  // namespace cmlt::mlt

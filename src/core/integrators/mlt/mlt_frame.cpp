@@ -150,6 +150,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     st.lens_lights = direct_pass.lens_lights();
     m.min_depth = MltContext::min_depth(settings);
     m.camera_technique = ctx.tracer.technique().camera_probability();
+    m.paths = settings.mlt_paths;
     m.time_budget = settings.time_budget;
     m.chains = chains.chains;
     m.mutations = chains.steps;

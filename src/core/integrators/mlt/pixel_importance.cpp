@@ -101,6 +101,7 @@ std::shared_ptr<const PixelImportance> make_importance(const Scene& scene, const
         return std::make_shared<const PixelImportance>(*settings.pilot, settings.width, settings.height);
     }
     const int spp = MltContext::pilot_spp(settings);
+    if (spp == 0) return std::make_shared<const PixelImportance>();  // no chains to guide
     const std::vector<float> pilot = render_pilot(scene, settings, spp, counters);
     if (pilot_evaluations) *pilot_evaluations = uint64_t(spp) * uint64_t(settings.width) * uint64_t(settings.height);
     return std::make_shared<const PixelImportance>(pilot, settings.width, settings.height);

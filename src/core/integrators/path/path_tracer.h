@@ -33,6 +33,7 @@
 /// packets — the same arithmetic on the same answers, so the same estimator.
 #include "base/sampler.h"
 #include "integrators/common/path_counters.h"
+#include "integrators/common/path_partition.h"
 #include "math/ray.h"
 #include "math/vec.h"
 #include "sampling/mis.h"
@@ -70,6 +71,10 @@ struct PathState {
     int depth = 0;              ///< scattering events so far
     bool specular_bounce = false;
     bool done = false;
+    /// The path's class (integrators/common/path_partition.h), kept only when the
+    /// tracer has a partition: a rough vertex among the scattering vertices so far, one
+    /// before the last of them, and the last one's material near-specular.
+    bool diffuse_seen = false, diffuse_before_last = false, last_specular = false;
     /// Next-event estimation pending on a shadow ray: if `shadow` is unblocked (through
     /// pass-through surfaces with transmittance tr and crossing probability pass_pdf),
     /// L += shadow_f * (tr * w / shadow_light_pdf), w the power heuristic of
@@ -104,6 +109,12 @@ public:
     /// (1, 1) light samples: their emission gets its MIS weight (the Metropolis direct
     /// pass; lens_light_tracing.h). Null (the default): weight 1.
     void set_lens_light_tracing(const LensLightTracing* lens) { m_lens_light = lens; }
+    /// Render only the paths of one class (path_partition.h): the Metropolis
+    /// integrators' direct pass the easy ones, their pt path sampler the caustic ones.
+    /// Null or PathPart::all (the default): every path.
+    void set_partition(const PathPartition* partition) {
+        m_partition = partition && partition->part() != PathPart::all ? partition : nullptr;
+    }
 
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
     void begin(PathState& st, const Ray& camera_ray, PathCounters& counters) const;
@@ -144,13 +155,15 @@ private:
     /// sampling, Russian roulette. `passes`: the material may let the ray through;
     /// `last`: the path has its max_depth scattering events (only a crossing goes on).
     template <class Sampler>
+    /// `specular`: the vertex's material is a specular one of the partition.
     void scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp, const Vec3& wo, const Bsdf& bsdf,
-                 bool passes, bool last, Sampler& sampler, PathCounters& counters) const;
+                 bool passes, bool last, bool specular, Sampler& sampler, PathCounters& counters) const;
 
     const Scene& m_scene;
     int m_max_depth;
     int m_min_depth;
     const LensLightTracing* m_lens_light = nullptr;
+    const PathPartition* m_partition = nullptr;
 };
 
 extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,

@@ -62,6 +62,8 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     // Emission seen by this ray, MIS-weighted against light sampling.
     auto add_emitted = [&](const Spectrum& le, float light_pdf_sa) {
         if (is_black(le) || st.depth < m_min_depth) return;
+        if (m_partition && !m_partition->wants(PathPartition::caustic(st.last_specular, st.diffuse_before_last)))
+            return;
         if (st.depth == 0 || st.specular_bounce) {
             st.L += st.beta * le;
         } else {
@@ -112,7 +114,8 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
         st.done = true;
         return;
     }
-    scatter(st, bounce, si, si.wo, make_bsdf(mat, si, scene.textures()), passes, last, sampler, c);
+    const bool specular = m_partition && m_partition->specular(si.material_id);
+    scatter(st, bounce, si, si.wo, make_bsdf(mat, si, scene.textures()), passes, last, specular, sampler, c);
 }
 
 template <class Sampler>
@@ -126,13 +129,13 @@ void PathTracer::step(PathState& st, const LambertHit& hit, Sampler& sampler, Pa
         return;
     }
     const HitGeometry& g = *hit.geometry;
-    scatter(st, bounce, g.sp, g.wo, Bsdf(LambertianBsdf(*hit.reflectance), g.ns, g.sp.ng), false, false, sampler,
+    scatter(st, bounce, g.sp, g.wo, Bsdf(LambertianBsdf(*hit.reflectance), g.ns, g.sp.ng), false, false, false, sampler,
             c);
 }
 
 template <class Sampler>
 void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp, const Vec3& wo, const Bsdf& bsdf,
-                         bool passes, bool last, Sampler& sampler, PathCounters& c) const {
+                         bool passes, bool last, bool specular, Sampler& sampler, PathCounters& c) const {
     const Scene& scene = m_scene;
     const Vec3& ns = bsdf.shading_normal();
     sampler.set_dimension(1 + bounce * k_dims_per_bounce);
@@ -143,7 +146,8 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
     float u_rr = sampler.get1d();
 
     // Next-event estimation: one light chosen by power; its shadow ray is left pending.
-    if (!last && bsdf.has_non_delta() && scene.light_count() > 0 && st.depth + 1 >= m_min_depth) {
+    if (!last && bsdf.has_non_delta() && scene.light_count() > 0 && st.depth + 1 >= m_min_depth &&
+        (!m_partition || m_partition->wants(PathPartition::caustic(specular, st.diffuse_seen)))) {
         float pmf = 0.f;
         size_t li = scene.sample_light(u_light, &pmf);
         const Light& light = scene.light(li);
@@ -203,6 +207,9 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
     st.prev_bsdf_pdf = bs.pdf;
     st.prev_p = sp.p;
     st.ray = sp.spawn_ray(bs.wi);
+    st.diffuse_before_last = st.diffuse_seen;
+    st.diffuse_seen = st.diffuse_seen || !specular;
+    st.last_specular = specular;
 
     // Russian roulette.
     if (st.depth + 1 >= k_rr_start_depth) {

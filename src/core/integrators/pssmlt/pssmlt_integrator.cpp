@@ -12,7 +12,8 @@
 
 namespace cmlt {
 
-RenderResult render_pssmlt(const Scene& scene, const RenderSettings& settings, const ProgressCallback& progress) {
+RenderResult render_pssmlt(const Scene& scene, const RenderSettings& given, const ProgressCallback& progress) {
+    const RenderSettings settings = mlt::MltContext::resolve_paths(scene, given);  // mlt_paths auto
     using pssmlt::Chain;
     using pssmlt::make_sampler;
     using mlt::MltSampler;

@@ -1,0 +1,15 @@
+// The path partition's material table; see path_partition.h.
+#include "integrators/common/path_partition.h"
+
+#include "analysis/scene_probes.h"
+#include "scene/scene.h"
+
+namespace cmlt {
+
+PathPartition::PathPartition(const Scene& scene, PathPart part) : m_part(part) {
+    m_specular.resize(scene.material_count());
+    for (size_t k = 0; k < m_specular.size(); ++k)
+        m_specular[k] = material_may_be_specular(scene.material(uint32_t(k))) ? 1 : 0;
+}
+
+}  // namespace cmlt

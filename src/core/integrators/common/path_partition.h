@@ -1,0 +1,58 @@
+#pragma once
+/// \file A partition of path space into the paths a path tracer samples well and the
+/// caustic paths it does not, so that the Metropolis integrators can render only the
+/// second kind with their chains and the first with independent path-traced samples
+/// (RenderSettings::mlt_paths = "caustics"; mlt/mlt_context.h, mlt/direct_pass.h).
+///
+/// A path x0 (camera) x1 … xk x_{k+1} (on a light) with k ≥ 1 scattering vertices is a
+/// *caustic path* when its last scattering vertex xk (the one next to the light) is on a
+/// material that can be near-specular, and some earlier scattering vertex x1 … x_{k−1}
+/// is on one that cannot: light reaches a rough surface only through a specular chain,
+/// L S+ D (S|D)* E in Heckbert's notation. Next-event estimation cannot sample the
+/// S-to-light edge, and BSDF sampling from the rough vertex must hit the light through
+/// the specular chain: the paths a path tracer finds rarely. Every other path (emitters
+/// seen directly or through mirrors, direct and indirect diffuse light, glossy
+/// reflections of lit surfaces) it samples well.
+///
+/// The class is a property of the path alone: a vertex counts as specular by its
+/// material (analysis/scene_probes.h's rule, roughness < 0.2 metal, mirror or glass,
+/// constant or textured), never by the lobe sampled, and pass-through crossings make no
+/// vertex. So every sampling technique that makes a path (NEE or BSDF hit, every BDPT
+/// strategy (s, t)) gives it the same class, MIS weights over the techniques still sum
+/// to one within each class, and the two classes' estimates add up to the image with
+/// no bias, whatever the rule is: the rule only decides which estimator does the work.
+#include <cstdint>
+#include <vector>
+
+namespace cmlt {
+
+class Scene;
+
+/// Which class of paths an estimator renders.
+enum class PathPart : uint8_t { all, easy, caustic };
+
+class PathPartition {
+public:
+    PathPartition() = default;  ///< every path
+    PathPartition(const Scene& scene, PathPart part);
+
+    PathPart part() const { return m_part; }
+    /// Are a surface vertex on this material a specular one (S) of the rule?
+    bool specular(uint32_t material_id) const {
+        return material_id < m_specular.size() && m_specular[material_id] != 0;
+    }
+    /// Does the estimator render a path of this class?
+    bool wants(bool caustic) const {
+        return m_part == PathPart::all || (m_part == PathPart::caustic) == caustic;
+    }
+
+    /// The class from the scattering vertices: `last_specular` (the vertex next to the
+    /// light) and `diffuse_before` (any rough vertex before it).
+    static bool caustic(bool last_specular, bool diffuse_before) { return last_specular && diffuse_before; }
+
+private:
+    std::vector<uint8_t> m_specular;  ///< per material id: may be near-specular
+    PathPart m_part = PathPart::all;
+};
+
+}  // namespace cmlt
