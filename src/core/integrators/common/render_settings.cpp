@@ -54,7 +54,7 @@ void RenderSettings::validate() const {
 #undef CMLT_CHECK_REAL
 #undef CMLT_CHECK_NOTHING
 #undef CMLT_CHECK_TOKEN
-    if (mlt_paths != "all" && mlt_paths != "none" && !(direct_fraction > 0.0))
+    if (mlt_paths == "caustics" && direct_fraction == 0.0)
         CMLT_THROW(SettingsError, "RenderSettings.direct_fraction: must be > 0 with mlt_paths '"
                                       << mlt_paths << "' (the direct pass renders every path the chains leave)");
     if (error_groups == 1 || error_groups == 2)

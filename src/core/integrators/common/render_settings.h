@@ -103,17 +103,20 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
     TOKEN(importance, "pixel", "pixel luminance", "cmlt:importance", "--importance",    \
           "pssmlt/cmlt importance: pixel (luminance over a smoothed pilot image's pixel "    \
           "brightness: the chains cover the image about evenly) or luminance (classic MLT)") \
-    REAL(direct_fraction, 0.3, 0.0, 0.9, false, "cmlt:directFraction", "--direct-fraction F", \
+    REAL(direct_fraction, -1.0, -1.0, 0.9, false, "cmlt:directFraction", "--direct-fraction F", \
          "pssmlt/cmlt: share of the path evaluations spent on the path-traced direct pass "  \
-         "(emitters seen directly, direct light; the chains render longer paths); 0 = the "  \
-         "chains render everything")                                                         \
-    TOKEN(mlt_paths, "all", "auto all caustics none", "cmlt:mltPaths", "--mlt-paths",       \
+         "(with mlt_paths all: emitters seen directly and direct light, the chains render "  \
+         "longer paths; with caustics: every path but the caustic ones); 0 = the chains "    \
+         "render everything (mlt_paths auto then means all; refused with caustics); "        \
+         "negative = auto (0.3 with mlt_paths all, " \
+         "0.7 with caustics)")                                                               \
+    TOKEN(mlt_paths, "auto", "auto all caustics none", "cmlt:mltPaths", "--mlt-paths",       \
           "pssmlt/cmlt: the paths the chains render (integrators/common/path_partition.h): " \
           "all (every path of depth >= 2; the direct pass renders depths 0 and 1), "         \
           "caustics (only caustic paths, L S+ D...E: light reaching a rough surface through " \
           "a near-specular chain; the direct pass path-traces every other path), none (no "  \
           "chains: the direct pass renders everything), auto (caustics where a material "    \
-          "can be near-specular, else none)")                                                \
+          "can be near-specular, else none; all with direct_fraction 0)")                                                \
     INT(pilot_spp, 1, 1, 64, "cmlt:pilotSpp", "--pilot-spp N",                               \
         "pssmlt/cmlt: path-traced samples per pixel of the pixel importance's pilot image "  \
         "(at most spp/8; counted in the budget)")                                            \

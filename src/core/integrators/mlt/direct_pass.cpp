@@ -143,7 +143,7 @@ DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
 }
 
 int DirectPass::passes_for(uint64_t chain_evaluations) const {
-    const double f = m_settings.direct_fraction;
+    const double f = MltContext::direct_fraction(m_settings);
     const double pixels = double(m_settings.width) * double(m_settings.height);
     return std::max(1, int(std::ceil(f / (1.0 - f) * double(chain_evaluations) / pixels)));
 }

@@ -47,18 +47,31 @@ struct MltContext {
     }
     /// RenderSettings::mlt_paths with auto resolved for this scene: "caustics" where a
     /// material can be near-specular (scene_may_be_specular), else "none" (no caustic
-    /// path exists). The frame functions resolve it on entry; the budget functions
+    /// path exists); "all" when direct_fraction is 0 (no direct pass: the chains render
+    /// everything). The frame functions resolve it on entry; the budget functions
     /// below read an unresolved "auto" as "caustics".
     static RenderSettings resolve_paths(const Scene& scene, const RenderSettings& s) {
         RenderSettings out = s;
-        if (out.mlt_paths == "auto") out.mlt_paths = scene_may_be_specular(scene) ? "caustics" : "none";
+        if (out.mlt_paths == "auto")
+            out.mlt_paths = s.direct_fraction == 0.0 ? "all" : scene_may_be_specular(scene) ? "caustics" : "none";
         return out;
     }
     /// The chains render a part of path space and the direct pass the rest of it, at
     /// every depth (mlt_paths caustics, none or auto: path_partition.h).
-    static bool partitioned(const RenderSettings& s) { return s.mlt_paths != "all"; }
+    static bool partitioned(const RenderSettings& s) {
+        return s.mlt_paths != "all" && !(s.mlt_paths == "auto" && s.direct_fraction == 0.0);
+    }
     /// No chains: the direct pass renders every path (mlt_paths none).
     static bool chainless(const RenderSettings& s) { return s.mlt_paths == "none"; }
+    /// The direct pass's share of a frame's evaluations (RenderSettings::direct_fraction
+    /// with auto resolved): k_direct_fraction_all when the chains render every longer
+    /// path, k_direct_fraction_partitioned when they render the caustic ones (README,
+    /// "Caustic paths only": equal-time study on caustic_glass and the Cornell box).
+    static constexpr double k_direct_fraction_all = 0.3, k_direct_fraction_partitioned = 0.7;
+    static double direct_fraction(const RenderSettings& s) {
+        if (s.direct_fraction >= 0.0) return s.direct_fraction;
+        return partitioned(s) ? k_direct_fraction_partitioned : k_direct_fraction_all;
+    }
     /// Deepest path of the direct pass: 1 (depths 0 and 1) when the chains render every
     /// longer path, else max_depth (partitioned).
     static int direct_max_depth(const RenderSettings& s) {
@@ -69,8 +82,9 @@ struct MltContext {
     /// runs alongside the chains at the same share of evaluations: direct_pass.h.)
     static int direct_spp(const RenderSettings& s) {
         if (chainless(s)) return s.spp;
-        if (!(s.direct_fraction > 0.0)) return 0;  // (refused when partitioned)
-        return std::max(1, int(std::lround(s.direct_fraction * double(s.spp))));
+        const double f = direct_fraction(s);
+        if (!(f > 0.0)) return 0;  // (refused when partitioned)
+        return std::max(1, int(std::lround(f * double(s.spp))));
     }
     /// Path evaluations the pilot costs in the budget (whether rendered here or given).
     static uint64_t pilot_cost(const RenderSettings& s) {
@@ -83,7 +97,7 @@ struct MltContext {
     /// Shortest path the chains render: 2 with a direct pass (a caustic path has two
     /// scattering vertices at least), else 0.
     static int min_depth(const RenderSettings& s) {
-        return s.direct_fraction > 0.0 || partitioned(s) ? 2 : 0;
+        return direct_fraction(s) > 0.0 || partitioned(s) ? 2 : 0;
     }
     /// q of the camera technique (mlt/technique.h) when auto chooses it: where a
     /// material can be near-specular (scene_may_be_specular).

@@ -27,6 +27,7 @@ RenderSettings mlt_settings(int w, int h, int spp, uint64_t seed = 1) {
     st.integrator = "pssmlt";
     st.chains = 64;
     st.bootstrap_samples = 4096;
+    st.mlt_paths = "all";  // the chains' machinery (a diffuse scene: auto would leave no chains)
     return st;
 }
 
