@@ -93,6 +93,9 @@ def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: i
     r = render_sequence(shot, frames, os.path.join(out, "f.####.exr"),
                         RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
                                       chains=chains, bootstrap_samples=16 * chains, seed=seed,
+                                      # the chains' temporal machinery on every path (the
+                                      # default, auto, leaves diffuse shots to the direct pass)
+                                      mlt_paths=kw.pop("mlt_paths", "all"),
                                       **kw), progress=False, quiet=True)
     dt = (time.perf_counter() - t0) / len(r.written)
     recs = []

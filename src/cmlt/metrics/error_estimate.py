@@ -296,7 +296,8 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
       G-th of the work; ``result.group_weights`` their path evaluations): estimate_from_groups,
       with the shared-normalisation term of pssmlt/cmlt (b_stderr / b, on the chains'
       part: image minus ``result.direct``);
-    * pt, bdpt: estimate_from_variance on ``result.variance`` (passes are independent);
+    * pt, bdpt, and pssmlt/cmlt without chains (``paths`` none): estimate_from_variance
+      on ``result.variance`` (passes are independent);
     * otherwise (pssmlt, cmlt without groups): None.
     """
     stats = dict(result.stats) if stats is None else stats
@@ -316,7 +317,9 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
                                    scaled=chains, keep_pixels=keep_pixels,
                                    denominator=denominator, shared_var=shared)
         return est, "groups"
-    if integ in VARIANCE_INTEGRATORS:
+    if integ in VARIANCE_INTEGRATORS or stats.get("paths") == "none":
+        # pt, bdpt, and pssmlt/cmlt without chains (mlt_paths none: the direct pass's
+        # independent passes are the frame)
         est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
                                      passes=int(stats.get("spp", 0) or 0),
                                      keep_pixels=keep_pixels, denominator=denominator)

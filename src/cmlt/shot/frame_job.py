@@ -175,7 +175,7 @@ def _settings_error(job: ShotJob, exc) -> Exception:
     return (UsageError if usage else RenderError)(msg)
 
 
-def _check_chains(job: ShotJob) -> None:
+def _check_chains(job: ShotJob, scene) -> None:
     """pssmlt/cmlt: the chains this frame starts (the core's count: at most
     ``chains``, at most what the budget feeds) must fit in memory, checked before
     the driver or the core allocates them; a ``chains`` the budget cannot feed is
@@ -187,6 +187,10 @@ def _check_chains(job: ShotJob) -> None:
     if str(resolved.integrator) not in ("pssmlt", "cmlt") or \
             not hasattr(core, "temporal_chain_count"):
         return
+    if hasattr(core, "mlt_resolve_paths"):
+        job.st.mlt_paths = str(resolved.mlt_paths)  # as requested (the driver resolves per frame)
+        if core.mlt_resolve_paths(scene, job.st) == "none":
+            return                                   # no chains in this frame
     n = int(core.temporal_chain_count(job.st))
     asked = int(resolved.chains)
     name = where("chains", asked, job.sources)
@@ -205,7 +209,7 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     """The core's render of the frame (the temporal driver around it), checked
     finite; returns (result, stats, image, temporal record, state bytes, units)."""
     core, resolved = job.core, job.resolved
-    _check_chains(job)
+    _check_chains(job, scene)
     try:
         if job.distributed is not None:     # on the workers, maybe submitted ahead
             trec = job.distributed.prepare(core, job.temporal, job.st, frame)

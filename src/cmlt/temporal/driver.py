@@ -141,6 +141,8 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
     if config["integrator"] in MLT_INTEGRATORS and hasattr(core, "mlt_resolve_paths"):
         # what the chains render, resolved for this frame's scene as the render
         # resolves it (the bootstrap and chain counts below depend on it)
+        # (from the requested value each frame: what a frame's scene allows may change)
+        st.mlt_paths = config.get("mlt_paths", st.mlt_paths)
         st.mlt_paths = core.mlt_resolve_paths(scene, st)
     if config["integrator"] in MLT_INTEGRATORS and hasattr(st, "pilot"):
         # the pixel importance's pilot, rendered once for the render and for the
@@ -215,6 +217,7 @@ class TemporalDriver:
         self.per_frame = bool(settings.seed_per_frame)
         self.smooth = bool(settings.smooth_normalization)
         self.integrator = str(settings.integrator)
+        self.mlt_paths = str(getattr(settings, "mlt_paths", "auto"))
         self.carry = bool(settings.carry_states) and self.integrator in STATE_INTEGRATORS
         self.state_dir = state_dir
         self.fresh_on_bad = bool(fresh_start_on_bad_state)
@@ -270,7 +273,7 @@ class TemporalDriver:
         """What :func:`prepare_frame` needs of this driver (picklable: a Dask task
         prepares a frame on a worker, cmlt.shot.distributed)."""
         return {"base_seed": self.base_seed, "per_frame": self.per_frame, "carry": self.carry,
-                "smooth": self.smooth, "integrator": self.integrator}
+                "smooth": self.smooth, "integrator": self.integrator, "mlt_paths": self.mlt_paths}
 
     def adopt(self, st, rec: dict, pending: dict) -> dict:
         """Take the result of :func:`prepare_frame` for the frame about to render

@@ -198,6 +198,25 @@ def stage_cameras(stage) -> List:
             if p.IsA(UsdGeom.Camera)]
 
 
+#: the largest coordinate the core traces (scene/scene.h k_max_coordinate)
+MAX_COORDINATE = 1e15
+
+
+def farthest_mesh(meshes, instances) -> Optional[str]:
+    """The name of the mesh whose placed points reach farthest from the origin (the one
+    that sets the framing camera's distance), or None."""
+    best, name = -1.0, None
+    for inst in instances:
+        p = np.asarray(meshes[inst.mesh].points, np.float64)[:, :3]
+        if not len(p):
+            continue
+        w = p @ np.asarray(inst.transform, np.float64)[:3, :3].T + np.asarray(inst.transform)[:3, 3]
+        r = float(np.nanmax(np.abs(w))) if np.isfinite(w).any() else np.inf
+        if r > best:
+            best, name = r, meshes[inst.mesh].name
+    return name
+
+
 def instance_bounds(meshes, instances) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     """World-space bounds (lo, hi) of the points the instances use, or None."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)

@@ -9,10 +9,13 @@ from __future__ import annotations
 
 from typing import List, Tuple
 
+import numpy as np
+
 from pxr import Tf, UsdGeom
 
 from ..scene import FrameScene
-from .camera import camera_at_path, conform_aperture, framing_camera, gf_to_np, \
+from .camera import MAX_COORDINATE, farthest_mesh, \
+    camera_at_path, conform_aperture, framing_camera, gf_to_np, \
     instance_bounds, read_camera, stage_cameras
 from .errors import UsdLoadError
 from .instancing import drop_prototype_placements, prototype_roots
@@ -132,6 +135,13 @@ def _load_frame(stage, time, camera, resolution, render_settings, default_light,
             conform_aperture(cam, res, policy, warnings, where=str(settings.GetPath()))
     else:
         cam = framing_camera(instance_bounds(fr.meshes, fr.instances), up, res)
+        reach = float(np.abs(cam.transform[:3, 3]).max())
+        if not reach <= MAX_COORDINATE:
+            # name the gprim that stretched the bounds, not the camera made from them
+            far = farthest_mesh(fr.meshes, fr.instances)
+            raise UsdLoadError(f"{far or stage_file(stage)}: its points reach so far that the framing "
+                               f"camera (the stage has none) would sit at {reach:.4g}, beyond the "
+                               f"{MAX_COORDINATE:g} the renderer can trace; give the stage a camera")
         warnings.append(f"{stage_file(stage)}: no camera; using a framing camera "
                         f"({'+Y' if up == 'Z' else '-Z'} view of the stage bounds)")
 

@@ -13,7 +13,7 @@ from cmlt.cli import main
 from cmlt.io.exr import read_exr, read_header
 from cmlt.shot.core_settings import PLAIN_ERROR_GROUPS
 
-FAST = ["--spp", "8", "--threads", "2", "--res", "24x16"]
+FAST = ["--spp", "8", "--threads", "2", "--res", "24x16", "--mlt-paths", "all"]  # the chains on every path (auto: none on a diffuse scene)
 
 
 @pytest.mark.parametrize("integrator", ["pt", "bdpt"])

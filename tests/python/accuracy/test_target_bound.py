@@ -100,7 +100,7 @@ def test_groups_are_disjoint_start_samples(cornell):
     equal start states), the groups' weights are their steps, and the image is the
     same as with the default grouping would give (the layers add up exactly)."""
     core = cornell.core
-    st = cornell.settings(parse_integrator("cmlt:bootstrap_samples=2000:chains=64", core), None, 32, 1)
+    st = cornell.settings(parse_integrator("cmlt:bootstrap_samples=2000:chains=64:mlt_paths=all", core), None, 32, 1)
     r = core.render(cornell.scene, st)
     groups = np.asarray(r.group_images)
     assert groups.shape[0] >= 3 and len(r.group_weights) == groups.shape[0]

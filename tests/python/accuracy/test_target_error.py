@@ -29,7 +29,7 @@ from cmlt.metrics.error_estimate import estimate_render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 CORNELL = os.path.join(ROOT, "sequences", "cornell", "shot.usda")
-FAST = ["--spp", "8", "--threads", "2", "--res", "24x16"]
+FAST = ["--spp", "8", "--threads", "2", "--res", "24x16", "--mlt-paths", "all"]  # the chains on every path (auto: none on a diffuse scene)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def cornell():
 
 @pytest.mark.parametrize("integrator", ["pssmlt", "cmlt"])
 def test_chain_groups_make_the_image_and_the_estimate(cornell, integrator):
-    spec = parse_integrator(f"{integrator}:bootstrap_samples=2000:chains=64", cornell.core)
+    spec = parse_integrator(f"{integrator}:bootstrap_samples=2000:chains=64:mlt_paths=all", cornell.core)
     st = cornell.settings(spec, None, 32, 3)
     r = cornell.core.render(cornell.scene, st)
     groups = np.asarray(r.group_images, np.float64)
@@ -73,7 +73,7 @@ def test_pt_estimate_in_the_core_is_the_python_one(cornell):
     assert dict(r.stats)["error_stderr"] == pytest.approx(est.stderr, rel=1e-6)
 
 
-@pytest.mark.parametrize("integrator", ["pt", "cmlt:bootstrap_samples=2000"])
+@pytest.mark.parametrize("integrator", ["pt", "cmlt:bootstrap_samples=2000:mlt_paths=all"])
 def test_the_budget_bounds_a_target(cornell, integrator):
     budget = 64 if integrator == "pt" else 32   # pt: past its 32-pass minimum
     st = cornell.settings(parse_integrator(integrator, cornell.core), None, budget, 0)
@@ -93,7 +93,7 @@ def test_the_budget_bounds_a_target(cornell, integrator):
 
 @pytest.mark.slow
 @pytest.mark.statistical
-@pytest.mark.parametrize("integrator,target", [("pt", 0.0015), ("cmlt:bootstrap_samples=10000:chains=250", 0.01)])
+@pytest.mark.parametrize("integrator,target", [("pt", 0.0015), ("cmlt:bootstrap_samples=10000:chains=250:mlt_paths=all", 0.01)])
 def test_a_target_error_is_met_against_the_reference(cornell, integrator, target):
     ref = render_reference(cornell, "pt", 1024, cache_dir=None, seed=99991)
     spec = parse_integrator(integrator, cornell.core)
@@ -114,7 +114,7 @@ def test_render_flag_records_why_it_stopped(tiny_shot, tmp_path, capsys):
     out = tmp_path / "t.####.exr"
     assert main(["render", tiny_shot, "--spp", "4096", "--threads", "2", "--res", "24x16",
                  "--integrator", "cmlt", "--bootstrap-samples", "2000", "--chains", "64",
-                 "--target-error", "0.05", "--group-images", "--out", str(out)]) == 0
+                 "--target-error", "0.05", "--group-images", "--out", str(out), "--mlt-paths", "all"]) == 0
     capsys.readouterr()
     path = str(tmp_path / "t.0001.exr")
     rec = json.load(open(path + ".json"))

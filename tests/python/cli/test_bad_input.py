@@ -146,13 +146,14 @@ def test08_chains_beyond_the_budget_run_what_the_budget_feeds(tiny_shot, tmp_pat
 
     out = tmp_path / "c.####.exr"
     assert main(["render", tiny_shot, "--out", str(out), *FAST, "--frames", "1",
-                 "--integrator", integrator, "--chains", "100000000"]) == 0
+                 "--integrator", integrator, "--chains", "100000000", "--mlt-paths", "all"]) == 0
     err = capsys.readouterr().err
     warn = [ln for ln in err.splitlines() if "--chains 100000000" in ln]
     assert len(warn) == 1 and "feeds only" in warn[0], err
     doc = json.load(open(tmp_path / "c.0001.exr.json"))
     st = core.RenderSettings()
     st.integrator, st.spp, st.width, st.height, st.chains = integrator, 4, 32, 24, 100000000
+    st.mlt_paths = "all"
     n = core.temporal_chain_count(st)
     assert 1 <= n < 100000000
     assert doc["stats"]["chains"] == n          # the count the driver asks is the render's
@@ -165,7 +166,7 @@ def test09_chains_that_do_not_fit_in_memory_are_refused_before_allocating(
     out = tmp_path / "o"
     assert main(["render", tiny_shot, "--out", str(out / "c.####.exr"), "--res", "32x24",
                  "--threads", "2", "-q", "--frames", "1", "--integrator", integrator,
-                 "--time", "0.5", "--chains", "2000000000"]) == 2
+                 "--time", "0.5", "--chains", "2000000000", "--mlt-paths", "all"]) == 2
     _one_error(capsys.readouterr().err, "--chains 2000000000", "GiB", "use at most")
     assert not out.exists()
 

@@ -94,7 +94,9 @@ def test01_the_core_runs_an_even_subsample_of_a_carried_population(tmp_path):
     path = str(tmp_path / "switch.usda")
     with open(path, "w") as fh:
         fh.write(STAGE)
-    resolved, _ = resolve_settings(None, cli_overrides={"integrator": "cmlt", "spp": 16, "seed": 3})
+    # the chains on every path (auto: none on this diffuse stage)
+    resolved, _ = resolve_settings(None, cli_overrides={"integrator": "cmlt", "spp": 16, "seed": 3,
+                                                        "mlt_paths": "all"})
     driver = TemporalDriver(_PlanRequested(), resolved, path, 32, 24)
     bridge = SceneBridge(core)
     records = []
@@ -102,7 +104,7 @@ def test01_the_core_runs_an_even_subsample_of_a_carried_population(tmp_path):
         scene = bridge.update(_frame(path, t))
         st = core.RenderSettings()
         st.width, st.height = 32, 24
-        for name in ("integrator", "spp", "chains", "tries", "inner_length", "seed"):
+        for name in ("integrator", "spp", "chains", "tries", "inner_length", "seed", "mlt_paths"):
             setattr(st, name, getattr(resolved, name))
         st.threads = 2
         rec = driver.prepare(scene, st, float(t))

@@ -34,6 +34,7 @@ def _render(scene, integrator, spp, seed=0, **kw):
     st = core.RenderSettings()
     st.width = st.height = RES
     st.spp, st.seed, st.integrator = spp, seed, integrator
+    st.mlt_paths = "all"  # the chains on every path (auto: none on a diffuse scene)
     for k, v in kw.items():
         setattr(st, k, v)
     r = core.render(scene, st)
@@ -171,6 +172,7 @@ def caustic():
         st.width = st.height = C_RES
         st.spp, st.seed, st.max_depth, st.integrator = spp, seed, MAX_DEPTH, integrator
         st.chains, st.bootstrap_samples = 256, 32768
+        st.mlt_paths = "all"  # the chains on every path, the caustic perturbation among them
         for k, v in kw.items():
             setattr(st, k, v)
         return st

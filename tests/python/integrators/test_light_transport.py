@@ -410,7 +410,7 @@ def test10b_coherent_mlt_packets_match_scalar_through_pass_through_surfaces():
     fs.camera.lens_unit = 0.01
     scene = SceneBridge(core).update(fs)
     assert scene.has_pass_through
-    kw = dict(chains=64, bootstrap_samples=4096, threads=2, tries=8)
+    kw = dict(chains=64, bootstrap_samples=4096, threads=2, tries=8, mlt_paths="all")
     on = core.render(scene, _settings("cmlt", (24, 16), 64, 7, packets=True, **kw))
     off = core.render(scene, _settings("cmlt", (24, 16), 64, 7, packets=False, **kw))
     assert np.array_equal(np.asarray(on.image), np.asarray(off.image))

@@ -38,6 +38,7 @@ def _settings(integrator, spp, seed, **kw):
     st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, 8
     st.integrator = integrator
     st.mlt_path_sampler = "pt"   # this file: PSSMLT over the path tracer (bdpt: test_pssmlt_bdpt.py)
+    st.mlt_paths = "all"  # the chains on every path (auto: none on a diffuse scene)
     for k, v in kw.items():
         setattr(st, k, v)
     return st
@@ -174,7 +175,8 @@ def test_08_cli_render_pssmlt(tmp_path):
     out = tmp_path / "mlt.####.exr"
     code = main(["render", shot, "--frames", "1", "--out", str(out), "--res", "16x12", "--spp", "8",
                  "--integrator", "pssmlt", "--sigma", "0.02", "--large-step-probability", "0.4",
-                 "--chains", "16", "--bootstrap-samples", "256", "--threads", "2", "--quiet"])
+                 "--chains", "16", "--bootstrap-samples", "256", "--threads", "2", "--quiet",
+                 "--mlt-paths", "all"])
     assert code == 0
     doc = json.loads((tmp_path / "mlt.0001.exr.json").read_text())
     assert doc["settings"]["integrator"] == "pssmlt"

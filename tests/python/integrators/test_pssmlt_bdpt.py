@@ -59,6 +59,7 @@ def _settings(integrator, spp, seed, threads=2, **kw):
     st.spp, st.seed, st.threads, st.max_depth = spp, seed, threads, MAX_DEPTH
     st.integrator = integrator
     st.chains, st.bootstrap_samples = 256, 32768
+    st.mlt_paths = "all"  # the chains on every path (caustic paths only: test_mlt_paths.py)
     for k, v in kw.items():
         setattr(st, k, v)
     return st

@@ -34,7 +34,7 @@ CORNELL = os.path.join(str(support.SEQUENCES), "cornell", "shot.usda")
 
 def _opts(**kw):
     base = dict(integrator="cmlt", resolution=(40, 32), spp=16, chains=64,
-                bootstrap_samples=2048, threads=1)
+                bootstrap_samples=2048, threads=1, mlt_paths="all")
     base.update(kw)
     return RenderOptions(**base)
 
@@ -71,6 +71,7 @@ def _settings(integrator, **kw):
     st.width = st.height = support.scenes.RES
     st.spp, st.chains, st.bootstrap_samples, st.max_depth = 16, 48, 1024, 6
     st.seed, st.threads = 7, 2
+    st.mlt_paths = "all"  # the chains on every path (auto: none on a diffuse scene)
     for k, v in kw.items():
         setattr(st, k, v)
     return st

@@ -18,6 +18,7 @@ def _settings(integrator, **kw):
     st = core.RenderSettings()
     st.integrator, st.width, st.height, st.spp, st.seed, st.threads = integrator, 16, 12, 4, 1, 2
     st.max_depth, st.bootstrap_samples = 4, 64
+    st.mlt_paths = "all"  # the chains on every path (auto: none on a diffuse scene)
     for k, v in kw.items():
         setattr(st, k, v)
     return st

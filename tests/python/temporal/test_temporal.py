@@ -32,7 +32,7 @@ FADE = os.path.join(ROOT, "sequences", "fading_light", "shot.usda")
 
 def _opts(**kw):
     base = dict(integrator="pssmlt", resolution=(48, 48), spp=16, chains=256,
-                bootstrap_samples=4096, threads=0)
+                bootstrap_samples=4096, threads=0, mlt_paths="all")
     base.update(kw)
     return RenderOptions(**base)
 

@@ -182,6 +182,10 @@ public:
     template <class MakeTracer>
     void run(const ProgressCallback& progress, MakeTracer&& make_tracer) {
         MltFrame& fr = m_frame;
+        if (MltContext::chainless(fr.settings)) {  // the direct pass renders the frame
+            m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history);
+            return;
+        }
         ChainSchedule schedule(fr.settings, fr.t0, m_chains.size());
         uint64_t evaluations = 0;
         const std::pair<size_t, size_t> run = part_chains(fr.settings, m_chains.size());  // all, or a part's
@@ -248,7 +252,8 @@ public:
         out.cancelled = m_cancelled;
         out.group_steps = group_steps();
         out.target_reached = m_target_reached;
-        out.error_history = m_target.take_history();
+        out.error_history = MltContext::chainless(m_frame.settings) ? std::move(m_direct_history)
+                                                                   : m_target.take_history();
         out.states = export_states(export_chain);
         out.start_states = std::move(m_start_states);
         if (m_frame.settings.partial) {
@@ -294,6 +299,7 @@ private:
     bool m_cancelled = false;
     ErrorTarget m_target{m_frame.settings.target_error, 0.0};
     bool m_target_reached = false;
+    std::vector<std::array<double, 4>> m_direct_history;  ///< a chainless frame's target estimates
 };
 
 }  // namespace cmlt::mlt

@@ -169,3 +169,16 @@ void DirectSchedule::finish(bool cancelled, bool chains_ran, std::chrono::steady
 }
 
 }  // namespace cmlt::mlt
+
+namespace cmlt::mlt {
+
+bool DirectSchedule::run_alone(const ProgressCallback& progress, std::chrono::steady_clock::time_point t0,
+                               bool* cancelled, std::vector<std::array<double, 4>>* history) {
+    const PassSchedule schedule(settings, t0);
+    PassTarget target(settings, pass.film());
+    run_passes(schedule, progress, cancelled, [&](int, int s1) { pass.render_to(arena, s1, counters); }, &target);
+    if (history) *history = target.target.take_history();
+    return target.reached;
+}
+
+}  // namespace cmlt::mlt

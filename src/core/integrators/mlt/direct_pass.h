@@ -21,6 +21,7 @@
 
 #include <tbb/task_arena.h>
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -54,6 +55,8 @@ public:
     void render_to(tbb::task_arena& arena, int total, FrameCounters& counters);
     /// Mean and variance of the mean (H, W, 3); empty before the first pass.
     PtPassImage develop() const;
+    /// The film the passes accumulate into.
+    const Film& film() const { return m_film; }
     /// Render only rows [y0, y1) (a part of a frame, RenderSettings::partial; the other
     /// rows stay 0). Default: every row.
     void set_rows(int y0, int y1) {
@@ -127,6 +130,12 @@ struct DirectSchedule {
 
     void before_round(const ChainSchedule& rounds, uint64_t chain_evaluations);
     void finish(bool cancelled, bool chains_ran, std::chrono::steady_clock::time_point t0);
+    /// A frame without chains (mlt_paths none): the pass renders the whole budget as
+    /// pt's frame loop does — chunks of passes, a time budget, a target error from the
+    /// pass's own variance (PassTarget), `progress` able to stop it (*cancelled).
+    /// Returns whether the target error was reached; its history goes to `history`.
+    bool run_alone(const ProgressCallback& progress, std::chrono::steady_clock::time_point t0, bool* cancelled,
+                   std::vector<std::array<double, 4>>* history);
 };
 
 }  // namespace mlt

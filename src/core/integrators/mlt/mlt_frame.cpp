@@ -103,7 +103,14 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     res.height = settings.height;
     develop_image(res, film, chains.b.mean, chains.steps, direct_image);
     res.cancelled = chains.cancelled;
-    if (film.layers() >= 3) {
+    if (MltContext::chainless(settings)) {  // the direct pass's own estimate (as pt's)
+        if (!direct_image.mean.empty()) {
+            const ErrorValue err = estimate_from_variance(direct_image.mean.data(), direct_image.variance.data(),
+                                                          settings.width, settings.height);
+            res.error_estimate = err.relmse;
+            res.error_stderr = err.stderr_;
+        }
+    } else if (film.layers() >= 3) {
         std::vector<double> used_steps;
         const ErrorValue err =
             estimate_groups(film, chains.group_steps, chains.b, direct_image, &res.group_images, &used_steps);

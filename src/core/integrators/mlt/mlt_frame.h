@@ -7,10 +7,13 @@
 /// Budget of a frame, spp·W·H path evaluations (a path evaluation is one traced
 /// path: a bootstrap sample, a proposal or a candidate, a pilot or direct sample):
 ///   1. pilot of the pixel importance: pilot_spp·W·H (pixel_importance.h);
-///   2. direct pass: round(direct_fraction · spp)·W·H path-traced samples of depth ≤ 1,
-///      added to the image as they are (direct_pass.h); the chains then render depth ≥ 2
-///      only. It runs in slices between the chain rounds, so with a time budget it keeps
-///      its share of the evaluations whatever the time allows;
+///   2. direct pass: round(direct_fraction · spp)·W·H path-traced samples of depth ≤ 1
+///      (mlt_paths all; the chains then render depth ≥ 2) or of every path but the
+///      caustic ones (mlt_paths caustics; the chains render those:
+///      common/path_partition.h), added to the image as they are (direct_pass.h). It runs
+///      in slices between the chain rounds, so with a time budget it keeps its share of
+///      the evaluations whatever the time allows. Without chains (mlt_paths none) it is
+///      the whole frame, run as pt's pass loop (DirectSchedule::run_alone);
 ///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples;
 ///   4. the chains: the rest, split evenly over the chains.
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
