@@ -67,6 +67,7 @@ def child(frame_file: str, integrator: str, settings: dict, res, spp: int, out: 
     st = core.RenderSettings()
     st.width, st.height = res
     st.spp, st.threads, st.integrator, st.seed = spp, 1, integrator, 1
+    st.mlt_paths = "all"  # the chains on every path (auto: none on cornell)
     for k, v in settings.items():
         setattr(st, k, v)
     r = core.render(scene, st)

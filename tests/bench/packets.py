@@ -33,8 +33,9 @@ def measure(sf, args, k):
     out = {}
     for _ in range(args.repeats):
         for packets in (False, True):
+            # the chains on every path (auto would leave cornell to the direct pass)
             spec = parse_integrator(f"cmlt:tries={k}:inner={args.inner}:packets={int(packets)}"
-                                    f":inner_length={args.inner_length}", sf.core)
+                                    f":inner_length={args.inner_length}:mlt_paths=all", sf.core)
             st = sf.settings(spec, spp=args.spp, seed=args.seed)
             t0 = time.perf_counter()
             r = sf.core.render(sf.scene, st)

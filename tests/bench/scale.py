@@ -91,7 +91,7 @@ def main(argv=None) -> int:
     def opts(threads, parts):
         return RenderOptions(integrator="cmlt", resolution=(w, h), spp=args.spp,
                              chains=args.chains, bootstrap_samples=args.bootstrap_samples,
-                             threads=threads, dask_parts=parts)
+                             threads=threads, dask_parts=parts, mlt_paths="all")
 
     t = time.perf_counter()
     clusters = {n: LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
