@@ -211,6 +211,9 @@ def main(argv=None):
     ap.add_argument("--configs", default=",".join(DEFAULT_CONFIGS),
                     help=f"any of: {', '.join(CONFIGS)}")
     ap.add_argument("--integrator", default="cmlt", help="pssmlt or cmlt")
+    ap.add_argument("--mlt-paths", default="all", dest="mlt_paths",
+                    help="what the chains render (default all: the chains' temporal machinery "
+                         "on every path; auto: the renderer's default)")
     ap.add_argument("--ref-integrator", default="bdpt",
                     help="per-frame references (bdpt: light through the door's slit is what "
                     "the path tracer finds slowly)")
@@ -252,6 +255,7 @@ def main(argv=None):
                 kw = dict(CONFIGS[name])
                 if a.pixel_filter:
                     kw["pixel_filter"] = a.pixel_filter
+                kw["mlt_paths"] = a.mlt_paths
                 imgs, recs, dt = render_config(shot, frames, out, a.integrator, res, spp,
                                                a.chains, seed, **kw)
                 rep = flicker(imgs, refs)
