@@ -1,0 +1,105 @@
+// The path partition (integrators/common/path_partition.h): the class of a path from its
+// vertices' materials, the same for every BDPT strategy that can make the path, and the
+// rule itself on hand-made paths over the glass scene (floor: rough, ball: glass).
+#include "test_scenes.h"
+#include "test_util.h"
+
+#include "integrators/bdpt/bdpt_tracer.h"
+#include "integrators/common/path_partition.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+using namespace cmlt;
+using namespace cmlt::test;
+
+namespace {
+
+constexpr uint32_t k_floor = 0, k_glass = 1;
+
+PathVertex camera_vertex() {
+    PathVertex v;
+    v.type = VertexType::camera;
+    return v;
+}
+PathVertex light_vertex() {
+    PathVertex v;
+    v.type = VertexType::light;
+    v.light_index = 0;
+    return v;
+}
+PathVertex surface(uint32_t material) {
+    PathVertex v;
+    v.type = VertexType::surface;
+    v.si.material_id = material;
+    return v;
+}
+
+/// Every split of the path camera → mats … → light into (s, t) with s + t = its vertex
+/// count (s = 0: the last vertex is an emitter hit on the camera side), classified.
+std::vector<bool> classes(const BdptTracer& tr, const std::vector<uint32_t>& mats) {
+    // full path from the camera: E, mats..., L
+    std::vector<PathVertex> full;
+    full.push_back(camera_vertex());
+    for (uint32_t m : mats) full.push_back(surface(m));
+    PathVertex end = light_vertex();
+    full.push_back(end);
+    const int n = int(full.size());
+    std::vector<bool> out;
+    for (int s = 0; s <= n - 1; ++s) {
+        const int t = n - s;
+        std::vector<PathVertex> camera(full.begin(), full.begin() + t);
+        std::vector<PathVertex> light;
+        for (int i = n - 1; i >= t; --i) light.push_back(full[size_t(i)]);  // light[0] is the light
+        out.push_back(tr.caustic_path(light.data(), s, camera.data(), t));
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST(PathPartition, TheClassIsThePathsWhateverTheStrategy) {
+    Scene s;
+    glass_scene(s);
+    const Camera cam(s.camera_desc(), 16, 16);
+    BdptTracer tr(s, cam, 16, 16, 8);
+    const PathPartition part(s, PathPart::caustic);
+    EXPECT_FALSE(part.specular(k_floor));
+    EXPECT_TRUE(part.specular(k_glass));
+    tr.set_partition(&part);
+    struct Case {
+        std::vector<uint32_t> mats;  ///< scattering vertices from the camera's side
+        bool caustic;
+        const char* what;
+    };
+    const std::vector<Case> cases = {
+        {{k_floor}, false, "E D L: direct light"},
+        {{k_glass}, false, "E S L: the light seen through glass"},
+        {{k_floor, k_floor}, false, "E D D L: indirect"},
+        {{k_glass, k_floor}, false, "E S D L: a lit floor seen through glass"},
+        {{k_floor, k_glass}, true, "E D S L: the caustic"},
+        {{k_floor, k_glass, k_glass}, true, "E D S S L: through both faces of the ball"},
+        {{k_glass, k_floor, k_glass, k_glass}, true, "E S D S S L: the caustic seen through glass"},
+        {{k_glass, k_glass}, false, "E S S L: specular only"},
+        {{k_floor, k_glass, k_floor}, false, "E D S D L: the last vertex rough"},
+    };
+    for (const Case& c : cases) {
+        const std::vector<bool> got = classes(tr, c.mats);
+        for (size_t s_ = 0; s_ < got.size(); ++s_)
+            EXPECT_EQ(got[s_], c.caustic) << c.what << ", strategy s = " << s_;
+    }
+}
+
+TEST(PathPartition, WantsSplitsThePathsBetweenTheTwoParts) {
+    Scene s;
+    glass_scene(s);
+    const PathPartition all, easy(s, PathPart::easy), caustic(s, PathPart::caustic);
+    for (bool c : {false, true}) {
+        EXPECT_TRUE(all.wants(c));
+        EXPECT_NE(easy.wants(c), caustic.wants(c));  // exactly one of the two renders it
+    }
+    EXPECT_TRUE(caustic.wants(true));
+    EXPECT_TRUE(easy.wants(false));
+}
