@@ -34,9 +34,11 @@ namespace {
 /// Probe kinds: separate counter spaces of the Philox stream (the `sample` slot).
 enum : uint32_t { k_probe_emitted = 1, k_probe_targeted = 2, k_probe_camera = 3 };
 
-/// Material can be near-specular somewhere (constants, or the deciding inputs textured /
-/// read from primvars): its triangles are targeted-probe candidates.
-bool may_be_specular(const Material& m, float max_roughness) {
+}  // namespace
+
+/// Can the material be near-specular somewhere (constants, or the deciding inputs
+/// textured / read from primvars): its triangles are targeted-probe candidates.
+bool material_may_be_specular(const Material& m, float max_roughness) {
     if (!m.preview) return false;
     const bool rough_varies = m.tex_roughness >= 0 || m.pv_roughness >= 0;
     if (!(m.roughness < max_roughness) && !rough_varies) return false;
@@ -50,16 +52,10 @@ bool may_be_specular(const Material& m, float max_roughness) {
     return metal || mirror || glass;
 }
 
-}  // namespace
-
 bool scene_may_be_specular(const Scene& scene, float max_roughness) {
     for (size_t k = 0; k < scene.material_count(); ++k)
-        if (may_be_specular(scene.material(uint32_t(k)), max_roughness)) return true;
+        if (material_may_be_specular(scene.material(uint32_t(k)), max_roughness)) return true;
     return false;
-}
-
-bool material_may_be_specular(const Material& material, float max_roughness) {
-    return may_be_specular(material, max_roughness);
 }
 
 namespace {
@@ -114,7 +110,7 @@ private:
         m_may_specular.assign(nm, 0);
         bool any = false;
         for (size_t k = 0; k < nm; ++k) {
-            m_may_specular[k] = may_be_specular(m_scene.material(uint32_t(k)),
+            m_may_specular[k] = material_may_be_specular(m_scene.material(uint32_t(k)),
                                                 m_o.specular_roughness);
             any = any || m_may_specular[k];
         }

@@ -37,7 +37,7 @@ public:
     PathPartition(const Scene& scene, PathPart part);
 
     PathPart part() const { return m_part; }
-    /// Are a surface vertex on this material a specular one (S) of the rule?
+    /// Is a surface vertex on this material a specular one (S) of the rule?
     bool specular(uint32_t material_id) const {
         return material_id < m_specular.size() && m_specular[material_id] != 0;
     }
