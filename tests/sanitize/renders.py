@@ -58,7 +58,10 @@ def main(argv):
     for shot, frames in cases:
         stage = open_stage(os.path.join(ROOT, shot))
         bridge = SceneBridge(core)
-        for integ in ("pt", "bdpt", "pssmlt", "cmlt"):
+        # the Metropolis integrators at the default (chains on the caustic paths, or none)
+        # and with the chains on every path
+        for integ, paths in (("pt", None), ("bdpt", None), ("pssmlt", "auto"), ("cmlt", "auto"),
+                             ("pssmlt", "all"), ("cmlt", "all")):
             states = None
             for t in frames:
                 fs = load_frame(stage, float(t), resolution=(24, 18))
@@ -67,14 +70,15 @@ def main(argv):
                 st.width, st.height = fs.resolution
                 st.spp, st.seed, st.threads, st.integrator = 8, 1, 2, integ
                 if integ in ("pssmlt", "cmlt"):
-                    st.chains, st.bootstrap_samples = 32, 500
+                    st.chains, st.bootstrap_samples, st.mlt_paths = 32, 500, paths
                     if states is not None:
                         st.mlt_initial_states = core.temporal_evaluate_states(scene, st, states)
                 r = core.render(scene, st)
                 img = np.asarray(r.image)
-                assert np.isfinite(img).all(), (shot, integ, t)
+                assert np.isfinite(img).all(), (shot, integ, paths, t)
                 states = getattr(r, "mlt_states", None)
-                print(f"{shot} frame {t} {integ}: mean {img.mean():.4g}", flush=True)
+                print(f"{shot} frame {t} {integ}{' ' + paths if paths else ''}: mean {img.mean():.4g}",
+                      flush=True)
         aov = core.render_aovs(scene, st, samples=2)
         assert all(np.isfinite(np.asarray(aov[k])).all() for k in ("albedo", "N", "Z"))
     print("sanitized renders: clean")
