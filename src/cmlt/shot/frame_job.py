@@ -179,7 +179,8 @@ def _check_chains(job: ShotJob, scene) -> None:
     """pssmlt/cmlt: the chains this frame starts (the core's count: at most
     ``chains``, at most what the budget feeds) must fit in memory, checked before
     the driver or the core allocates them; a ``chains`` the budget cannot feed is
-    a warning naming its flag or attribute (once per sequence)."""
+    a warning naming its flag or attribute (once per sequence). A frame without chains
+    (mlt_paths auto on a scene without near-specular materials) is a warning once."""
     from .core_settings import where
     from .preflight import chain_memory_problem
 
@@ -190,7 +191,14 @@ def _check_chains(job: ShotJob, scene) -> None:
     if hasattr(core, "mlt_resolve_paths"):
         job.st.mlt_paths = str(resolved.mlt_paths)  # as requested (the driver resolves per frame)
         if core.mlt_resolve_paths(scene, job.st) == "none":
-            return                                   # no chains in this frame
+            # no chains in this frame: say so once (a user who asked for Metropolis gets
+            # a path-traced frame)
+            if not getattr(job, "_chainless_warned", False):
+                job._chainless_warned = True
+                job.warn([f"{resolved.integrator}: no material of the frame can be near-specular, so "
+                          f"there are no caustic paths for the chains (--mlt-paths auto): the frame "
+                          f"is path traced; --mlt-paths all runs the chains on every path"])
+            return
     n = int(core.temporal_chain_count(job.st))
     asked = int(resolved.chains)
     name = where("chains", asked, job.sources)

@@ -22,7 +22,8 @@ keys: each check always passes or always fails). Not vacuous: the direct pass al
 
 And: ``auto`` resolves to ``caustics`` here and to ``none`` on the Cornell box (no
 material can be near-specular: no chains, no pilot, no bootstrap; the direct pass
-renders every path and agrees with the reference); the sidecar says which.
+renders every path and agrees with the reference); the sidecar says which, and the
+command line warns once per sequence when a frame has no chains.
 """
 import math
 
@@ -195,3 +196,26 @@ def test_04_resolution_and_validation(scenes):
     st.direct_fraction = 0.0
     with pytest.raises(Exception, match="direct_fraction"):
         core.render(glass, st)
+
+
+def test_05_cli_says_when_a_frame_has_no_chains(tmp_path, capsys):
+    """`cmlt render --integrator cmlt` on the Cornell box (nothing near-specular): one
+    warning for the whole sequence that the frames are path traced, the sidecar's paths
+    'none' and no chains; with --mlt-paths all the chains run and nothing is said."""
+    import json
+
+    import support
+    from cmlt.cli import main
+    shot = str(support.SEQUENCES / "cornell" / "shot.usda")
+    base = ["render", shot, "--frames", "1:2", "--res", "16x12", "--spp", "8", "--threads", "2",
+            "--integrator", "cmlt"]
+    assert main(base + ["--out", str(tmp_path / "a.####.exr")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("no caustic paths") == 1, err
+    for f in (1, 2):
+        st = json.load(open(tmp_path / f"a.{f:04d}.exr.json"))["stats"]
+        assert st["paths"] == "none" and st["mutations"] == 0
+    assert main(base + ["--out", str(tmp_path / "b.####.exr"), "--mlt-paths", "all"]) == 0
+    assert "no caustic paths" not in capsys.readouterr().err
+    st = json.load(open(tmp_path / "b.0001.exr.json"))["stats"]
+    assert st["paths"] == "all" and st["mutations"] > 0
