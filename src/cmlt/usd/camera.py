@@ -203,16 +203,14 @@ MAX_COORDINATE = 1e15
 
 
 def farthest_mesh(meshes, instances) -> Optional[str]:
-    """The name of the mesh whose placed points reach farthest from the origin (the one
-    that sets the framing camera's distance), or None."""
+    """The name of the mesh whose placed bounds (instance_bounds, instance by instance)
+    reach farthest from the origin: the one that sets the framing camera's distance; or
+    None."""
     best, name = -1.0, None
     for inst in instances:
-        p = np.asarray(meshes[inst.mesh].points, np.float64)[:, :3]
-        if not len(p):
-            continue
-        w = p @ np.asarray(inst.transform, np.float64)[:3, :3].T + np.asarray(inst.transform)[:3, 3]
-        r = float(np.nanmax(np.abs(w))) if np.isfinite(w).any() else np.inf
-        if r > best:
+        b = instance_bounds(meshes, [inst])
+        r = np.inf if b is None else float(np.max(np.abs(np.concatenate(b))))
+        if b is not None and r > best:
             best, name = r, meshes[inst.mesh].name
     return name
 

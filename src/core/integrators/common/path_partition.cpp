@@ -7,6 +7,7 @@
 namespace cmlt {
 
 PathPartition::PathPartition(const Scene& scene, PathPart part) : m_part(part) {
+    if (part == PathPart::all) return;  // every path: no table needed
     m_specular.resize(scene.material_count());
     for (size_t k = 0; k < m_specular.size(); ++k)
         m_specular[k] = material_may_be_specular(scene.material(uint32_t(k))) ? 1 : 0;

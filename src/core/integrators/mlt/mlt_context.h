@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <string>
 
 namespace cmlt::mlt {
 
@@ -45,22 +46,25 @@ struct MltContext {
         if (chainless(s)) return 0;
         return s.importance == "pixel" ? std::max(1, std::min(s.pilot_spp, s.spp / 8)) : 0;
     }
-    /// RenderSettings::mlt_paths with auto resolved for this scene: "caustics" where a
-    /// material can be near-specular (scene_may_be_specular), else "none" (no caustic
-    /// path exists); "all" when direct_fraction is 0 (no direct pass: the chains render
-    /// everything). The frame functions resolve it on entry; the budget functions
-    /// below read an unresolved "auto" as "caustics".
+    /// RenderSettings::mlt_paths with auto resolved: "all" when direct_fraction is 0 (no
+    /// direct pass: the chains render everything), else "caustics" where a material can
+    /// be near-specular (`specular`), "none" where not (no caustic path exists). The
+    /// budget functions below pass no scene (`specular` true: auto read as caustics).
+    static std::string paths(const RenderSettings& s, bool specular = true) {
+        if (s.mlt_paths != "auto") return s.mlt_paths;
+        if (s.direct_fraction == 0.0) return "all";
+        return specular ? "caustics" : "none";
+    }
+    /// `s` with mlt_paths resolved for this scene (paths()); the frame functions resolve
+    /// it on entry.
     static RenderSettings resolve_paths(const Scene& scene, const RenderSettings& s) {
         RenderSettings out = s;
-        if (out.mlt_paths == "auto")
-            out.mlt_paths = s.direct_fraction == 0.0 ? "all" : scene_may_be_specular(scene) ? "caustics" : "none";
+        if (out.mlt_paths == "auto") out.mlt_paths = paths(s, scene_may_be_specular(scene));
         return out;
     }
     /// The chains render a part of path space and the direct pass the rest of it, at
-    /// every depth (mlt_paths caustics, none or auto: path_partition.h).
-    static bool partitioned(const RenderSettings& s) {
-        return s.mlt_paths != "all" && !(s.mlt_paths == "auto" && s.direct_fraction == 0.0);
-    }
+    /// every depth (mlt_paths caustics or none: path_partition.h).
+    static bool partitioned(const RenderSettings& s) { return paths(s) != "all"; }
     /// No chains: the direct pass renders every path (mlt_paths none).
     static bool chainless(const RenderSettings& s) { return s.mlt_paths == "none"; }
     /// The direct pass's share of a frame's evaluations (RenderSettings::direct_fraction
