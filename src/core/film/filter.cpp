@@ -96,6 +96,12 @@ PixelFilter::PixelFilter(FilterKind kind, double radius) : m_kind(kind), m_radiu
         m_splat_correlation = 1.0 / (f2 * f2);
     }
 
+    // splat weights: f1 at the table's nodes (the last one exactly the radius)
+    m_weights.resize(size_t(k_weight_bins) + 1);
+    for (int i = 0; i <= k_weight_bins; ++i)
+        m_weights[size_t(i)] = evaluate_1d(i == k_weight_bins ? r : r * double(i) / double(k_weight_bins));
+    m_weight_scale = double(k_weight_bins) / r;
+
     // inverse-CDF table of |f1|: each bin's mean |f1|
     const int n = k_table_bins;
     const double dx = 2 * r / n;
@@ -193,7 +199,7 @@ void PixelFilter::axis_weights(float p, int size, int* first, int* n, double* w)
     const int hi = std::min(size - 1, int(std::floor(double(p) + r - 0.5)));
     *first = lo;
     *n = 0;
-    for (int i = lo; i <= hi && *n < k_max_footprint; ++i) w[(*n)++] = evaluate_1d(double(i) + 0.5 - double(p));
+    for (int i = lo; i <= hi && *n < k_max_footprint; ++i) w[(*n)++] = weight_1d(double(i) + 0.5 - double(p));
 }
 
 }  // namespace cmlt

@@ -25,8 +25,10 @@ PassSplatter::PassSplatter(const PixelFilter& filter, Film& film, int row_begin,
         for (int x = -m_reach; x < m_width + m_reach; x += k_tile_size)
             m_tiles.push_back({x, y, std::min(x + k_tile_size, m_width + m_reach), std::min(y + k_tile_size, m_src_y1)});
     const size_t n = size_t(m_width + 2 * m_reach) * size_t(std::max(0, m_src_y1 - m_src_y0));
-    m_L.resize(n);
-    m_w.resize(n * size_t(2 * (2 * m_reach + 1)));
+    m_n = n;
+    for (auto& c : m_L) c.resize(n);
+    m_wx.resize(n * size_t(2 * m_reach + 1));
+    m_wy.resize(n * size_t(2 * m_reach + 1));
 }
 
 uint32_t PassSplatter::window_key(int x, int y, int width, int height, int reach) {
@@ -36,59 +38,75 @@ uint32_t PassSplatter::window_key(int x, int y, int width, int height, int reach
 }
 
 void PassSplatter::set(int x, int y, const Vec2& p, const Spectrum& L, uint32_t s) {
-    const size_t i = index(x, y);
-    const int n = 2 * m_reach + 1;
-    float* w = &m_w[i * size_t(2 * n)];
+    const size_t i = index(x, y), N = m_n;
+    const int R = m_reach;
     if (!is_finite(L)) {
         // dropped: it weighs nothing anywhere; the film counts it at the nearest pixel
-        m_L[i] = Spectrum(0.f);
-        std::fill(w, w + 2 * n, 0.f);
+        for (auto& c : m_L) c[i] = 0.f;
+        for (int d = -R; d <= R; ++d) m_wx[size_t(d + R) * N + i] = m_wy[size_t(d + R) * N + i] = 0.f;
         m_film.count_bad_sample(std::min(m_width - 1, std::max(0, x)), std::min(m_height - 1, std::max(0, y)), s);
         return;
     }
-    m_L[i] = L;
+    m_L[0][i] = L.x;
+    m_L[1][i] = L.y;
+    m_L[2][i] = L.z;
     if (m_filter.unit_box()) {  // the one-pixel box: the sample's own pixel, weight exactly 1
-        w[0] = w[1] = 1.f;
+        m_wx[i] = m_wy[i] = 1.f;
         return;
     }
-    for (int d = -m_reach; d <= m_reach; ++d) {
+    for (int d = -R; d <= R; ++d) {
         // toward column x + d (centre x + d + 1/2) and row y + d
-        w[d + m_reach] = float(m_filter.evaluate_1d(double(x + d) + 0.5 - double(p.x)));
-        w[n + d + m_reach] = float(m_filter.evaluate_1d(double(y + d) + 0.5 - double(p.y)));
+        m_wx[size_t(d + R) * N + i] = float(m_filter.weight_1d(double(x + d) + 0.5 - double(p.x)));
+        m_wy[size_t(d + R) * N + i] = float(m_filter.weight_1d(double(y + d) + 0.5 - double(p.y)));
     }
 }
 
 void PassSplatter::gather(tbb::task_arena& arena, uint32_t s, const double* extra) {
-    const int R = m_reach, n = 2 * R + 1;
+    const int R = m_reach, W = m_width;
+    const size_t N = m_n, stride = size_t(W + 2 * R);
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<int>(m_row0, m_row1), [&](const tbb::blocked_range<int>& r) {
-            for (int y = r.begin(); y != r.end(); ++y)
-                for (int x = 0; x < m_width; ++x) {
-                    // sources k = (x + dx, y + dy) reach j = (x, y) through their weights
-                    // toward offset -dx, -dy
-                    double a[3] = {0.0, 0.0, 0.0}, b = 0.0;
-                    for (int dy = -R; dy <= R; ++dy) {
-                        const int ky = y + dy;
-                        if (ky < m_src_y0 || ky >= m_src_y1) continue;  // outside the window
-                        for (int dx = -R; dx <= R; ++dx) {
-                            const size_t i = index(x + dx, ky);
-                            const float* w = &m_w[i * size_t(2 * n)];
-                            const double f = double(w[R - dx]) * double(w[n + R - dy]);
-                            if (f == 0.0) continue;
-                            const Spectrum& L = m_L[i];
-                            a[0] += f * double(L.x);
-                            a[1] += f * double(L.y);
-                            a[2] += f * double(L.z);
-                            b += f;
+            // a row's sums, pixel by pixel in lanes: A's channels and B
+            std::vector<double> acc(4 * size_t(W));
+            double* a0 = acc.data();
+            double* a1 = a0 + W;
+            double* a2 = a1 + W;
+            double* b = a2 + W;
+            for (int y = r.begin(); y != r.end(); ++y) {
+                std::fill(acc.begin(), acc.end(), 0.0);
+                // sources k = (x + dx, y + dy) reach j = (x, y) through their weights
+                // toward offset -dx, -dy; every pixel sums them in the same order (dy,
+                // then dx), so the image does not depend on the lanes or the threads. A
+                // zero weight adds exactly 0 (L is finite), as if it were skipped.
+                for (int dy = -R; dy <= R; ++dy) {
+                    const int ky = y + dy;
+                    if (ky < m_src_y0 || ky >= m_src_y1) continue;  // outside the window
+                    const float* wy = &m_wy[size_t(R - dy) * N];
+                    for (int dx = -R; dx <= R; ++dx) {
+                        const size_t i0 = size_t(ky - m_src_y0) * stride + size_t(dx + R);  // index(dx, ky)
+                        const float* wx = &m_wx[size_t(R - dx) * N + i0];
+                        const float* wyr = wy + i0;
+                        const float* l0 = &m_L[0][i0];
+                        const float* l1 = &m_L[1][i0];
+                        const float* l2 = &m_L[2][i0];
+                        for (int x = 0; x < W; ++x) {
+                            const double f = double(wx[x]) * double(wyr[x]);
+                            a0[x] += f * double(l0[x]);
+                            a1[x] += f * double(l1[x]);
+                            a2[x] += f * double(l2[x]);
+                            b[x] += f;
                         }
                     }
-                    if (b == 0.0) continue;  // (negative lobes cancelling exactly) no sample
-                    const size_t j = size_t(y) * size_t(m_width) + size_t(x);
-                    double v[3] = {a[0] / b, a[1] / b, a[2] / b};
+                }
+                for (int x = 0; x < W; ++x) {
+                    if (b[x] == 0.0) continue;  // (negative lobes cancelling exactly) no sample
+                    const size_t j = size_t(y) * size_t(W) + size_t(x);
+                    double v[3] = {a0[x] / b[x], a1[x] / b[x], a2[x] / b[x]};
                     if (extra)
                         for (int c = 0; c < 3; ++c) v[c] += extra[3 * j + c];
-                    m_film.add_sample(x, y, s, Spectrum(float(v[0]), float(v[1]), float(v[2])), float(b));
+                    m_film.add_sample(x, y, s, Spectrum(float(v[0]), float(v[1]), float(v[2])), float(b[x]));
                 }
+            }
         });
     });
 }

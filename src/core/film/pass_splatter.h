@@ -60,7 +60,7 @@ public:
     int source_row_begin() const { return m_src_y0; }
     int source_row_end() const { return m_src_y1; }
     /// How many source pixels a pass samples (the tiles' pixels).
-    double source_pixels() const { return double(m_L.size()); }
+    double source_pixels() const { return double(m_n); }
 
     /// The sample of source pixel (x, y) of the current pass: film position `p` (within
     /// the pixel) and radiance `L`. Safe from several threads for different pixels. A
@@ -81,10 +81,13 @@ private:
     int m_width, m_height, m_reach;
     int m_row0, m_row1, m_src_y0, m_src_y1;
     std::vector<Tile> m_tiles;
-    // per source pixel (index()): L, and f1 toward columns x - R .. x + R then rows
-    // y - R .. y + R (2 (2R + 1) weights; all 0 for a dropped sample)
-    std::vector<Spectrum> m_L;
-    std::vector<float> m_w;
+    // per source pixel i (index()), structure of arrays so that gather() runs along a
+    // row of pixels in SIMD lanes: L's channels, and f1 toward column x + d (m_wx[(d + R)
+    // N + i]) and row y + d (m_wy[(d + R) N + i]), N the source count (all 0 for a
+    // dropped sample)
+    size_t m_n = 0;
+    std::vector<float> m_L[3];
+    std::vector<float> m_wx, m_wy;
 };
 
 }  // namespace cmlt

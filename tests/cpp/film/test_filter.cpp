@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 using namespace cmlt;
@@ -136,12 +137,42 @@ TEST_P(FilterTest, FootprintIsTheFilterAtThePixelCentres) {
         double sum = 0;
         f.footprint(p, W, H, [&](uint32_t pixel, double w) {
             const int x = int(pixel % W), y = int(pixel / W);
-            EXPECT_NEAR(w, f.evaluate(x + 0.5 - p.x, y + 0.5 - p.y), 1e-12);
+            const double dx = x + 0.5 - p.x, dy = y + 0.5 - p.y;
+            EXPECT_NEAR(w, f.weight_1d(dx) * f.weight_1d(dy), 1e-15);  // the splat weights
+            // and those within the table's accuracy of the exact f (the next test)
+            EXPECT_NEAR(w, f.evaluate(dx, dy), 1e-5);
             sum += w;
         });
         mean_sum += sum / n;
     }
     EXPECT_NEAR(mean_sum, 1.0, 2e-3);  // ∫ f = 1: the weights sum to 1 on average over p
+}
+
+TEST_P(FilterTest, SplatWeightTableFollowsTheProfile) {
+    // weight_1d interpolates f1 between k_weight_bins + 1 nodes on [0, r]: exact at the
+    // nodes, within h²/8 max|f1''| between them (h = r / k_weight_bins; filter.h): for the
+    // default radii below 2.2e-6 of the peak (mitchell's, the largest f1'' per h²), and
+    // exact up to rounding for the box and the triangle (linear between nodes).
+    const PixelFilter f = filter();
+    const double r = f.radius();
+    const double peak = std::fabs(f.evaluate_1d(0.0));
+    const bool linear = GetParam() == FilterKind::box || GetParam() == FilterKind::triangle;
+    const double tol = (linear ? 1e-12 : 2.5e-6) * peak;
+    double worst = 0.0;
+    for (int i = 0; i <= PixelFilter::k_weight_bins; ++i) {  // the nodes, both signs
+        const double x = i == PixelFilter::k_weight_bins ? r : r * i / PixelFilter::k_weight_bins;
+        EXPECT_NEAR(f.weight_1d(x), f.evaluate_1d(x), 1e-15 * peak) << x;
+        EXPECT_EQ(f.weight_1d(-x), f.weight_1d(x)) << x;
+    }
+    for (uint32_t i = 0; i < 200000; ++i) {
+        const double x = (2.0 * double(test::uniform2(31, i).x) - 1.0) * 1.1 * r;
+        const double d = std::fabs(f.weight_1d(x) - f.evaluate_1d(x));
+        worst = std::max(worst, d);
+        ASSERT_LE(d, tol) << "x = " << x;
+        if (std::fabs(x) > r) ASSERT_EQ(f.weight_1d(x), 0.0) << x;
+    }
+    if (!linear) EXPECT_GT(worst, 0.0);  // it is an interpolation, and the bound is not vacuous
+    EXPECT_EQ(f.weight_1d(std::nan("")), 0.0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Filters, FilterTest, ::testing::ValuesIn(k_kinds), kind_name);

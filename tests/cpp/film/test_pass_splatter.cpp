@@ -108,11 +108,11 @@ TEST(PassSplatter, OneSourceGivesTheFilterRatio) {
             for (int dy = -1; dy <= 1; ++dy)
                 for (int dx = -1; dx <= 1; ++dx) {
                     const Vec2 p = at(x + dx, y + dy);
-                    b += double(float(f.evaluate_1d(x + 0.5 - p.x))) * double(float(f.evaluate_1d(y + 0.5 - p.y)));
+                    b += double(float(f.weight_1d(x + 0.5 - p.x))) * double(float(f.weight_1d(y + 0.5 - p.y)));
                 }
             const Vec2 p = at(2, 1);
             const double a = std::abs(x - 2) <= 1 && std::abs(y - 1) <= 1
-                                 ? double(float(f.evaluate_1d(x + 0.5 - p.x))) * double(float(f.evaluate_1d(y + 0.5 - p.y)))
+                                 ? double(float(f.weight_1d(x + 0.5 - p.x))) * double(float(f.weight_1d(y + 0.5 - p.y)))
                                  : 0.0;
             EXPECT_NEAR(img[3 * size_t(y * W + x) + 1], 2.0 * a / b, 1e-6) << x << "," << y;
         }
