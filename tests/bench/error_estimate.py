@@ -114,16 +114,19 @@ def main(argv=None) -> int:
                         row = {"shot": shot, "integrator": integ, "mode": mode, "spp": total,
                                "repeat": rep, "measured": m, "floor": floor}
                         for d, est in ests.items():
-                            row[f"est_{d}"] = est.relmse
-                            row[f"se_{d}"] = est.stderr
-                            row[f"ratio_{d}"] = est.relmse / m if m > 0 else math.nan
+                            # None: the render has no estimate (pssmlt/cmlt whose chains
+                            # started from too few distinct bootstrap samples for
+                            # independent groups); counted outside the band
+                            row[f"est_{d}"] = est.relmse if est is not None else math.nan
+                            row[f"se_{d}"] = est.stderr if est is not None else math.nan
+                            row[f"ratio_{d}"] = (est.relmse / m if m > 0 else math.nan) if est is not None else math.nan
                         rows.append(row)
                     sel = [x for x in rows if (x["shot"], x["integrator"], x["mode"], x["spp"])
                            == (shot, integ, mode, total)]
                     parts = []
                     for d in DENOMINATORS:
                         rat = np.array([x[f"ratio_{d}"] for x in sel])
-                        parts.append(f"{d} {np.median(rat):.2f} [{rat.min():.2f}, {rat.max():.2f}] "
+                        parts.append(f"{d} {np.nanmedian(rat):.2f} [{np.nanmin(rat):.2f}, {np.nanmax(rat):.2f}] "
                                      f"{np.mean((rat >= LO) & (rat <= HI)):.0%}")
                     print(f"{shot:>14} {integ:>6} {mode:>8} spp {total:5d}: measured "
                           f"{np.mean([x['measured'] for x in sel]):.4g}; est./meas. median "
@@ -146,9 +149,9 @@ def main(argv=None) -> int:
 def summary(rows) -> str:
     """Markdown: per (shot, integrator, mode), the median ratio estimated / measured and
     the renders in the band, for each denominator."""
-    out = ["| shot | integrator | estimate from | renders | measured relMSE | "
+    out = ["| shot | integrator | estimate from | renders | no estimate | measured relMSE | "
            + " | ".join(f"{d}: median, in {LO}-{HI}x" for d in DENOMINATORS) + " |",
-           "|---|---|---|---:|---:|" + "---:|" * len(DENOMINATORS)]
+           "|---|---|---|---:|---:|---:|" + "---:|" * len(DENOMINATORS)]
     keys = []
     for r in rows:
         k = (r["shot"], r["integrator"], r["mode"])
@@ -160,8 +163,9 @@ def summary(rows) -> str:
         cells = []
         for d in DENOMINATORS:
             rat = np.array([r[f"ratio_{d}"] for r in sel])
-            cells.append(f"{np.median(rat):.2f}, {np.mean((rat >= LO) & (rat <= HI)):.0%}")
-        out.append(f"| {k[0]} | {k[1]} | {k[2]} | {len(sel)} | {min(meas):.2g}-{max(meas):.2g} | "
+            cells.append(f"{np.nanmedian(rat):.2f}, {np.mean((rat >= LO) & (rat <= HI)):.0%}")
+        missing = sum(1 for r in sel if math.isnan(r[f"est_{DENOMINATORS[0]}"]))
+        out.append(f"| {k[0]} | {k[1]} | {k[2]} | {len(sel)} | {missing} | {min(meas):.2g}-{max(meas):.2g} | "
                    + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
 
