@@ -120,8 +120,7 @@ bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex*
         Vec2 pr;
         float we = m_importance.we(p_lens, -w, &pr);
         if (!(we > 0.f)) return false;
-        sampled = PathVertex();
-        sampled.type = VertexType::camera;
+        sampled.reset(VertexType::camera);
         sampled.time = qs.time;
         sampled.p = p_lens;
         sampled.beta = Spectrum(1.f);
@@ -154,8 +153,7 @@ bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex*
         const Light& l = scene.light(li);
         LightSample ls = l.sample_li(pt.p, u_pos);
         if (!ls.valid() || !(pmf > 0.f)) return false;
-        sampled = PathVertex();
-        sampled.type = VertexType::light;
+        sampled.reset(VertexType::light);
         sampled.time = pt.time;
         sampled.light_index = int32_t(li);
         if (std::isinf(ls.dist)) {

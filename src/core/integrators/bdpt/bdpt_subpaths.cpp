@@ -75,8 +75,7 @@ bool BdptTracer::walk_step(BdptWalk& wk, const SceneHit& hit, BdptSampler& sampl
         if (!importance && !scene.infinite_lights().empty()) {
             edge(normalize(ray.d));
             PathVertex& v = path[n];
-            v = PathVertex();
-            v.type = VertexType::light;
+            v.reset(VertexType::light);
             v.time = ray.time;
             v.infinite = true;
             v.w_inf = -normalize(ray.d);
@@ -94,8 +93,7 @@ bool BdptTracer::walk_step(BdptWalk& wk, const SceneHit& hit, BdptSampler& sampl
             Vec3 w = p_hit - prev.p;
             edge(length_squared(w) > 0.f ? normalize(w) : normalize(ray.d));
             PathVertex& v = path[n];
-            v = PathVertex();
-            v.type = VertexType::light;
+            v.reset(VertexType::light);
             v.time = ray.time;
             v.light_index = int32_t(hit.light_index);
             v.p = p_hit;
@@ -141,8 +139,7 @@ bool BdptTracer::walk_step(BdptWalk& wk, const SceneHit& hit, BdptSampler& sampl
     }
     edge(w_in);
     PathVertex& v = path[n];
-    v = PathVertex();
-    v.type = VertexType::surface;
+    v.reset(VertexType::surface);
     v.time = ray.time;
     v.si = hit.si;
     v.p = hit.si.p;
@@ -217,8 +214,7 @@ bool BdptTracer::begin_camera_subpath(const Vec2& p_raster, BdptSampler& sampler
                              : cam.generate_ray(p_raster);
     ray.time = time;
     PathVertex& v = path[0];
-    v = PathVertex();
-    v.type = VertexType::camera;
+    v.reset(VertexType::camera);
     v.time = time;
     v.p = ray.o;
     v.beta = Spectrum(1.f);
@@ -256,8 +252,7 @@ bool BdptTracer::begin_light_subpath(BdptSampler& sampler, int max_vertices, boo
     if (!(pmf > 0.f)) return false;
     const Light& light = scene.light(li);
     PathVertex& v = path[0];
-    v = PathVertex();
-    v.type = VertexType::light;
+    v.reset(VertexType::light);
     v.time = time;
     v.light_index = int32_t(li);
     Ray ray;

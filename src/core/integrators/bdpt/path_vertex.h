@@ -42,6 +42,21 @@ struct PathVertex {
     SurfaceInteraction si;     ///< surfaces
     std::optional<Bsdf> bsdf;  ///< surfaces
 
+    /// As a default-constructed vertex of type `t`, except `si`, which keeps its old
+    /// value: it is read only for surface vertices, and every surface vertex is given
+    /// its own (this saves copying the 132-byte interaction for every vertex made).
+    void reset(VertexType t) {
+        type = t;
+        delta = infinite = false;
+        p = ng = ns = wo = w_inf = Vec3();
+        error_scale = time = 0.f;
+        beta = le = Spectrum(0.f);
+        pdf_fwd = pdf_rev = 0.f;
+        pass_pdf = 1.f;
+        light_index = -1;
+        bsdf.reset();
+    }
+
     bool on_surface() const { return !is_black(ng); }
     bool is_light() const { return type == VertexType::light || light_index >= 0; }
 };
