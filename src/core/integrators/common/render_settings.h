@@ -151,8 +151,9 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
         "2 are refused (a variance and its jackknife need 3)")                               \
     REAL(target_error, 0.0, 0.0, settings_limits::k_inf, false, "cmlt:targetError",          \
          "--target-error E",                                                                 \
-         "stop when the render's own relMSE estimate falls below E and a 95 % upper "       \
-         "bound on it below 1.5 E (error_target.h), or when --spp/--time run out first; "   \
+         "stop when the render's own relMSE estimate falls below E and its one-sided "      \
+         "95-percent upper bound below 1.5 E (error_target.h), or when --spp/--time run "   \
+         "out first; "                                                                       \
          "0 = off")                                                                          \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
          "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
