@@ -9,8 +9,8 @@ import os as _os
 # One BLAS thread (unless the user chose otherwise), set before numpy is first imported:
 # cmlt's numpy work is element-wise or N x 3 @ 3 x 3 (colour), which one thread does at
 # memory speed, while OpenBLAS' own worker threads busy-wait after each call and so take
-# cores from the renderer's threads (perf: 2 % of a bdpt render on 2 cores in
-# `blas_thread_server`).
+# cores from the renderer's threads (perf: 2 % of the samples of a `cmlt render` process
+# on 2 cores were in `blas_thread_server`).
 _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 # Register cmlt's USD plugins (the CmltRenderSettingsAPI schema) before

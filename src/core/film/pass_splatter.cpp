@@ -63,7 +63,7 @@ void PassSplatter::set(int x, int y, const Vec2& p, const Spectrum& L, uint32_t 
 
 void PassSplatter::gather(tbb::task_arena& arena, uint32_t s, const double* extra) {
     const int R = m_reach, W = m_width;
-    const size_t N = m_n, stride = size_t(W + 2 * R);
+    const size_t N = m_n;
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<int>(m_row0, m_row1), [&](const tbb::blocked_range<int>& r) {
             // a row's sums, pixel by pixel in lanes: A's channels and B
@@ -83,7 +83,7 @@ void PassSplatter::gather(tbb::task_arena& arena, uint32_t s, const double* extr
                     if (ky < m_src_y0 || ky >= m_src_y1) continue;  // outside the window
                     const float* wy = &m_wy[size_t(R - dy) * N];
                     for (int dx = -R; dx <= R; ++dx) {
-                        const size_t i0 = size_t(ky - m_src_y0) * stride + size_t(dx + R);  // index(dx, ky)
+                        const size_t i0 = index(dx, ky);  // source (x + dx, ky) is i0 + x
                         const float* wx = &m_wx[size_t(R - dx) * N + i0];
                         const float* wyr = wy + i0;
                         const float* l0 = &m_L[0][i0];

@@ -153,8 +153,7 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "--target-error E",                                                                 \
          "stop when the render's own relMSE estimate falls below E and its one-sided "      \
          "95-percent upper bound below 1.5 E (error_target.h), or when --spp/--time run "   \
-         "out first; "                                                                       \
-         "0 = off")                                                                          \
+         "out first; 0 = off")                                                               \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
          "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
     TOKEN(pixel_filter, "gaussian", "box triangle gaussian mitchell blackman-harris",        \
