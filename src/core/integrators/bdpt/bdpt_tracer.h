@@ -256,7 +256,7 @@ public:
     /// Metropolis integrators' chains with mlt_paths = "caustics". Null or
     /// PathPart::all (the default): every path.
     void set_partition(const PathPartition* partition) {
-        m_partition = partition && partition->part() != PathPart::all ? partition : nullptr;
+        m_partition = PathPartition::restricting(partition);
     }
     /// Is the path of strategy (s, t) on these subpaths a caustic path (path_partition.h)?
     /// Needs a partition (its material table).

@@ -37,6 +37,11 @@ public:
     PathPartition(const Scene& scene, PathPart part);
 
     PathPart part() const { return m_part; }
+    /// `p` if it leaves some paths out, else null (no partition, or PathPart::all): what
+    /// the tracers keep, so that a null check is their whole test for "every path".
+    static const PathPartition* restricting(const PathPartition* p) {
+        return p && p->m_part != PathPart::all ? p : nullptr;
+    }
     /// Is a surface vertex on this material a specular one (S) of the rule?
     bool specular(uint32_t material_id) const {
         return material_id < m_specular.size() && m_specular[material_id] != 0;

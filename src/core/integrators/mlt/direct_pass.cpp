@@ -168,10 +168,6 @@ void DirectSchedule::finish(bool cancelled, bool chains_ran, std::chrono::steady
     while (const int n = time.next(pass.passes())) pass.render_to(arena, pass.passes() + n, counters);
 }
 
-}  // namespace cmlt::mlt
-
-namespace cmlt::mlt {
-
 bool DirectSchedule::run_alone(const ProgressCallback& progress, std::chrono::steady_clock::time_point t0,
                                bool* cancelled, std::vector<std::array<double, 4>>* history) {
     const PassSchedule schedule(settings, t0);

@@ -113,7 +113,7 @@ public:
     /// integrators' direct pass the easy ones, their pt path sampler the caustic ones.
     /// Null or PathPart::all (the default): every path.
     void set_partition(const PathPartition* partition) {
-        m_partition = partition && partition->part() != PathPart::all ? partition : nullptr;
+        m_partition = PathPartition::restricting(partition);
     }
 
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
