@@ -113,9 +113,12 @@ def test01_mlt_parts_combine_to_the_whole_frame(integrator, bulb):
     assert not np.array_equal(np.asarray(alone), np.asarray(whole.image))
 
 
-def test02_pt_row_bands_are_the_whole_frames_rows():
-    scene = SceneBridge(core).update(cornell_scene())
-    whole = np.asarray(core.render(scene, _settings("pt")).image)
+@pytest.mark.parametrize("bulb", [False, True])
+def test02_pt_row_bands_are_the_whole_frames_rows(bulb):
+    scene = SceneBridge(core).update(_with_bulb(cornell_scene()) if bulb else cornell_scene())
+    whole_r = core.render(scene, _settings("pt"))
+    assert whole_r.stats.get("lens_lights", 0) == (1 if bulb else 0)  # the bulb is traced
+    whole = np.asarray(whole_r.image)
     H = support.scenes.RES
     got = np.zeros_like(whole)
     for y0, y1 in part_ranges(H, 3):

@@ -286,7 +286,7 @@ struct RenderStats {
     uint64_t rays = 0;          ///< every BVH query (camera + bounce + shadow)
     uint64_t packets = 0;       ///< pt: packet queries (rtcIntersectN + rtcOccludedN calls)
     uint64_t splats = 0;        ///< bdpt: light-tracing (t = 1) contributions splatted
-    /// bdpt, pssmlt, cmlt: lights under a pixel across traced from the light side to the
+    /// Every integrator: lights under a pixel across traced from the light side to the
     /// lens ((1, 1): integrators/path/lens_light_tracing.h)
     uint32_t lens_lights = 0;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)

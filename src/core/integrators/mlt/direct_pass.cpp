@@ -33,55 +33,32 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
     const int W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
     if (!m_splatter) m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
+    if (m_lens && !m_lens_pass) m_lens_pass = std::make_unique<LensPass>(*m_lens, m_filter, W, H);
     const int R = m_splatter->reach();
     // camera samples, each uniform in its pixel: this part's rows (and, with a wide
     // filter, the source rows around them and the window's columns: film/pass_splatter.h)
     const int cy0 = m_splatter->source_row_begin(), cy1 = m_splatter->source_row_end();
     const PixelFilter unit_box;
-    // light samples (lens light tracing): every pixel of the frame, since a part's rows
-    // receive splats from the whole frame's samples
-    const int ry0 = m_lens ? std::min(0, cy0) : cy0, ry1 = m_lens ? std::max(H, cy1) : cy1;
-    const size_t n_pix = size_t(W) * size_t(H);
-    // light tracing reaches the film window; its importance is normalised over it
-    const double splat_scale = m_filter.window_area(W, H) / (double(W) * double(H));
-    std::vector<double> splat_img(m_lens ? 3 * n_pix : 0);
-    std::vector<std::vector<std::pair<Vec2, Spectrum>>> row_splats(m_lens ? size_t(H) : 0);
     for (int k = s0; k < s1; ++k) {
         const uint32_t index = m_sample_base + uint32_t(k);
-        parallel_tasks(arena, counters, size_t(ry1 - ry0), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
+        parallel_tasks(arena, counters, size_t(cy1 - cy0), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
             PathCounters c;
             for (size_t yy = r.begin(); yy != r.end(); ++yy) {
-                const int y = ry0 + int(yy);
-                if (y >= cy0 && y < cy1)
-                    for (int x = -R; x < W + R; ++x) {
-                        float w = 1.f;
-                        Vec2 p;
-                        const Spectrum L = m_tracer.pixel_sample(m_camera, unit_box, m_motion_blur, m_settings.seed,
-                                                                 x, y, m_splatter->key(x, y), index, c, &w, &p);
-                        m_splatter->set(x, y, p, L, index);
-                    }
-                if (!m_lens || y < 0 || y >= H) continue;
-                auto& out = row_splats[size_t(y)];
-                out.clear();
-                for (int x = 0; x < W; ++x) {
-                    const uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
-                    Vec2 pr;
-                    Spectrum v;
-                    const uint64_t shadow0 = c.shadow_rays;
-                    if (m_lens->sample(m_settings.seed, pixel, index, m_motion_blur, &pr, &v, &c.shadow_rays))
-                        out.emplace_back(pr, v);
-                    c.rays += c.shadow_rays - shadow0;
+                const int y = cy0 + int(yy);
+                for (int x = -R; x < W + R; ++x) {
+                    float w = 1.f;
+                    Vec2 p;
+                    const Spectrum L = m_tracer.pixel_sample(m_camera, unit_box, m_motion_blur, m_settings.seed, x, y,
+                                                             m_splatter->key(x, y), index, c, &w, &p);
+                    m_splatter->set(x, y, p, L, index);
                 }
             }
             counters.add(c);
         });
-        if (m_lens) {
-            // splats in row order (deterministic sums) over the filter's footprint
-            std::fill(splat_img.begin(), splat_img.end(), 0.0);
-            for (const auto& list : row_splats)
-                for (const auto& sp : list) m_filter.splat(sp.first, sp.second, splat_scale, W, H, splat_img.data());
-        }
-        m_splatter->gather(arena, index, m_lens ? splat_img.data() : nullptr);
+        // light samples (lens light tracing): every pixel of the frame
+        const double* splats =
+            m_lens_pass ? m_lens_pass->trace(arena, counters, m_settings.seed, index, m_motion_blur) : nullptr;
+        m_splatter->gather(arena, index, splats);
     }
 }
 

@@ -1,6 +1,7 @@
 // BDPT's (1, 1) strategy for path-traced passes; see lens_light_tracing.h.
 #include "integrators/path/lens_light_tracing.h"
 
+#include "film/filter.h"
 #include "lights/light.h"
 #include "math/frame.h"
 #include "sampling/rng.h"
@@ -8,6 +9,7 @@
 #include "scene/interaction.h"
 #include "scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace cmlt {
@@ -126,6 +128,35 @@ bool LensLightTracing::sample(uint64_t seed, uint32_t pixel, uint32_t index, boo
     *value = v * tr;
     *p_raster = pr;
     return true;
+}
+
+LensPass::LensPass(const LensLightTracing& lens, const PixelFilter& filter, int width, int height)
+    : m_lens(lens), m_filter(filter), m_width(width), m_height(height),
+      m_scale(filter.window_area(width, height) / (double(width) * double(height))), m_rows(size_t(height)),
+      m_image(size_t(width) * size_t(height) * 3) {}
+
+const double* LensPass::trace(tbb::task_arena& arena, FrameCounters& counters, uint64_t seed, uint32_t sample,
+                              bool motion_blur) {
+    parallel_tasks(arena, counters, size_t(m_height), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
+        PathCounters c;
+        for (size_t y = r.begin(); y != r.end(); ++y) {
+            auto& out = m_rows[y];
+            out.clear();
+            for (int x = 0; x < m_width; ++x) {
+                const uint32_t pixel = uint32_t(y) * uint32_t(m_width) + uint32_t(x);
+                Vec2 pr;
+                Spectrum v;
+                const uint64_t shadow0 = c.shadow_rays;
+                if (m_lens.sample(seed, pixel, sample, motion_blur, &pr, &v, &c.shadow_rays)) out.emplace_back(pr, v);
+                c.rays += c.shadow_rays - shadow0;
+            }
+        }
+        counters.add(c);
+    });
+    std::fill(m_image.begin(), m_image.end(), 0.0);
+    for (const auto& row : m_rows)
+        for (const auto& sp : row) m_filter.splat(sp.first, sp.second, m_scale, m_width, m_height, m_image.data());
+    return m_image.data();
 }
 
 }  // namespace cmlt

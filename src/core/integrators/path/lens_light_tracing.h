@@ -28,14 +28,19 @@
 /// image's (1, 1) share (times window / image area, as bdpt's splats).
 #include "cameras/camera.h"
 #include "integrators/bdpt/camera_importance.h"
+#include "integrators/common/frame_loop.h"
 #include "math/vec.h"
 #include "sampling/discrete_distribution.h"
 
+#include <tbb/task_arena.h>
+
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace cmlt {
 
+class PixelFilter;
 class Scene;
 
 class LensLightTracing {
@@ -76,6 +81,28 @@ private:
     std::vector<uint32_t> m_lights;  ///< traced lights
     std::vector<int32_t> m_slot;     ///< Scene light index -> index into m_lights, or -1
     DiscreteDistribution m_dist;     ///< over m_lights, by power
+};
+
+/// The light samples of one pass over the whole frame (one per pixel), splatted through
+/// the film's filter: the `extra` image of PassSplatter::gather. The samples are traced
+/// in parallel by rows and splatted in row order, so the sums do not depend on the
+/// thread count; a part of the frame gets the whole frame's splats (its rows receive
+/// light from every pixel's sample).
+class LensPass {
+public:
+    LensPass(const LensLightTracing& lens, const PixelFilter& filter, int width, int height);
+    /// Pass `sample`'s splats, W x H x 3 (valid until the next call). Counts the
+    /// connections as shadow rays and rays.
+    const double* trace(tbb::task_arena& arena, FrameCounters& counters, uint64_t seed, uint32_t sample,
+                        bool motion_blur);
+
+private:
+    const LensLightTracing& m_lens;
+    const PixelFilter& m_filter;
+    int m_width, m_height;
+    double m_scale;  ///< the window's area over the image's: importance is normalised over the window
+    std::vector<std::vector<std::pair<Vec2, Spectrum>>> m_rows;
+    std::vector<double> m_image;
 };
 
 }  // namespace cmlt

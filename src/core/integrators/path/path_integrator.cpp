@@ -7,6 +7,7 @@
 #include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
 #include "accel/accel.h"
+#include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_batch.h"
 #include "integrators/path/path_tracer.h"
 #include "scene/scene.h"
@@ -15,6 +16,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 
 namespace cmlt {
 
@@ -23,7 +25,12 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     const Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
-    const PathTracer tracer(scene, settings.max_depth);
+    PathTracer tracer(scene, settings.max_depth);
+    // Lights smaller than a pixel are traced from the light side too (BDPT's (1, 1)
+    // strategy, lens_light_tracing.h): camera rays almost never hit them. Without such a
+    // light nothing changes.
+    const LensLightTracing lens(scene, camera, W, H, filter.margin());
+    if (lens.active()) tracer.set_lens_light_tracing(&lens);
     const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
     std::vector<Tile> tiles = image_tiles(W, H);
     if (settings.partial) {
@@ -51,7 +58,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     int done = 0;
     PassSplatter splatter(filter, film, settings.partial ? settings.part_row_begin : 0,
                           settings.partial ? settings.part_row_end : H);
-    if (!splatter.active()) {
+    if (!splatter.active() && !lens.active()) {
         done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
             parallel_tasks(
                 arena, counters, tiles.size(), size_t(1),
@@ -78,10 +85,11 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                 tbb::simple_partitioner());
         }, &target);
     } else {
-        // A wide filter: pass by pass, every source pixel of the window (the image and
-        // the filter's ring) sampled uniformly in its pixel, then splatted to its
-        // neighbours (film/pass_splatter.h).
+        // A wide filter or lens light tracing: pass by pass, every source pixel of the
+        // window (the image and the filter's ring) sampled uniformly in its pixel, then
+        // splatted to its neighbours (film/pass_splatter.h), with the pass's light splats.
         const PixelFilter unit_box;
+        std::unique_ptr<LensPass> lens_pass = lens.active() ? std::make_unique<LensPass>(lens, filter, W, H) : nullptr;
         const std::vector<Tile>& src_tiles = splatter.source_tiles();
         // a batch per thread for the frame (a pass is short: no allocation per tile)
         tbb::enumerable_thread_specific<PathBatch> batches([&] {
@@ -112,12 +120,15 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                         counters.add(c, 0, batch.packets() - packets0);
                     },
                     tbb::simple_partitioner());
-                splatter.gather(arena, uint32_t(s));
+                const double* splats =
+                    lens_pass ? lens_pass->trace(arena, counters, settings.seed, uint32_t(s), motion_blur) : nullptr;
+                splatter.gather(arena, uint32_t(s), splats);
             }
         }, &target);
     }
     RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
     if (splatter.active()) res.stats.pixel_correlation = filter.splat_correlation();
+    res.stats.lens_lights = uint32_t(lens.lights().size());
     return res;
 }
 
