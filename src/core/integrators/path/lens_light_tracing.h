@@ -1,11 +1,11 @@
 #pragma once
 /// \file BDPT's (1, 1) strategy for a path-traced pass: a point sampled on a light,
 /// connected to the lens and splatted where it lands, MIS-weighted against the camera
-/// rays that hit the same light. The Metropolis direct pass (mlt/direct_pass.h) uses it
-/// for lights smaller than a pixel, which its camera rays almost never hit: a 0.4 mm
-/// bulb seen directly covers 2e-5 of its pixel, so a render either misses a third of
-/// the image or, once in ~50,000 samples, hits it with a weight of L/spp
-/// (sequences/hard/bulb_room).
+/// rays that hit the same light. The pt integrator (path_integrator.cpp) and the
+/// Metropolis direct pass (mlt/direct_pass.h) use it for lights smaller than a pixel,
+/// which camera rays almost never hit: a 0.4 mm bulb seen directly covers 2e-5 of its
+/// pixel, so a render either misses a third of the image or, once in ~50,000 samples,
+/// hits it with a weight of L/spp (sequences/hard/bulb_room).
 ///
 /// Which lights: the analytic lights (sphere, rect, disk, cylinder) whose bounding
 /// sphere projects to less than a pixel across (`k_max_pixels`), centre inside the
