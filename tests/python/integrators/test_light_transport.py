@@ -31,7 +31,7 @@ import cmlt._core as core
 from cmlt.scene import Camera, FrameScene, Instance, Light, Material, Mesh, padded_points
 from cmlt.shot.bridge import SceneBridge
 
-from support.scenes import cornell_scene, quad as _quad, uv_sphere as _uv_sphere
+from support.scenes import cornell_scene, quad as _quad, uv_sphere as _uv_sphere, with_bulb
 from support.stats import t_critical
 
 pytestmark = pytest.mark.statistical
@@ -443,23 +443,14 @@ def test11_deterministic_over_thread_counts_with_the_new_features():
 
 # ---- 4. lights smaller than a pixel in pt ---------------------------------------------
 
-def _cornell_with_bulb():
-    """The Cornell box with a 1 mm bulb of radiance 2e5 in view (smaller than a pixel)."""
-    fs = cornell_scene()
-    xf = np.eye(4)
-    xf[:3, 3] = (0.2, 1.2, -0.5)
-    fs.lights.append(Light("/bulb", "sphere", xf, radiance=(2e5, 2e5, 2e5), radius=1e-3))
-    return fs
-
-
 @pytest.mark.parametrize("pixel_filter", ["box", "gaussian"])
 def test12_pt_traces_a_sub_pixel_bulb_from_the_light_side(pixel_filter):
-    """pt's camera rays hit the bulb about once in 10^5 samples of its pixel; it is traced
-    from the light side too (lens_light_tracing.h), MIS-weighted against those hits. pt
+    """pt's camera rays hit the bulb rarely (it covers a small part of its pixel); it is
+    traced from the light side too (lens_light_tracing.h), MIS-weighted against those hits. pt
     and bdpt agree per 4x4 block over 10 seeds each (without the light-side samples the
     bulb's block is missing its energy in every render that does not hit it, and a
     render that does is far off), and pt's image is the same with 1 and 2 threads."""
-    scene = SceneBridge(core).update(_cornell_with_bulb())
+    scene = SceneBridge(core).update(with_bulb(cornell_scene()))
     res, kw = (32, 32), dict(max_depth=4, pixel_filter=pixel_filter)
     pt_runs, bd_runs = [], []
     for seed in range(1, SEEDS + 1):

@@ -26,7 +26,7 @@ from cmlt.shot.bridge import SceneBridge
 from cmlt.shot.distributed import part_ranges
 from cmlt.temporal.state import state_path
 import support
-from support.scenes import cornell_scene
+from support.scenes import cornell_scene, with_bulb
 
 PAN = os.path.join(str(support.SEQUENCES), "camera_pan", "shot.usda")
 CORNELL = os.path.join(str(support.SEQUENCES), "cornell", "shot.usda")
@@ -77,19 +77,9 @@ def _settings(integrator, **kw):
     return st
 
 
-def _with_bulb(fs):
-    """The frame with a 1 mm bulb in view (smaller than a pixel: the direct pass traces
-    it from the light side, and its splats cross the parts' row bands)."""
-    from cmlt.scene import Light
-    xf = np.eye(4)
-    xf[:3, 3] = (0.2, 1.2, -0.5)
-    fs.lights.append(Light("/bulb", "sphere", xf, radiance=(2e5, 2e5, 2e5), radius=1e-3))
-    return fs
-
-
 @pytest.mark.parametrize("integrator,bulb", [("pssmlt", False), ("cmlt", False), ("cmlt", True)])
 def test01_mlt_parts_combine_to_the_whole_frame(integrator, bulb):
-    scene = SceneBridge(core).update(_with_bulb(cornell_scene()) if bulb else cornell_scene())
+    scene = SceneBridge(core).update(with_bulb(cornell_scene()) if bulb else cornell_scene())
     whole = core.render(scene, _settings(integrator))
     assert whole.mlt_part is None
     assert whole.stats.get("lens_lights", 0) == (1 if bulb else 0)  # the bulb is traced
@@ -115,7 +105,7 @@ def test01_mlt_parts_combine_to_the_whole_frame(integrator, bulb):
 
 @pytest.mark.parametrize("bulb", [False, True])
 def test02_pt_row_bands_are_the_whole_frames_rows(bulb):
-    scene = SceneBridge(core).update(_with_bulb(cornell_scene()) if bulb else cornell_scene())
+    scene = SceneBridge(core).update(with_bulb(cornell_scene()) if bulb else cornell_scene())
     whole_r = core.render(scene, _settings("pt"))
     assert whole_r.stats.get("lens_lights", 0) == (1 if bulb else 0)  # the bulb is traced
     whole = np.asarray(whole_r.image)

@@ -40,6 +40,16 @@ def cornell_scene():
         resolution=(RES, RES), meters_per_unit=1.0)
 
 
+def with_bulb(fs):
+    """The frame with a 1 mm sphere light of radiance 2e5 in view (in the Cornell box:
+    smaller than a pixel, so the path-traced passes trace it from the light side too,
+    and its splats cross the row bands of a frame's parts)."""
+    xf = np.eye(4)
+    xf[:3, 3] = (0.2, 1.2, -0.5)
+    fs.lights.append(Light("/bulb", "sphere", xf, radiance=(2e5, 2e5, 2e5), radius=1e-3))
+    return fs
+
+
 def uv_sphere(radius, n_theta=24, n_phi=48):
     pts, tris = [], []
     for i in range(n_theta + 1):
