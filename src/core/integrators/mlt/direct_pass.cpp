@@ -24,6 +24,7 @@ void PtPass::enable_lens_light_tracing(const Scene& scene) {
                                                    m_filter.margin());
     if (!lens->active()) return;
     m_lens = std::move(lens);
+    m_lens_pass = std::make_unique<LensPass>(*m_lens, m_filter, m_settings.width, m_settings.height);
     m_tracer.set_lens_light_tracing(m_lens.get());
 }
 
@@ -33,7 +34,6 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
     const int W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
     if (!m_splatter) m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
-    if (m_lens && !m_lens_pass) m_lens_pass = std::make_unique<LensPass>(*m_lens, m_filter, W, H);
     const int R = m_splatter->reach();
     // camera samples, each uniform in its pixel: this part's rows (and, with a wide
     // filter, the source rows around them and the window's columns: film/pass_splatter.h)

@@ -87,7 +87,7 @@ private:
     PixelFilter m_filter;
     PathTracer m_tracer;
     std::unique_ptr<LensLightTracing> m_lens;
-    std::unique_ptr<LensPass> m_lens_pass;  ///< its splats per pass (made on first use)
+    std::unique_ptr<LensPass> m_lens_pass;  ///< its splats per pass
     bool m_motion_blur;
     Film m_film;
     std::unique_ptr<PassSplatter> m_splatter;  ///< made at the first indexed pass (rows known)
