@@ -34,9 +34,8 @@ Texture::Texture(TextureDesc desc, const char* name) : m_d(std::move(desc)) {
                     m[5] == 0.f;
 }
 
-bool Texture::wrap(int* i, int n, WrapMode mode) {
+bool Texture::wrap_outside(int* i, int n, WrapMode mode) {
     int v = *i;
-    if (unsigned(v) < unsigned(n)) return true;  // inside: every mode keeps it (no division)
     switch (mode) {
         case WrapMode::repeat:
             v %= n;
@@ -58,15 +57,17 @@ bool Texture::wrap(int* i, int n, WrapMode mode) {
     return true;
 }
 
-Vec4 Texture::texel(int x, int y) const {
-    const float* p = m_d.data + (size_t(y) * size_t(m_d.width) + size_t(x)) * size_t(m_d.channels);
-    switch (m_d.channels) {
-        case 1: return {p[0], p[0], p[0], 1.f};
-        case 2: return {p[0], p[0], p[0], p[1]};
-        case 3: return {p[0], p[1], p[2], 1.f};
-        default: return {p[0], p[1], p[2], p[3]};
-    }
+namespace {
+
+/// floor(v) for |v| <= 2^24 (every such float's integer neighbours are floats): the
+/// same value as std::floor there without the libm call (x86-64's baseline has no
+/// rounding instruction).
+inline float floor_in_range(float v) {
+    const float t = float(int(v));  // toward zero
+    return t > v ? t - 1.f : t;
 }
+
+}  // namespace
 
 Vec4 Texture::eval(const Vec2& st_in) const {
     if (!valid()) return scale_bias(Vec4());
@@ -83,18 +84,24 @@ Vec4 Texture::eval(const Vec2& st_in) const {
     const float lim = 1 << 24;
     fx = std::fmax(-lim, std::fmin(lim, fx));
     fy = std::fmax(-lim, std::fmin(lim, fy));
-    float x0f = std::floor(fx), y0f = std::floor(fy);
-    float ax = fx - x0f, ay = fy - y0f;
-    int x0 = int(x0f), y0 = int(y0f);
+    const float x0f = floor_in_range(fx), y0f = floor_in_range(fy);
+    const float ax = fx - x0f, ay = fy - y0f;
+    const float wx[2] = {1.f - ax, ax}, wy[2] = {1.f - ay, ay};
+    // The two columns and rows of the 2x2 footprint, wrapped (false: a black texel).
+    int xs[2] = {int(x0f), int(x0f) + 1}, ys[2] = {int(y0f), int(y0f) + 1};
+    bool in_x[2], in_y[2];
+    for (int k = 0; k < 2; ++k) {
+        in_x[k] = wrap(&xs[k], m_d.width, m_d.wrap_s);
+        in_y[k] = wrap(&ys[k], m_d.height, m_d.wrap_t);
+    }
+    const size_t w = size_t(m_d.width), c = size_t(m_d.channels);
     Vec4 acc;
     for (int dy = 0; dy < 2; ++dy)
         for (int dx = 0; dx < 2; ++dx) {
-            float w = (dx ? ax : 1.f - ax) * (dy ? ay : 1.f - ay);
-            if (w == 0.f) continue;
-            int x = x0 + dx, y = y0 + dy;
-            if (!wrap(&x, m_d.width, m_d.wrap_s) || !wrap(&y, m_d.height, m_d.wrap_t)) continue;
-            Vec4 t = texel(x, y);
-            acc = {acc.x + w * t.x, acc.y + w * t.y, acc.z + w * t.z, acc.w + w * t.w};
+            const float k = wx[dx] * wy[dy];
+            if (k == 0.f || !in_x[dx] || !in_y[dy]) continue;
+            const Vec4 t = rgba(m_d.data + (size_t(ys[dy]) * w + size_t(xs[dx])) * c, m_d.channels);
+            acc = {acc.x + k * t.x, acc.y + k * t.y, acc.z + k * t.z, acc.w + k * t.w};
         }
     return scale_bias(acc);
 }

@@ -52,7 +52,9 @@ public:
     /// bias applied.
     Vec4 eval(const Vec2& st) const;
     /// Raw texel (x right, y down from the top row), rgba as described above, no scale/bias.
-    Vec4 texel(int x, int y) const;
+    Vec4 texel(int x, int y) const {
+        return rgba(m_d.data + (size_t(y) * size_t(m_d.width) + size_t(x)) * size_t(m_d.channels), m_d.channels);
+    }
     /// Mean texel with scale and bias applied (light power estimates).
     Vec4 mean() const { return scale_bias(m_mean); }
     /// Apply the node's scale and bias.
@@ -62,8 +64,21 @@ public:
     }
 
 private:
+    /// The rgba of the texel at `p` with `channels` channels.
+    static Vec4 rgba(const float* p, int channels) {
+        switch (channels) {
+            case 1: return {p[0], p[0], p[0], 1.f};
+            case 2: return {p[0], p[0], p[0], p[1]};
+            case 3: return {p[0], p[1], p[2], 1.f};
+            default: return {p[0], p[1], p[2], p[3]};
+        }
+    }
     /// Wrap an integer texel coordinate; false if the texel is black (WrapMode::black).
-    static bool wrap(int* i, int n, WrapMode mode);
+    /// Inside the image every mode keeps it (inline); outside: wrap_outside.
+    static bool wrap(int* i, int n, WrapMode mode) {
+        return unsigned(*i) < unsigned(n) || wrap_outside(i, n, mode);
+    }
+    static bool wrap_outside(int* i, int n, WrapMode mode);
 
     TextureDesc m_d;
     Vec4 m_mean;

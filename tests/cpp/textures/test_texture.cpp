@@ -1,12 +1,15 @@
 // Texture lookups (UsdUVTexture): the st transform (UsdTransform2d, folded into a 2x3
 // matrix by the Python reader) is applied before wrapping; identity leaves eval alone;
-// a non-finite transform is refused naming the texture.
+// a non-finite transform is refused naming the texture; the bilinear lookup is the
+// weighted sum of its four wrapped texels, for every wrap mode and channel count.
 #include "textures/texture.h"
 #include "util/error.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <string>
@@ -67,4 +70,82 @@ TEST(Texture, NonFiniteStTransformIsRefused) {
         EXPECT_NE(std::string(e.what()).find("bad xf: st_transform must be finite"),
                   std::string::npos);
     }
+}
+
+namespace {
+
+/// The lookup by its definition: texel centres at integer + 1/2, row 0 at t = 1, the
+/// four texels around the point weighted bilinearly (a zero weight or a black-wrapped
+/// texel adds nothing), each wrapped on its own, then scale and bias.
+float reference_channel(const std::vector<float>& img, int w, int h, int c, WrapMode mode, const Vec2& st,
+                        int channel) {
+    auto wrap = [&](int v, int n, bool* black) {
+        *black = false;
+        switch (mode) {
+            case WrapMode::repeat: return ((v % n) + n) % n;
+            case WrapMode::mirror: {
+                int m = ((v % (2 * n)) + 2 * n) % (2 * n);
+                return m < n ? m : 2 * n - 1 - m;
+            }
+            case WrapMode::clamp: return std::min(std::max(v, 0), n - 1);
+            case WrapMode::black: *black = v < 0 || v >= n; return v;
+        }
+        return v;
+    };
+    const float fx = st.x * float(w) - 0.5f, fy = (1.f - st.y) * float(h) - 0.5f;
+    const float x0 = std::floor(fx), y0 = std::floor(fy);
+    const float ax = fx - x0, ay = fy - y0;
+    float acc = 0.f;
+    for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+            const float k = (dx ? ax : 1.f - ax) * (dy ? ay : 1.f - ay);
+            bool bx, by;
+            const int x = wrap(int(x0) + dx, w, &bx), y = wrap(int(y0) + dy, h, &by);
+            if (k == 0.f || bx || by) continue;
+            const float* p = &img[(size_t(y) * size_t(w) + size_t(x)) * size_t(c)];
+            const float rgba[4] = {p[0], c >= 3 ? p[1] : p[0], c >= 3 ? p[2] : p[0],
+                                   c == 2 ? p[1] : (c == 4 ? p[3] : 1.f)};
+            acc = acc + k * rgba[channel];
+        }
+    return acc;
+}
+
+}  // namespace
+
+TEST(Texture, BilinearLookupIsTheWeightedSumOfItsWrappedTexels) {
+    const int w = 5, h = 3;
+    uint32_t state = 12345u;
+    auto next = [&] {  // a small LCG: values in [0, 1)
+        state = state * 1664525u + 1013904223u;
+        return float(state >> 8) / float(1u << 24);
+    };
+    for (int c = 1; c <= 4; ++c)
+        for (WrapMode mode : {WrapMode::repeat, WrapMode::mirror, WrapMode::clamp, WrapMode::black}) {
+            auto img = std::make_shared<std::vector<float>>(size_t(w * h * c));
+            for (float& v : *img) v = next() * 4.f - 1.f;
+            TextureDesc d;
+            d.data = img->data();
+            d.width = w;
+            d.height = h;
+            d.channels = c;
+            d.wrap_s = d.wrap_t = mode;
+            d.scale = Vec4(2.f, 1.f, 0.5f, 1.f);
+            d.bias = Vec4(0.f, 0.25f, 0.f, -1.f);
+            d.owner = img;
+            Texture t(d, "random");
+            for (int i = 0; i < 4000; ++i) {
+                // st over [-3, 4): every side of the image, texel centres and edges included
+                Vec2 st(next() * 7.f - 3.f, next() * 7.f - 3.f);
+                if (i % 4 == 0) st = Vec2((float(int(next() * 30.f)) + 0.5f) / float(w) - 2.f, st.y);
+                if (i % 7 == 0) st = Vec2(st.x, float(int(next() * 20.f) - 8) / float(h));
+                const Vec4 got = t.eval(st);
+                const float scale[4] = {2.f, 1.f, 0.5f, 1.f}, bias[4] = {0.f, 0.25f, 0.f, -1.f};
+                for (int k = 0; k < 4; ++k) {
+                    const float want = reference_channel(*img, w, h, c, mode, st, k) * scale[k] + bias[k];
+                    ASSERT_EQ(channel_of(got, k), want)
+                        << "channels " << c << ", wrap " << int(mode) << ", st (" << st.x << ", " << st.y
+                        << "), channel " << k;
+                }
+            }
+        }
 }
