@@ -102,20 +102,34 @@ LightSample DomeLight::sample_li(const Vec3&, const Vec2& u) const {
     return s;
 }
 
+float DomeLight::texture_pdf(const Vec3& local, const Vec2& st) const {
+    float sin_theta = std::sqrt(std::max(0.f, 1.f - local.y * local.y));
+    if (!(sin_theta > 0.f)) return 0.f;
+    float pdf = m_dist.pdf(Vec2(st.x, 1.f - st.y)) / (k_two_pi_sq * sin_theta);
+    return std::isfinite(pdf) ? pdf : 0.f;
+}
+
 float DomeLight::pdf_li(const Vec3&, const Vec3& wi) const {
     if (!m_tex) return k_inv_4pi;
     Vec3 local = normalize(m_xf.inv.transform_vector(wi));
-    float sin_theta = std::sqrt(std::max(0.f, 1.f - local.y * local.y));
-    if (!(sin_theta > 0.f)) return 0.f;
-    Vec2 st = dome_direction_to_st(local);
-    float pdf = m_dist.pdf(Vec2(st.x, 1.f - st.y)) / (k_two_pi_sq * sin_theta);
-    return std::isfinite(pdf) ? pdf : 0.f;
+    return texture_pdf(local, dome_direction_to_st(local));
 }
 
 Spectrum DomeLight::le_escape(const Vec3& d) const {
     if (!m_tex) return m_radiance;
     Vec3 local = normalize(m_xf.inv.transform_vector(d));
     return lookup(dome_direction_to_st(local));
+}
+
+Spectrum DomeLight::le_escape_pdf(const Vec3& d, const Vec3&, float* pdf) const {
+    if (!m_tex) {
+        if (pdf) *pdf = k_inv_4pi;
+        return m_radiance;
+    }
+    Vec3 local = normalize(m_xf.inv.transform_vector(d));
+    const Vec2 st = dome_direction_to_st(local);
+    if (pdf) *pdf = texture_pdf(local, st);
+    return lookup(st);
 }
 
 float DomeLight::power() const {

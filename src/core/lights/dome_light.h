@@ -39,6 +39,7 @@ public:
     LightSample sample_li(const Vec3& p, const Vec2& u) const override;
     float pdf_li(const Vec3& p, const Vec3& wi) const override;
     Spectrum le_escape(const Vec3& d) const override;
+    Spectrum le_escape_pdf(const Vec3& d, const Vec3& p, float* pdf) const override;
     void preprocess(const Vec3& center, float radius) override { m_scene_radius = radius; }
     float power() const override;
     void bind_texture(const Texture* tex) override;
@@ -46,6 +47,8 @@ public:
 
 private:
     Spectrum lookup(const Vec2& st) const;
+    /// pdf_li of the direction `local` (light space, unit) with texture coordinates `st`.
+    float texture_pdf(const Vec3& local, const Vec2& st) const;
 
     Transform m_xf;
     Spectrum m_radiance;

@@ -82,6 +82,12 @@ public:
     virtual bool bounding_sphere(Vec3* /*center*/, float* /*radius*/) const { return false; }
     /// Radiance reaching an escaped ray travelling in direction `d` (infinite lights).
     virtual Spectrum le_escape(const Vec3& /*d*/) const { return Spectrum(0.f); }
+    /// le_escape(d) and, where `pdf` is not null, pdf_li(p, d) into it: a light whose two
+    /// share work (the dome's direction to texture coordinates) does it once.
+    virtual Spectrum le_escape_pdf(const Vec3& d, const Vec3& p, float* pdf) const {
+        if (pdf) *pdf = pdf_li(p, d);
+        return le_escape(d);
+    }
     /// Called at commit with the scene bounding sphere (infinite lights need it for power).
     virtual void preprocess(const Vec3& /*center*/, float /*radius*/) {}
     /// Emitted power (luminance), used to build the light-selection distribution.

@@ -3,7 +3,8 @@
 // consistency, and a furnace-style check (a Lambert plane, max_depth 1, under an HDR
 // dome must show albedo/pi times the cosine-weighted integral of the environment,
 // computed here by quadrature of the texture with the test's own mapping) for PT and
-// BDPT. Also the textured RectLight.
+// BDPT; the escaped-ray radiance and density in one call equal the two calls. Also the
+// textured RectLight.
 //
 // False alarms: chi-square tests at alpha = 1e-3 / 4 each (4 in this file); the render
 // checks at |z| < 4.5 (two-sided 7e-6 each, 12 checks).
@@ -14,6 +15,7 @@
 #include "lights/area_lights.h"
 #include "lights/dome_light.h"
 #include "sampling/piecewise_constant_2d.h"
+#include "sampling/warp.h"
 #include "textures/texture.h"
 
 #include <gtest/gtest.h>
@@ -203,6 +205,35 @@ TEST(Dome, TextureOrientationSeenByEscapingRays) {
     EXPECT_NEAR(dome.le_escape(Vec3(-1, 0, 0)).x, 0.1f, 1e-4f);
     // The world +Y pole sees the top row.
     EXPECT_NEAR(dome.le_escape(Vec3(0, 1, 0)).x, 0.1f, 1e-4f);
+}
+
+TEST(Dome, EscapeRadianceAndPdfTogetherAreTheTwoCallsBitForBit) {
+    // le_escape_pdf (path tracing's escaped rays: radiance and the MIS density from one
+    // direction-to-texture mapping) against le_escape and pdf_li, textured and plain.
+    const int w = 64, h = 32;
+    auto img = make_sky(w, h, 0.3, 0.6, 200.0);
+    Texture tex(texture_desc(img, w, h), "sky");
+    for (bool textured : {true, false}) {
+        LightDesc d;
+        d.kind = LightDesc::Kind::dome;
+        d.radiance = Spectrum(1.5f, 1.f, 0.8f);
+        d.transform = Mat4::rotate(20, 0.2, 1, 0.4);
+        d.texture_id = textured ? 0 : -1;
+        DomeLight dome(d);
+        if (textured) dome.bind_texture(&tex);
+        dome.preprocess(Vec3(0.f), 1.f);
+        for (uint32_t k = 0; k < 5000; ++k) {
+            const Vec3 dir = square_to_uniform_sphere(uniform2(77, k));
+            const Vec3 p(0.5f, -1.f, 2.f);
+            float pdf = -1.f;
+            const Spectrum both = dome.le_escape_pdf(dir, p, &pdf);
+            const Spectrum le = dome.le_escape(dir);
+            ASSERT_EQ(pdf, dome.pdf_li(p, dir)) << "direction " << k;
+            ASSERT_TRUE(both.x == le.x && both.y == le.y && both.z == le.z) << "direction " << k;
+            const Spectrum alone = dome.le_escape_pdf(dir, p, nullptr);  // no density asked
+            ASSERT_TRUE(alone.x == le.x && alone.y == le.y && alone.z == le.z) << "direction " << k;
+        }
+    }
 }
 
 namespace {

@@ -74,9 +74,10 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     if (hit.kind == SceneHit::Kind::miss) {
         for (uint32_t li : scene.infinite_lights()) {
             const Light& light = scene.light(li);
-            Spectrum le = light.le_escape(ray.d);
+            float pdf = 0.f;  // pdf_li, for the MIS weight of emission not seen directly
+            Spectrum le = light.le_escape_pdf(ray.d, st.prev_p, direct ? nullptr : &pdf);
             if (is_black(le)) continue;
-            float pl = direct ? 0.f : scene.light_pmf(li) * light.pdf_li(st.prev_p, ray.d);
+            float pl = direct ? 0.f : scene.light_pmf(li) * pdf;
             add_emitted(le, pl);
         }
         st.done = true;
