@@ -47,11 +47,30 @@ PiecewiseConstant2D::PiecewiseConstant2D(const std::vector<float>& weights, int 
     double m = m_marginal[size_t(ny)];
     for (int y = 1; y <= ny; ++y) m_marginal[size_t(y)] /= m;
     m_marginal[size_t(ny)] = 1.0;
+    m_marginal_guide.resize(k_guide + 1);
+    make_guide(m_marginal.data(), ny, m_marginal_guide.data());
+    m_cond_guide.resize(size_t(ny) * (k_guide + 1));
+    for (int y = 0; y < ny; ++y)
+        make_guide(&m_cond[size_t(y) * size_t(nx + 1)], nx, &m_cond_guide[size_t(y) * (k_guide + 1)]);
 }
 
-int PiecewiseConstant2D::invert(const double* cdf, int n, double u, double* frac) {
-    // Last i with cdf[i] <= u, skipping empty bins.
-    int i = int(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
+void PiecewiseConstant2D::make_guide(const double* cdf, int n, int* guide) {
+    for (int k = 0; k <= k_guide; ++k)
+        guide[k] = int(std::upper_bound(cdf, cdf + n + 1, double(k) / k_guide) - cdf);
+}
+
+int PiecewiseConstant2D::invert(const double* cdf, const int* guide, int n, double u, double* frac) {
+    // Last i with cdf[i] <= u, skipping empty bins. The first entry above u: between the
+    // guide's bounds of u's bucket (k / k_guide <= u < (k + 1) / k_guide exactly, k_guide
+    // a power of two), std::upper_bound over the whole CDF outside [0, 1) and for NaN.
+    const double* above = cdf + n + 1;
+    if (u >= 0.0 && u < 1.0) {
+        const int k = int(u * k_guide);
+        above = std::upper_bound(cdf + guide[k], cdf + guide[k + 1], u);
+    } else {
+        above = std::upper_bound(cdf, cdf + n + 1, u);
+    }
+    int i = int(above - cdf) - 1;
     i = std::clamp(i, 0, n - 1);
     while (i > 0 && !(cdf[i + 1] > cdf[i])) --i;  // u == 1 edge: back to a non-empty bin
     while (i < n - 1 && !(cdf[i + 1] > cdf[i])) ++i;
@@ -67,8 +86,9 @@ Vec2 PiecewiseConstant2D::sample(const Vec2& u, float* pdf) const {
         return Vec2(0.f, 0.f);
     }
     double fy, fx;
-    int y = invert(m_marginal.data(), m_ny, double(u.y), &fy);
-    int x = invert(&m_cond[size_t(y) * size_t(m_nx + 1)], m_nx, double(u.x), &fx);
+    int y = invert(m_marginal.data(), m_marginal_guide.data(), m_ny, double(u.y), &fy);
+    int x = invert(&m_cond[size_t(y) * size_t(m_nx + 1)], &m_cond_guide[size_t(y) * (k_guide + 1)], m_nx,
+                   double(u.x), &fx);
     *pdf = m_w[size_t(y) * m_nx + x];
     float px = float((double(x) + fx) / m_nx), py = float((double(y) + fy) / m_ny);
     // Keep the point inside its cell after rounding to float.

@@ -11,11 +11,17 @@
 #include "math/frame.h"
 #include "sampling/discrete_distribution.h"
 #include "sampling/mis.h"
+#include "sampling/piecewise_constant_2d.h"
 #include "sampling/warp.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <functional>
+#include <utility>
+#include <vector>
 
 using namespace cmlt;
 using namespace cmlt::test;
@@ -244,5 +250,95 @@ TEST(Rng, StreamsAreKeyedNotSequential) {
         float u = a.get1d();
         ASSERT_GE(u, 0.f);
         ASSERT_LT(u, 1.f);
+    }
+}
+
+// ---- PiecewiseConstant2D: the inverse CDF --------------------------------------------------
+
+namespace {
+
+/// The distribution's CDFs as PiecewiseConstant2D builds them, inverted by std::upper_bound
+/// over the whole CDF (no guide table): the sample it must return, bit for bit.
+struct ReferenceInverse {
+    int nx, ny;
+    std::vector<float> w;
+    std::vector<double> marginal, cond;
+    ReferenceInverse(const std::vector<float>& weights, int nx_, int ny_) : nx(nx_), ny(ny_) {
+        double total = 0.0;
+        for (float v : weights) total += double(v);
+        const double scale = double(nx * ny) / total;
+        for (float v : weights) w.push_back(float(double(v) * scale));
+        marginal.assign(size_t(ny) + 1, 0.0);
+        cond.assign(size_t(ny) * size_t(nx + 1), 0.0);
+        for (int y = 0; y < ny; ++y) {
+            double* c = &cond[size_t(y) * size_t(nx + 1)];
+            double row = 0.0;
+            for (int x = 0; x < nx; ++x) c[x + 1] = row += double(w[size_t(y) * nx + x]);
+            for (int x = 1; x <= nx; ++x) c[x] = row > 0.0 ? c[x] / row : double(x) / nx;
+            c[nx] = 1.0;
+            marginal[size_t(y) + 1] = marginal[size_t(y)] + row;
+        }
+        for (int y = 1; y <= ny; ++y) marginal[size_t(y)] /= marginal[size_t(ny)];
+        marginal[size_t(ny)] = 1.0;
+    }
+    static int invert(const double* cdf, int n, double u, double* frac) {
+        int i = int(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
+        i = std::clamp(i, 0, n - 1);
+        while (i > 0 && !(cdf[i + 1] > cdf[i])) --i;
+        while (i < n - 1 && !(cdf[i + 1] > cdf[i])) ++i;
+        const double width = cdf[i + 1] - cdf[i];
+        *frac = std::clamp(width > 0.0 ? (u - cdf[i]) / width : 0.5, 0.0, std::nextafter(1.0, 0.0));
+        return i;
+    }
+    Vec2 sample(const Vec2& u, float* pdf) const {
+        double fy, fx;
+        const int y = invert(marginal.data(), ny, double(u.y), &fy);
+        const int x = invert(&cond[size_t(y) * size_t(nx + 1)], nx, double(u.x), &fx);
+        *pdf = w[size_t(y) * nx + x];
+        float px = float((double(x) + fx) / nx), py = float((double(y) + fy) / ny);
+        px = std::min(px, std::nextafter(float(x + 1) / float(nx), 0.f));
+        py = std::min(py, std::nextafter(float(y + 1) / float(ny), 0.f));
+        return Vec2(px, py);
+    }
+};
+
+}  // namespace
+
+TEST(PiecewiseConstant2D, GuidedInverseIsTheWholeCdfSearchBitForBit) {
+    uint32_t state = 7u;
+    auto next = [&] {
+        state = state * 1664525u + 1013904223u;
+        return float(state >> 8) / float(1u << 24);
+    };
+    auto check = [&](const std::vector<float>& weights, int nx, int ny) {
+        const PiecewiseConstant2D dist(weights, nx, ny);
+        const ReferenceInverse ref(weights, nx, ny);
+        std::vector<Vec2> us;
+        for (int i = 0; i < 20000; ++i) us.push_back(Vec2(next(), next()));
+        // on the CDFs' own values (bin edges, the repeated edges of empty bins) and on
+        // the guide's bucket edges k / 32
+        for (double m : ref.marginal)
+            for (double c : ref.cond) us.push_back(Vec2(float(c), float(m)));
+        for (int k = 0; k <= PiecewiseConstant2D::k_guide; ++k)
+            us.push_back(Vec2(float(k) / PiecewiseConstant2D::k_guide, next()));
+        us.push_back(Vec2(std::nextafter(1.f, 0.f), std::nextafter(1.f, 0.f)));
+        for (const Vec2& u : us) {
+            float pdf = 0.f, pdf_ref = 0.f;
+            const Vec2 got = dist.sample(u, &pdf), want = ref.sample(u, &pdf_ref);
+            ASSERT_EQ(got.x, want.x) << nx << "x" << ny << ", u = (" << u.x << ", " << u.y << ")";
+            ASSERT_EQ(got.y, want.y) << nx << "x" << ny << ", u = (" << u.x << ", " << u.y << ")";
+            ASSERT_EQ(pdf, pdf_ref) << nx << "x" << ny << ", u = (" << u.x << ", " << u.y << ")";
+        }
+    };
+    // 4 x 2 cells whose CDF values are floats exactly (the total is the cell count, the
+    // rows sum to powers of two): u lands on every edge, empty cells included.
+    check({1.f, 0.f, 1.f, 2.f, 0.f, 4.f, 0.f, 0.f}, 4, 2);
+    // 13 x 7 cells (fewer than the guide's buckets), empty cells and an empty row; and
+    // 300 x 40 (several entries per bucket) with runs of empty cells.
+    for (auto [nx, ny] : {std::pair<int, int>{13, 7}, std::pair<int, int>{300, 40}}) {
+        std::vector<float> weights(size_t(nx * ny));
+        for (int i = 0; i < nx * ny; ++i)
+            weights[size_t(i)] = (i % 5 == 0 || i / nx == 3 || (i % nx) / 20 == 4) ? 0.f : next() * 10.f;
+        check(weights, nx, ny);
     }
 }
