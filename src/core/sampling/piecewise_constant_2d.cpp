@@ -63,13 +63,9 @@ int PiecewiseConstant2D::invert(const double* cdf, const int* guide, int n, doub
     // Last i with cdf[i] <= u, skipping empty bins. The first entry above u: between the
     // guide's bounds of u's bucket (k / k_guide <= u < (k + 1) / k_guide exactly, k_guide
     // a power of two), std::upper_bound over the whole CDF outside [0, 1) and for NaN.
-    const double* above = cdf + n + 1;
-    if (u >= 0.0 && u < 1.0) {
-        const int k = int(u * k_guide);
-        above = std::upper_bound(cdf + guide[k], cdf + guide[k + 1], u);
-    } else {
-        above = std::upper_bound(cdf, cdf + n + 1, u);
-    }
+    const int k = u >= 0.0 && u < 1.0 ? int(u * k_guide) : -1;
+    const double* above = k >= 0 ? std::upper_bound(cdf + guide[k], cdf + guide[k + 1], u)
+                                 : std::upper_bound(cdf, cdf + n + 1, u);
     int i = int(above - cdf) - 1;
     i = std::clamp(i, 0, n - 1);
     while (i > 0 && !(cdf[i + 1] > cdf[i])) --i;  // u == 1 edge: back to a non-empty bin

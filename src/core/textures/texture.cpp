@@ -80,10 +80,12 @@ Vec4 Texture::eval(const Vec2& st_in) const {
     // Continuous texel coordinates, texel centres at integer + 1/2; row 0 at t = 1.
     float fx = st.x * float(m_d.width) - 0.5f;
     float fy = (1.f - st.y) * float(m_d.height) - 0.5f;
-    // Keep the integer part in range of int for huge st (repeat is periodic anyway).
+    // Keep the integer part in range of int for huge st (repeat is periodic anyway); fx
+    // and fy are not NaN here, so comparisons clamp as fmin / fmax would (without their
+    // libm calls).
     const float lim = 1 << 24;
-    fx = std::fmax(-lim, std::fmin(lim, fx));
-    fy = std::fmax(-lim, std::fmin(lim, fy));
+    fx = fx < -lim ? -lim : (fx > lim ? lim : fx);
+    fy = fy < -lim ? -lim : (fy > lim ? lim : fy);
     const float x0f = floor_in_range(fx), y0f = floor_in_range(fy);
     const float ax = fx - x0f, ay = fy - y0f;
     const float wx[2] = {1.f - ax, ax}, wy[2] = {1.f - ay, ay};
