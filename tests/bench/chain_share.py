@@ -7,6 +7,7 @@ budget), so a margin read here is the margin the test has.
 
     .venv/bin/python tests/bench/chain_share.py                       # every stage
     .venv/bin/python tests/bench/chain_share.py scale_unit,scale_1e5  # some
+    .venv/bin/python tests/bench/chain_share.py bulb_room --seeds 1:40  # beyond the test's seeds
 """
 from __future__ import annotations
 
@@ -21,6 +22,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    seeds = None  # the test's own: 1..case.test_seeds
+    if "--seeds" in argv:
+        k = argv.index("--seeds")
+        a, b = (int(v) for v in argv[k + 1].split(":"))
+        seeds = range(a, b + 1)
+        argv = argv[:k] + argv[k + 2:]
     spec = importlib.util.spec_from_file_location("cmlt_hard_references",
                                                   ROOT / "sequences" / "hard" / "make_references.py")
     refs = importlib.util.module_from_spec(spec)
@@ -37,10 +44,12 @@ def main(argv=None) -> int:
         scene = SceneBridge(core).update(fs)
         for integ in ("pssmlt", "cmlt"):
             shares = []
-            for seed in range(1, case.test_seeds + 1):
+            for seed in seeds or range(1, case.test_seeds + 1):
                 _, stats, _ = refs.render(case, integ, case.test_spp, seed, fs=fs, scene=scene)
                 shares.append(float(stats.get("max_chain_share", float("nan"))))
+            over = sum(x > 0.05 for x in shares)
             print(f"{name:20s} {integ:7s} max {max(shares):.4f}  median {float(np.median(shares)):.4f}  "
+                  f"above 5 %: {over} of {len(shares)}  "
                   + " ".join(f"{x:.3f}" for x in shares), flush=True)
     return 0
 

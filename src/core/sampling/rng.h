@@ -34,6 +34,15 @@ inline double box_muller(double u1, double u2) {
     return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(6.283185307179586476925 * u2);
 }
 
+/// Both standard normals of one Box–Muller pair (independent): the cosine branch (the
+/// value box_muller gives) and the sine branch.
+inline void box_muller_pair(double u1, double u2, double* z_cos, double* z_sin) {
+    const double r = std::sqrt(-2.0 * std::log(1.0 - u1));
+    const double a = 6.283185307179586476925 * u2;
+    *z_cos = r * std::cos(a);
+    *z_sin = r * std::sin(a);
+}
+
 /// Map a real number onto [0, 1) (the unit torus of primary sample space). `v - floor(v)`
 /// can round up to exactly 1.0 for tiny negative v (e.g. -1e-17), so that case is mapped
 /// to 0; NaN and ±Inf also map to 0, so a primary sample is never outside [0, 1).
@@ -105,7 +114,9 @@ private:
 
 /// Sequential counter-based generator with the kernels' RNG interface (uniform(),
 /// normal()): draw k is a pure function of (seed, domain, id, k). Each Philox call gives
-/// two uniforms (the second is kept for the next call).
+/// two uniforms (the second is kept for the next call); each Box–Muller pair two normals
+/// (the sine branch is kept for the next normal(): one logarithm, square root and sincos
+/// per two normals).
 class CounterRng {
 public:
     CounterRng(uint64_t seed, RngDomain domain, uint32_t id) : m_key(seed_key(seed)), m_domain(domain), m_id(id) {}
@@ -121,8 +132,15 @@ public:
         return bits_to_unit(r[0], r[1]);
     }
     double normal() {
+        if (m_has_spare_normal) {
+            m_has_spare_normal = false;
+            return m_spare_normal;
+        }
         const double u1 = uniform();
-        return box_muller(u1, uniform());
+        double z;
+        box_muller_pair(u1, uniform(), &z, &m_spare_normal);
+        m_has_spare_normal = true;
+        return z;
     }
 
 private:
@@ -130,8 +148,8 @@ private:
     RngDomain m_domain;
     uint32_t m_id;
     uint64_t m_draw = 0;
-    double m_spare = 0.0;
-    bool m_has_spare = false;
+    double m_spare = 0.0, m_spare_normal = 0.0;
+    bool m_has_spare = false, m_has_spare_normal = false;
 };
 
 }  // namespace cmlt
