@@ -1,11 +1,14 @@
 // The RNG module's registry (sampling/rng_domains.h) and shared conversions
 // (sampling/rng.h): the counter spaces stay disjoint and the conversions keep every
-// primary sample in [0, 1).
+// primary sample in [0, 1); CounterRng's normals (Box–Muller pairs) are independent
+// standard normals (chi-square at alpha = 1e-3).
+#include "chi2.h"
 #include "sampling/rng.h"
 #include "sampling/rng_domains.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -101,4 +104,27 @@ TEST(Philox, LanesGiveTheBitsOfOneCallAtATime) {
         ASSERT_EQ(w0[i], r[0]) << i;
         ASSERT_EQ(w1[i], r[1]) << i;
     }
+}
+
+TEST(Rng, CounterRngNormalsArePairsOfIndependentStandardNormals) {
+    // normal() returns a Box-Muller pair's cosine branch, then its sine branch: the pair
+    // (z1, z2) must be two independent N(0, 1). Phi maps each to a uniform; a 10 x 10
+    // chi-square of (Phi(z1), Phi(z2)) checks both margins and their independence (a
+    // sine branch equal or tied to the cosine one, or a branch reused, fails).
+    CounterRng rng(11, RngDomain::test, 7);
+    const int cells = 10, n = 200000;
+    std::vector<double> obs(size_t(cells * cells), 0.0), exp(size_t(cells * cells), double(n) / (cells * cells));
+    auto phi = [](double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); };
+    for (int k = 0; k < n; ++k) {
+        const double z1 = rng.normal(), z2 = rng.normal();
+        ASSERT_TRUE(std::isfinite(z1) && std::isfinite(z2));
+        const int a = std::min(cells - 1, int(phi(z1) * cells)), b = std::min(cells - 1, int(phi(z2) * cells));
+        obs[size_t(a * cells + b)] += 1.0;
+    }
+    const test::Chi2Result r = test::chi2_test(obs, exp);
+    EXPECT_TRUE(r.passed(1e-3)) << r.message;
+    // the first normal of a generator is box_muller of its first two uniforms
+    CounterRng g(11, RngDomain::test, 8), h(11, RngDomain::test, 8);
+    const double u1 = h.uniform();
+    EXPECT_EQ(g.normal(), box_muller(u1, h.uniform()));
 }
