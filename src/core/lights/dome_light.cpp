@@ -115,15 +115,11 @@ float DomeLight::pdf_li(const Vec3&, const Vec3& wi) const {
     return texture_pdf(local, dome_direction_to_st(local));
 }
 
-Spectrum DomeLight::le_escape(const Vec3& d) const {
-    if (!m_tex) return m_radiance;
-    Vec3 local = normalize(m_xf.inv.transform_vector(d));
-    return lookup(dome_direction_to_st(local));
-}
+Spectrum DomeLight::le_escape(const Vec3& d) const { return le_escape_pdf(d, Vec3(0.f), nullptr); }
 
-Spectrum DomeLight::le_escape_pdf(const Vec3& d, const Vec3&, float* pdf) const {
+Spectrum DomeLight::le_escape_pdf(const Vec3& d, const Vec3& p, float* pdf) const {
     if (!m_tex) {
-        if (pdf) *pdf = k_inv_4pi;
+        if (pdf) *pdf = pdf_li(p, d);
         return m_radiance;
     }
     Vec3 local = normalize(m_xf.inv.transform_vector(d));

@@ -29,16 +29,17 @@ inline double bits_to_unit(uint32_t hi, uint32_t lo) { return double(((uint64_t(
 /// up to 1, which becomes the largest float below 1 (math/safe_math.h's clamp_below_one).
 inline float unit_float(double u) { return clamp_below_one(float(u)); }
 
-/// Standard normal from two uniforms (Box–Muller, cosine branch); u1 ∈ [0, 1).
-inline double box_muller(double u1, double u2) {
-    return std::sqrt(-2.0 * std::log(1.0 - u1)) * std::cos(6.283185307179586476925 * u2);
-}
+/// Box–Muller's radius sqrt(-2 ln(1 - u1)) and angle 2 pi u2 (u1 ∈ [0, 1)).
+inline double box_muller_radius(double u1) { return std::sqrt(-2.0 * std::log(1.0 - u1)); }
+inline double box_muller_angle(double u2) { return 6.283185307179586476925 * u2; }
+
+/// Standard normal from two uniforms (Box–Muller, cosine branch).
+inline double box_muller(double u1, double u2) { return box_muller_radius(u1) * std::cos(box_muller_angle(u2)); }
 
 /// Both standard normals of one Box–Muller pair (independent): the cosine branch (the
 /// value box_muller gives) and the sine branch.
 inline void box_muller_pair(double u1, double u2, double* z_cos, double* z_sin) {
-    const double r = std::sqrt(-2.0 * std::log(1.0 - u1));
-    const double a = 6.283185307179586476925 * u2;
+    const double r = box_muller_radius(u1), a = box_muller_angle(u2);
     *z_cos = r * std::cos(a);
     *z_sin = r * std::sin(a);
 }
