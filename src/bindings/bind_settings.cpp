@@ -186,10 +186,11 @@ void bind_settings(nb::module_& m) {
         "pssmlt/cmlt: f* of the frame's bootstrap samples (list of float, exactly the "
         "frame's bootstrap count) to use instead of evaluating them; None (default) = "
         "evaluate");
-    cls.def_rw("mlt_film_offset_x", &RenderSettings::mlt_film_offset_x,
-               "pssmlt/cmlt: film offset of the chains' film position on the torus, [0, 1) "
-               "(a reparametrisation: the same image in expectation; default 0)");
-    cls.def_rw("mlt_film_offset_y", &RenderSettings::mlt_film_offset_y, "as mlt_film_offset_x");
+    cls.def_rw("film_offset_x", &RenderSettings::film_offset_x,
+               "the frame's film offset on the torus, [0, 1): the chains' film position and, "
+               "rounded to pixels, the pixel passes' sample keys move with it (a "
+               "reparametrisation: the same image in expectation; default 0)");
+    cls.def_rw("film_offset_y", &RenderSettings::film_offset_y, "as film_offset_x");
     cls.def_prop_rw(
         "pilot",
         [](const RenderSettings& s) -> nb::object {

@@ -135,7 +135,7 @@ def prepare_task(spec: dict, prev: Optional[dict]) -> dict:
                    "pilot": None if pilot is None else np.asarray(pilot, dtype=np.float32),
                    "bootstrap_f": boot,
                    "initial_states": None if states is None else bytes(states.to_bytes()),
-                   "film_offset": (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))},
+                   "film_offset": (float(st.film_offset_x), float(st.film_offset_y))},
             # what the next frame's preparation reads (as its FrameState would hold it)
             "carry": {"anchors": list(pending["anchors"]),
                       "film_offset": tuple(pending["film_offset"]),
@@ -148,8 +148,9 @@ def prepare_task(spec: dict, prev: Optional[dict]) -> dict:
 
 def render_part(spec: dict, shared: Optional[dict]) -> dict:
     """One task: render the part ``spec`` of a frame (cmlt.shot.distributed) with the
-    frame's preparation ``shared`` (pssmlt/cmlt; None for pt, bdpt); returns its image
-    rows / raw sums and stats. A pure function of (spec, shared)."""
+    frame's preparation ``shared`` (its seed and film offset; for pssmlt/cmlt also the
+    pilot, bootstrap and chain starts); returns its image rows / raw sums and stats. A
+    pure function of (spec, shared)."""
     with _WORKER_LOCK:                   # one render per worker process at a time
         t0, c0, h0 = time.perf_counter(), time.process_time(), time.thread_time()
         core, scene = _worker_scene(spec)
@@ -158,7 +159,7 @@ def render_part(spec: dict, shared: Optional[dict]) -> dict:
         given = (shared or {}).get("st") or {}
         if given:
             st.seed = given["seed"]
-            st.mlt_film_offset_x, st.mlt_film_offset_y = given["film_offset"]
+            st.film_offset_x, st.film_offset_y = given["film_offset"]
             if given.get("pilot") is not None:
                 st.pilot = given["pilot"]
             if given.get("bootstrap_f") is not None:

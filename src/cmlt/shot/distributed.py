@@ -6,10 +6,11 @@ What runs where, per frame (the workers' side is :mod:`cmlt.shot.dask_worker`):
   submits its tasks, and once its parts are back combines them, normalises (the
   smoothed b, which needs the b history of every frame before), writes the frame
   atomically and keeps the state for the next frame, as without Dask.
-* **workers**: per frame of pssmlt / cmlt, one *preparation* task — the temporal
-  driver's :func:`cmlt.temporal.driver.prepare_frame`: the pilot image of the pixel
-  importance, the screen anchors and film offset, the carry-over bootstrap and the
-  chain starts coupled to the previous frame's — and one task per *part*. A frame's
+* **workers**: per frame, one *preparation* task — the temporal driver's
+  :func:`cmlt.temporal.driver.prepare_frame`: the seed, the screen anchors and film
+  offset (every integrator), for pssmlt / cmlt also the pilot image of the pixel
+  importance, the carry-over bootstrap and the chain starts coupled to the previous
+  frame's — and one task per *part*. A frame's
   preparation takes the previous frame's preparation as its input (its f*, starts and
   anchors: what the next frame needs of a frame, never its image), so the
   preparations are a task chain from frame to frame; the first frame's comes from the
@@ -220,9 +221,10 @@ class DaskRenderer:
             f.cancel()
 
     def _submit(self, frame: float, settings: dict, temporal, prev) -> dict:
-        """Submit frame ``frame``'s tasks: for pssmlt/cmlt its preparation (from
-        ``prev``: the previous frame's preparation future, the client's carry dict or
-        None) and its parts, which take the preparation as their shared input."""
+        """Submit frame ``frame``'s tasks: its preparation (from ``prev``: the previous
+        frame's preparation future, the client's carry dict or None; the seed and the
+        film offset, for pssmlt/cmlt also the pilot, bootstrap and chain starts) and its
+        parts, which take the preparation as their shared input."""
         integ = str(settings["integrator"])
         W, H = int(settings["width"]), int(settings["height"])
         addresses = self.worker_addresses()
@@ -232,9 +234,6 @@ class DaskRenderer:
         mlt = integ in ("pssmlt", "cmlt")
         config = temporal.config()
         settings = dict(settings)
-        if not mlt:                     # the seed is all a pt/bdpt frame's preparation sets
-            from ..temporal.driver import frame_seed
-            settings["seed"] = frame_seed(config["base_seed"], frame, config["per_frame"])
         base = {"shot": self.shot, "frame": float(frame), "camera": self.camera,
                 "resolution": self.resolution, "settings": settings,
                 "stage_options": self.stage_options, "threads": self.threads}
@@ -244,11 +243,9 @@ class DaskRenderer:
         # preparations are the chain every later frame waits for)
         self._submitted += 1
         order = -2 * self._submitted
-        prep = None
-        if mlt:
-            prep = self.client.submit(prepare_task, dict(base, temporal=config), prev,
-                                      pure=False, key=f"cmlt-prepare-{frame:g}-{token}",
-                                      retries=2, priority=order + 3)
+        prep = self.client.submit(prepare_task, dict(base, temporal=config), prev,
+                                  pure=False, key=f"cmlt-prepare-{frame:g}-{token}",
+                                  retries=2, priority=order + 3)
         rows = part_ranges(H, n_parts)
         chains = part_ranges(int(settings["chains"]), n_parts) if mlt else [None] * n_parts
         futures, spec_bytes = [], 0
@@ -302,8 +299,6 @@ class DaskRenderer:
             if f not in self._ahead:
                 self._ahead[f] = self._submit(f, settings, temporal, prep)
             prep = self._ahead[f]["prep"]
-        if not h["mlt"]:
-            return temporal.prepare(None, st, frame)
         try:
             out = h["prep"].result()     # a task's error raises here, once
         except BaseException:
@@ -353,7 +348,7 @@ class DaskRenderer:
         ptimes = prep.get("times") or (0.0, 0.0, 0.0)
         out.stats["dask"] = {
             "scheduler": self.address or _scheduler_address(self.client),
-            "workers": h["n_workers"], "tasks": n_parts + (1 if h["mlt"] else 0),
+            "workers": h["n_workers"], "tasks": n_parts + 1,
             "parts": n_parts, "submitted_ahead": bool(h.get("ahead")),
             # how many workers ran them (the parts are spread: DaskRenderer._submit)
             "part_workers": len({r.get("worker") for r in results}),

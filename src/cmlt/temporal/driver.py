@@ -75,8 +75,9 @@ def frame_key(frame: float) -> int:
     return int(round(float(frame) * 1000.0)) & 0xFFFFFFFF
 
 
-#: follow the image's screen motion with the chains' film offset (the flicker
-#: benchmark turns it off to measure what it does)
+#: follow the image's screen motion with the film offset (the pixels' sample keys
+#: and the chains' film position; the flicker benchmark turns it off to measure what
+#: it does)
 REPROJECT = True
 #: screen-motion anchors per frame (a grid of camera rays: what they hit, followed
 #: into the next frame to measure how far the image moved)
@@ -129,13 +130,14 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
     inputs; ``record["state_in"]`` is True when the previous state was used."""
     per_frame, carry = bool(config["per_frame"]), bool(config["carry"])
     st.seed = frame_seed(int(config["base_seed"]), frame, per_frame)
+    st.film_offset_x = st.film_offset_y = 0.0
     if hasattr(st, "mlt_initial_states"):
         st.mlt_initial_states = None
         st.mlt_bootstrap_f = None
-        st.mlt_film_offset_x = st.mlt_film_offset_y = 0.0
     rec = {"seed": int(st.seed), "seed_per_frame": per_frame,
            "carry_states": carry, "smooth_normalization": bool(config["smooth"]),
-           "state_in": None, "carried_chains": 0, "refreshed_chains": 0}
+           "state_in": None, "carried_chains": 0, "refreshed_chains": 0,
+           "film_offset": [0.0, 0.0]}
     pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
                "anchors": []}
     if config["integrator"] in MLT_INTEGRATORS and hasattr(core, "mlt_resolve_paths"):
@@ -150,21 +152,29 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
         st.pilot = None
         if str(getattr(st, "importance", "luminance")) == "pixel":
             st.pilot = core.render_pilot(scene, st)
+    prev_ok = prev is not None and not per_frame
+    if REPROJECT and not per_frame:
+        # the film offset follows the image's screen motion (camera, moving geometry):
+        # the pixels' sample keys (pt, bdpt, the direct pass) and the chains' film
+        # position move with it, so a pixel sample's numbers, or a chain start kept from
+        # the previous frame, land on the surface they saw before
+        # (in steps of whole pixels: the keys move by the frame's motion rounded, the
+        # nearest a pixel's numbers can follow it; rounding the accumulated offset
+        # instead would move them 0 or 2 pixels in some frames of a 1-pixel pan)
+        offset = (0.0, 0.0)
+        if prev_ok and prev["anchors"]:
+            dx, dy = film_shift(prev["anchors"],
+                                core.temporal_project_anchors(scene, st, prev["anchors"]),
+                                st.width, st.height)
+            dx, dy = round(dx * st.width) / st.width, round(dy * st.height) / st.height
+            offset = ((prev["film_offset"][0] + dx) % 1.0, (prev["film_offset"][1] + dy) % 1.0)
+        st.film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
+        st.film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
+        pending["film_offset"] = (float(st.film_offset_x), float(st.film_offset_y))
+        pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
+        rec["film_offset"] = list(pending["film_offset"])
     if not carry:
         return rec, pending
-    prev_ok = prev is not None and not per_frame
-    # the chains' film offset follows the image's screen motion (camera, moving
-    # geometry): a start kept from the previous frame then lands on the same surface
-    offset = (0.0, 0.0)
-    if REPROJECT and prev_ok and prev["anchors"]:
-        dx, dy = film_shift(prev["anchors"],
-                            core.temporal_project_anchors(scene, st, prev["anchors"]),
-                            st.width, st.height)
-        offset = ((prev["film_offset"][0] + dx) % 1.0, (prev["film_offset"][1] + dy) % 1.0)
-    st.mlt_film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
-    st.mlt_film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
-    pending["film_offset"] = (float(st.mlt_film_offset_x), float(st.mlt_film_offset_y))
-    pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
     n_boot = int(core.temporal_bootstrap_count(st))
     t0 = time.perf_counter()
     boot, traced = core.temporal_bootstrap_states(scene, st, n_boot)
@@ -197,8 +207,7 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
     rec.update(state_in=True if prev_picks else None,
                carried_chains=int(c["kept"]), refreshed_chains=int(c["refreshed"]),
                fresh_chains=int(c["fresh"]),
-               start_tv=float(c["tv"]) if prev_picks else None,
-               film_offset=list(pending["film_offset"]))
+               start_tv=float(c["tv"]) if prev_picks else None)
     if pending["ratio"] is not None:
         rec["ratio_mean"] = float(pending["ratio"]["mean"])
     return rec, pending

@@ -31,7 +31,30 @@ PassSplatter::PassSplatter(const PixelFilter& filter, Film& film, int row_begin,
     m_wy.resize(n * size_t(2 * m_reach + 1));
 }
 
-uint32_t PassSplatter::window_key(int x, int y, int width, int height, int reach) {
+KeyShift KeyShift::of_offset(double offset_x, double offset_y, int width, int height) {
+    const auto pixels = [](double offset, int n) {
+        if (!(offset > 0.0 && offset < 1.0) || n <= 0) return 0;
+        return int(std::lround(offset * double(n))) % n;
+    };
+    return {pixels(offset_x, width), pixels(offset_y, height)};
+}
+
+namespace {
+/// v − d wrapped into [0, n).
+int wrap_shift(int v, int d, int n) {
+    int r = (v - d) % n;
+    if (r < 0) r += n;
+    return r;
+}
+}  // namespace
+
+uint32_t PassSplatter::window_key(int x, int y, int width, int height, int reach, KeyShift shift) {
+    if (!shift.identity() && x >= 0 && y >= 0 && x < width && y < height) {
+        // the image's pixels on the image's torus (the film offset wraps at its size);
+        // the ring outside keeps its keys (it only reaches the border pixels' filters)
+        x = wrap_shift(x, shift.dx, width);
+        y = wrap_shift(y, shift.dy, height);
+    }
     if (x >= 0 && y >= 0 && x < width && y < height) return uint32_t(y) * uint32_t(width) + uint32_t(x);
     return uint32_t(width) * uint32_t(height) +
            uint32_t(y + reach) * uint32_t(width + 2 * reach) + uint32_t(x + reach);

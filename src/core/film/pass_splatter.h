@@ -39,6 +39,21 @@ namespace cmlt {
 
 class Film;
 
+/// Where each pixel's random numbers come from: pixel (x, y) of the image takes the key
+/// of pixel (x − dx, y − dy) on the image's torus (source pixels of the ring outside the
+/// image keep theirs), so with the frame's
+/// film offset (RenderSettings::film_offset_x/y, the image's screen motion rounded to
+/// pixels) a pixel sample's numbers travel with the surface it sees: under a pan the
+/// noise moves with the image instead of staying on the screen. A bijection of the keys:
+/// each pixel still gets its own independent stream and uniform positions, so its
+/// estimator is unchanged; (0, 0) is the identity.
+struct KeyShift {
+    int dx = 0, dy = 0;
+    /// The film offset (fractions of the image, [0, 1)) rounded to whole pixels.
+    static KeyShift of_offset(double offset_x, double offset_y, int width, int height);
+    bool identity() const { return dx == 0 && dy == 0; }
+};
+
 class PassSplatter {
 public:
     /// Output rows [row_begin, row_end) of `film` (row_end < 0: every row).
@@ -50,9 +65,12 @@ public:
     /// Source pixels reach pixels up to this many rows/columns away: ceil(r + 1/2) - 1.
     int reach() const { return m_reach; }
     /// The sample key of source pixel (x, y) of the window [-R, W + R) x [-R, H + R):
-    /// y W + x inside the image, W H + the window's row-major index outside it.
-    static uint32_t window_key(int x, int y, int width, int height, int reach);
-    uint32_t key(int x, int y) const { return window_key(x, y, m_width, m_height, m_reach); }
+    /// y W + x inside the image, W H + the window's row-major index outside it; with a
+    /// shift, an image pixel takes the key of (x − dx, y − dy) wrapped into the image
+    /// (KeyShift).
+    static uint32_t window_key(int x, int y, int width, int height, int reach, KeyShift shift = {});
+    uint32_t key(int x, int y) const { return window_key(x, y, m_width, m_height, m_reach, m_shift); }
+    void set_key_shift(KeyShift shift) { m_shift = shift; }
 
     /// The source pixels the output rows need, in tiles of at most k_tile_size²
     /// (columns [-R, W + R), rows [row_begin - R, row_end + R) within the window).
@@ -79,6 +97,7 @@ private:
     const PixelFilter& m_filter;
     Film& m_film;
     int m_width, m_height, m_reach;
+    KeyShift m_shift;
     int m_row0, m_row1, m_src_y0, m_src_y1;
     std::vector<Tile> m_tiles;
     // per source pixel i (index()), structure of arrays so that gather() runs along a

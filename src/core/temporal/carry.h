@@ -10,7 +10,7 @@
 ///   2. chooses the chain starts among them, coupled to the previous frame's starts
 ///      (couple_starts): a start stays where its target did not change, moves where it
 ///      did, and the starts are distributed exactly as a fresh frame's;
-///   3. offsets the chains' film position (RenderSettings::mlt_film_offset_x/y, a
+///   3. offsets the chains' film position (RenderSettings::film_offset_x/y, a
 ///      measure-preserving reparametrisation) by the image's screen motion, measured
 ///      with screen anchors (screen_anchors, project_anchors), so that under a moving
 ///      camera a kept start lands on the surface it saw before.

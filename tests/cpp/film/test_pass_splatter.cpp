@@ -84,6 +84,36 @@ TEST(PassSplatter, ReachAndWindowKeys) {
         }
 }
 
+TEST(PassSplatter, ShiftedKeysAreTheKeysOfTheSourcePixelsTheImageCameFrom) {
+    // A key shift (the film offset rounded to pixels) gives image pixel (x, y) the key of
+    // (x - dx, y - dy) on the image's torus and leaves the ring's keys: a bijection of the
+    // window's keys for every shift, negative and beyond the image included, and the
+    // identity at (0, 0).
+    const int W = 7, H = 5;
+    for (int R : {0, 1, 2})
+        for (KeyShift s : {KeyShift{0, 0}, KeyShift{1, 0}, KeyShift{0, 3}, KeyShift{6, 4}, KeyShift{-2, -7},
+                           KeyShift{W + 1, 2 * H}}) {
+            std::set<uint32_t> keys;
+            for (int y = -R; y < H + R; ++y)
+                for (int x = -R; x < W + R; ++x) {
+                    const uint32_t k = PassSplatter::window_key(x, y, W, H, R, s);
+                    EXPECT_TRUE(keys.insert(k).second) << R << ": " << x << "," << y;
+                    const bool inside = x >= 0 && y >= 0 && x < W && y < H;
+                    const int sx = inside ? ((x - s.dx) % W + W) % W : x, sy = inside ? ((y - s.dy) % H + H) % H : y;
+                    EXPECT_EQ(k, PassSplatter::window_key(sx, sy, W, H, R)) << R << ": " << x << "," << y;
+                }
+            EXPECT_EQ(keys.size(), size_t(W + 2 * R) * size_t(H + 2 * R));
+        }
+    // the film offset (fractions of the image) to whole pixels, wrapped at the image size
+    EXPECT_TRUE(KeyShift::of_offset(0.0, 0.0, W, H).identity());
+    const KeyShift a = KeyShift::of_offset(0.2, 0.5, W, H);  // 1.4 -> 1, 2.5 -> 3 (half away from 0)
+    EXPECT_EQ(a.dx, 1);
+    EXPECT_EQ(a.dy, 3);
+    const KeyShift b = KeyShift::of_offset(0.99, 0.95, W, H);  // 6.93 -> 7 = W -> 0; 4.75 -> 5 -> 0
+    EXPECT_TRUE(b.identity());
+    EXPECT_TRUE(KeyShift::of_offset(std::nan(""), -0.5, W, H).identity());  // outside [0, 1): none
+}
+
 TEST(PassSplatter, OneSourceGivesTheFilterRatio) {
     // Only source (2, 1) is lit: pixel j gets f(c_j - p) L / B_j, B_j the weights of
     // every source within reach (all sources dark but present).

@@ -412,8 +412,8 @@ TEST(Temporal, FilmOffsetKeepsTheExpectedImage) {
             st.chains = 64;
             st.bootstrap_samples = 512;
             for (int k = 0; k < 2; ++k) {
-                st.mlt_film_offset_x = k ? 0.37 : 0.0;
-                st.mlt_film_offset_y = k ? 0.81 : 0.0;
+                st.film_offset_x = k ? 0.37 : 0.0;
+                st.film_offset_y = k ? 0.81 : 0.0;
                 const RenderResult r = render(s, st);
                 std::vector<double> m(nb, 0.0);
                 for (int y = 0; y < H; ++y)
@@ -446,7 +446,7 @@ TEST(Temporal, FilmOffsetKeepsTheExpectedImage) {
     st.bootstrap_samples = 256;
     st.direct_fraction = 0;
     const auto p0 = temporal::bootstrap_states(s, st, 256);
-    st.mlt_film_offset_x = 0.5;
+    st.film_offset_x = 0.5;
     const auto p1 = temporal::bootstrap_states(s, st, 256);
     int differ = 0, lit = 0;
     for (size_t i = 0; i < 256; ++i) {
@@ -455,6 +455,6 @@ TEST(Temporal, FilmOffsetKeepsTheExpectedImage) {
     }
     EXPECT_GT(lit, 10);
     EXPECT_GT(differ, lit / 2);
-    st.mlt_film_offset_x = 1.0;
+    st.film_offset_x = 1.0;
     EXPECT_THROW(st.validate(), SettingsError);
 }

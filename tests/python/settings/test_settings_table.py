@@ -24,8 +24,8 @@ from pxr import Sdf, Usd  # noqa: E402
 
 #: RenderSettings properties that are inputs handed over per frame (by the temporal
 #: driver; the part of a frame a Dask task renders), not settings
-CORE_INPUTS = {"mlt_initial_states", "pilot", "mlt_bootstrap_f", "mlt_film_offset_x",
-               "mlt_film_offset_y", "partial", "part_row_begin", "part_row_end",
+CORE_INPUTS = {"mlt_initial_states", "pilot", "mlt_bootstrap_f", "film_offset_x",
+               "film_offset_y", "partial", "part_row_begin", "part_row_end",
                "part_chain_begin", "part_chain_end"}
 
 

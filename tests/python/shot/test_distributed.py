@@ -252,8 +252,10 @@ def test10_pt_bdpt_sequences_pipelined_bit_identical(tmp_path, client, integrato
     _same_images(one, dask)
     side = [json.load(open(p + ".json"))["stats"]["dask"] for p in dask.written]
     assert [d["submitted_ahead"] for d in side] == [False, True, True]
+    # a preparation per frame (seed, film offset: the pan moves it), then the parts —
     # pt: one row band per frame while two frames are left, the last frame two
-    assert [d["tasks"] for d in side] == ([1, 1, 1] if integrator == "bdpt" else [1, 1, 2])
+    assert [d["tasks"] for d in side] == ([2, 2, 2] if integrator == "bdpt" else [2, 2, 3])
+    assert [d["parts"] for d in side] == ([1, 1, 1] if integrator == "bdpt" else [1, 1, 2])
 
 
 def test12_auto_parts_follow_the_frames_left():

@@ -2,6 +2,7 @@
 
 #include "cameras/camera.h"
 #include "film/filter.h"
+#include "film/pass_splatter.h"
 #include "materials/material_eval.h"
 #include "math/safe_math.h"
 #include "sampling/rng.h"
@@ -65,6 +66,8 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
     const int threads = settings.threads > 0 ? settings.threads : tbb::info::default_concurrency();
     tbb::task_arena arena(threads);
     std::atomic<uint64_t> rays{0};
+    // the beauty's keys: they follow the frame's film offset (film/pass_splatter.h)
+    const KeyShift shift = KeyShift::of_offset(settings.film_offset_x, settings.film_offset_y, W, H);
     auto t0 = std::chrono::steady_clock::now();
     arena.execute([&] {
         tbb::parallel_for(
@@ -76,7 +79,7 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                     const Tile& tile = tiles[ti];
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x) {
-                            const uint32_t pixel = uint32_t(y) * uint32_t(W) + uint32_t(x);
+                            const uint32_t pixel = PassSplatter::window_key(x, y, W, H, 0, shift);
                             Spectrum albedo(0.f);
                             Vec3 nsum(0.f), nfirst(0.f);
                             float zmin = k_infinity;

@@ -3,7 +3,8 @@
 ///
 /// For each pixel, `samples` camera rays are traced to their first hit only (no light
 /// transport, so the pass is cheap and the same for every integrator). Sample s of pixel
-/// p uses the film position of `PixelSampler(seed, p, s)` under the pixel filter
+/// p uses the film position of `PixelSampler(seed, key(p), s)` (key: the beauty's,
+/// film/pass_splatter.h KeyShift) under the pixel filter
 /// (PixelFilter::film_position: for the one-pixel box exactly the camera ray of pt's
 /// sample s; for a wider filter drawn from the filter, filter importance sampling, where
 /// the beauty splats uniform samples to its neighbours — film/pass_splatter.h — the same

@@ -65,10 +65,10 @@ void RenderSettings::validate() const {
     if (int64_t(width) * int64_t(height) > (int64_t(1) << 31))
         CMLT_THROW(SettingsError, "RenderSettings.width: width * height is too large ("
                                       << width << " x " << height << ")");
-    if (!(mlt_film_offset_x >= 0.0 && mlt_film_offset_x < 1.0 && mlt_film_offset_y >= 0.0 &&
-          mlt_film_offset_y < 1.0))
-        CMLT_THROW(SettingsError, "RenderSettings.mlt_film_offset must be in [0, 1) per axis, got "
-                                      << mlt_film_offset_x << ", " << mlt_film_offset_y);
+    if (!(film_offset_x >= 0.0 && film_offset_x < 1.0 && film_offset_y >= 0.0 &&
+          film_offset_y < 1.0))
+        CMLT_THROW(SettingsError, "RenderSettings.film_offset must be in [0, 1) per axis, got "
+                                      << film_offset_x << ", " << film_offset_y);
     if (partial && !(part_row_begin >= 0 && part_row_begin <= part_row_end && part_row_end <= height &&
                      part_chain_begin <= part_chain_end))
         CMLT_THROW(SettingsError, "RenderSettings.part_*: rows [" << part_row_begin << ", " << part_row_end

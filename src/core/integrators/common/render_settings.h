@@ -204,10 +204,13 @@ struct RenderSettings {
     /// the chain starts: temporal/carry.h). Exactly the frame's bootstrap count; counted
     /// in the budget as if evaluated. nullptr: the render evaluates them.
     std::shared_ptr<const std::vector<double>> mlt_bootstrap_f;
-    /// pssmlt/cmlt: offset of the chains' film position on the torus, [0, 1) per axis
-    /// (pssmlt_tracer.h shift_film: the same target, reparametrised); the temporal driver
-    /// moves it with the camera. Default 0, 0.
-    double mlt_film_offset_x = 0.0, mlt_film_offset_y = 0.0;
+    /// The frame's film offset on the torus, [0, 1) per axis: the image's screen motion
+    /// since the shot's first frame, which the temporal driver follows so that noise moves
+    /// with the surfaces. The chains' film position is shifted by it (pssmlt_tracer.h
+    /// shift_film) and the pixel passes' sample keys by it rounded to pixels
+    /// (film/pass_splatter.h KeyShift: pt, bdpt, the Metropolis direct pass, the AOVs); both
+    /// are bijections, so every pixel's estimator is unchanged. Default 0, 0.
+    double film_offset_x = 0.0, film_offset_y = 0.0;
     /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
     /// (the temporal driver renders it once per frame for the render and its carry-over
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).

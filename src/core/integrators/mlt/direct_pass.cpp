@@ -33,7 +33,10 @@ void PtPass::set_partition(const PathPartition* partition) { m_tracer.set_partit
 void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters) {
     const int W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
-    if (!m_splatter) m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
+    if (!m_splatter) {
+        m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
+        m_splatter->set_key_shift(key_shift());
+    }
     const int R = m_splatter->reach();
     // camera samples, each uniform in its pixel: this part's rows (and, with a wide
     // filter, the source rows around them and the window's columns: film/pass_splatter.h)
@@ -69,8 +72,9 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
         m_passes = total;
         return;
     }
-    const int s0 = m_passes, s1 = total, W = m_settings.width;
-    const int y0 = m_row0, y1 = m_row1 < 0 ? m_settings.height : m_row1;
+    const int s0 = m_passes, s1 = total, W = m_settings.width, H = m_settings.height;
+    const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
+    const KeyShift shift = key_shift();
     parallel_tasks(arena, counters, std::max(0, y1 - y0), 2, [&](const tbb::blocked_range<int>& r) {
         PathCounters c;
         for (int y = y0 + r.begin(); y != y0 + r.end(); ++y)
@@ -79,7 +83,8 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
                     const uint32_t index = m_sample_base + uint32_t(k);
                     float w = 1.f;
                     const Spectrum L = m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x,
-                                                             y, uint32_t(y * W + x), index, c, &w);
+                                                             y, PassSplatter::window_key(x, y, W, H, 0, shift), index,
+                                                             c, &w);
                     m_film.add_sample(x, y, index, L, w);
                 }
         counters.add(c);

@@ -35,7 +35,7 @@ struct MltContext {
         bdpt.set_partition(&partition);
         tracer.set_importance(importance.get());
         tracer.set_filter(&filter);
-        tracer.set_film_offset(Vec2(float(s.mlt_film_offset_x), float(s.mlt_film_offset_y)));
+        tracer.set_film_offset(Vec2(float(s.film_offset_x), float(s.film_offset_y)));
     }
     MltContext(const MltContext&) = delete;
     MltContext& operator=(const MltContext&) = delete;

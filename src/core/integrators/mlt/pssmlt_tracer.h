@@ -49,7 +49,7 @@ struct PathSample {
 };
 
 /// The film position of primary samples u ∈ [0,1)^2 shifted by `offset` on the torus
-/// (RenderSettings::mlt_film_offset_x/y): a measure-preserving bijection of the film
+/// (RenderSettings::film_offset_x/y): a measure-preserving bijection of the film
 /// square, so the chains' target and every estimator stay what they are; the temporal
 /// driver moves it with the image's mean screen motion, so that chains replayed with the
 /// same numbers follow the surfaces under a moving camera (temporal/carry.h).

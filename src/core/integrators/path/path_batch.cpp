@@ -40,9 +40,11 @@ void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t
 }
 
 PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera& camera, const PixelFilter& filter,
-                     bool motion_blur, uint64_t seed, int width, int height, int reach, int packet_width)
+                     bool motion_blur, uint64_t seed, int width, int height, int reach, int packet_width,
+                     KeyShift shift)
     : m_tracer(tracer), m_scene(scene), m_camera(camera), m_filter(filter), m_motion_blur(motion_blur),
-      m_seed(seed), m_width(width), m_height(height), m_reach(reach), m_packet_width(packet_width) {
+      m_seed(seed), m_width(width), m_height(height), m_reach(reach), m_shift(shift),
+      m_packet_width(packet_width) {
     const size_t n = size_t(k_tile_size) * size_t(k_tile_size);
     m_state.resize(n);
     m_sampler.assign(n, PixelSampler(0, 0, 0));
@@ -67,7 +69,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             for (int y = by; y < std::min(by + 4, th); ++y)
                 for (int x = bx; x < std::min(bx + 4, tw); ++x) {
                     const uint32_t pixel =
-                        PassSplatter::window_key(tile.x0 + x, tile.y0 + y, m_width, m_height, m_reach);
+                        PassSplatter::window_key(tile.x0 + x, tile.y0 + y, m_width, m_height, m_reach, m_shift);
                     m_pixel[lane] = uint32_t(y * tw + x);
                     m_sampler[lane] = PixelSampler(m_seed, pixel, s);
                     m_live.push_back(lane);

@@ -16,6 +16,7 @@
 /// leaves the batch (the live lanes stay in that order), so packets stay full.
 /// Everything a lane computes depends only on its (seed, pixel, sample), never on the
 /// packets it shared: the image does not depend on the thread count.
+#include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng.h"
@@ -33,10 +34,11 @@ struct Hit;
 class PathBatch {
 public:
     /// `packet_width` 4, 8 or 16 answers queries in packets of up to that width; 1 one
-    /// by one. Pixels are keyed PassSplatter::window_key(x, y, width, height, reach):
+    /// by one. Pixels are keyed PassSplatter::window_key(x, y, width, height, reach, shift):
     /// tiles may reach `reach` pixels beyond the W x H image (a splatting film's ring).
     PathBatch(const PathTracer& tracer, const Scene& scene, const Camera& camera, const PixelFilter& filter,
-              bool motion_blur, uint64_t seed, int width, int height, int reach, int packet_width);
+              bool motion_blur, uint64_t seed, int width, int height, int reach, int packet_width,
+              KeyShift shift = {});
 
     /// Sample `s` of every pixel of `tile`: L[i] and the filter weight w[i] of the i-th
     /// pixel of the tile in row-major order, and its film position p[i] if p is given.
@@ -53,6 +55,7 @@ private:
     bool m_motion_blur;
     uint64_t m_seed;
     int m_width, m_height, m_reach;
+    KeyShift m_shift;
     int m_packet_width;
     uint64_t m_packets = 0;
 

@@ -58,13 +58,16 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     int done = 0;
     PassSplatter splatter(filter, film, settings.partial ? settings.part_row_begin : 0,
                           settings.partial ? settings.part_row_end : H);
+    // the pixels' sample keys follow the frame's film offset (pass_splatter.h KeyShift)
+    const KeyShift shift = KeyShift::of_offset(settings.film_offset_x, settings.film_offset_y, W, H);
+    splatter.set_key_shift(shift);
     if (!splatter.active() && !lens.active()) {
         done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
             parallel_tasks(
                 arena, counters, tiles.size(), size_t(1),
                 [&](const tbb::blocked_range<size_t>& r) {
                     PathCounters c;
-                    PathBatch batch(tracer, scene, camera, filter, motion_blur, settings.seed, W, H, 0, packet_width);
+                    PathBatch batch(tracer, scene, camera, filter, motion_blur, settings.seed, W, H, 0, packet_width, shift);
                     Spectrum L[k_tile_size * k_tile_size];
                     float w[k_tile_size * k_tile_size];
                     for (size_t ti = r.begin(); ti != r.end(); ++ti) {
@@ -94,7 +97,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
         // a batch per thread for the frame (a pass is short: no allocation per tile)
         tbb::enumerable_thread_specific<PathBatch> batches([&] {
             return PathBatch(tracer, scene, camera, unit_box, motion_blur, settings.seed, W, H, splatter.reach(),
-                             packet_width);
+                             packet_width, shift);
         });
         done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
             for (int s = s0; s < s1; ++s) {
