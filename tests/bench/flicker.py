@@ -46,6 +46,9 @@ SEQUENCES = {
 CONFIGS = {
     "independent": dict(seed_per_frame=True, carry_states=False, smooth_normalization=False),
     "stored seeds": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False),
+    # stored seeds with the film offset kept at 0: the pixels' keys stay on the screen
+    "seeds on the screen": dict(seed_per_frame=False, carry_states=False,
+                                smooth_normalization=False, _reproject=False),
     "seeds + carried": dict(seed_per_frame=False, carry_states=True, smooth_normalization=False),
     "seeds + carried + smoothing": dict(seed_per_frame=False, carry_states=True,
                                         smooth_normalization=True),
