@@ -30,7 +30,8 @@ import time
 import numpy as np
 
 from cmlt.metrics import flicker, load_image
-from cmlt.metrics.motion import motion_compensated_tf, screen_flow
+from cmlt.metrics.flicker import motion_compensated_tf
+from cmlt.shot.motion import screen_flow
 from cmlt.shot import RenderOptions, render_sequence
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -34,7 +34,7 @@ import numpy as np
 from .sequence import MetricsError
 
 __all__ = ["FlickerReport", "FrameDifferenceFlicker", "flicker", "compare", "rel_mse",
-           "REL_MSE_EPS"]
+           "REL_MSE_EPS", "motion_compensated_tf"]
 
 #: the ε of relMSE's denominator, R² + ε
 REL_MSE_EPS = 1e-2
@@ -312,3 +312,21 @@ def compare(a, b) -> Dict[str, float]:
         "width": int(A.shape[1]),
         "height": int(A.shape[0]),
     }
+
+
+def motion_compensated_tf(images, refs, flow) -> float:
+    """TF with the error of frame f compared to frame f+1's error where that surface
+    point went (nearest pixel): mean |E_{f+1}(p') − E_f(p)| / mean R over the pixels
+    whose point stays in the image. On a static shot it is TF."""
+    E = np.asarray(images, np.float64) - np.asarray(refs, np.float64)
+    norm = float(np.asarray(refs, np.float64).mean())
+    H, W = E.shape[1:3]
+    terms = []
+    for k, fl in enumerate(flow):
+        x = np.floor(fl[..., 0])
+        y = np.floor(fl[..., 1])
+        ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (x < W) & (y >= 0) & (y < H)
+        yy, xx = np.nonzero(ok)
+        d = np.abs(E[k + 1][y[ok].astype(int), x[ok].astype(int)] - E[k][yy, xx])
+        terms.append(float(d.mean()) / norm if d.size else 0.0)
+    return float(np.mean(terms)) if terms else math.nan

@@ -83,7 +83,8 @@ def test_pt_error_follows_the_pan(tmp_path):
     surface point went changes less from frame to frame (motion-compensated TF) than
     with the keys kept on the screen (the driver's REPROJECT off). Deterministic: fixed
     seeds, so either always passes or always fails; measured 0.35x (bound 0.8)."""
-    from cmlt.metrics.motion import motion_compensated_tf, screen_flow
+    from cmlt.metrics.flicker import motion_compensated_tf
+    from cmlt.shot.motion import screen_flow
     from cmlt.shot import RenderOptions, render_sequence
     from cmlt.temporal import driver
     pan = os.path.join(str(support.SEQUENCES), "camera_pan", "shot.usda")
