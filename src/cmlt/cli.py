@@ -17,7 +17,7 @@
                      [--crop X0,Y0,X1,Y1] [--preview] [--preview-format png|jpg]
                      [--display NAME] [--view NAME]
                      [--seed-per-frame] [--independent-frames] [--no-smoothing]
-                     [--state-dir DIR [--fresh-start-on-bad-state]]
+                     [--state-dir DIR [--fresh-start-on-bad-state]] [--no-frame-hold]
                      [--dask local:N|tcp://HOST:8786 [--dask-parts N]]
                      [--resume] [--quiet | --log-json] [-v [N] | -vv | -vvv]
     cmlt inspect SHOT [--frames SPEC] [--json] [--variant [/PRIM:]SET=VALUE ...] | --image FILE.exr
@@ -155,6 +155,11 @@ def build_parser() -> argparse.ArgumentParser:
                    dest="fresh_start_on_bad_state",
                    help="a corrupted, truncated or mismatched state file: warn and start "
                    "fresh instead of failing")
+    t.add_argument("--no-frame-hold", action="store_false", dest="hold_frames",
+                   help="render every frame, also one whose scene and random numbers are "
+                   "the frame before's (by default such a frame, which would render the "
+                   "same image bit for bit, takes that frame's render: a held shot costs "
+                   "one frame)")
     r.add_argument("--dask", metavar="SCHEDULER",
                    help="render each frame's parts (chain groups of pssmlt/cmlt, row bands "
                    "of pt, whole bdpt frames) as Dask tasks: local:N starts N worker "
@@ -238,7 +243,7 @@ def _cmd_render(args, argv: Sequence[str]) -> int:
                          preview_format=args.preview_format, display=args.display,
                          view=args.view, state_dir=args.state_dir,
                          fresh_start_on_bad_state=args.fresh_start_on_bad_state,
-                         dask=args.dask, dask_parts=args.dask_parts,
+                         hold_frames=args.hold_frames, dask=args.dask, dask_parts=args.dask_parts,
                          variants=tuple(args.variants), default_light=args.default_light,
                          render_settings=args.render_settings, exposure=args.exposure,
                          purposes=tuple(args.purposes))

@@ -97,6 +97,15 @@ class UpdateReport:
     deforming_meshes: int = 0          # looked at (updated or equal to the last frame)
     motion_blurred: int = 0            # instances with shutter time steps
     motion_blur: bool = False          # the core samples a ray time per camera sample
+    lights_camera_changed: bool = True  # a light or the camera differs from the last frame's
+
+    @property
+    def unchanged(self) -> bool:
+        """The core scene is the last frame's: nothing rebuilt or updated, no instance
+        moving within the shutter, the same lights and camera."""
+        return not (self.rebuilt or self.transforms_updated or self.meshes_updated
+                    or self.materials_updated or self.motion_blurred
+                    or self.lights_camera_changed)
 
     def as_dict(self) -> dict:
         return {
@@ -110,6 +119,7 @@ class UpdateReport:
             "deforming_meshes": self.deforming_meshes,
             "motion_blurred": self.motion_blurred,
             "motion_blur": self.motion_blur,
+            "lights_camera_changed": self.lights_camera_changed,
         }
 
 
@@ -187,6 +197,7 @@ class SceneBridge:
         self._materials: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._textures: dict = {}               # texture key -> core id (None: unreadable)
         self._texture_arrays: list = []         # arrays shared with the core (zero copy)
+        self._lights_camera: Optional[tuple] = None  # what the last frame's were given
         self._signature = None
         self._moving: List[bool] = []           # per instance: has shutter time steps
         self._layout: dict = {}                 # primvar_layout of the materials
@@ -413,40 +424,49 @@ class SceneBridge:
         except (self._core.SceneError, ValueError, TypeError) as exc:
             raise _material_error(self._core, fs.materials, exc) from None
 
-    def _add_light(self, scene, light) -> None:
-        scene.add_light(light.kind, _mat(light.transform),
-                        tuple(float(c) for c in light.radiance),
-                        width=float(light.width), height=float(light.height),
-                        radius=float(light.radius), length=float(light.length),
-                        angle=float(light.angle), treat_as_point=bool(light.treat_as_point),
-                        texture_id=self._light_texture(light),
-                        cone_angle=float(getattr(light, "cone_angle", 180.0)),
-                        cone_softness=float(getattr(light, "cone_softness", 0.0)),
-                        focus=float(getattr(light, "focus", 0.0)),
-                        focus_tint=tuple(float(c) for c in
-                                         getattr(light, "focus_tint", (0.0, 0.0, 0.0))))
+    def _add_light(self, scene, light) -> tuple:
+        """Add ``light`` to the core scene; returns what it was given (compared from frame
+        to frame: UpdateReport.lights_camera_changed)."""
+        xf = _mat(light.transform)
+        kw = dict(width=float(light.width), height=float(light.height),
+                  radius=float(light.radius), length=float(light.length),
+                  angle=float(light.angle), treat_as_point=bool(light.treat_as_point),
+                  texture_id=self._light_texture(light),
+                  cone_angle=float(getattr(light, "cone_angle", 180.0)),
+                  cone_softness=float(getattr(light, "cone_softness", 0.0)),
+                  focus=float(getattr(light, "focus", 0.0)),
+                  focus_tint=tuple(float(c) for c in
+                                   getattr(light, "focus_tint", (0.0, 0.0, 0.0))))
+        radiance = tuple(float(c) for c in light.radiance)
+        scene.add_light(light.kind, xf, radiance, **kw)
+        return (str(light.kind), xf.tobytes(), radiance, tuple(sorted(kw.items())))
 
-    def _lights_and_camera(self, fs: FrameScene) -> None:
+    def _lights_and_camera(self, fs: FrameScene) -> tuple:
+        """Set the frame's lights and camera; returns what they were given."""
         scene = self.scene
         scene.clear_lights()
+        given = []
         for light in fs.lights:
             with _naming(self._core, light.name, "light"):
-                self._add_light(scene, light)
+                given.append(self._add_light(scene, light))
         cam = fs.camera
         if cam is None:
             raise BridgeError(f"time {fs.time:g}: the frame has no camera")
         with _naming(self._core, cam.name, "camera"):
-            self._set_camera(scene, cam)
+            given.append(self._set_camera(scene, cam))
+        return tuple(given)
 
-    def _set_camera(self, scene, cam) -> None:
-        scene.set_camera(_mat(cam.transform), float(cam.focal_length),
-                         float(cam.horizontal_aperture), float(cam.vertical_aperture),
-                         horizontal_aperture_offset=float(cam.horizontal_aperture_offset),
-                         vertical_aperture_offset=float(cam.vertical_aperture_offset),
-                         near=float(cam.near), far=float(cam.far),
-                         f_stop=float(cam.f_stop), focus_distance=float(cam.focus_distance),
-                         projection=str(cam.projection),
-                         lens_unit=float(getattr(cam, "lens_unit", 0.001) or 0.001))
+    def _set_camera(self, scene, cam) -> tuple:
+        xf = _mat(cam.transform)
+        args = (float(cam.focal_length), float(cam.horizontal_aperture), float(cam.vertical_aperture))
+        kw = dict(horizontal_aperture_offset=float(cam.horizontal_aperture_offset),
+                  vertical_aperture_offset=float(cam.vertical_aperture_offset),
+                  near=float(cam.near), far=float(cam.far),
+                  f_stop=float(cam.f_stop), focus_distance=float(cam.focus_distance),
+                  projection=str(cam.projection),
+                  lens_unit=float(getattr(cam, "lens_unit", 0.001) or 0.001))
+        scene.set_camera(xf, *args, **kw)
+        return ("camera", xf.tobytes(), args, tuple(sorted(kw.items())))
 
     # -- public ----------------------------------------------------------
     def update(self, fs: FrameScene):
@@ -458,7 +478,9 @@ class SceneBridge:
             report.rebuilt, report.reason = True, reason
         else:
             self._incremental(fs, report)
-        self._lights_and_camera(fs)
+        given = self._lights_and_camera(fs)
+        report.lights_camera_changed = report.rebuilt or given != self._lights_camera
+        self._lights_camera = given
         report.motion_blurred = sum(self._moving)
         report.motion_blur = bool(self.scene.motion_blur)
         self.scene.commit()

@@ -56,6 +56,7 @@ class ShotJob:
     effects_cache: Any = None           # time -> FrameEffects (cmlt.shot.analyse)
     on_estimate: Any = None             # (work, seconds, relmse) -> None: the live estimate
     layers: Tuple = ()                  # the render product's layers (cmlt.usd.render_products)
+    held: Any = None                    # (hold_key, RenderResult, frame) of the last render
 
     def __post_init__(self):
         if self.bridge is None:
@@ -213,6 +214,39 @@ def _check_chains(job: ShotJob, scene) -> None:
                   f"{job.st.spp} feeds only {n} chain(s), so {n} run"])
 
 
+def hold_key(job: ShotJob, st) -> Optional[bytes]:
+    """What a frame's render depends on beyond its core scene and the job's fixed
+    settings; None when the frame may not be held: timed (its work depends on the
+    machine), rendered by Dask, or --no-frame-hold. A frame whose core scene is the last
+    frame's (SceneBridge's UpdateReport.unchanged) and whose key is the last render's
+    takes that render (_render).
+
+    The core's render is a function of the scene and the settings alone, bit for bit
+    (any thread count; the random streams are keyed by seed, chain and dimension, never
+    by the frame). Within a job only these settings change from frame to frame: the
+    size, the seed (per frame with --seed-per-frame), the film offset and, for
+    pssmlt/cmlt, the chain starts, the bootstrap values and the pilot the temporal driver
+    gives the frame. A frame with the same scene and the same key renders the last
+    frame's image, variance and statistics exactly, so it takes them instead (a held
+    shot with stored seeds: a static camera over a still set).
+    """
+    if not getattr(job.opts, "hold_frames", True) or job.distributed is not None:
+        return None
+    if float(getattr(st, "time_budget", 0.0) or 0.0) > 0.0:
+        return None
+    import hashlib
+    h = hashlib.sha256()
+    h.update(repr((int(st.width), int(st.height), int(st.seed), float(st.film_offset_x),
+                   float(st.film_offset_y), str(getattr(st, "mlt_paths", "")))).encode())
+    states = getattr(st, "mlt_initial_states", None)
+    h.update(b"states:" + (b"-" if states is None else bytes(states.to_bytes())))
+    for name in ("mlt_bootstrap_f", "pilot"):
+        v = getattr(st, name, None)
+        h.update(name.encode() + b":" + (b"-" if v is None else
+                                         np.ascontiguousarray(v, dtype=np.float64).tobytes()))
+    return h.digest()
+
+
 def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     """The core's render of the frame (the temporal driver around it), checked
     finite; returns (result, stats, image, temporal record, state bytes, units)."""
@@ -231,8 +265,14 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     if budget is not None:          # the live rate of the frame bar
         timed = float(getattr(resolved, "time_budget", 0.0) or 0.0) > 0.0
         budget(None if timed else float(width) * float(height) * float(resolved.spp))
+    key = hold_key(job, job.st)
+    same_scene = job.bridge.last_update is not None and job.bridge.last_update.unchanged
+    held = (job.held if key is not None and same_scene and job.held is not None
+            and job.held[0] == key else None)
     try:
-        if job.distributed is not None:     # the frame's parts as Dask tasks
+        if held is not None:                # the last frame's render, bit for bit
+            r, interrupted, units = held[1], False, None
+        elif job.distributed is not None:   # the frame's parts as Dask tasks
             r, interrupted, units = job.distributed.render(core, job.st, frame, job.reporter), \
                 False, None
         else:
@@ -245,6 +285,14 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     if interrupted or r.cancelled:
         raise KeyboardInterrupt
     stats = dict(r.stats)
+    if held is not None:
+        # the image and its statistics are frame held[2]'s; this frame traced nothing
+        stats.update(held_from_frame=float(held[2]),
+                     **{k: 0.0 if isinstance(stats[k], float) else 0
+                        for k in ("time_s", "rays", "rays_per_s", "busy_s", "trace_s")
+                        if k in stats})
+    else:
+        job.held = (key, r, frame) if key is not None else None
     image = np.asarray(r.image)
     if not np.isfinite(image).all():
         raise RenderError(f"{job.shot}: frame {frame:g}: the core returned "

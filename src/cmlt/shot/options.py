@@ -71,6 +71,10 @@ class _FrameOptions:
     state_dir: Optional[str] = None
     #: a bad state file: warn and start fresh instead of failing
     fresh_start_on_bad_state: bool = False
+    #: a frame whose scene and settings are the last rendered frame's (a held shot
+    #: with stored seeds) takes that frame's render instead of repeating it
+    #: (frame_job.hold_key); False renders every frame (--no-frame-hold)
+    hold_frames: bool = True
     #: render the frames' parts as Dask tasks: a scheduler address or local:N
     #: (cmlt.shot.distributed); None renders in this process
     dask: Optional[str] = None
