@@ -223,8 +223,8 @@ def hold_key(job: ShotJob, st) -> Optional[bytes]:
 
     The core's render is a function of the scene and the settings alone, bit for bit
     (any thread count; the random streams are keyed by seed, chain and dimension, never
-    by the frame). Within a job only these settings change from frame to frame: the
-    size, the seed (per frame with --seed-per-frame), the film offset and, for
+    by the frame). The key is every scalar setting (the size, the seed — per frame with
+    --seed-per-frame —, the film offset, what auto resolved for the frame, ...) and, for
     pssmlt/cmlt, the chain starts, the bootstrap values and the pilot the temporal driver
     gives the frame. A frame with the same scene and the same key renders the last
     frame's image, variance and statistics exactly, so it takes them instead (a held
@@ -236,8 +236,13 @@ def hold_key(job: ShotJob, st) -> Optional[bytes]:
         return None
     import hashlib
     h = hashlib.sha256()
-    h.update(repr((int(st.width), int(st.height), int(st.seed), float(st.film_offset_x),
-                   float(st.film_offset_y), str(getattr(st, "mlt_paths", "")))).encode())
+    scalars = []
+    for name in sorted(dir(st)):
+        if not name.startswith("_"):
+            v = getattr(st, name)
+            if isinstance(v, (bool, int, float, str)):
+                scalars.append((name, v))
+    h.update(repr(scalars).encode())
     states = getattr(st, "mlt_initial_states", None)
     h.update(b"states:" + (b"-" if states is None else bytes(states.to_bytes())))
     for name in ("mlt_bootstrap_f", "pilot"):
