@@ -137,14 +137,15 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
     TOKEN(mlt_path_sampler, "bdpt", "bdpt pt", "", "",                                       \
           "pssmlt's path sampler: bdpt (multiplexed over depth and strategy (s, t)) or pt "  \
           "(the path tracer)")                                                               \
-    REAL(mlt_camera_technique, 0.0, -1.0, 0.9,   false, "cmlt:cameraTechnique",                \
+    REAL(mlt_camera_technique, -1.0, -1.0, 0.9,  false, "cmlt:cameraTechnique",                \
          "--camera-technique Q",                                                             \
          "pssmlt/cmlt with the bdpt path sampler: probability of the camera technique, "     \
          "which evaluates every strategy a path tracer has (s <= 1) along one camera path "  \
          "(one-sample MIS with the multiplexed strategies: caps f* of paths only they "     \
-         "sample, such as caustics seen in a mirror or through glass); 0 (the default) = "   \
-         "multiplexed strategies alone; negative = auto (0.5 where a material can be "      \
-         "near-specular, else 0)")                                                          \
+         "sample, such as caustics seen in a mirror or through glass); 0 = the "            \
+         "multiplexed strategies alone; negative (the default) = auto: 0.7 where a "        \
+         "material can be near-specular and the chains render the caustic paths alone, "   \
+         "else 0")                                                                          \
     INT(error_groups, 8, 0, 64, "cmlt:errorGroups", "--error-groups G",                      \
         "pssmlt/cmlt: independent chain groups of the error estimate (chain c in group c "   \
         "mod G; the film keeps G partial sums, G times its memory); 0 = no estimate, 1 and " \
