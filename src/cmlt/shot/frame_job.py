@@ -5,6 +5,7 @@ so that a finished image always has its sidecar (and preview and state).
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import threading
 import time
@@ -234,7 +235,6 @@ def hold_key(job: ShotJob, st) -> Optional[bytes]:
         return None
     if float(getattr(st, "time_budget", 0.0) or 0.0) > 0.0:
         return None
-    import hashlib
     h = hashlib.sha256()
     scalars = []
     for name in sorted(dir(st)):
@@ -292,10 +292,10 @@ def _render(job: ShotJob, scene, frame: float, width: int, height: int):
     stats = dict(r.stats)
     if held is not None:
         # the image and its statistics are frame held[2]'s; this frame traced nothing
-        stats.update(held_from_frame=float(held[2]),
-                     **{k: 0.0 if isinstance(stats[k], float) else 0
-                        for k in ("time_s", "rays", "rays_per_s", "busy_s", "trace_s")
-                        if k in stats})
+        stats["held_from_frame"] = float(held[2])
+        for k in ("time_s", "rays", "rays_per_s", "busy_s", "trace_s"):
+            if k in stats:
+                stats[k] = type(stats[k])(0)
     else:
         job.held = (key, r, frame) if key is not None else None
     image = np.asarray(r.image)

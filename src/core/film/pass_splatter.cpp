@@ -49,13 +49,15 @@ int wrap_shift(int v, int d, int n) {
 }  // namespace
 
 uint32_t PassSplatter::window_key(int x, int y, int width, int height, int reach, KeyShift shift) {
-    if (!shift.identity() && x >= 0 && y >= 0 && x < width && y < height) {
-        // the image's pixels on the image's torus (the film offset wraps at its size);
-        // the ring outside keeps its keys (it only reaches the border pixels' filters)
-        x = wrap_shift(x, shift.dx, width);
-        y = wrap_shift(y, shift.dy, height);
+    if (x >= 0 && y >= 0 && x < width && y < height) {
+        if (!shift.identity()) {
+            // the image's pixels on the image's torus (the film offset wraps at its size);
+            // the ring outside keeps its keys (it only reaches the border pixels' filters)
+            x = wrap_shift(x, shift.dx, width);
+            y = wrap_shift(y, shift.dy, height);
+        }
+        return uint32_t(y) * uint32_t(width) + uint32_t(x);
     }
-    if (x >= 0 && y >= 0 && x < width && y < height) return uint32_t(y) * uint32_t(width) + uint32_t(x);
     return uint32_t(width) * uint32_t(height) +
            uint32_t(y + reach) * uint32_t(width + 2 * reach) + uint32_t(x + reach);
 }

@@ -51,6 +51,10 @@ struct KeyShift {
     int dx = 0, dy = 0;
     /// The film offset (fractions of the image, [0, 1)) rounded to whole pixels.
     static KeyShift of_offset(double offset_x, double offset_y, int width, int height);
+    /// The frame's: RenderSettings::film_offset_x/y on its width x height.
+    static KeyShift of(const RenderSettings& s) {
+        return of_offset(s.film_offset_x, s.film_offset_y, s.width, s.height);
+    }
     bool identity() const { return dx == 0 && dy == 0; }
 };
 

@@ -67,7 +67,7 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
     tbb::task_arena arena(threads);
     std::atomic<uint64_t> rays{0};
     // the beauty's keys: they follow the frame's film offset (film/pass_splatter.h)
-    const KeyShift shift = KeyShift::of_offset(settings.film_offset_x, settings.film_offset_y, W, H);
+    const KeyShift shift = KeyShift::of(settings);
     auto t0 = std::chrono::steady_clock::now();
     arena.execute([&] {
         tbb::parallel_for(

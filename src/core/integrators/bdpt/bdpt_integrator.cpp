@@ -37,8 +37,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     // each sampled uniformly in its pixel); the one-pixel box keeps it in its pixel
     PassSplatter splatter(filter, film);
     // the pixels' sample keys follow the frame's film offset (pass_splatter.h KeyShift)
-    splatter.set_key_shift(KeyShift::of_offset(settings.film_offset_x, settings.film_offset_y, settings.width,
-                                               settings.height));
+    splatter.set_key_shift(KeyShift::of(settings));
     const PixelFilter unit_box;
     const std::vector<Tile>& tiles = splatter.source_tiles();
     // one light subpath per traced pixel sample: the splats are scaled by the window's

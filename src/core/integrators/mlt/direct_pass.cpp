@@ -35,7 +35,7 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
     if (!m_splatter) {
         m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
-        m_splatter->set_key_shift(key_shift());
+        m_splatter->set_key_shift(KeyShift::of(m_settings));  // keys follow the film offset
     }
     const int R = m_splatter->reach();
     // camera samples, each uniform in its pixel: this part's rows (and, with a wide
@@ -74,7 +74,7 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
     }
     const int s0 = m_passes, s1 = total, W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
-    const KeyShift shift = key_shift();
+    const KeyShift shift = KeyShift::of(m_settings);  // keys follow the film offset
     parallel_tasks(arena, counters, std::max(0, y1 - y0), 2, [&](const tbb::blocked_range<int>& r) {
         PathCounters c;
         for (int y = y0 + r.begin(); y != y0 + r.end(); ++y)

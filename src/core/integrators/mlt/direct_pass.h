@@ -82,11 +82,6 @@ private:
     /// the variance sees them, and its camera samples splatted over the filter's
     /// footprint (film/pass_splatter.h).
     void render_passes_indexed(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters);
-    /// The pixels' sample keys follow the frame's film offset (film/pass_splatter.h).
-    KeyShift key_shift() const {
-        return KeyShift::of_offset(m_settings.film_offset_x, m_settings.film_offset_y, m_settings.width,
-                                   m_settings.height);
-    }
 
     Camera m_camera;
     PixelFilter m_filter;

@@ -59,7 +59,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     PassSplatter splatter(filter, film, settings.partial ? settings.part_row_begin : 0,
                           settings.partial ? settings.part_row_end : H);
     // the pixels' sample keys follow the frame's film offset (pass_splatter.h KeyShift)
-    const KeyShift shift = KeyShift::of_offset(settings.film_offset_x, settings.film_offset_y, W, H);
+    const KeyShift shift = KeyShift::of(settings);
     splatter.set_key_shift(shift);
     if (!splatter.active() && !lens.active()) {
         done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
