@@ -47,6 +47,7 @@ enum class RngStream : uint32_t {
     bdpt_light = 17,       ///< PixelStreamSampler: BDPT's light subpath
     bdpt_connection = 18,  ///< PixelStreamSampler: BDPT's connections
     lens_light = 19,       ///< LensLightTracing: the light sample of a direct-pass pixel sample
+    caustic_light = 20,    ///< CausticLightTracing: the light path of a pt pixel sample
     test = 0xFFFF,         ///< tests' own numbers (tests/cpp)
 };
 

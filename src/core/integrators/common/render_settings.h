@@ -126,6 +126,10 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
         "image height in pixels (the stage's UsdRender resolution or --res)")                \
     INT(threads, 0, 0, settings_limits::k_int_max, "", "--threads N",                        \
         "worker threads, 0 = all cores; the image does not depend on it")                    \
+    BOOL(caustic_tracing, true, "", "--no-caustic-tracing",                                  \
+         "pt: also trace the caustics it cannot find (light reaching a rough surface "       \
+         "through a mirror or glass bounce) from the lights, MIS-weighted against its "       \
+         "camera paths (the same image in expectation, less noise); off: camera paths only")  \
     BOOL(packets, true, "", "--no-packets",                                                  \
          "pt and cmlt: trace a batch's or bundle's rays (camera rays, bounces, shadow rays) "  \
          "as Embree packets; off: one by one (cmlt: the same image bit for bit; pt: the "     \
@@ -293,6 +297,9 @@ struct RenderStats {
     /// Every integrator: lights under a pixel across traced from the light side to the
     /// lens ((1, 1): integrators/path/lens_light_tracing.h)
     uint32_t lens_lights = 0;
+    /// pt: casters (instances that may be specular) its caustic light paths aim at, 0
+    /// when it traces none (integrators/path/caustic_light_tracing.h)
+    uint32_t caustic_casters = 0;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
     /// pt, bdpt: the variance of a sum of many neighbouring pixels over the sum of their

@@ -2,6 +2,7 @@
 #include "integrators/path/lens_light_tracing.h"
 
 #include "film/filter.h"
+#include "integrators/path/caustic_light_tracing.h"
 #include "lights/light.h"
 #include "math/frame.h"
 #include "sampling/rng.h"
@@ -130,8 +131,9 @@ bool LensLightTracing::sample(uint64_t seed, uint32_t pixel, uint32_t index, boo
     return true;
 }
 
-LensPass::LensPass(const LensLightTracing& lens, const PixelFilter& filter, int width, int height)
-    : m_lens(lens), m_filter(filter), m_width(width), m_height(height),
+LensPass::LensPass(const LensLightTracing& lens, const PixelFilter& filter, int width, int height,
+                   const CausticLightTracing* caustic)
+    : m_lens(lens), m_caustic(caustic && caustic->active() ? caustic : nullptr), m_filter(filter), m_width(width), m_height(height),
       m_scale(filter.window_area(width, height) / (double(width) * double(height))), m_rows(size_t(height)),
       m_image(size_t(width) * size_t(height) * 3) {}
 
@@ -149,6 +151,7 @@ const double* LensPass::trace(tbb::task_arena& arena, FrameCounters& counters, u
                 const uint64_t shadow0 = c.shadow_rays;
                 if (m_lens.sample(seed, pixel, sample, motion_blur, &pr, &v, &c.shadow_rays)) out.emplace_back(pr, v);
                 c.rays += c.shadow_rays - shadow0;
+                if (m_caustic) m_caustic->trace(seed, pixel, sample, motion_blur, out, &c.rays, &c.shadow_rays);
             }
         }
         counters.add(c);

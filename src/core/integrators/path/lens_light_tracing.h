@@ -40,6 +40,7 @@
 
 namespace cmlt {
 
+class CausticLightTracing;
 class PixelFilter;
 class Scene;
 
@@ -87,10 +88,13 @@ private:
 /// the film's filter: the `extra` image of PassSplatter::gather. The samples are traced
 /// in parallel by rows and splatted in row order, so the sums do not depend on the
 /// thread count; a part of the frame gets the whole frame's splats (its rows receive
-/// light from every pixel's sample).
+/// light from every pixel's sample). Each pixel's sample is the lens light sample (when
+/// `lens` is active) and the caustic light path (when `caustic` is given and active;
+/// caustic_light_tracing.h).
 class LensPass {
 public:
-    LensPass(const LensLightTracing& lens, const PixelFilter& filter, int width, int height);
+    LensPass(const LensLightTracing& lens, const PixelFilter& filter, int width, int height,
+             const CausticLightTracing* caustic = nullptr);
     /// Pass `sample`'s splats, W x H x 3 (valid until the next call). Counts the
     /// connections as shadow rays and rays.
     const double* trace(tbb::task_arena& arena, FrameCounters& counters, uint64_t seed, uint32_t sample,
@@ -98,6 +102,7 @@ public:
 
 private:
     const LensLightTracing& m_lens;
+    const CausticLightTracing* m_caustic;
     const PixelFilter& m_filter;
     int m_width, m_height;
     double m_scale;  ///< the window's area over the image's: importance is normalised over the window

@@ -7,6 +7,7 @@
 #include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
 #include "accel/accel.h"
+#include "integrators/path/caustic_light_tracing.h"
 #include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_batch.h"
 #include "integrators/path/path_tracer.h"
@@ -31,6 +32,13 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     // light nothing changes.
     const LensLightTracing lens(scene, camera, W, H, filter.margin());
     if (lens.active()) tracer.set_lens_light_tracing(&lens);
+    // Caustics (light reaching a rough surface through a mirror or glass bounce) are
+    // traced from the light side too, MIS-weighted against the camera paths that find
+    // them (caustic_light_tracing.h). Without a caster or a finite light nothing changes.
+    const CausticLightTracing caustic(scene, camera, W, H, filter.margin(), settings.max_depth);
+    const bool caustic_on = settings.caustic_tracing && caustic.active();
+    if (caustic_on) tracer.set_caustic_light_tracing(&caustic);
+    const bool light_passes = lens.active() || caustic_on;
     const bool motion_blur = scene.motion_blur();  // draw a shutter time per sample?
     std::vector<Tile> tiles = image_tiles(W, H);
     if (settings.partial) {
@@ -61,7 +69,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     // the pixels' sample keys follow the frame's film offset (pass_splatter.h KeyShift)
     const KeyShift shift = KeyShift::of(settings);
     splatter.set_key_shift(shift);
-    if (!splatter.active() && !lens.active()) {
+    if (!splatter.active() && !light_passes) {
         done = run_passes(PassSchedule(settings, t0), progress, &cancelled, [&](int s0, int s1) {
             parallel_tasks(
                 arena, counters, tiles.size(), size_t(1),
@@ -88,11 +96,12 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                 tbb::simple_partitioner());
         }, &target);
     } else {
-        // A wide filter or lens light tracing: pass by pass, every source pixel of the
-        // window (the image and the filter's ring) sampled uniformly in its pixel, then
+        // A wide filter or light tracing: pass by pass, every source pixel of the window
+        // (the image and the filter's ring) sampled uniformly in its pixel, then
         // splatted to its neighbours (film/pass_splatter.h), with the pass's light splats.
         const PixelFilter unit_box;
-        std::unique_ptr<LensPass> lens_pass = lens.active() ? std::make_unique<LensPass>(lens, filter, W, H) : nullptr;
+        std::unique_ptr<LensPass> lens_pass =
+            light_passes ? std::make_unique<LensPass>(lens, filter, W, H, caustic_on ? &caustic : nullptr) : nullptr;
         const std::vector<Tile>& src_tiles = splatter.source_tiles();
         // a batch per thread for the frame (a pass is short: no allocation per tile)
         tbb::enumerable_thread_specific<PathBatch> batches([&] {
@@ -132,6 +141,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     RenderResult res = film_result(film, counters, rate, seconds_since(t0), settings, threads, done, cancelled, &target);
     if (splatter.active()) res.stats.pixel_correlation = filter.splat_correlation();
     res.stats.lens_lights = uint32_t(lens.lights().size());
+    res.stats.caustic_casters = caustic_on ? uint32_t(caustic.caster_count()) : 0u;
     return res;
 }
 

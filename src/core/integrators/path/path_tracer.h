@@ -45,6 +45,7 @@ namespace cmlt {
 
 class Bsdf;
 class Camera;
+class CausticLightTracing;
 class LensLightTracing;
 class PixelFilter;
 class Scene;
@@ -75,6 +76,10 @@ struct PathState {
     /// tracer has a partition: a rough vertex among the scattering vertices so far, one
     /// before the last of them, and the last one's material near-specular.
     bool diffuse_seen = false, diffuse_before_last = false, last_specular = false;
+    /// With caustic light tracing (caustic_light_tracing.h): the camera side of r so far,
+    /// 1 / (p_cam(z1) Π p⊥ forward) times the light side's reverse factors; 0 when the
+    /// path cannot be of the class (z1 scattered by a Dirac lobe) or no tracer is set.
+    double lt = 0.0;
     /// Next-event estimation pending on a shadow ray: if `shadow` is unblocked (through
     /// pass-through surfaces with transmittance tr and crossing probability pass_pdf),
     /// L += shadow_f * (tr * w / shadow_light_pdf), w the power heuristic of
@@ -109,6 +114,10 @@ public:
     /// (1, 1) light samples: their emission gets its MIS weight (the Metropolis direct
     /// pass; lens_light_tracing.h). Null (the default): weight 1.
     void set_lens_light_tracing(const LensLightTracing* lens) { m_lens_light = lens; }
+    /// Emission reached from a rough first vertex through a Dirac last bounce shares
+    /// those paths with `caustic`'s light paths (the pt integrator;
+    /// caustic_light_tracing.h). Null (the default): weight 1.
+    void set_caustic_light_tracing(const CausticLightTracing* caustic) { m_caustic = caustic; }
     /// Render only the paths of one class (path_partition.h): the Metropolis
     /// integrators' direct pass the easy ones, their pt path sampler the caustic ones.
     /// Null or PathPart::all (the default): every path.
@@ -163,6 +172,7 @@ private:
     int m_max_depth;
     int m_min_depth;
     const LensLightTracing* m_lens_light = nullptr;
+    const CausticLightTracing* m_caustic = nullptr;
     const PathPartition* m_partition = nullptr;
 };
 

@@ -2,6 +2,7 @@
 /// \file The definition of PathTracer::li, generic over the random source (see
 /// path_tracer.h). Included by path_tracer.cpp (instantiated for PixelSampler) and by
 /// integrators that drive the same sampling routine with their own sampler (mlt/).
+#include "integrators/path/caustic_light_tracing.h"
 #include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_tracer.h"
 
@@ -89,6 +90,10 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
         if (m_lens_light && st.depth == 0) {
             // shared with the (1, 1) light samples (prev_p: the lens point)
             add_emitted(hit.le * m_lens_light->camera_hit_weight(st.prev_p, ray.o + ray.d * hit.t, hit.light_index), pl);
+        } else if (st.lt > 0.0 && st.specular_bounce) {
+            // a caustic path, shared with the light paths (prev_p: the Dirac vertex)
+            const float a = m_caustic->light_density(hit.light_index, ray.o + ray.d * hit.t, st.prev_p);
+            add_emitted(hit.le * CausticLightTracing::camera_weight(st.lt * double(a)), pl);
         } else {
             add_emitted(hit.le, pl);
         }
@@ -104,7 +109,14 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
             if (li >= 0)
                 pl = scene.light_pmf(size_t(li)) * scene.triangle_light(size_t(li)).pdf_li_point(st.prev_p, si.p);
         }
-        add_emitted(emitted_radiance(mat, si.uv, scene.textures()), pl);
+        Spectrum le = emitted_radiance(mat, si.uv, scene.textures());
+        if (st.lt > 0.0 && st.specular_bounce && !is_black(le)) {
+            // a caustic path, shared with the light paths
+            const int32_t li = scene.triangle_light_index(si.instance_id, si.prim_id);
+            const float a = li >= 0 ? m_caustic->light_density(uint32_t(li), si.p, st.prev_p) : 0.f;
+            le *= CausticLightTracing::camera_weight(st.lt * double(a));
+        }
+        add_emitted(le, pl);
     }
 
     // Stop after max_depth scattering events (a pass-through surface may still be
@@ -202,6 +214,21 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
     if (is_black(st.beta) || !is_finite(st.beta)) {
         st.done = true;
         return;
+    }
+    if (m_caustic) {
+        // The camera side of r (caustic_light_tracing.h): 1 / (p_cam(z1) p⊥(z1 → z2))
+        // at the first vertex (0 if it scattered by a Dirac lobe: no path of the class),
+        // then each rough vertex's reverse over forward density; Dirac vertices give 1.
+        const float cos_i = std::fabs(dot(bs.wi, ns));
+        const float fwd = cos_i > 0.f ? bs.pdf / cos_i : 0.f;
+        if (st.depth == 0) {
+            const double den = bs.is_delta ? 0.0 : double(m_caustic->camera_density(st.prev_p, sp.p, sp.ng)) * fwd;
+            st.lt = den > 0.0 ? 1.0 / den : 0.0;
+        } else if (st.lt > 0.0 && !bs.is_delta) {
+            const float cos_o = std::fabs(dot(wo, ns));
+            const float rev = cos_o > 0.f ? bsdf.pdf(bs.wi, wo) / cos_o : 0.f;
+            st.lt = fwd > 0.f ? st.lt * double(rev) / double(fwd) : 0.0;
+        }
     }
     st.specular_bounce = bs.is_delta;
     if (bs.is_transmission) st.eta_scale *= bs.eta * bs.eta;
