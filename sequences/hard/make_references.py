@@ -78,7 +78,7 @@ CASES: Dict[str, Case] = {c.name: c for c in [
     Case("tiny_sphere_light", "a room lit by a 0.5 mm sphere light hidden behind a crate"),
     Case("point_light", "a room lit by a point light: sharp shadows"),
     Case("caustic_lsdse", "a glass ball's caustic on the floor, seen directly (L S S D E)",
-         ref_integrator="bdpt", ref_spp=128),
+         ref_integrator="pt", ref_spp=512, ref_seeds=16),
     Case("caustic_sds", "the caustic seen through a glass slab (L S S D S S E)",
          ref_integrator="pt", ref_spp=256),
     Case("slit", "a closed room lit through a 2 cm slit", ref_spp=512),

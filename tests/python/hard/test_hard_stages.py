@@ -68,19 +68,13 @@ ALPHA = 1e-4
 BOUND = 1000.0
 MAX_CHAIN_SHARE = 0.05
 
-_BULB_PT = ("pt cannot find the bulb's caustics that the mirror and the slab throw on the floor (a "
-            "BSDF sample would have to hit the 0.4 mm bulb through them): every render is 2.8 % "
-            "dark (0.691 against 0.711). The bulb seen directly is right: it is traced from the "
-            "light side too (lens light tracing), so no render hits it with a camera ray's weight "
-            "(before that, seed 8 did: mean 39.6)")
 #: (check, case, integrator) -> why it fails today; "*" matches every case / integrator
-XFAIL = {
-    ("mean", "bulb_room", "pt"): _BULB_PT,
-    ("outlier", "caustic_lsdse", "pt"): (
-        "pt samples the caustic only by BSDF-sampling the floor into the 2 cm light through "
-        "the ball; seed 7 finds it in a few pixels: mean 3.45 against 2.28 (bdpt and the "
-        "Metropolis integrators are the ones for caustics)"),
-}
+XFAIL = {}
+# Passing since pt traces caustics from the lights too (caustic_light_tracing.h): bulb_room's
+# mean (0.7101 ± 0.0003 against 0.7113 ± 0.0006 at seeds 1..10; before, every render 2.8 %
+# dark: pt could not find the bulb's caustics from the mirror and the slab) and
+# caustic_lsdse's outlier render (seed 7: the caustic found by BSDF sampling into the 2 cm
+# light through the ball, mean 3.45).
 # Not marked, and close to the bound: pssmlt on bulb_room (the defaults) puts at most
 # 3.7 % of the chains' image in one chain at seeds 1..10, but above 5 % in 2 of seeds
 # 1..40 (seed 15 9.0 %, seed 20 5.2 %; cmlt at most 3.6 % over the 40;
