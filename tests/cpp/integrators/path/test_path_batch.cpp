@@ -10,7 +10,10 @@
 #include "film/film.h"
 #include "film/filter.h"
 #include "film/pass_splatter.h"
+#include "integrators/common/frame_loop.h"
 #include "integrators/common/render.h"
+#include "integrators/path/caustic_light_tracing.h"
+#include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_tracer.h"
 
 #include <gtest/gtest.h>
@@ -40,16 +43,21 @@ RenderSettings settings(int spp, bool packets) {
 }
 
 /// The image of the scalar reference: every pixel's samples through pixel_sample, added
-/// to a film in sample order as the integrator does; for a wide filter, pass by pass,
-/// every source pixel of the window sampled uniformly and splatted (film/pass_splatter.h).
+/// to a film in sample order as the integrator does; for a wide filter or with caustic
+/// light tracing (a scene with glass), pass by pass, every source pixel of the window
+/// sampled uniformly and splatted (film/pass_splatter.h) with the pass's light paths.
 std::vector<float> reference_image(const Scene& scene, const RenderSettings& st, std::vector<float>* variance) {
     const Camera camera(scene.camera_desc(), st.width, st.height);
     const PixelFilter filter = PixelFilter::from_settings(st.pixel_filter, st.filter_radius);
-    const PathTracer tracer(scene, st.max_depth);
+    PathTracer tracer(scene, st.max_depth);
+    const LensLightTracing lens(scene, camera, st.width, st.height, filter.margin());
+    const CausticLightTracing caustic(scene, camera, st.width, st.height, filter.margin(), st.max_depth);
+    const bool caustic_on = st.caustic_tracing && caustic.active();
+    if (caustic_on) tracer.set_caustic_light_tracing(&caustic);
     Film film(st.width, st.height);
     PathCounters c;
     PassSplatter splatter(filter, film);
-    if (!splatter.active()) {
+    if (!splatter.active() && !caustic_on) {
         for (int y = 0; y < st.height; ++y)
             for (int x = 0; x < st.width; ++x)
                 for (int s = 0; s < st.spp; ++s) {
@@ -62,6 +70,8 @@ std::vector<float> reference_image(const Scene& scene, const RenderSettings& st,
         const PixelFilter unit_box;
         const int R = splatter.reach();
         tbb::task_arena arena(1);
+        LensPass light_pass(lens, filter, st.width, st.height, caustic_on ? &caustic : nullptr);
+        FrameCounters counters;
         for (int s = 0; s < st.spp; ++s) {
             for (int y = -R; y < st.height + R; ++y)
                 for (int x = -R; x < st.width + R; ++x) {
@@ -71,7 +81,9 @@ std::vector<float> reference_image(const Scene& scene, const RenderSettings& st,
                                                            splatter.key(x, y), uint32_t(s), c, &w, &p);
                     splatter.set(x, y, p, L, uint32_t(s));
                 }
-            splatter.gather(arena, uint32_t(s));
+            const double* splats =
+                caustic_on ? light_pass.trace(arena, counters, st.seed, uint32_t(s), scene.motion_blur()) : nullptr;
+            splatter.gather(arena, uint32_t(s), splats);
         }
     }
     std::vector<float> image(size_t(3) * st.width * st.height);
@@ -80,7 +92,7 @@ std::vector<float> reference_image(const Scene& scene, const RenderSettings& st,
     return image;
 }
 
-void check_scene(const std::function<void(Scene&)>& build, const char* what) {
+void check_scene(const std::function<void(Scene&)>& build, const char* what, bool caustic_tracing = true) {
     Scene scene;
     build(scene);
     scene.select_kernels(false);
@@ -89,6 +101,7 @@ void check_scene(const std::function<void(Scene&)>& build, const char* what) {
         // 1. no packets: the reference's image bit for bit
         RenderSettings st = settings(8, false);
         st.pixel_filter = filter;
+        st.caustic_tracing = caustic_tracing;
         std::vector<float> ref_var;
         const std::vector<float> ref = reference_image(scene, st, &ref_var);
         const RenderResult scalar = render(scene, st);
@@ -152,4 +165,13 @@ TEST(PathBatch, MatchesTheScalarReferenceThroughPassThroughSurfaces) {
 
 TEST(PathBatch, MatchesTheScalarReferenceThroughGlass) {
     check_scene([](Scene& s) { glass_scene(s); }, "glass");
+    // with the caustic light paths (the glass is a caster) and without them
+    Scene scene;
+    glass_scene(scene);
+    scene.select_kernels(false);
+    EXPECT_GT(render(scene, settings(2, false)).stats.caustic_casters, 0u);
+}
+
+TEST(PathBatch, MatchesTheScalarReferenceThroughGlassWithoutCausticTracing) {
+    check_scene([](Scene& s) { glass_scene(s); }, "glass, no caustic tracing", false);
 }
