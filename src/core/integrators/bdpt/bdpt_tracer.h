@@ -32,13 +32,7 @@
 /// MIS: power heuristic over all strategies that can sample the path, computed with the
 /// ratio walk over per-vertex forward / reverse area densities (pbrt-v4 MISWeight).
 /// A connection through a Dirac vertex (specular lobe, point or delta-distant light for
-/// s = 0) is impossible: its strategy gets weight 0 and contributes nothing. The ratio
-/// walk still runs across a Dirac vertex: its two neighbours store the area densities of
-/// a coefficient of 1 (the same in both directions) over their own edges, so that the
-/// geometry terms of the two edges cancel as in the unfolded path (pbrt-v4 stores 0 and
-/// remaps it to 1, which leaves G(one edge) / G(the other) in the ratio: a caustic's
-/// receiver close to the glass then gave the camera paths' rare hits on the light most
-/// of the weight; bdpt_subpaths.cpp). The camera
+/// s = 0) is impossible: its strategy gets weight 0 and contributes nothing. The camera
 /// direction density is that of the whole image, 1 / (A cos^3), which with one light
 /// path per pixel sample gives the right sample-count ratio between t = 1 and t >= 2.
 ///
