@@ -201,12 +201,11 @@ std::vector<float> BdptTracer::strategy_weights(const PathVertex* light, int s,
     // path.
     if (s > 0) x[size_t(s - 1)].delta = false;
     x[size_t(s)].delta = false;
-    // Density of `v` generated through `mid`: where the path scatters at `mid` through a
-    // Dirac lobe, a coefficient of 1 converted to area, as the random walk stores it
-    // (a mixed Dirac / rough vertex would otherwise give its rough lobe's density at the
-    // mirror direction).
+    // Density of `v` generated through `mid`: 0 where the path scatters at `mid` through a
+    // Dirac lobe, as the random walk stores it (a mixed Dirac / rough vertex would
+    // otherwise give its rough lobe's density at the mirror direction).
     auto pdf_through = [&](const PathVertex* prev, const PathVertex& mid, const PathVertex& v) {
-        return mid.delta ? convert_density(1.f, mid, v) : pdf(prev, mid, v);
+        return mid.delta ? 0.f : pdf(prev, mid, v);
     };
     std::vector<float> weights(static_cast<size_t>(n), 0.f);
     std::vector<PathVertex> L(static_cast<size_t>(n)), C(static_cast<size_t>(n));

@@ -172,17 +172,9 @@ bool BdptTracer::walk_step(BdptWalk& wk, const SceneHit& hit, BdptSampler& sampl
     if (!bs.valid()) return false;
     pdf_fwd_sa = bs.pdf;  // replaced by edge() from positions unless Dirac
     if (bs.is_delta) {
-        // A Dirac vertex: no strategy connects here, but the ratios of the other
-        // strategies' densities run across it (mis_weight). Its two neighbours get the
-        // area densities of a Dirac coefficient of 1 (the same for both directions, so
-        // it cancels in every ratio), converted over their own edges: the geometry terms
-        // of the two edges then cancel too, as in the unfolded path (Veach 1997, 10.3.5),
-        // instead of leaving G(light edge) / G(camera edge) in the ratio, which gave the
-        // camera paths' hits on a small light through glass far too much weight where
-        // the caustic's receiver is near the glass (sequences/hard/caustic_lsdse).
         v.delta = true;
-        pdf_fwd_sa = 1.f;
-        prev.pdf_rev = convert_density(1.f, v, prev) * v.pass_pdf;
+        pdf_fwd_sa = 0.f;
+        prev.pdf_rev = 0.f;
     }
     Spectrum factor;
     if (!importance) {
