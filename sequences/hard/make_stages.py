@@ -297,17 +297,24 @@ def point_light():
     return st.save()
 
 
-def caustic_lsdse():
-    st = Stage("caustic_lsdse", "A glass ball focuses a small sphere light onto a diffuse "
-               "floor; the camera sees the caustic directly (L S S D E).")
+def glass_ball_under_light(st, light_radius, intensity):
+    """A glass ball on a diffuse floor before a wall, under a sphere light, the camera
+    seeing the ball's caustic directly (caustic_lsdse's layout; the caustic tracing test
+    builds it with a larger light)."""
     floor = st.diffuse("Floor", (0.7, 0.7, 0.7))
     st.box("Floor", (-3.0, -0.1, -3.0), (3.0, 0.0, 3.0), floor)
     st.box("Back", (-3.0, -0.05, -1.6), (3.0, 2.0, -1.5), st.diffuse("Wall", (0.5, 0.5, 0.55)))
     st.sphere("Ball", (0.0, 0.301, 0.0), 0.3, st.glass())
-    st.sphere_light("Key", (0.0, 2.0, -0.3), 0.02, 6.0e4, color=(1.0, 0.95, 0.85))
+    st.sphere_light("Key", (0.0, 2.0, -0.3), light_radius, intensity, color=(1.0, 0.95, 0.85))
     st.camera(eye=(0.0, 1.2, 2.0), target=(0.0, 0.1, -0.2), focal=30.0, aperture=(36.0, 27.0))
     st.settings((32, 24))
     return st.save()
+
+
+def caustic_lsdse():
+    st = Stage("caustic_lsdse", "A glass ball focuses a small sphere light onto a diffuse "
+               "floor; the camera sees the caustic directly (L S S D E).")
+    return glass_ball_under_light(st, 0.02, 6.0e4)
 
 
 def caustic_sds():

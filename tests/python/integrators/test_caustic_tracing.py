@@ -37,15 +37,8 @@ def _stages(tmp):
 def frame(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("caustic")
     ms = _stages(tmp)
-    st = ms.Stage("ball", "A glass ball's caustic seen directly, 10 cm light.")
-    floor = st.diffuse("Floor", (0.7, 0.7, 0.7))
-    st.box("Floor", (-3.0, -0.1, -3.0), (3.0, 0.0, 3.0), floor)
-    st.box("Back", (-3.0, -0.05, -1.6), (3.0, 2.0, -1.5), st.diffuse("Wall", (0.5, 0.5, 0.55)))
-    st.sphere("Ball", (0.0, 0.301, 0.0), 0.3, st.glass())
-    st.sphere_light("Key", (0.0, 2.0, -0.3), 0.1, 2.4e3, color=(1.0, 0.95, 0.85))
-    st.camera(eye=(0.0, 1.2, 2.0), target=(0.0, 0.1, -0.2), focal=30.0, aperture=(36.0, 27.0))
-    st.settings((32, 24))
-    path = st.save()
+    path = ms.glass_ball_under_light(ms.Stage("ball", "A glass ball's caustic seen directly, 10 cm light."),
+                                     0.1, 2.4e3)
     import cmlt._core as core
     from cmlt.shot.bridge import SceneBridge
     from cmlt.usd import load_frame, open_stage
