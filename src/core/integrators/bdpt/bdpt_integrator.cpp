@@ -30,6 +30,8 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     BdptTracer tracer(scene, camera, W, H, settings.max_depth, filter.margin());
     const std::vector<uint32_t> lens_lights = LensLightTracing::sub_pixel_lights(scene, camera, W, H, filter.margin());
     tracer.set_direct_light_tracing(lens_lights);
+    // auto: half the light subpaths aimed at the casters (README, "Caustics in bdpt")
+    tracer.set_emission_guiding(settings.emission_guiding < 0.0 ? 0.5f : float(settings.emission_guiding));
     // a sample's shadow rays in Embree packets (--no-packets: one by one, bit for bit the scalar connect)
     tracer.set_packet_width(settings.packets ? Accel::max_packet_width() : 1);
     // every pass's camera samples go to the film through the splatter (film/pass_splatter.h):
@@ -113,6 +115,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     if (splatter.active()) res.stats.pixel_correlation = filter.splat_correlation();
     res.stats.splats = counters.splats.load();
     res.stats.lens_lights = uint32_t(lens_lights.size());
+    res.stats.emission_guiding = tracer.emission_guiding();
     res.stats.nan_samples += counters.bad_splats.load();
     return res;
 }

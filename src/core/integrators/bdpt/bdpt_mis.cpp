@@ -34,7 +34,7 @@ float BdptTracer::pdf_light(const PathVertex& v, const PathVertex& next) const {
     w = w / std::sqrt(d2);
     float pdf_pos, pdf_dir;
     m_scene.light(size_t(v.light_index)).pdf_le(v.p, w, &pdf_pos, &pdf_dir);
-    float pdf = pdf_dir / d2;
+    float pdf = emission_pdf_dir(v.light_index, v.p, w, pdf_dir) / d2;
     if (next.on_surface()) pdf *= std::fabs(dot(next.ng, w));
     return pdf;
 }

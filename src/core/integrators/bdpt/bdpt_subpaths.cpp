@@ -277,16 +277,38 @@ bool BdptTracer::begin_light_subpath(BdptSampler& sampler, int max_vertices, boo
         beta = ls.li / (pmf * disk_pdf * ls.pdf);
         ray = Ray(o, d);
     } else {
-        LightLeSample les = light.sample_le(u_pos, u_dir);
-        if (!les.valid()) return false;
+        const bool guided = m_guided_lights && m_guided[li];
+        LightLeSample les;
+        if (!guided) {
+            les = light.sample_le(u_pos, u_dir);
+            if (!les.valid()) return false;
+            pdf_dir = les.pdf_dir;
+        } else {
+            // the direction's first number picks the branch, then (rescaled) the caster
+            const float g = m_guide_fraction;
+            const float ux = u_dir.x;
+            if (ux < g) {
+                les = emission_point(light, u_pos);
+                if (!(les.pdf_pos > 0.f)) return false;
+                les.d = m_guide.sample(les.p, Vec2(std::min(ux / g, k_one_minus_eps), u_dir.y));
+                // a direction behind the emitting side: a vertex with no radiance (the
+                // strategies with s = 1 sample their own light point and still count)
+                if (!light.le_toward(les.p, les.d, &les.le)) les.le = Spectrum(0.f);
+            } else {
+                les = light.sample_le(u_pos, Vec2(std::min((ux - g) / (1.f - g), k_one_minus_eps), u_dir.y));
+                if (!les.valid()) return false;
+            }
+            float own_pos = 0.f, own_dir = 0.f;
+            light.pdf_le(les.p, les.d, &own_pos, &own_dir);
+            pdf_dir = emission_pdf_dir(int32_t(li), les.p, les.d, own_dir);
+        }
         v.p = les.p;
         v.ng = v.ns = les.n;
         v.error_scale = les.error_scale;
         v.pdf_fwd = pmf * les.pdf_pos;
         v.beta = les.le;
         float cos = is_black(les.n) ? 1.f : std::fabs(dot(les.n, les.d));
-        beta = les.le * (cos / (pmf * les.pdf_pos * les.pdf_dir));
-        pdf_dir = les.pdf_dir;
+        beta = pdf_dir > 0.f ? les.le * (cos / (pmf * les.pdf_pos * pdf_dir)) : Spectrum(0.f);
         ray = Ray(leave_point(v, les.d), les.d);
     }
     ray.time = time;

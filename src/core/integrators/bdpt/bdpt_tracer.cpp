@@ -114,6 +114,20 @@ void BdptTracer::set_direct_light_tracing(const std::vector<uint32_t>& lights) {
         if (i < m_direct_light.size()) m_direct_light[i] = 1;
 }
 
+void BdptTracer::set_emission_guiding(float fraction) {
+    m_guide_fraction = std::clamp(fraction, 0.f, 0.95f);
+    m_guided.assign(m_scene.light_count(), 0);
+    m_guided_lights = false;
+    if (!(m_guide_fraction > 0.f)) return;
+    m_guide = EmissionGuide(m_scene);
+    if (!m_guide.active()) return;
+    for (size_t i = 0; i < m_scene.light_count(); ++i) {
+        if (!emission_guidable(m_scene.light(i))) continue;
+        m_guided[i] = 1;
+        m_guided_lights = true;
+    }
+}
+
 bool BdptTracer::direct_light_tracing(const PathVertex& x0) const {
     if (m_direct_light.empty() || x0.infinite || x0.light_index < 0 ||
         size_t(x0.light_index) >= m_direct_light.size() || !m_direct_light[size_t(x0.light_index)] ||

@@ -56,6 +56,18 @@
 /// way, only the weights differ from the optimal. Infinite lights emit from a disk of
 /// the scene's bounding radius, perpendicular to a direction from sample_li.
 ///
+/// Emission guided to the casters (set_emission_guiding; lights/emission_guide.h): with
+/// probability g (the bdpt, pssmlt and cmlt integrators: 0.5 where some instance may be
+/// specular) a finite light's subpath leaves its point toward a mirror or glass object
+/// instead of along the light's own emission sampling, so the light-tracing strategies
+/// find caustic paths (L S+ D … E) that emission toward the whole hemisphere rarely
+/// starts. The direction density is the mixture (1 − g) p_light(ω) + g p_guide(ω) in
+/// sampling and in the MIS weights alike (pdf_light). Guided: finite lights that are not
+/// Dirac and give le_toward (area, sphere, disk, cylinder, mesh lights). The random
+/// numbers are the same five as without (light, position, direction): the direction's
+/// first number picks the branch and, rescaled, the caster, so the Metropolis
+/// integrators' primary-sample layout does not change.
+///
 /// Motion blur (Scene::motion_blur()): each sample has one shutter time, drawn from the
 /// camera stream, that every ray of both subpaths and of the connections carries
 /// (PathVertex::time), as PT gives every ray of a path its camera ray's time.
@@ -72,6 +84,7 @@
 #include "integrators/bdpt/path_vertex.h"
 #include "integrators/common/path_counters.h"
 #include "integrators/common/path_partition.h"
+#include "lights/emission_guide.h"
 
 #include <cstdint>
 #include <vector>
@@ -264,6 +277,11 @@ public:
     /// Turn the (1, 1) strategy on for these lights (indices into Scene::light; li and
     /// the MIS weights of paths of depth 0); none by default (file comment).
     void set_direct_light_tracing(const std::vector<uint32_t>& lights);
+    /// Guide light subpaths' emission to the casters with probability `fraction` (file
+    /// comment); 0 (the default) or a scene without casters: the light's own sampling.
+    void set_emission_guiding(float fraction);
+    /// The guided fraction in effect (0 without casters or guided lights).
+    float emission_guiding() const { return m_guided_lights ? m_guide_fraction : 0.f; }
     /// Whether (1, 1) is a strategy for the depth-0 path ending at `x0`: its light is
     /// on, the camera one can connect to, and the light finite, not Dirac and giving
     /// le_toward.
@@ -324,6 +342,12 @@ private:
     float pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const;
     float pdf_light(const PathVertex& v, const PathVertex& next) const;
     float pdf_light_origin(const PathVertex& v, const PathVertex& next) const;
+    /// Solid-angle density of light `li` (finite) emitting from `p` along unit `w`, the
+    /// light's own density being `own` (Light::pdf_le's pdf_dir): the guided mixture.
+    float emission_pdf_dir(int32_t li, const Vec3& p, const Vec3& w, float own) const {
+        if (!m_guided_lights || li < 0 || size_t(li) >= m_guided.size() || !m_guided[size_t(li)]) return own;
+        return (1.f - m_guide_fraction) * own + m_guide_fraction * m_guide.pdf(p, w);
+    }
     inline bool is_delta_light(const PathVertex& v) const;
     /// Probability that a walk arriving at v from neighbour `toward` scatters there
     /// (makes a vertex) instead of crossing a pass-through surface: 1 - the pass-through
@@ -343,6 +367,10 @@ private:
     int m_max_depth;
     bool m_motion_blur;
     std::vector<uint8_t> m_direct_light;  ///< per light: (1, 1) on; empty: on for none
+    EmissionGuide m_guide;                ///< the casters (set_emission_guiding)
+    std::vector<uint8_t> m_guided;        ///< per light: its emission guided
+    bool m_guided_lights = false;         ///< some light guided, fraction > 0
+    float m_guide_fraction = 0.f;
     int m_packet_width = 1;
     const PathPartition* m_partition = nullptr;
 };

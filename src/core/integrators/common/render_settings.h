@@ -130,6 +130,13 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "pt: also trace the caustics it cannot find (light reaching a rough surface "       \
          "through a mirror or glass bounce) from the lights, MIS-weighted against its "       \
          "camera paths (the same image in expectation, less noise); off: camera paths only")  \
+    REAL(emission_guiding, -1.0, -1.0, 0.95, false, "cmlt:emissionGuiding", "--emission-guiding G", \
+         "bdpt, pssmlt and cmlt: share of a finite light's subpaths emitted toward the "    \
+         "mirror and glass objects (their bounding spheres) rather than by the light's own " \
+         "sampling, so light tracing finds the caustics they throw (the same image in "      \
+         "expectation; lights/emission_guide.h); 0 = off; negative (the default) = auto: "   \
+         "0.5 for bdpt, 0 for pssmlt and cmlt (README, Caustics in bdpt); no effect "        \
+         "without such objects")                                                            \
     BOOL(packets, true, "", "--no-packets",                                                  \
          "pt and cmlt: trace a batch's or bundle's rays (camera rays, bounces, shadow rays) "  \
          "as Embree packets; off: one by one (cmlt: the same image bit for bit; pt: the "     \
@@ -300,6 +307,10 @@ struct RenderStats {
     /// pt: casters (instances that may be specular) its caustic light paths aim at, 0
     /// when it traces none (integrators/path/caustic_light_tracing.h)
     uint32_t caustic_casters = 0;
+    /// bdpt, pssmlt, cmlt: share of the guided lights' subpaths aimed at the casters
+    /// (RenderSettings::emission_guiding where it took effect, else 0;
+    /// lights/emission_guide.h)
+    double emission_guiding = 0;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
     /// pt, bdpt: the variance of a sum of many neighbouring pixels over the sum of their

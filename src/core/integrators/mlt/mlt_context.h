@@ -33,6 +33,9 @@ struct MltContext {
           partition(scene, partitioned(s) ? PathPart::caustic : PathPart::all) {
         pt.set_partition(&partition);
         bdpt.set_partition(&partition);
+        // the chains' light subpaths aimed at the casters where asked (bdpt_tracer.h);
+        // auto leaves it off here (README, "Caustics in bdpt": the start-up of the chains)
+        if (!chainless(s) && s.emission_guiding > 0.0) bdpt.set_emission_guiding(float(s.emission_guiding));
         tracer.set_importance(importance.get());
         tracer.set_filter(&filter);
         tracer.set_film_offset(Vec2(float(s.film_offset_x), float(s.film_offset_y)));

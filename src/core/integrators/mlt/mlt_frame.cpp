@@ -157,6 +157,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     st.lens_lights = direct_pass.lens_lights();
     m.min_depth = MltContext::min_depth(settings);
     m.camera_technique = ctx.tracer.technique().camera_probability();
+    st.emission_guiding = settings.mlt_path_sampler == "bdpt" ? ctx.bdpt.emission_guiding() : 0.0;
     m.paths = settings.mlt_paths;
     m.time_budget = settings.time_budget;
     m.chains = chains.chains;

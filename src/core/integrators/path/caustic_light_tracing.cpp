@@ -18,64 +18,16 @@
 
 namespace cmlt {
 
-namespace {
-
-/// More casters than this are guided to as one sphere around them all (emit_pdf loops
-/// over the casters at every evaluation).
-constexpr size_t k_max_casters = 64;
-
-}  // namespace
-
 CausticLightTracing::CausticLightTracing(const Scene& scene, const Camera& camera, int width, int height,
                                          float margin, int max_depth)
     : m_scene(scene), m_importance(camera, width, height, margin), m_max_depth(max_depth),
-      m_slot(scene.light_count(), -1) {
+      m_guide(scene), m_slot(scene.light_count(), -1) {
     // A light path needs at least a Dirac vertex and the rough vertex it connects from.
-    if (!m_importance.connectable() || max_depth < 2) return;
-    std::vector<uint8_t> specular(scene.material_count());
-    for (size_t k = 0; k < specular.size(); ++k)
-        specular[k] = material_may_be_specular(scene.material(uint32_t(k))) ? 1 : 0;
-    Vec3 all_lo(k_infinity), all_hi(-k_infinity);
-    for (size_t i = 0; i < scene.instance_count(); ++i) {
-        const Instance& inst = scene.instance(uint32_t(i));
-        const Mesh& mesh = scene.mesh(inst.mesh_id);
-        bool caster = false;
-        if (!mesh.data.material_ids) {
-            caster = mesh.data.material_id_all < specular.size() && specular[mesh.data.material_id_all];
-        } else {
-            for (size_t t = 0; t < mesh.data.n_tris && !caster; ++t) {
-                const uint32_t m = mesh.data.material_ids[t];
-                caster = m < specular.size() && specular[m];
-            }
-        }
-        if (!caster) continue;
-        Vec3 lo(k_infinity), hi(-k_infinity);
-        for (int c = 0; c < 8; ++c) {
-            const Vec3 corner((c & 1) ? mesh.bbox_max.x : mesh.bbox_min.x, (c & 2) ? mesh.bbox_max.y : mesh.bbox_min.y,
-                              (c & 4) ? mesh.bbox_max.z : mesh.bbox_min.z);
-            const Vec3 p = inst.xf.m.transform_point(corner);
-            lo = vmin(lo, p);
-            hi = vmax(hi, p);
-        }
-        if (!is_finite(lo) || !is_finite(hi)) continue;
-        all_lo = vmin(all_lo, lo);
-        all_hi = vmax(all_hi, hi);
-        // a little larger than the box: a grazing ray at the sphere's rim still hits
-        m_casters.push_back({(lo + hi) * 0.5f, 0.5f * length(hi - lo) * 1.001f + 1e-6f});
-    }
-    if (m_casters.size() > k_max_casters)
-        m_casters = {{(all_lo + all_hi) * 0.5f, 0.5f * length(all_hi - all_lo) * 1.001f + 1e-6f}};
-    if (m_casters.empty()) return;
-
+    if (!m_importance.connectable() || max_depth < 2 || !m_guide.active()) return;
     std::vector<double> power;
     for (size_t i = 0; i < scene.light_count(); ++i) {
         const Light& l = scene.light(i);
-        if (l.is_delta() || l.is_infinite()) continue;
-        // traced only where the light can give its radiance toward a direction (the
-        // point and the direction do not matter here: false means "not implemented")
-        const LightLeSample probe = l.sample_le(Vec2(0.5f, 0.5f), Vec2(0.5f, 0.5f));
-        Spectrum le;
-        if (!probe.valid() || !l.le_toward(probe.p, probe.d, &le)) continue;
+        if (!emission_guidable(l)) continue;
         m_slot[i] = int32_t(m_lights.size());
         m_lights.push_back(uint32_t(i));
         power.push_back(std::max(double(l.power()), 0.0));
@@ -86,27 +38,6 @@ CausticLightTracing::CausticLightTracing(const Scene& scene, const Camera& camer
     if (!(total > 0.0)) std::fill(power.begin(), power.end(), 1.0);
     m_dist = DiscreteDistribution(power);
     m_active = true;
-}
-
-float CausticLightTracing::emit_pdf(const Vec3& y, const Vec3& w) const {
-    double sum = 0.0;
-    for (const Caster& c : m_casters) {
-        const Vec3 d = c.center - y;
-        const float dist2 = length_squared(d);
-        const float r2 = c.radius * c.radius;
-        if (!(dist2 > r2)) {
-            sum += k_inv_4pi;  // inside the sphere: every direction
-            continue;
-        }
-        const float dist = std::sqrt(dist2);
-        const float sin2 = r2 / dist2;
-        const float cos_max = std::sqrt(std::max(0.f, 1.f - sin2));
-        if (dot(w, d) < cos_max * dist) continue;
-        // 1 - cos_max without cancellation for small cones
-        const float one_minus_cos = sin2 / (1.f + cos_max);
-        sum += 1.0 / (2.0 * k_pi * double(one_minus_cos));
-    }
-    return float(sum / double(m_casters.size()));
 }
 
 float CausticLightTracing::camera_density(const Vec3& p_lens, const Vec3& p, const Vec3& ng) const {
@@ -126,7 +57,7 @@ float CausticLightTracing::light_density(uint32_t light_index, const Vec3& y, co
     w = w / std::sqrt(d2);
     const Light& l = m_scene.light(light_index);
     const float cos_y = std::fabs(dot(l.emitter_normal(y), w));
-    const float pdf_w = emit_pdf(y, w);
+    const float pdf_w = m_guide.pdf(y, w);
     if (!(cos_y > 0.f) || !(pdf_w > 0.f)) return 0.f;
     float pdf_pos = 0.f, pdf_dir = 0.f;
     l.pdf_le(y, w, &pdf_pos, &pdf_dir);
@@ -148,22 +79,10 @@ void CausticLightTracing::trace(uint64_t seed, uint32_t pixel, uint32_t sample, 
     const size_t slot = m_dist.sample(unit(a[0]), &pmf);
     const uint32_t light_index = m_lights[slot];
     const Light& light = m_scene.light(light_index);
-    const LightLeSample les = light.sample_le(Vec2(unit(a[1]), unit(a[2])), Vec2(0.5f, 0.5f));
+    const LightLeSample les = emission_point(light, Vec2(unit(a[1]), unit(a[2])));
     if (!(les.pdf_pos > 0.f) || !(pmf > 0.f)) return;
     const Vec3 y = les.p;
-    const size_t k = std::min(size_t(unit(a[3]) * float(m_casters.size())), m_casters.size() - 1);
-    const Caster& c = m_casters[k];
-    const Vec3 to_c = c.center - y;
-    const float dist2 = length_squared(to_c);
-    Vec3 w;
-    if (!(dist2 > c.radius * c.radius)) {
-        w = square_to_uniform_sphere(Vec2(unit(b[0]), unit(b[1])));
-    } else {
-        const float sin2 = c.radius * c.radius / dist2;
-        const float one_minus_cos = sin2 / (1.f + std::sqrt(std::max(0.f, 1.f - sin2)));
-        w = normalize(Frame(to_c / std::sqrt(dist2)).to_world(square_to_uniform_cone(Vec2(unit(b[0]), unit(b[1])),
-                                                                                        one_minus_cos)));
-    }
+    const Vec3 w = m_guide.sample(y, unit(a[3]), Vec2(unit(b[0]), unit(b[1])));
     Spectrum le;
     if (!light.le_toward(y, w, &le) || is_black(le)) return;
     // The density the camera side evaluates for the same path (light_density's formula).

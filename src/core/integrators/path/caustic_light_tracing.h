@@ -44,6 +44,7 @@
 /// One light path per image pixel and pass, keyed (seed, pixel, sample) in its own
 /// stream (RngStream::caustic_light), splatted with LensPass's splats.
 #include "integrators/bdpt/camera_importance.h"
+#include "lights/emission_guide.h"
 #include "math/vec.h"
 #include "sampling/discrete_distribution.h"
 
@@ -67,7 +68,7 @@ public:
     bool active() const { return m_active; }
     /// Lights traced (stats).
     size_t light_count() const { return m_lights.size(); }
-    size_t caster_count() const { return m_casters.size(); }
+    size_t caster_count() const { return m_guide.caster_count(); }
 
     /// Camera side. The area density with which the camera samples z1 (point `p`,
     /// geometric normal `ng`) from lens point `p_lens`: the denominator's first factor.
@@ -87,18 +88,11 @@ public:
                std::vector<std::pair<Vec2, Spectrum>>& out, uint64_t* rays, uint64_t* shadow_rays) const;
 
 private:
-    struct Caster {
-        Vec3 center;
-        float radius;
-    };
-    /// Solid-angle density of the guided emission direction w from y.
-    float emit_pdf(const Vec3& y, const Vec3& w) const;
-
     const Scene& m_scene;
     CameraImportance m_importance;
     int m_max_depth;
     bool m_active = false;
-    std::vector<Caster> m_casters;
+    EmissionGuide m_guide;  ///< every light path's direction (lights/emission_guide.h)
     std::vector<uint32_t> m_lights;  ///< traced lights (indices into Scene::light)
     std::vector<int32_t> m_slot;     ///< Scene light index -> index into m_lights, or -1
     DiscreteDistribution m_dist;     ///< over m_lights, by power

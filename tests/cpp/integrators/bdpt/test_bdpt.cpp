@@ -262,6 +262,105 @@ TEST(Bdpt, UnweightedStrategiesAgreeWithMis) {
     }
 }
 
+// ---- emission guided to the casters ---------------------------------------------------------
+
+namespace {
+
+/// glass_scene with its light replaced: 0 the sphere light, 1 a one-sided rect facing
+/// down, 2 a disk, 3 a two-sided emissive quad (TriangleLight), 4 a cylinder.
+void glass_scene_light(Scene& s, int kind) {
+    Material floor{Spectrum(0.7f), Spectrum(0.f)};
+    Material glass;
+    glass.preview = true;
+    glass.diffuse = Spectrum(0.f);
+    glass.opacity = 0.f;
+    glass.ior = 1.5f;
+    glass.roughness = 0.f;
+    Material lamp{Spectrum(0.f), Spectrum(9.f, 8.f, 7.f)};
+    s.set_materials({floor, glass, lamp});
+    s.add_instance(s.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(2, 0, 0), Vec3(0, 0, -2))), Mat4());
+    s.add_instance(s.add_mesh("/ball", sphere_mesh(0.4f, 24, 48, 1)), Mat4::translate(0, 0.41, 0));
+    const Mat4 at = Mat4::translate(0.25, 1.4, -0.1);
+    LightDesc d;
+    d.radiance = Spectrum(12.f, 11.f, 9.f);
+    d.transform = at * Mat4::rotate(-90, 1, 0, 0);  // rect and disk emit along local -z: down
+    switch (kind) {
+    case 0: d.kind = LightDesc::Kind::sphere; d.transform = at; d.radius = 0.25f; break;
+    case 1: d.kind = LightDesc::Kind::rect; d.width = d.height = 0.4f; break;
+    case 2: d.kind = LightDesc::Kind::disk; d.radius = 0.25f; break;
+    case 4: d.kind = LightDesc::Kind::cylinder; d.transform = at; d.radius = 0.1f; d.length = 0.5f; break;
+    default: break;
+    }
+    if (kind == 3)
+        s.add_instance(s.add_mesh("/lamp", quad_mesh(Vec3(0.25f, 1.4f, -0.1f), Vec3(0.4f, 0, 0), Vec3(0, 0.1f, -0.4f), 2)),
+                       Mat4());
+    else
+        s.add_light(d);
+    s.set_camera(camera_at(Mat4::translate(0, 1.3, 1.6) * Mat4::rotate(-38, 1, 0, 0), 22.f, 36.f));
+    s.commit();
+}
+
+}  // namespace
+
+TEST(Bdpt, GuidedEmissionKeepsEveryStrategyUnbiased) {
+    // Light subpaths aimed at the glass ball with probability 0.9 (set_emission_guiding):
+    // for every light kind, (a) the MIS sum of all strategies of depth 3 (the caustic
+    // L S S D E is one) and (b) light tracing alone (s = 4, t = 1, unweighted: its
+    // throughput divides by the mixture density) estimate what they estimate without
+    // guiding. z-tests, 2 per light kind, 1e-3 overall. And the guide does its job: light
+    // tracing's estimate of depth 3 has a lower standard error with it (the caustic is
+    // most of what it carries there; it finds it through the ball). The unguided MIS sum
+    // is heavy-tailed (camera paths hitting the light through the ball): at these
+    // streams and N its largest deviation is 1.6 standard errors (kind 3); with 3.2M
+    // samples at two other stream sets every kind agreed within 0.6.
+    const int W = 16, H = 16, depth = 3;
+    const uint32_t N = 200000;
+    const double z = z_for(1e-3 / 10);
+    for (int kind = 0; kind < 5; ++kind) {
+        Scene s;
+        glass_scene_light(s, kind);
+        Camera cam(s.camera_desc(), W, H);
+        BdptTracer off(s, cam, W, H, depth), on(s, cam, W, H, depth);
+        on.set_emission_guiding(0.9f);
+        ASSERT_FLOAT_EQ(on.emission_guiding(), 0.9f) << "light kind " << kind << " is not guided";
+        EXPECT_EQ(off.emission_guiding(), 0.f);
+        BdptWorkspace ws;
+        BdptCounters c;
+        auto estimate = [&](const BdptTracer& tr, bool mis_sum, uint32_t stream) {
+            double sum = 0, sum2 = 0;
+            for (uint32_t i = 0; i < N; ++i) {
+                Vec2 pr;
+                Spectrum L(0.f);
+                if (mis_sum) {
+                    for (int k = 0; k <= depth + 1; ++k) {
+                        PixelStreamSampler sk(9, i, stream * 16 + uint32_t(k));
+                        L += tr.evaluate_strategy(depth, k, depth + 2 - k, sk, ws, &pr, c);
+                    }
+                } else {
+                    PixelStreamSampler sampler(9, i, stream);
+                    L = tr.evaluate_strategy_unweighted(depth, depth + 1, 1, sampler, ws, &pr, c);
+                }
+                const double v = luminance(L);
+                sum += v;
+                sum2 += v * v;
+            }
+            const double m = sum / N;
+            return std::make_pair(m, std::sqrt(std::max(0.0, (sum2 / N - m * m) / (N - 1))));
+        };
+        const auto mis_off = estimate(off, true, 1), mis_on = estimate(on, true, 2);
+        const auto lt_off = estimate(off, false, 3), lt_on = estimate(on, false, 4);
+        std::printf("light kind %d: MIS %.5f +- %.5f, guided %.5f +- %.5f; t = 1 %.5f +- %.5f, guided %.5f +- %.5f\n",
+                    kind, mis_off.first, mis_off.second, mis_on.first, mis_on.second, lt_off.first, lt_off.second,
+                    lt_on.first, lt_on.second);
+        EXPECT_GT(mis_off.first, 0.0) << kind;
+        EXPECT_LT(std::fabs(mis_on.first - mis_off.first), z * std::hypot(mis_on.second, mis_off.second))
+            << "MIS sum, light kind " << kind;
+        EXPECT_LT(std::fabs(lt_on.first - lt_off.first), z * std::hypot(lt_on.second, lt_off.second))
+            << "light tracing, light kind " << kind;
+        EXPECT_LT(lt_on.second, lt_off.second) << "light kind " << kind;
+    }
+}
+
 // ---- PT and BDPT agree ------------------------------------------------------------------------
 
 TEST(Bdpt, AgreesWithPtCornell) {
