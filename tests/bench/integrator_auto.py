@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from equal_time import build_scene, relmse, settings  # noqa: E402
+from cmlt.accuracy import ShotFrame, measure, parse_integrator  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 INTEGRATORS = ("pt", "bdpt", "pssmlt", "cmlt")
@@ -42,7 +42,7 @@ def auto_choice(shot: str, res):
     return resolve_auto(stage, info, core, [info.start], resolution=res), info.start
 
 
-def reference(core, scene, res, name, frame, seconds, parts, threads, cache: Path):
+def reference(sf, res, name, frame, seconds, parts, cache: Path):
     """The mean of `parts` independent BDPT renders of `seconds` each, and its expected
     relMSE contribution: the per-pixel variance of the mean (from the spread of the
     parts) over the relMSE denominator, averaged. E[relMSE(I, ref)] = relMSE(I) + that,
@@ -53,9 +53,8 @@ def reference(core, scene, res, name, frame, seconds, parts, threads, cache: Pat
         return z["ref"], float(z["noise"])
     imgs = []
     for k in range(parts):
-        st = settings(core, "bdpt", 1 << 24, res, 1001 + k, threads, {})
-        st.time_budget = seconds
-        imgs.append(np.asarray(core.render(scene, st).image, np.float64))
+        imgs.append(np.asarray(sf.render(parse_integrator("bdpt", sf.core), seconds=seconds, seed=1001 + k).image,
+                               np.float64))
     imgs = np.stack(imgs)
     ref = imgs.mean(axis=0)
     var_mean = imgs.var(axis=0, ddof=1) / parts
@@ -102,24 +101,21 @@ def main(argv=None) -> int:
 
     scenes, refs = {}, {}
     for name, shot, frame in cases:
-        core, stage, bridge, scene, _ = build_scene(shot, frame, res)
-        scenes[(name, frame)] = (core, stage, bridge, scene)
+        sf = ShotFrame(shot, frame, res, args.threads)
+        scenes[(name, frame)] = sf
         t0 = time.perf_counter()
-        refs[(name, frame)] = reference(core, scene, res, name, frame, args.ref_seconds,
-                                        args.ref_parts, args.threads, cache)
+        refs[(name, frame)] = reference(sf, res, name, frame, args.ref_seconds, args.ref_parts, cache)
         print(f"reference {name} frame {frame:g}: noise relMSE {refs[(name, frame)][1]:.3g} "
               f"({time.perf_counter() - t0:.0f} s)", flush=True)
 
     errs = {(c[0], c[2], i): [] for c in cases for i in integrators}
     for seed in range(args.seeds):
         for name, shot, frame in cases:
-            core, _, _, scene = scenes[(name, frame)]
+            sf = scenes[(name, frame)]
             ref, _ = refs[(name, frame)]
             for integ in integrators:
-                st = settings(core, integ, 1 << 24, res, seed, args.threads, {})
-                st.time_budget = args.seconds
-                r = core.render(scene, st)
-                e = relmse(np.asarray(r.image, np.float64), ref)
+                r = sf.render(parse_integrator(integ, sf.core), seconds=args.seconds, seed=seed)
+                e = measure(np.asarray(r.image, np.float64), ref)["relmse"]
                 errs[(name, frame, integ)].append(e)
                 print(f"seed {seed} {name} {frame:g} {integ}: {e:.4g}", flush=True)
 
