@@ -56,6 +56,9 @@ nb::dict probe_py(Scene& scene, int width, int height, uint64_t seed, uint32_t l
     d["direct_visible"] = r.direct_visible;
     d["bounce_visible"] = r.bounce_visible;
     d["lit_hits"] = r.lit_hits;
+    d["direct_irradiance"] = r.direct_irradiance;
+    d["indirect_irradiance"] = r.indirect_irradiance;
+    d["indirect_rel_var"] = r.indirect_rel_var;
     return d;
 }
 

@@ -12,7 +12,15 @@ The rule (thresholds checked against equal-time benchmarks of every sequence,
    one diffuse bounce further: light reaches what the camera sees only through narrow
    openings (a door ajar), ``bdpt`` (its light subpaths start on the far side of the
    opening);
-3. otherwise ``pt``.
+3. **indirect hot spots** — in some analysed frame the path tracer's first indirect
+   bounce adds a relative variance of at least INDIRECT_NOISE to a camera sample
+   (FrameEffects.indirect: share² × relative variance of the probes' one-bounce
+   estimate): much of what the camera sees is lit by small bright patches, such as a
+   ceiling half a metre above a small light, which cosine-sampled bounces rarely hit and
+   BDPT's light subpaths start from (camera_pan 6.1, hard/tiny_sphere_light 2.6;
+   cornell 0.31-0.38 over its 24 frames; every other sequence and hard stage below
+   0.15, bulb_room 0.52);
+4. otherwise ``pt``.
 
 Why BDPT and not coherent MLT for 1 and 2: at equal time (96x96, 4 s, 2 threads, 3
 seeds) BDPT had the lowest error on caustic_glass (cmlt 1.27x, pssmlt 1.21x its
@@ -21,6 +29,12 @@ door_ajar's half-open frame, where cmlt was 7.5x; pt was best on every other seq
 The fixed costs of the Metropolis integrators (100k bootstrap samples, pilot image)
 weigh on frames this small; the rule follows the measurements, and
 ``--integrator cmlt`` stays one flag away.
+
+Rule 3 (2026-12-05, ``tests/bench/results/integrator_auto.md``): on camera_pan bdpt had
+3.2x less error than pt at equal time and on tiny_sphere_light 5.7x, while pt won on
+cornell (1.75x), point_light (2.0x) and scale_unit (4.3x); the threshold 1.0 lies between
+cornell (at most 0.38) and tiny_sphere_light (2.6), about 2.6x from each, chosen from
+those three and checked on point_light and scale_unit (0.15 each; pt better there).
 
 One choice per shot, never per frame: chain states and the normalisation carry from
 frame to frame only within one integrator. The analysed frames are the stage's first,
@@ -34,7 +48,7 @@ from dataclasses import dataclass, field
 from typing import List, Optional, Sequence
 
 __all__ = ["AutoChoice", "choose_integrator", "sample_frames", "CAUSTIC_SHARE", "HARD_DIRECT",
-           "HARD_BOUNCE"]
+           "HARD_BOUNCE", "INDIRECT_NOISE"]
 
 #: caustics matter from this share of the camera-visible diffuse flux
 CAUSTIC_SHARE = 0.01
@@ -42,6 +56,8 @@ CAUSTIC_SHARE = 0.01
 HARD_DIRECT = 0.1
 #: ... and below this fraction one diffuse bounce further
 HARD_BOUNCE = 0.1
+#: indirect hot spots: from this relative variance of pt's first indirect bounce
+INDIRECT_NOISE = 1.0
 
 
 @dataclass
@@ -103,6 +119,14 @@ def choose_integrator(effects: Sequence) -> AutoChoice:
     if not probed:
         return AutoChoice("pt", "no caustics found and no camera hits to probe visibility",
                           frames)
+    noisy = max(probed, key=lambda e: e.indirect()["noise"])
+    ind = noisy.indirect()
+    if ind["noise"] >= INDIRECT_NOISE:
+        return AutoChoice("bdpt", (
+            f"indirect hot spots: at frame {noisy.time:g}, {ind['share'] * 100:.3g}% of the "
+            f"light at the camera's first hits is one bounce indirect and its cosine-sampled "
+            f"estimate has relative variance {ind['rel_var']:.3g} (share² × that = "
+            f"{ind['noise']:.2g} >= {INDIRECT_NOISE:g})"), frames)
     easiest = min(probed, key=lambda e: e.visibility()["direct_visible"])
     v = easiest.visibility()
     caus = (f"caustics carry at most {best.caustic_share * 100:.3g}% of the visible diffuse "
@@ -110,4 +134,5 @@ def choose_integrator(effects: Sequence) -> AutoChoice:
     return AutoChoice("pt", (
         f"{caus} (< {CAUSTIC_SHARE * 100:g}%); light is easy to reach (at least "
         f"{v['direct_visible'] * 100:.3g}% of light samples at the camera's first hits "
-        f"reach it, frame {easiest.time:g})"), frames)
+        f"reach it, frame {easiest.time:g}) and its indirect part smooth (share² × relative "
+        f"variance at most {ind['noise']:.2g} < {INDIRECT_NOISE:g})"), frames)

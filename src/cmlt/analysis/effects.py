@@ -130,6 +130,19 @@ class FrameEffects:
         total = caustic + float(p.get("direct_flux", 0.0))
         return caustic / total if total > 0.0 else 0.0
 
+    def indirect(self) -> Dict[str, float]:
+        """Where the light at the camera's first diffuse hits comes from (the probes'
+        luminance estimates, scene_probes.h): ``share`` of the one-bounce indirect
+        irradiance in direct + indirect, ``rel_var`` the relative variance of its
+        cosine-sampled estimate per bounce, and ``noise`` = share² × rel_var, the relative
+        variance a path tracer's first indirect bounce adds to a camera sample (hot spots
+        of indirect light make it large)."""
+        p = self.probes or {}
+        d, i = float(p.get("direct_irradiance", 0.0)), float(p.get("indirect_irradiance", 0.0))
+        share = i / (d + i) if d + i > 0.0 else 0.0
+        rel_var = float(p.get("indirect_rel_var", 0.0))
+        return {"share": share, "rel_var": rel_var, "noise": share * share * rel_var}
+
     def visibility(self) -> Dict[str, float]:
         p = self.probes or {}
         return {"direct_visible": float(p.get("direct_visible", 0.0)),
@@ -147,6 +160,7 @@ class FrameEffects:
             "caustic_share": round(self.caustic_share, 6),
             "visibility": {k: (round(v, 6) if isinstance(v, float) else v)
                            for k, v in self.visibility().items()},
+            "indirect": {k: round(v, 6) for k, v in self.indirect().items()},
             "probes": _plain(self.probes) if self.probes is not None else None,
         }
 

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <unordered_set>
@@ -299,10 +300,17 @@ private:
         }
     }
 
-    /// Light samples at `si` that reach a light on the side of `si.wo`.
-    uint32_t lit_samples(const SurfaceInteraction& si, PixelSampler& s) const {
+    /// Light samples at `si` that reach a light on the side of `si.wo`. `irradiance`:
+    /// their mean estimate of the luminance irradiance at si (Le |cos| / (pmf pdf),
+    /// visible samples only); `toward`: when given, their mean estimate of the radiance
+    /// si scatters toward it instead (the BSDF at si from wo = toward).
+    uint32_t lit_samples(const SurfaceInteraction& si, PixelSampler& s, double* irradiance = nullptr,
+                         const Vec3* toward = nullptr) const {
         uint32_t lit = 0;
+        if (irradiance) *irradiance = 0.0;
         if (m_scene.light_count() == 0) return 0;
+        std::optional<Bsdf> bsdf;
+        if (irradiance && toward) bsdf.emplace(make_bsdf(m_scene.material(si.material_id), si, m_scene.textures()));
         for (uint32_t j = 0; j < m_o.light_samples; ++j) {
             float pmf = 0.f;
             size_t li = m_scene.sample_light(s.get1d(), &pmf);
@@ -316,10 +324,22 @@ private:
                 shadow = si.spawn_ray_to(shadow_target(ls.p_light, ls.n_light, ls.error_scale, ls.wi));
             }
             float pass_pdf = 1.f;
-            if (m_scene.transmittance(shadow, &pass_pdf) > 0.f) ++lit;
+            const float tr = m_scene.transmittance(shadow, &pass_pdf);
+            if (!(tr > 0.f)) continue;
+            ++lit;
+            if (!irradiance) continue;
+            Spectrum e = ls.li * (tr * std::fabs(dot(ls.wi, si.ng)) / (pmf * ls.pdf));
+            if (bsdf) e = e * bsdf->eval(*toward, ls.wi, TransportMode::Radiance);
+            const double y = double(luminance(e));
+            if (std::isfinite(y) && y > 0.0) *irradiance += y;
         }
+        if (irradiance) *irradiance /= double(m_o.light_samples);
         return lit;
     }
+
+    /// Cosine-sampled bounces per camera diffuse hit for the indirect estimate (the
+    /// relative variance of a heavy-tailed estimate wants many: 256 hits x 8).
+    static constexpr int k_indirect_bounces = 8;
 
     void visibility(ProbeResult* r) {
         const uint32_t n = m_o.camera_paths;
@@ -329,6 +349,7 @@ private:
         uint32_t nx = std::max(1u, uint32_t(std::lround(std::sqrt(float(n) * aspect))));
         uint32_t ny = std::max(1u, (n + nx - 1) / nx);
         uint64_t lit1 = 0, lit2 = 0, tried2 = 0, lit_hits = 0;
+        double sum_d = 0.0, sum_i = 0.0, sum_i2 = 0.0;
         for (uint32_t i = 0; i < n; ++i) {
             PixelSampler s(m_o.seed, i, k_probe_camera);
             Vec2 j = s.get2d();
@@ -363,17 +384,34 @@ private:
                 m_seen_via_specular.insert(side_key(si, dot(si.wo, si.ng) >= 0.f));
             }
             r->camera_diffuse_hits += 1;
-            uint32_t l1 = lit_samples(si, s);
+            double d1 = 0.0;
+            uint32_t l1 = lit_samples(si, s, &d1);
+            sum_d += d1;
             lit1 += l1;
             if (l1 > 0) ++lit_hits;
-            // one diffuse bounce on the side of wo
+            // diffuse bounces on the side of wo: the first gives bounce_visible (and its
+            // random numbers are drawn first, as before the others existed), all of them
+            // the one-bounce indirect estimate (an escaped bounce counts 0)
             Frame f(dot(si.wo, si.ng) >= 0.f ? si.ng : -si.ng);
-            Vec3 d = f.to_world(square_to_cosine_hemisphere(s.get2d()));
-            SurfaceInteraction x2;
-            Spectrum b2(1.f);
-            if (!next_vertex(si.spawn_ray(d), s, &b2, &x2)) continue;
-            tried2 += 1;
-            lit2 += lit_samples(x2, s);
+            for (int b = 0; b < k_indirect_bounces; ++b) {
+                Vec3 d = f.to_world(square_to_cosine_hemisphere(s.get2d()));
+                SurfaceInteraction x2;
+                Spectrum b2(1.f);
+                if (!next_vertex(si.spawn_ray(d), s, &b2, &x2)) continue;
+                double l2 = 0.0;
+                const Vec3 back = -d;
+                const uint32_t l = lit_samples(x2, s, &l2, &back);
+                if (b == 0) {
+                    tried2 += 1;
+                    lit2 += l;
+                }
+                // cosine-sampled bounce: irradiance = π E[radiance], through b2's crossings
+                const double i1 = k_pi * l2 * double(luminance(b2));
+                if (std::isfinite(i1) && i1 > 0.0) {
+                    sum_i += i1;
+                    sum_i2 += i1 * i1;
+                }
+            }
         }
         const double m = double(m_o.light_samples);
         if (r->camera_diffuse_hits > 0) {
@@ -381,6 +419,12 @@ private:
             r->lit_hits = float(double(lit_hits) / r->camera_diffuse_hits);
         }
         if (tried2 > 0) r->bounce_visible = float(double(lit2) / (m * double(tried2)));
+        if (r->camera_diffuse_hits > 0) {
+            const double hits = double(r->camera_diffuse_hits), bounces = hits * k_indirect_bounces;
+            r->direct_irradiance = sum_d / hits;
+            r->indirect_irradiance = sum_i / bounces;
+            if (sum_i > 0.0) r->indirect_rel_var = bounces * sum_i2 / (sum_i * sum_i) - 1.0;
+        }
     }
 
     const Scene& m_scene;

@@ -86,6 +86,16 @@ struct ProbeResult {
     float direct_visible = 0.f;        ///< light samples at x1 that reach a light
     float bounce_visible = 0.f;        ///< light samples at x2 that reach a light
     float lit_hits = 0.f;              ///< x1 with at least one of its light samples reaching
+    /// Where the light the camera sees comes from, per camera diffuse hit x1 (luminance,
+    /// from the same light samples): the direct irradiance at x1, and the one-bounce
+    /// indirect irradiance through the cosine-sampled bounce to x2 (π times the radiance
+    /// x2 sends back toward x1 from its own light samples; 0 where the bounce escapes;
+    /// 8 bounces per hit, the first the one bounce_visible counts) — means over the hits, and the indirect estimator's relative variance per bounce,
+    /// E[I²] / E[I]² − 1: large where indirect light comes from small hot spots (a
+    /// ceiling half a metre above a small bright light) that few bounces find.
+    double direct_irradiance = 0.0;
+    double indirect_irradiance = 0.0;
+    double indirect_rel_var = 0.0;
 };
 
 /// Runs the probes on a committed scene with a camera. Throws SceneError otherwise.

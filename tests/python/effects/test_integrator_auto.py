@@ -8,19 +8,22 @@ import pytest
 
 from effect_stages import build, inspect
 from cmlt.analysis import Effect, FrameEffects, choose_integrator, sample_frames
-from cmlt.analysis.auto import CAUSTIC_SHARE, HARD_BOUNCE, HARD_DIRECT
+from cmlt.analysis.auto import CAUSTIC_SHARE, HARD_BOUNCE, HARD_DIRECT, INDIRECT_NOISE
 from cmlt.analysis.effects import EFFECT_NAMES
 from cmlt.cli import main
 
 GLASS = {"opacity": 0.0, "roughness": 0.0, "ior": 1.5}
 
 
-def fake(time, caustic=0.0, direct=0.9, bounce=0.9, hits=200):
-    """FrameEffects with given probe numbers (caustic flux share, visibility)."""
+def fake(time, caustic=0.0, direct=0.9, bounce=0.9, hits=200, indirect=0.0, rel_var=0.0):
+    """FrameEffects with given probe numbers (caustic flux share, visibility, the indirect
+    share of the first hits' irradiance and its estimate's relative variance)."""
     probes = {"targeted_paths": 1, "caustic_flux_targeted": caustic, "direct_flux": 1.0 - caustic,
               "direct_visible": direct, "bounce_visible": bounce, "lit_hits": direct,
               "camera_diffuse_hits": hits, "camera_paths": 256,
-              "light_caustics": 0, "targeted_caustics": int(caustic > 0)}
+              "light_caustics": 0, "targeted_caustics": int(caustic > 0),
+              "direct_irradiance": 1.0 - indirect, "indirect_irradiance": indirect,
+              "indirect_rel_var": rel_var}
     eff = {n: Effect(n == "caustics" and caustic > 0) for n in EFFECT_NAMES}
     return FrameEffects(time, eff, probes=probes)
 
@@ -42,6 +45,13 @@ def test01_the_rule():
         == "pt"
     # a camera that sees nothing is no hard visibility
     assert choose_integrator([fake(1, direct=0.0, bounce=0.0, hits=0)]).name == "pt"
+    # indirect hot spots: share^2 x relative variance of the one-bounce estimate
+    c = choose_integrator([fake(1), fake(2, indirect=0.5, rel_var=4.4 * INDIRECT_NOISE)])
+    assert c.name == "bdpt" and "indirect hot spots: at frame 2" in c.reason
+    assert choose_integrator([fake(1, indirect=0.5, rel_var=3.6 * INDIRECT_NOISE)]).name == "pt"
+    # a large relative variance of a small share is no hot spot
+    assert choose_integrator([fake(1, indirect=0.05, rel_var=100 * INDIRECT_NOISE)]).name == "pt"
+    assert fake(1, indirect=0.5, rel_var=4.0).indirect() == {"share": 0.5, "rel_var": 4.0, "noise": 1.0}
 
 
 def test02_the_frames_it_decides_from():
