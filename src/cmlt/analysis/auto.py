@@ -34,7 +34,8 @@ Rule 3 (2026-12-05, ``tests/bench/results/integrator_auto.md``): on camera_pan b
 3.2x less error than pt at equal time and on tiny_sphere_light 5.7x, while pt won on
 cornell (1.75x), point_light (2.0x) and scale_unit (4.3x); the threshold 1.0 lies between
 cornell (at most 0.38) and tiny_sphere_light (2.6), about 2.6x from each, chosen from
-those three and checked on point_light and scale_unit (0.15 each; pt better there).
+those three; point_light and scale_unit (0.15 each; pt better there) agree, but their
+numbers were known when it was set.
 
 One choice per shot, never per frame: chain states and the normalisation carry from
 frame to frame only within one integrator. The analysed frames are the stage's first,

@@ -287,6 +287,7 @@ bool BdptTracer::begin_light_subpath(BdptSampler& sampler, int max_vertices, boo
             // the direction's first number picks the branch, then (rescaled) the caster
             const float g = m_guide_fraction;
             const float ux = u_dir.x;
+            float own_dir = 0.f;
             if (ux < g) {
                 les = emission_point(light, u_pos);
                 if (!(les.pdf_pos > 0.f)) return false;
@@ -294,12 +295,13 @@ bool BdptTracer::begin_light_subpath(BdptSampler& sampler, int max_vertices, boo
                 // a direction behind the emitting side: a vertex with no radiance (the
                 // strategies with s = 1 sample their own light point and still count)
                 if (!light.le_toward(les.p, les.d, &les.le)) les.le = Spectrum(0.f);
+                float own_pos = 0.f;
+                light.pdf_le(les.p, les.d, &own_pos, &own_dir);
             } else {
                 les = light.sample_le(u_pos, Vec2(std::min((ux - g) / (1.f - g), k_one_minus_eps), u_dir.y));
                 if (!les.valid()) return false;
+                own_dir = les.pdf_dir;
             }
-            float own_pos = 0.f, own_dir = 0.f;
-            light.pdf_le(les.p, les.d, &own_pos, &own_dir);
             pdf_dir = emission_pdf_dir(int32_t(li), les.p, les.d, own_dir);
         }
         v.p = les.p;

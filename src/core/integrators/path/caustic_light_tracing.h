@@ -32,11 +32,11 @@
 /// crossings are left out of r: the weights are the same function of the path on both
 /// sides, so they sum to one and the estimate is unbiased whatever they leave out.
 ///
-/// Emission is guided to the casters: a light path that does not hit a Dirac surface
-/// first is wasted, so the direction is drawn uniformly in the cone of one of the
-/// casters' bounding spheres (instances with a material that may be specular, chosen
-/// uniformly), density p_emit(ω) = (1/K) Σ_k [ω ∈ cone_k] / Ω_k; where it is 0 the light
-/// tracer cannot make the path and the camera path keeps weight 1. Light chosen by power
+/// Emission is guided to the casters (lights/emission_guide.h, shared with BDPT): a light
+/// path that does not hit a Dirac surface first is wasted, so the direction is drawn
+/// uniformly in the cone of one of the casters' bounding spheres, density
+/// p_emit(ω) = (1/K) Σ_k [ω ∈ cone_k] / Ω_k; where it is 0 the light tracer cannot make
+/// the path and the camera path keeps weight 1. Light chosen by power
 /// among the finite, non-Dirac lights (area, sphere, disk, cylinder, emissive
 /// triangles); the rest (dome, distant, point lights) are not traced and their paths
 /// stay the path tracer's.
