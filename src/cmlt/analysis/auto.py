@@ -35,7 +35,10 @@ Rule 3 (2026-12-05, ``tests/bench/results/integrator_auto.md``): on camera_pan b
 cornell (1.75x), point_light (2.0x) and scale_unit (4.3x); the threshold 1.0 lies between
 cornell (at most 0.38) and tiny_sphere_light (2.6), about 2.6x from each, chosen from
 those three; point_light and scale_unit (0.15 each; pt better there) agree, but their
-numbers were known when it was set.
+numbers were known when it was set. Held out afterwards: the Cornell box lit by a 3 cm
+sphere light 30 cm under the ceiling (2.9, bdpt 6.5x better: right) and in the middle of
+the box (0.40, pt chosen, bdpt 3.7x better: wrong) — the rule sees hot spots, not every
+reason a small light favours bdpt.
 
 One choice per shot, never per frame: chain states and the normalisation carry from
 frame to frame only within one integrator. The analysed frames are the stage's first,
