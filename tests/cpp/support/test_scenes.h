@@ -117,29 +117,41 @@ inline MeshData sphere_mesh(float r, int n_theta, int n_phi, uint32_t material =
     return make_mesh_data(p, idx, std::vector<uint32_t>(idx.size() / 3, material), n);
 }
 
-/// Smooth glass sphere (UsdPreviewSurface opacity 0, ior 1.5, roughness 0) on a diffuse
-/// floor, lit by a sphere light: the caustic under the ball is found by PT only through
-/// BSDF-sampled paths that hit the light, so the light is fairly large.
-inline void glass_scene(Scene& s) {
-    Material floor{Spectrum(0.7f), Spectrum(0.f)};
+/// Smooth glass: UsdPreviewSurface opacity 0, ior 1.5, roughness 0 (Dirac lobes only).
+inline Material smooth_glass() {
     Material glass;
     glass.preview = true;
     glass.diffuse = Spectrum(0.f);
     glass.opacity = 0.f;
     glass.ior = 1.5f;
     glass.roughness = 0.f;
-    s.set_materials({floor, glass});
+    return glass;
+}
+
+/// glass_scene without its light and commit: materials 0 the floor, 1 the glass, then
+/// `extra` from index 2; the floor, the ball and the camera.
+inline void glass_scene_unlit(Scene& s, const std::vector<Material>& extra = {}) {
+    std::vector<Material> mats = {Material{Spectrum(0.7f), Spectrum(0.f)}, smooth_glass()};
+    mats.insert(mats.end(), extra.begin(), extra.end());
+    s.set_materials(mats);
     uint32_t f = s.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(2, 0, 0), Vec3(0, 0, -2)));
     s.add_instance(f, Mat4());
     uint32_t b = s.add_mesh("/ball", sphere_mesh(0.4f, 24, 48, 1));
     s.add_instance(b, Mat4::translate(0, 0.41, 0));
+    s.set_camera(camera_at(Mat4::translate(0, 1.3, 1.6) * Mat4::rotate(-38, 1, 0, 0), 22.f, 36.f));
+}
+
+/// Smooth glass sphere on a diffuse floor, lit by a sphere light: the caustic under the
+/// ball is found by PT only through BSDF-sampled paths that hit the light, so the light
+/// is fairly large.
+inline void glass_scene(Scene& s) {
+    glass_scene_unlit(s);
     LightDesc sph;
     sph.kind = LightDesc::Kind::sphere;
     sph.transform = Mat4::translate(0.25, 1.4, -0.1);
     sph.radius = 0.25f;
     sph.radiance = Spectrum(12.f, 11.f, 9.f);
     s.add_light(sph);
-    s.set_camera(camera_at(Mat4::translate(0, 1.3, 1.6) * Mat4::rotate(-38, 1, 0, 0), 22.f, 36.f));
     s.commit();
 }
 

@@ -233,13 +233,7 @@ void mirror_scene(Scene& s) {
     coat.roughness = 0.5f;
     coat.clearcoat = 1.f;
     coat.clearcoat_roughness = 0.f;
-    Material glass;
-    glass.preview = true;
-    glass.diffuse = Spectrum(0.f);
-    glass.opacity = 0.f;
-    glass.ior = 1.5f;
-    glass.roughness = 0.f;
-    s.set_materials({floor, mirror, coat, glass});
+    s.set_materials({floor, mirror, coat, smooth_glass()});
     s.add_instance(s.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(2, 0, 0), Vec3(0, 0, -2), 2)), Mat4());
     s.add_instance(s.add_mesh("/mirror", sphere_mesh(0.35f, 16, 32, 1)), Mat4::translate(-0.45, 0.36, 0));
     s.add_instance(s.add_mesh("/ball", sphere_mesh(0.3f, 16, 32, 0)), Mat4::translate(0.45, 0.31, -0.2));
