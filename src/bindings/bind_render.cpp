@@ -193,6 +193,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     if (st.lens_lights > 0) d["lens_lights"] = st.lens_lights;
     if (st.caustic_casters > 0) d["caustic_casters"] = st.caustic_casters;
     if (st.emission_guiding > 0) d["emission_guiding"] = st.emission_guiding;
+    if (st.caster_coverage >= 0) d["caster_coverage"] = st.caster_coverage;
     d["busy_s"] = st.busy_s;
     d["trace_s"] = st.trace_s;
     d["shade_s"] = st.shade_s;

@@ -8,6 +8,7 @@ budget), so a margin read here is the margin the test has.
     .venv/bin/python tests/bench/chain_share.py                       # every stage
     .venv/bin/python tests/bench/chain_share.py scale_unit,scale_1e5  # some
     .venv/bin/python tests/bench/chain_share.py bulb_room --seeds 1:40  # beyond the test's seeds
+    .venv/bin/python tests/bench/chain_share.py bulb_room --set emission_guiding=0  # a setting changed
 """
 from __future__ import annotations
 
@@ -28,6 +29,15 @@ def main(argv=None) -> int:
         a, b = (int(v) for v in argv[k + 1].split(":"))
         seeds = range(a, b + 1)
         argv = argv[:k] + argv[k + 2:]
+    extra = {}  # --set name=value (repeatable): core settings on top of the stage's
+    while "--set" in argv:
+        k = argv.index("--set")
+        key, _, value = argv[k + 1].partition("=")
+        try:
+            extra[key] = float(value) if "." in value or "e" in value.lower() else int(value)
+        except ValueError:
+            extra[key] = value
+        argv = argv[:k] + argv[k + 2:]
     spec = importlib.util.spec_from_file_location("cmlt_hard_references",
                                                   ROOT / "sequences" / "hard" / "make_references.py")
     refs = importlib.util.module_from_spec(spec)
@@ -45,7 +55,7 @@ def main(argv=None) -> int:
         for integ in ("pssmlt", "cmlt"):
             shares = []
             for seed in seeds or range(1, case.test_seeds + 1):
-                _, stats, _ = refs.render(case, integ, case.test_spp, seed, fs=fs, scene=scene)
+                _, stats, _ = refs.render(case, integ, case.test_spp, seed, fs=fs, scene=scene, **extra)
                 shares.append(float(stats.get("max_chain_share", float("nan"))))
             over = sum(x > 0.05 for x in shares)
             print(f"{name:20s} {integ:7s} max {max(shares):.4f}  median {float(np.median(shares)):.4f}  "

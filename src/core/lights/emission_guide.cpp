@@ -109,4 +109,31 @@ Vec3 EmissionGuide::sample(const Vec3& y, const Vec2& u) const {
     return sample(y, (k + 0.5f) / float(m_casters.size()), Vec2(u0, u.y));
 }
 
+double EmissionGuide::coverage(const Vec3& y) const {
+    double sum = 0.0;
+    for (const Caster& c : m_casters) {
+        const double dist2 = double(length_squared(c.center - y)), r2 = double(c.radius) * double(c.radius);
+        if (!(dist2 > r2)) return 1.0;  // inside a caster's sphere: every direction
+        const double sin2 = r2 / dist2;
+        sum += 0.5 * sin2 / (1.0 + std::sqrt(1.0 - sin2));  // (1 - cos θ) / 2 without cancellation
+    }
+    return std::min(sum, 1.0);
+}
+
+double caster_coverage(const Scene& scene, const EmissionGuide& guide) {
+    if (!guide.active()) return 0.0;
+    double weighted = 0.0, weight = 0.0;
+    for (size_t i = 0; i < scene.light_count(); ++i) {
+        const Light& light = scene.light(i);
+        if (!emission_guidable(light)) continue;
+        const double pmf = double(scene.light_pmf(i));
+        if (!(pmf > 0.0)) continue;
+        const LightLeSample ls = emission_point(light, Vec2(0.5f, 0.5f));
+        if (!is_finite(ls.p)) continue;
+        weighted += pmf * guide.coverage(ls.p);
+        weight += pmf;
+    }
+    return weight > 0.0 ? weighted / weight : 0.0;
+}
+
 }  // namespace cmlt

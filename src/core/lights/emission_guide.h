@@ -58,6 +58,12 @@ public:
     /// the caster's share, is the cone's first number.
     Vec3 sample(const Vec3& y, const Vec2& u) const;
 
+    /// The share of the sphere of directions from `y` that the casters' cones cover:
+    /// Σ_k (1 − cos θ_k) / 2, at most 1 (1 inside a sphere; overlapping cones counted
+    /// twice, so an upper bound). About how often emission that ignores the casters
+    /// heads for one (caster_coverage).
+    double coverage(const Vec3& y) const;
+
 private:
     struct Caster {
         Vec3 center;
@@ -65,5 +71,12 @@ private:
     };
     std::vector<Caster> m_casters;
 };
+
+/// EmissionGuide::coverage from a point of each light that can be guided (its
+/// emission_point at the middle of its position sample), averaged over those lights
+/// weighted by the probability the scene picks them (Scene::light_pmf): how often a
+/// light subpath would head for a caster without the guide. 0 without casters or
+/// guidable lights. The Metropolis integrators' auto guiding asks it (mlt_context.h).
+double caster_coverage(const Scene& scene, const EmissionGuide& guide);
 
 }  // namespace cmlt

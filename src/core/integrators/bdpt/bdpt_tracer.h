@@ -57,8 +57,9 @@
 /// the scene's bounding radius, perpendicular to a direction from sample_li.
 ///
 /// Emission guided to the casters (set_emission_guiding; lights/emission_guide.h): with
-/// probability g (RenderSettings::emission_guiding: auto 0.5 for the bdpt integrator, 0 for
-/// pssmlt and cmlt; no effect where no instance may be specular) a finite light's subpath leaves its point toward a mirror or glass object
+/// probability g (RenderSettings::emission_guiding: auto 0.5 for the bdpt integrator, and
+/// for the chains of pssmlt and cmlt where the casters are rarely reached without it,
+/// mlt_context.h; no effect where no instance may be specular) a finite light's subpath leaves its point toward a mirror or glass object
 /// instead of along the light's own emission sampling, so the light-tracing strategies
 /// find caustic paths (L S+ D … E) that emission toward the whole hemisphere rarely
 /// starts. The direction density is the mixture (1 − g) p_light(ω) + g p_guide(ω) in

@@ -135,7 +135,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "mirror and glass objects (their bounding spheres) rather than by the light's own " \
          "sampling, so light tracing finds the caustics they throw (the same image in "      \
          "expectation; lights/emission_guide.h); 0 = off; negative (the default) = auto: "   \
-         "0.5 for bdpt, 0 for pssmlt and cmlt (README, Caustics in bdpt); no effect "        \
+         "0.5 for bdpt, and for the chains of pssmlt and cmlt where the casters cover "     \
+         "under a tenth of the lights' directions (README, Caustics in bdpt); no effect "   \
          "without such objects")                                                            \
     BOOL(packets, true, "", "--no-packets",                                                  \
          "pt and cmlt: trace a batch's or bundle's rays (camera rays, bounces, shadow rays) "  \
@@ -311,6 +312,9 @@ struct RenderStats {
     /// (RenderSettings::emission_guiding where it took effect, else 0;
     /// lights/emission_guide.h)
     double emission_guiding = 0;
+    /// pssmlt, cmlt with auto guiding: the casters' coverage of the lights' directions
+    /// it decided on (lights/emission_guide.h, caster_coverage), else −1
+    double caster_coverage = -1;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
     /// pt, bdpt: the variance of a sum of many neighbouring pixels over the sum of their

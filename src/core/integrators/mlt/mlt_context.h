@@ -10,6 +10,7 @@
 #include "integrators/mlt/pixel_importance.h"
 #include "integrators/mlt/pssmlt_tracer.h"
 #include "integrators/path/path_tracer.h"
+#include "lights/emission_guide.h"
 #include "scene/scene.h"
 
 #include <algorithm>
@@ -33,9 +34,16 @@ struct MltContext {
           partition(scene, partitioned(s) ? PathPart::caustic : PathPart::all) {
         pt.set_partition(&partition);
         bdpt.set_partition(&partition);
-        // the chains' light subpaths aimed at the casters where asked (bdpt_tracer.h);
-        // auto leaves it off here (README, "Caustics in bdpt": the start-up of the chains)
-        if (!chainless(s) && s.emission_guiding > 0.0) bdpt.set_emission_guiding(float(s.emission_guiding));
+        // the chains' light subpaths aimed at the casters (bdpt_tracer.h; auto below)
+        if (!chainless(s)) {
+            double guiding = s.emission_guiding;
+            if (guiding < 0.0) {
+                const EmissionGuide guide(scene);
+                caster_coverage = cmlt::caster_coverage(scene, guide);  // the free function
+                guiding = guide.active() && caster_coverage < k_auto_guide_coverage ? k_auto_guiding : 0.0;
+            }
+            if (guiding > 0.0) bdpt.set_emission_guiding(float(guiding));
+        }
         tracer.set_importance(importance.get());
         tracer.set_filter(&filter);
         tracer.set_film_offset(Vec2(float(s.film_offset_x), float(s.film_offset_y)));
@@ -112,6 +120,16 @@ struct MltContext {
     /// at 96x96 and 2 s, it lowered the median and the worst relMSE, and it cures
     /// caustic_sds's rare glint; q = 0.5 there had heavier tails than q = 0).
     static constexpr double k_auto_camera_technique = 0.7;
+    /// Auto emission guiding of the chains (RenderSettings::emission_guiding negative):
+    /// k_auto_guiding where the casters' cones cover less than k_auto_guide_coverage of
+    /// the directions from the lights (lights/emission_guide.h, caster_coverage: a light
+    /// subpath heads for a caster that rarely without the guide, so the guide multiplies
+    /// the bootstrap's and the large steps' caustic paths by g / coverage ≥ 5), else off.
+    /// README, "Caustics in bdpt": caustic_glass (coverage 0.045) and caustic_lsdse
+    /// (0.023) gain; bulb_room (a mirror and a slab beside the bulb, 0.178) gained
+    /// nothing and its chains grew more concentrated (tests/python/hard, test05). The
+    /// bound was set knowing those three values.
+    static constexpr double k_auto_guiding = 0.5, k_auto_guide_coverage = 0.1;
     /// RenderSettings::mlt_camera_technique resolved: negative = auto (0 for the pt
     /// path sampler, which has no techniques, and with the chains on every path, where
     /// the technique kept chains longer on a caustic: tests/python/integrators/
@@ -137,6 +155,8 @@ struct MltContext {
     PathTracer pt;
     BdptTracer bdpt;
     uint64_t pilot_rendered = 0;  ///< pilot samples rendered here (0 if given or not needed)
+    /// caster_coverage of the scene where auto guiding asked for it, else −1
+    double caster_coverage = -1.0;
     std::shared_ptr<const PixelImportance> importance;
     PssmltTracer tracer;
     /// The chains' class of paths (every path unless partitioned).

@@ -158,6 +158,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.min_depth = MltContext::min_depth(settings);
     m.camera_technique = ctx.tracer.technique().camera_probability();
     st.emission_guiding = settings.mlt_path_sampler == "bdpt" ? ctx.bdpt.emission_guiding() : 0.0;
+    st.caster_coverage = ctx.caster_coverage;
     m.paths = settings.mlt_paths;
     m.time_budget = settings.time_budget;
     m.chains = chains.chains;
