@@ -19,14 +19,7 @@ namespace {
 /// under sphere lights at `centers` with radiance `radiance` each.
 void ball_under_lights(Scene& s, const std::vector<Vec3>& centers, const std::vector<float>& radiance) {
     glass_scene_unlit(s);
-    for (size_t i = 0; i < centers.size(); ++i) {
-        LightDesc sph;
-        sph.kind = LightDesc::Kind::sphere;
-        sph.transform = Mat4::translate(centers[i].x, centers[i].y, centers[i].z);
-        sph.radius = 0.02f;
-        sph.radiance = Spectrum(radiance[i]);
-        s.add_light(sph);
-    }
+    for (size_t i = 0; i < centers.size(); ++i) s.add_light(sphere_light(centers[i], 0.02f, Spectrum(radiance[i])));
     s.commit();
 }
 
@@ -69,12 +62,7 @@ TEST(EmissionGuide, SceneCoverageWeighsTheLightsByTheirPower) {
         unlit_casters.set_materials({Material{Spectrum(0.7f), Spectrum(0.f)}});
         const uint32_t f = unlit_casters.add_mesh("/floor", quad_mesh(Vec3(0.f), Vec3(2, 0, 0), Vec3(0, 0, -2)));
         unlit_casters.add_instance(f, Mat4());
-        LightDesc sph;
-        sph.kind = LightDesc::Kind::sphere;
-        sph.transform = Mat4::translate(0, 2, 0);
-        sph.radius = 0.1f;
-        sph.radiance = Spectrum(1.f);
-        unlit_casters.add_light(sph);
+        unlit_casters.add_light(sphere_light(Vec3(0.f, 2.f, 0.f), 0.1f, Spectrum(1.f)));
         unlit_casters.commit();
     }
     const EmissionGuide none(unlit_casters);

@@ -146,12 +146,7 @@ inline void glass_scene_unlit(Scene& s, const std::vector<Material>& extra = {})
 /// is fairly large.
 inline void glass_scene(Scene& s) {
     glass_scene_unlit(s);
-    LightDesc sph;
-    sph.kind = LightDesc::Kind::sphere;
-    sph.transform = Mat4::translate(0.25, 1.4, -0.1);
-    sph.radius = 0.25f;
-    sph.radiance = Spectrum(12.f, 11.f, 9.f);
-    s.add_light(sph);
+    s.add_light(sphere_light(Vec3(0.25f, 1.4f, -0.1f), 0.25f, Spectrum(12.f, 11.f, 9.f)));
     s.commit();
 }
 

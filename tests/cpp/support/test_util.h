@@ -43,6 +43,16 @@ inline MeshData make_mesh_data(const std::vector<Vec3>& pts, const std::vector<u
     return d;
 }
 
+/// A sphere light of `radius` at `center` with uniform `radiance`.
+inline LightDesc sphere_light(const Vec3& center, float radius, const Spectrum& radiance) {
+    LightDesc sph;
+    sph.kind = LightDesc::Kind::sphere;
+    sph.transform = Mat4::translate(center.x, center.y, center.z);
+    sph.radius = radius;
+    sph.radiance = radiance;
+    return sph;
+}
+
 /// Quad centred at c spanned by half-edges u, v; normal u x v (CCW).
 inline MeshData quad_mesh(const Vec3& c, const Vec3& u, const Vec3& v, uint32_t material = 0) {
     return make_mesh_data({c - u - v, c + u - v, c + u + v, c - u + v}, {0, 1, 2, 0, 2, 3},

@@ -70,12 +70,7 @@ void mixed_scene(Scene& s) {
     s.add_instance(floor, Mat4());
     s.add_instance(wall, Mat4());
     s.add_instance(lamp, Mat4());
-    LightDesc sph;
-    sph.kind = LightDesc::Kind::sphere;
-    sph.transform = Mat4::translate(0.5, 0.5, 0);
-    sph.radius = 0.1f;
-    sph.radiance = Spectrum(3.f);
-    s.add_light(sph);
+    s.add_light(sphere_light(Vec3(0.5f, 0.5f, 0.f), 0.1f, Spectrum(3.f)));
     LightDesc dome;
     dome.kind = LightDesc::Kind::dome;
     dome.radiance = Spectrum(0.1f, 0.1f, 0.2f);
