@@ -13,6 +13,7 @@
 #include "math/vec.h"
 #include "sampling/philox.h"
 #include "sampling/rng_domains.h"
+#include "sampling/sobol.h"
 
 #include <cmath>
 #include <cstdint>
@@ -52,6 +53,26 @@ inline double wrap01(double v) {
     return r < 1.0 ? r : 0.0;  // false for r == 1 and for NaN
 }
 
+/// The numbers of a pixel sample (RenderSettings::sampler): independent (Philox of the
+/// sample's counter) or a randomised low-discrepancy sequence over a pixel's samples
+/// (Owen-scrambled Sobol, sampling/sobol.h). Either way a number is a pure function of
+/// (seed, pixel, sample, dimension, stream), uniform on [0, 1).
+enum class PixelSequence : uint8_t { independent, sobol };
+
+/// The two words of dimension d of pixel sample (pixel, sample, stream): the first two
+/// of the Philox output of its counter, or its Owen-scrambled Sobol point.
+inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample, uint32_t d,
+                        RngStream stream, uint32_t* w) {
+    if (seq == PixelSequence::sobol) {
+        const Philox4x32Counter s = philox4x32(pixel_counter(pixel, k_sequence_seed_sample, d, stream), key);
+        sobol::scrambled_point(sample, s[0], s[1], w);
+        return;
+    }
+    const Philox4x32Counter r = philox4x32(pixel_counter(pixel, sample, d, stream), key);
+    w[0] = r[0];
+    w[1] = r[1];
+}
+
 /// Random numbers of one pixel sample: dimension d of (seed, pixel, sample, stream).
 /// `get1d`/`get2d` consume dimensions in order; `set_dimension` jumps to a fixed
 /// dimension so that e.g. each bounce owns a fixed dimension range. A dimension's
@@ -63,8 +84,9 @@ inline double wrap01(double v) {
 /// the same numbers as calling Philox here.
 class PixelSampler {
 public:
-    PixelSampler(uint64_t seed, uint32_t pixel, uint32_t sample, RngStream stream = RngStream::camera_path)
-        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample), m_stream(stream) {}
+    PixelSampler(uint64_t seed, uint32_t pixel, uint32_t sample, RngStream stream = RngStream::camera_path,
+                 PixelSequence sequence = PixelSequence::independent)
+        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample), m_stream(stream), m_sequence(sequence) {}
 
     void set_dimension(uint32_t d) { m_dim = d; }
     uint32_t dimension() const { return m_dim; }
@@ -81,8 +103,9 @@ public:
     }
 
     /// Dimensions [first, first + n) read from `words` (words[2 (d - first)] and
-    /// words[2 (d - first) + 1]: the first two words of dimension d's Philox output);
-    /// `words` outlives their reads. Other dimensions still call Philox.
+    /// words[2 (d - first) + 1]: dimension d's two words as pixel_words gives them, for
+    /// this sampler's sequence); `words` outlives their reads. Other dimensions are
+    /// computed here.
     void prefetch(uint32_t first, uint32_t n, const uint32_t* words) {
         m_pre_first = first;
         m_pre_n = n;
@@ -91,6 +114,7 @@ public:
     uint32_t pixel() const { return m_pixel; }
     uint32_t sample() const { return m_sample; }
     RngStream stream() const { return m_stream; }
+    PixelSequence sequence() const { return m_sequence; }
     Philox4x32Key key() const { return m_key; }
 
 private:
@@ -101,13 +125,12 @@ private:
             w[1] = m_pre[2 * (d - m_pre_first) + 1];
             return;
         }
-        const Philox4x32Counter r = philox4x32(pixel_counter(m_pixel, m_sample, d, m_stream), m_key);
-        w[0] = r[0];
-        w[1] = r[1];
+        pixel_words(m_key, m_sequence, m_pixel, m_sample, d, m_stream, w);
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
     RngStream m_stream;
+    PixelSequence m_sequence;
     uint32_t m_dim = 0;
     uint32_t m_pre_first = 0, m_pre_n = 0;
     const uint32_t* m_pre = nullptr;

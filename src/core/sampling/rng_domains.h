@@ -56,6 +56,12 @@ enum class RngStream : uint32_t {
 inline constexpr uint32_t k_direct_sample_base = 0xA0000000u;
 inline constexpr uint32_t k_pilot_sample_base = 0xC0000000u;
 
+/// The sample index whose counters seed the scrambles of a pixel's low-discrepancy
+/// sequence (RenderSettings::sampler "sobol", sampling/sobol.h): counter (pixel,
+/// k_sequence_seed_sample, dimension, stream) gives one dimension's three seeds. No pass
+/// reaches it (the bases above leave 2^29 samples and more below it).
+inline constexpr uint32_t k_sequence_seed_sample = 0xFFFFFFFFu;
+
 /// Motion blur: the shutter time of a camera sample (Ray::time, in [0, 1) over
 /// [shutter open, shutter close]) is drawn from its own dimension of the sample's
 /// camera-path stream, far above any dimension a path uses, and only when the scene has

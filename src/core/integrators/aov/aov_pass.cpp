@@ -88,7 +88,8 @@ AovResult render_aovs(Scene& scene, const RenderSettings& settings, int samples)
                             for (int s = 0; s < samples; ++s) {
                                 // The beauty render's film position of sample s (the pixel
                                 // filter's offset and weight, as pt's)
-                                PixelSampler sampler(settings.seed, pixel, uint32_t(s));
+                                PixelSampler sampler(settings.seed, pixel, uint32_t(s), RngStream::camera_path,
+                                                     pixel_sequence(settings));
                                 float w = 1.f;
                                 const Vec2 p_film = filter.film_position(x, y, sampler.get2d(), &w);
                                 wsum += w;

@@ -56,6 +56,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     FrameCounters counters;
     const CycleRate rate;
     const auto t0 = std::chrono::steady_clock::now();
+    const PixelSequence sequence = pixel_sequence(settings);
     // Trace: one sample per pixel, splats kept per tile.
     const auto trace_pass = [&](int pass) {
         parallel_tasks(
@@ -69,7 +70,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
                     out.clear();
                     for (int y = tile.y0; y < tile.y1; ++y)
                         for (int x = tile.x0; x < tile.x1; ++x) {
-                            PixelStreamSampler sampler(settings.seed, splatter.key(x, y), uint32_t(pass));
+                            PixelStreamSampler sampler(settings.seed, splatter.key(x, y), uint32_t(pass), sequence);
                             sampler.start_stream(BdptSampler::k_camera);
                             // the film position, uniform in the pixel (the light-tracing
                             // splats below are filtered where they land)

@@ -10,27 +10,35 @@
 
 namespace cmlt {
 
-/// Independent numbers of one pixel sample: Philox keyed by the seed, counter
-/// (pixel, sample, dimension, RngStream::bdpt_camera + stream) (sampling/rng_domains.h);
-/// each stream has its own dimension counter.
+/// The numbers of one pixel sample: counter (pixel, sample, dimension,
+/// RngStream::bdpt_camera + stream) (sampling/rng_domains.h), independent (Philox keyed
+/// by the seed) or Owen-scrambled Sobol (RenderSettings::sampler, sampling/rng.h
+/// pixel_words); each stream has its own dimension counter.
 class PixelStreamSampler final : public BdptSampler {
 public:
-    PixelStreamSampler(uint64_t seed, uint32_t pixel, uint32_t sample)
-        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample) {}
+    PixelStreamSampler(uint64_t seed, uint32_t pixel, uint32_t sample,
+                       PixelSequence sequence = PixelSequence::independent)
+        : m_key(seed_key(seed)), m_pixel(pixel), m_sample(sample), m_sequence(sequence) {}
     void start_stream(int index) override { m_stream = uint32_t(index) % 3u; }
-    float next1d() override { return uint_to_unit_float(draw()[0]); }
+    float next1d() override {
+        uint32_t w[2];
+        draw(w);
+        return uint_to_unit_float(w[0]);
+    }
     Vec2 next2d() override {
-        Philox4x32Counter r = draw();
-        return {uint_to_unit_float(r[0]), uint_to_unit_float(r[1])};
+        uint32_t w[2];
+        draw(w);
+        return {uint_to_unit_float(w[0]), uint_to_unit_float(w[1])};
     }
 
 private:
-    Philox4x32Counter draw() {
+    void draw(uint32_t* w) {
         const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + m_stream);
-        return philox4x32(pixel_counter(m_pixel, m_sample, m_dim[m_stream]++, stream), m_key);
+        pixel_words(m_key, m_sequence, m_pixel, m_sample, m_dim[m_stream]++, stream, w);
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
+    PixelSequence m_sequence;
     uint32_t m_stream = 0;
     uint32_t m_dim[3] = {0, 0, 0};
 };

@@ -8,6 +8,8 @@
 /// flags, the stage attribute lookup and its checks (cmlt.settings) and the USD schema
 /// (plugins/usd/cmltSchemas/resources/*.usda, written by `python -m
 /// cmlt.settings.usd_schema --write`; tests/python/settings checks they have not drifted).
+#include "sampling/rng.h"
+
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -169,6 +171,11 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "out first; 0 = off")                                                               \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
          "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
+    TOKEN(sampler, "independent", "independent sobol", "cmlt:sampler", "--sampler",         \
+          "numbers of the pixel samples (pt, bdpt, the Metropolis integrators' direct pass "  \
+          "and pilot): independent (Philox) or sobol (Owen-scrambled Sobol points, each "     \
+          "dimension stratified over a pixel's samples: sampling/sobol.h); the chains' "      \
+          "numbers are independent either way")                                              \
     TOKEN(pixel_filter, "gaussian", "box triangle gaussian mitchell blackman-harris",        \
           "cmlt:pixelFilter", "--pixel-filter",                                              \
           "pixel reconstruction filter (film/filter.h): gaussian (the default: pbrt-v4's, "  \
@@ -244,6 +251,11 @@ struct RenderSettings {
     /// SettingsError "RenderSettings.<field>: ..." naming the field.
     void validate() const;
 };
+
+/// RenderSettings::sampler as the pixel samplers' sequence (sampling/rng.h).
+inline PixelSequence pixel_sequence(const RenderSettings& s) {
+    return s.sampler == "sobol" ? PixelSequence::sobol : PixelSequence::independent;
+}
 
 /// Statistics of a Metropolis render (pssmlt, cmlt).
 struct MltStats {

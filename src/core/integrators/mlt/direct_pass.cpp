@@ -13,7 +13,9 @@ namespace cmlt::mlt {
 PtPass::PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth)
     : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height),
       m_filter(PixelFilter::from_settings(s.pixel_filter, s.filter_radius)), m_tracer(scene, max_depth),
-      m_motion_blur(scene.motion_blur()), m_film(s.width, s.height), m_sample_base(sample_base) {}
+      m_motion_blur(scene.motion_blur()), m_film(s.width, s.height), m_sample_base(sample_base) {
+    m_tracer.set_sequence(pixel_sequence(s));
+}
 
 uint64_t PtPass::evaluations() const {
     return uint64_t(m_passes) * uint64_t(m_settings.width) * uint64_t(m_settings.height);

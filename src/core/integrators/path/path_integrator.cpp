@@ -27,6 +27,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     Film film(W, H);
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     PathTracer tracer(scene, settings.max_depth);
+    tracer.set_sequence(pixel_sequence(settings));
     // Lights smaller than a pixel are traced from the light side too (BDPT's (1, 1)
     // strategy, lens_light_tracing.h): camera rays almost never hit them. Without such a
     // light nothing changes.

@@ -125,6 +125,12 @@ public:
         m_partition = PathPartition::restricting(partition);
     }
 
+    /// The numbers of the pixel samples this tracer starts (pixel_sample, camera_ray,
+    /// PathBatch): independent (the default) or Owen-scrambled Sobol
+    /// (RenderSettings::sampler).
+    void set_sequence(PixelSequence sequence) { m_sequence = sequence; }
+    PixelSequence sequence() const { return m_sequence; }
+
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
     void begin(PathState& st, const Ray& camera_ray, PathCounters& counters) const;
     /// Take `hit`, the answer to st.ray (counted as a ray): add what it sees, and leave
@@ -174,6 +180,7 @@ private:
     const LensLightTracing* m_lens_light = nullptr;
     const CausticLightTracing* m_caustic = nullptr;
     const PathPartition* m_partition = nullptr;
+    PixelSequence m_sequence = PixelSequence::independent;
 };
 
 extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,

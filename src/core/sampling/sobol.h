@@ -1,0 +1,107 @@
+#pragma once
+/// \file Owen-scrambled Sobol points, two dimensions at a time: the pixel samples'
+/// low-discrepancy sequence (RenderSettings::sampler = "sobol"; PixelSampler and
+/// PixelStreamSampler read it instead of independent Philox numbers).
+///
+/// Each dimension of a pixel sample (a `get2d`: two numbers) takes point j of the first
+/// two Sobol dimensions. Those form a (0,2)-sequence in base 2: every aligned block of
+/// 2^m consecutive points is a (0,m,2)-net, one point in each of the 2^m elementary
+/// intervals of every shape (2^a × 2^(m−a) cells). Two random scrambles, seeded per
+/// (seed, pixel, dimension, stream) by the two words of one Philox call, make it a randomised quasi-Monte Carlo sequence:
+///
+///   * the sample index is shuffled, j = scramble(i): a nested uniform scramble of the
+///     index's bits, whose top bits depend only on the top bits of i. The first 2^m
+///     samples of a pixel (or any aligned block of 2^m sample indices, such as those
+///     from the direct pass's base) go to an aligned block of 2^m points, so every
+///     power-of-two prefix keeps the net property. Shuffled independently per dimension,
+///     the dimensions are stratified each on its own and do not correlate with each
+///     other (padding);
+///   * each coordinate is Owen-scrambled (a nested uniform scramble of its bits: at
+///     every node of the binary tree of intervals the two halves are swapped or not at
+///     random). Every point is then uniform on [0,1)², so every estimate stays unbiased,
+///     and the nets stay nets.
+///
+/// The scrambles are the hash-based kind: reverse the bits, apply a permutation in
+/// which each bit is flipped by a function of the bits below it only (additions,
+/// multiplications by odd numbers, x ^= x·even), reverse back — Burley (2020), with the
+/// hash constants of Vegdahl (2021). Progressive: the pass loop does not need to know
+/// the sample count ahead, so time budgets and target errors work as with independent
+/// numbers.
+#include <cstddef>
+#include <cstdint>
+
+namespace cmlt::sobol {
+
+inline uint32_t reverse_bits(uint32_t x) {
+    x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+    x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+    x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+    return __builtin_bswap32(x);
+}
+
+/// A random permutation of 32-bit words in which bit k of the result is bit k of `x`
+/// flipped by a function of bits 0..k−1 and the seed (applied to reversed bits, a
+/// nested uniform scramble).
+inline uint32_t lower_bits_hash(uint32_t x, uint32_t seed) {
+    x ^= x * 0x3d20adeau;
+    x += seed;
+    x *= (seed >> 16) | 1u;
+    x ^= x * 0x05526c56u;
+    x ^= x * 0x53a22864u;
+    return x;
+}
+
+/// Nested uniform (Owen) scramble of the bits of `x`, most significant first.
+inline uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
+    return reverse_bits(lower_bits_hash(reverse_bits(x), seed));
+}
+
+/// Sobol dimension 0 of point j (van der Corput in base 2), as 32 bits of [0, 1).
+inline uint32_t sobol0(uint32_t j) { return reverse_bits(j); }
+
+/// The superset transform of a word's bits over GF(2): bit i of the result is the XOR
+/// of the bits k of `j` whose positions contain i's (k & i == i), in five shift steps.
+inline uint32_t superset_xor(uint32_t j) {
+    j ^= (j >> 1) & 0x55555555u;
+    j ^= (j >> 2) & 0x33333333u;
+    j ^= (j >> 4) & 0x0F0F0F0Fu;
+    j ^= (j >> 8) & 0x00FF00FFu;
+    j ^= (j >> 16) & 0x0000FFFFu;
+    return j;
+}
+
+/// Sobol dimension 1 of point j (primitive polynomial x + 1: direction numbers
+/// v_0 = 2^31, v_k = v_(k−1) xor v_(k−1)/2), as 32 bits of [0, 1). v_k is row k of
+/// Pascal's triangle mod 2 from the top bit down, and C(k, i) is odd exactly when the
+/// bits of i are among those of k (Lucas), so the point's bit i from the top is the XOR
+/// of j's bits k ⊇ i: reverse_bits(superset_xor(j)).
+inline uint32_t sobol1(uint32_t j) { return reverse_bits(superset_xor(j)); }
+
+/// The third seed of a dimension from its two seed words (an integer hash: its bits look
+/// independent of the other two).
+inline uint32_t third_seed(uint32_t seed_a, uint32_t seed_b) {
+    uint32_t h = seed_a ^ ((seed_b << 16) | (seed_b >> 16));
+    h ^= h >> 16;
+    h *= 0x7feb352du;
+    h ^= h >> 15;
+    h *= 0x846ca68bu;
+    h ^= h >> 16;
+    return h;
+}
+
+/// The two 32-bit words of sample `index` of one dimension, from the dimension's two
+/// seed words: seed_a shuffles the index, seed_b scrambles the first coordinate,
+/// third_seed(seed_a, seed_b) the second. (The reversals of the scrambles and of the
+/// Sobol dimensions cancel in pairs; what is left is the same function.)
+inline void scrambled_point(uint32_t index, uint32_t seed_a, uint32_t seed_b, uint32_t* w) {
+    const uint32_t j = reverse_bits(lower_bits_hash(reverse_bits(index), seed_a));  // shuffled index
+    // nested_uniform_scramble(sobol0(j)) = reverse(hash(j)); of sobol1(j): reverse(hash(superset_xor(j)))
+    w[0] = reverse_bits(lower_bits_hash(j, seed_b));
+    w[1] = reverse_bits(lower_bits_hash(superset_xor(j), third_seed(seed_a, seed_b)));
+}
+
+/// scrambled_point for n lanes at once: index[i], and the seeds in w0[i], w1[i], which
+/// receive the point (the loop vectorises; sobol.cpp).
+void scrambled_points_lanes(size_t n, const uint32_t* index, uint32_t* w0, uint32_t* w1);
+
+}  // namespace cmlt::sobol
