@@ -200,6 +200,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     d["nan_samples"] = st.nan_samples;
     d["pixel_filter"] = st.pixel_filter;
     d["filter_radius"] = st.filter_radius;
+    d["sampler"] = st.sampler;
     d["pixel_correlation"] = st.pixel_correlation;
     if (st.nan_samples > 0) {
         d["first_nan_pixel"] = nb::make_tuple(st.first_nan_x, st.first_nan_y);

@@ -176,6 +176,7 @@ def header_metadata(frame, fs, shot_abs: str, camera, resolved, stats: dict,
         "raysPerSecond": float(stats.get("rays_per_s", 0.0)),
         "pixelFilter": str(stats.get("pixel_filter", resolved.pixel_filter)),
         "filterRadius": float(stats.get("filter_radius", resolved.filter_radius)),
+        "sampler": str(stats.get("sampler", "")),
         "version": __version__,
     }
     for key, name in _MLT_STATS.items():

@@ -32,7 +32,7 @@ from cmlt.scene import Camera, FrameScene, Instance, Light, Material, Mesh, padd
 from cmlt.shot.bridge import SceneBridge
 
 from support.scenes import cornell_scene, quad as _quad, uv_sphere as _uv_sphere, with_bulb
-from support.stats import t_critical
+from support.stats import agree_over_seeds, block_means, t_critical
 
 pytestmark = pytest.mark.statistical
 
@@ -65,29 +65,6 @@ def _render(scene, integrator, res, spp, seed=1, **kw):
     img = np.asarray(r.image, np.float64)
     assert np.isfinite(img).all()
     return img, np.asarray(r.variance, np.float64), r.stats
-
-
-def _blocks(a, b):
-    h, w = a.shape[:2]
-    return a.reshape(h // b, b, w // b, b, *a.shape[2:]).mean(axis=(1, 3))
-
-
-def _agree_over_seeds(runs_a, runs_b, block, what, alpha=ALPHA):
-    """Block means of two estimators over their seeds: Welch t with K - 1 dof,
-    Bonferroni over blocks and channels; black blocks in both count as agreeing.
-    Returns the largest |t| and the critical value."""
-    a = np.stack([_blocks(img, block) for img in runs_a])
-    b = np.stack([_blocks(img, block) for img in runs_b])
-    k = min(len(a), len(b))
-    se = np.sqrt(a.var(0, ddof=1) / len(a) + b.var(0, ddof=1) / len(b))
-    diff = np.abs(a.mean(0) - b.mean(0))
-    black = (se == 0) & (diff == 0)
-    t = np.where(black, 0.0, diff / np.where(se > 0, se, 1e-300))
-    crit = t_critical(k - 1, alpha / t.size)
-    print(f"[{what}] means {a.mean():.5f} vs {b.mean():.5f}, max |t| {t.max():.2f} "
-          f"(critical {crit:.2f}, {t.size} blocks x channels)")
-    assert (t < crit).all(), (what, t.max(), crit, np.unravel_index(t.argmax(), t.shape))
-    return t.max(), crit
 
 
 # ---- 1. pass-through surfaces ---------------------------------------------------------
@@ -151,11 +128,11 @@ def _check_closed_form(img, var, expect, what, mask=None):
     relative allowance for the closed form's quadrature), family-wise 1e-3."""
     mask = np.ones(expect.shape, bool) if mask is None else mask
     got, v = img[..., 0], var[..., 0]
-    n = _blocks(mask.astype(float), 4) * 16
+    n = block_means(mask.astype(float), 4) * 16
     keep = n > 0
-    m = _blocks(np.where(mask, got, 0), 4)[keep] * 16 / n[keep]
-    e = _blocks(np.where(mask, expect, 0), 4)[keep] * 16 / n[keep]
-    se = np.sqrt(_blocks(np.where(mask, v, 0), 4)[keep] * 256) / n[keep]
+    m = block_means(np.where(mask, got, 0), 4)[keep] * 16 / n[keep]
+    e = block_means(np.where(mask, expect, 0), 4)[keep] * 16 / n[keep]
+    se = np.sqrt(block_means(np.where(mask, v, 0), 4)[keep] * 256) / n[keep]
     z = _z_for(ALPHA / m.size)
     dev = np.abs(m - e) / (se + 1e-4 * e + 1e-12)
     print(f"[{what}] image mean {got[mask].mean():.5f} closed form {expect[mask].mean():.5f}, "
@@ -268,7 +245,7 @@ def test04_cut_out_box_equals_the_box_without_it():
     ref = [_render(plain, "pt", res, 64, seed=100 + s, max_depth=2)[0] for s in seeds]
     for integ, spp in (("pt", 64), ("bdpt", 16)):
         runs = [_render(with_cut, integ, res, spp, seed=s, max_depth=2)[0] for s in seeds]
-        _agree_over_seeds(runs, ref, 8, f"cut-out box {integ} vs plain pt")
+        agree_over_seeds(runs, ref, 8, f"cut-out box {integ} vs plain pt")
 
 
 def test05_partly_transparent_veil_pt_and_bdpt_agree():
@@ -282,7 +259,7 @@ def test05_partly_transparent_veil_pt_and_bdpt_agree():
     res, seeds = (32, 32), range(SEEDS)
     pt = [_render(scene, "pt", res, 64, seed=s)[0] for s in seeds]
     bd = [_render(scene, "bdpt", res, 16, seed=50 + s)[0] for s in seeds]
-    _agree_over_seeds(pt, bd, 8, "veil pt vs bdpt")
+    agree_over_seeds(pt, bd, 8, "veil pt vs bdpt")
 
 
 # ---- 2. thin lens: light tracing to the lens ---------------------------------------------
@@ -298,7 +275,7 @@ def test06_thin_lens_pt_and_bdpt_agree():
     res, seeds = (32, 32), range(SEEDS)
     pt = [_render(scene, "pt", res, 64, seed=s)[0] for s in seeds]
     bd = [_render(scene, "bdpt", res, 16, seed=50 + s)[0] for s in seeds]
-    _agree_over_seeds(pt, bd, 8, "thin lens pt vs bdpt")
+    agree_over_seeds(pt, bd, 8, "thin lens pt vs bdpt")
 
 
 def _caustic_scene(f_stop):
@@ -371,7 +348,7 @@ def test08_motion_blur_pt_and_bdpt_agree(moving_box, moving_box_pt):
     the sample's shutter time, as PT does (before the fix BDPT rendered the block where
     it is at shutter open). SEEDS seeds each."""
     bd = [_render(moving_box, "bdpt", (32, 32), 16, seed=50 + s)[0] for s in range(SEEDS)]
-    _agree_over_seeds(moving_box_pt, bd, 8, "motion blur pt vs bdpt")
+    agree_over_seeds(moving_box_pt, bd, 8, "motion blur pt vs bdpt")
 
 
 def test09_pssmlt_bdpt_sampler_draws_the_time_from_its_primary_samples(moving_box, moving_box_pt):
@@ -385,7 +362,7 @@ def test09_pssmlt_bdpt_sampler_draws_the_time_from_its_primary_samples(moving_bo
                              bootstrap_samples=32768)
         assert st["path_sampler"] == "bdpt"
         runs.append(img)
-    _agree_over_seeds(moving_box_pt, runs, 8, "motion blur pt vs pssmlt")
+    agree_over_seeds(moving_box_pt, runs, 8, "motion blur pt vs pssmlt")
 
 
 def test10_coherent_mlt_packets_match_scalar_with_motion_blur(moving_box):
@@ -458,6 +435,6 @@ def test12_pt_traces_a_sub_pixel_bulb_from_the_light_side(pixel_filter):
         assert st["lens_lights"] == 1
         pt_runs.append(img)
         bd_runs.append(_render(scene, "bdpt", res, 4, seed, **kw)[0])
-    _agree_over_seeds(pt_runs, bd_runs, 4, f"pt vs bdpt, sub-pixel bulb, {pixel_filter}")
+    agree_over_seeds(pt_runs, bd_runs, 4, f"pt vs bdpt, sub-pixel bulb, {pixel_filter}")
     one = core.render(scene, _settings("pt", res, 4, 3, threads=1, **kw))
     assert np.array_equal(np.asarray(one.image), np.asarray(core.render(scene, _settings("pt", res, 4, 3, **kw)).image))

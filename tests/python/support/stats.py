@@ -56,3 +56,27 @@ def _betainc(a, b, x):
         if abs(c * d - 1.0) < 1e-14:
             break
     return front * (f - 1.0) / a
+
+
+def block_means(a, b):
+    """Means of b x b pixel blocks of an (H, W, ...) image."""
+    h, w = a.shape[:2]
+    return a.reshape(h // b, b, w // b, b, *a.shape[2:]).mean(axis=(1, 3))
+
+
+def agree_over_seeds(runs_a, runs_b, block, what, alpha=1e-3):
+    """Block means of two estimators over their seeds: Welch t with K - 1 dof,
+    Bonferroni over blocks and channels; black blocks in both count as agreeing.
+    Returns the largest |t| and the critical value."""
+    a = np.stack([block_means(img, block) for img in runs_a])
+    b = np.stack([block_means(img, block) for img in runs_b])
+    k = min(len(a), len(b))
+    se = np.sqrt(a.var(0, ddof=1) / len(a) + b.var(0, ddof=1) / len(b))
+    diff = np.abs(a.mean(0) - b.mean(0))
+    black = (se == 0) & (diff == 0)
+    t = np.where(black, 0.0, diff / np.where(se > 0, se, 1e-300))
+    crit = t_critical(k - 1, alpha / t.size)
+    print(f"[{what}] means {a.mean():.5f} vs {b.mean():.5f}, max |t| {t.max():.2f} "
+          f"(critical {crit:.2f}, {t.size} blocks x channels)")
+    assert (t < crit).all(), (what, t.max(), crit, np.unravel_index(t.argmax(), t.shape))
+    return t.max(), crit

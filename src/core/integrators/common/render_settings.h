@@ -171,11 +171,12 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "out first; 0 = off")                                                               \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
          "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
-    TOKEN(sampler, "independent", "independent sobol", "cmlt:sampler", "--sampler",         \
+    TOKEN(sampler, "auto", "auto independent sobol", "cmlt:sampler", "--sampler",             \
           "numbers of the pixel samples (pt, bdpt, the Metropolis integrators' direct pass "  \
-          "and pilot): independent (Philox) or sobol (Owen-scrambled Sobol points, each "     \
-          "dimension stratified over a pixel's samples: sampling/sobol.h); the chains' "      \
-          "numbers are independent either way")                                              \
+          "and pilot): sobol (Owen-scrambled Sobol points, each dimension stratified over a " \
+          "pixel's samples: sampling/sobol.h), independent (Philox), or auto: sobol, but "    \
+          "independent with --target-error (whose estimate needs independent samples); the "  \
+          "chains' numbers are independent either way")                                      \
     TOKEN(pixel_filter, "gaussian", "box triangle gaussian mitchell blackman-harris",        \
           "cmlt:pixelFilter", "--pixel-filter",                                              \
           "pixel reconstruction filter (film/filter.h): gaussian (the default: pbrt-v4's, "  \
@@ -253,8 +254,13 @@ struct RenderSettings {
 };
 
 /// RenderSettings::sampler as the pixel samplers' sequence (sampling/rng.h).
+/// "auto" is Sobol except for a frame that stops at a target error: its relMSE estimate
+/// is the pixels' sample variance over the passes, which is the variance of their mean
+/// only for independent samples (with Sobol points it over-estimates the error, by the
+/// factor the points gain: README, "Pixel samples").
 inline PixelSequence pixel_sequence(const RenderSettings& s) {
-    return s.sampler == "sobol" ? PixelSequence::sobol : PixelSequence::independent;
+    if (s.sampler == "sobol" || (s.sampler == "auto" && !(s.target_error > 0.0))) return PixelSequence::sobol;
+    return PixelSequence::independent;
 }
 
 /// Statistics of a Metropolis render (pssmlt, cmlt).
@@ -329,6 +335,7 @@ struct RenderStats {
     double caster_coverage = -1;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
+    std::string sampler;        ///< the pixel samples' numbers: "sobol" | "independent" (resolved)
     /// pt, bdpt: the variance of a sum of many neighbouring pixels over the sum of their
     /// variance-AOV entries — 1 for independent pixels (the one-pixel box), the filter's
     /// PixelFilter::splat_correlation when camera samples are splatted to neighbours

@@ -1,0 +1,149 @@
+// The pixel samples' low-discrepancy sequence (sampling/sobol.h, PixelSampler with
+// PixelSequence::sobol): Sobol dimension 1 by its closed form against its direction
+// numbers; the scrambles are bijections that keep every power-of-two prefix (and the
+// block at the direct pass's sample base) a (0,m,2)-net; the points are uniform and the
+// dimensions uncorrelated across pixels (chi-square at alpha = 1e-3, Bonferroni over
+// the two tests); the vectorised lanes give the scalar words.
+#include "chi2.h"
+
+#include "sampling/rng.h"
+#include "sampling/rng_domains.h"
+#include "sampling/sobol.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <set>
+#include <vector>
+
+using namespace cmlt;
+using cmlt::test::Chi2Result;
+using cmlt::test::chi2_test;
+
+namespace {
+
+constexpr double k_alpha = 1e-3 / 2.0;
+
+uint32_t sobol1_by_direction_numbers(uint32_t j) {
+    uint32_t out = 0, v = 0x80000000u;
+    for (; j != 0; j >>= 1, v ^= v >> 1)
+        if (j & 1u) out ^= v;
+    return out;
+}
+
+/// Is every 2^a × 2^(m−a) cell of the unit square hit exactly once by the 2^m points?
+bool is_net(const std::vector<std::pair<uint32_t, uint32_t>>& pts, int m) {
+    if (pts.size() != (size_t(1) << m)) return false;
+    for (int a = 0; a <= m; ++a) {
+        std::set<uint64_t> cells;
+        for (const auto& p : pts) {
+            const uint64_t cx = a == 0 ? 0 : p.first >> (32 - a);
+            const uint64_t cy = a == m ? 0 : p.second >> (32 - (m - a));
+            if (!cells.insert((cx << 32) | cy).second) return false;
+        }
+    }
+    return true;
+}
+
+std::vector<std::pair<uint32_t, uint32_t>> pixel_points(uint32_t pixel, uint32_t dim, uint32_t first, uint32_t n) {
+    std::vector<std::pair<uint32_t, uint32_t>> out;
+    const Philox4x32Key key = seed_key(7);
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t w[2];
+        pixel_words(key, PixelSequence::sobol, pixel, first + i, dim, RngStream::camera_path, w);
+        out.push_back({w[0], w[1]});
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST(Sobol, DimensionOneIsTheDirectionNumbersXor) {
+    CounterRng rng(3, RngDomain::test, 0);
+    for (uint32_t j = 0; j < 4096; ++j) EXPECT_EQ(sobol::sobol1(j), sobol1_by_direction_numbers(j)) << j;
+    for (int k = 0; k < 10000; ++k) {
+        const uint32_t j = uint32_t(rng.uniform() * 4294967296.0);
+        ASSERT_EQ(sobol::sobol1(j), sobol1_by_direction_numbers(j)) << j;
+    }
+    EXPECT_EQ(sobol::sobol1(0xFFFFFFFFu), sobol1_by_direction_numbers(0xFFFFFFFFu));
+}
+
+TEST(Sobol, ScrambleIsABijectionThatKeepsTopBitBlocks) {
+    // 16-bit sub-space: the top 16 bits of the scramble of i < 2^16 are one constant,
+    // and the low 16 bits run through every value once.
+    for (uint32_t seed : {0u, 1u, 0xDEADBEEFu}) {
+        std::set<uint32_t> low;
+        const uint32_t top = sobol::nested_uniform_scramble(0, seed) >> 16;
+        for (uint32_t i = 0; i < 65536; ++i) {
+            const uint32_t s = sobol::nested_uniform_scramble(i, seed);
+            ASSERT_EQ(s >> 16, top);
+            low.insert(s & 0xFFFFu);
+        }
+        EXPECT_EQ(low.size(), 65536u);
+    }
+}
+
+TEST(Sobol, EveryPowerOfTwoPrefixOfAPixelIsANet) {
+    for (uint32_t pixel : {0u, 17u, 123456u})
+        for (uint32_t dim : {0u, 1u, 9u, k_lens_dimension})
+            for (int m = 0; m <= 10; ++m) {
+                EXPECT_TRUE(is_net(pixel_points(pixel, dim, 0, 1u << m), m)) << pixel << " " << dim << " " << m;
+                // the direct pass's samples start at an aligned base
+                EXPECT_TRUE(is_net(pixel_points(pixel, dim, k_direct_sample_base, 1u << m), m))
+                    << "direct pass " << pixel << " " << dim << " " << m;
+            }
+    // and a sample count that is not a power of two is not a net of its own, but its
+    // aligned blocks are: samples [512, 768) of 768
+    EXPECT_TRUE(is_net(pixel_points(5, 2, 512, 256), 8));
+}
+
+TEST(Sobol, PointsAreUniformAndDimensionsIndependentAcrossPixels) {
+    // one sample (index 5) of 2^16 pixels: (first word of dimension 0, first word of
+    // dimension 1) on a 16 x 16 grid, and dimension 3's own two words on another
+    constexpr int k_cells = 16, k_pixels = 1 << 16;
+    std::vector<double> cross(k_cells * k_cells, 0.0), own(k_cells * k_cells, 0.0);
+    const Philox4x32Key key = seed_key(11);
+    for (uint32_t p = 0; p < uint32_t(k_pixels); ++p) {
+        uint32_t a[2], b[2], c[2];
+        pixel_words(key, PixelSequence::sobol, p, 5, 0, RngStream::camera_path, a);
+        pixel_words(key, PixelSequence::sobol, p, 5, 1, RngStream::camera_path, b);
+        pixel_words(key, PixelSequence::sobol, p, 5, 3, RngStream::camera_path, c);
+        cross[(a[0] >> 28) * k_cells + (b[0] >> 28)] += 1.0;
+        own[(c[0] >> 28) * k_cells + (c[1] >> 28)] += 1.0;
+    }
+    const std::vector<double> expected(k_cells * k_cells, double(k_pixels) / (k_cells * k_cells));
+    const Chi2Result r1 = chi2_test(cross, expected), r2 = chi2_test(own, expected);
+    EXPECT_TRUE(r1.passed(k_alpha)) << "p = " << r1.p_value;
+    EXPECT_TRUE(r2.passed(k_alpha)) << "p = " << r2.p_value;
+}
+
+TEST(Sobol, LanesGiveTheScalarWords) {
+    std::vector<uint32_t> index, w0, w1, s0, s1;
+    CounterRng rng(5, RngDomain::test, 1);
+    for (int i = 0; i < 1000; ++i) {
+        index.push_back(uint32_t(i * 37));
+        s0.push_back(uint32_t(rng.uniform() * 4294967296.0));
+        s1.push_back(uint32_t(rng.uniform() * 4294967296.0));
+    }
+    w0 = s0;
+    w1 = s1;
+    sobol::scrambled_points_lanes(index.size(), index.data(), w0.data(), w1.data());
+    for (size_t i = 0; i < index.size(); ++i) {
+        uint32_t w[2];
+        sobol::scrambled_point(index[i], s0[i], s1[i], w);
+        ASSERT_EQ(w0[i], w[0]) << i;
+        ASSERT_EQ(w1[i], w[1]) << i;
+    }
+}
+
+TEST(Sobol, PixelSamplerReadsTheSequence) {
+    // the sampler's numbers are the words' floats, independent ones differ
+    PixelSampler sobol(7, 42, 3, RngStream::camera_path, PixelSequence::sobol);
+    PixelSampler independent(7, 42, 3);
+    uint32_t w[2];
+    pixel_words(seed_key(7), PixelSequence::sobol, 42, 3, 0, RngStream::camera_path, w);
+    const Vec2 u = sobol.get2d(), v = independent.get2d();
+    EXPECT_EQ(u.x, uint_to_unit_float(w[0]));
+    EXPECT_EQ(u.y, uint_to_unit_float(w[1]));
+    EXPECT_NE(u.x, v.x);
+}
