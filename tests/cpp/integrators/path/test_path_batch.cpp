@@ -50,6 +50,7 @@ std::vector<float> reference_image(const Scene& scene, const RenderSettings& st,
     const Camera camera(scene.camera_desc(), st.width, st.height);
     const PixelFilter filter = PixelFilter::from_settings(st.pixel_filter, st.filter_radius);
     PathTracer tracer(scene, st.max_depth);
+    tracer.set_sequence(pixel_sequence(st));
     const LensLightTracing lens(scene, camera, st.width, st.height, filter.margin());
     const CausticLightTracing caustic(scene, camera, st.width, st.height, filter.margin(), st.max_depth);
     const bool caustic_on = st.caustic_tracing && caustic.active();
@@ -96,11 +97,13 @@ void check_scene(const std::function<void(Scene&)>& build, const char* what, boo
     Scene scene;
     build(scene);
     scene.select_kernels(false);
-    for (const char* filter : {"box", "gaussian"}) {
-        const std::string name = std::string(what) + " (" + filter + ")";
+    for (const char* filter : {"box", "gaussian"})
+      for (const char* sampler : {"sobol", "independent"}) {
+        const std::string name = std::string(what) + " (" + filter + ", " + sampler + ")";
         // 1. no packets: the reference's image bit for bit
         RenderSettings st = settings(8, false);
         st.pixel_filter = filter;
+        st.sampler = sampler;
         st.caustic_tracing = caustic_tracing;
         std::vector<float> ref_var;
         const std::vector<float> ref = reference_image(scene, st, &ref_var);
