@@ -53,6 +53,12 @@ CONFIGS = {
     "seeds + carried": dict(seed_per_frame=False, carry_states=True, smooth_normalization=False),
     "seeds + carried + smoothing": dict(seed_per_frame=False, carry_states=True,
                                         smooth_normalization=True),
+    # the two above with independent pixel-sample numbers (the default, auto, is
+    # Owen-scrambled Sobol points: README "Pixel samples")
+    "independent, philox": dict(seed_per_frame=True, carry_states=False, smooth_normalization=False,
+                                sampler="independent"),
+    "stored seeds, philox": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False,
+                                 sampler="independent"),
     # everything on but the chains' film offset kept at 0 (no camera reprojection)
     "all but reprojection": dict(seed_per_frame=False, carry_states=True,
                                         smooth_normalization=True, _reproject=False),

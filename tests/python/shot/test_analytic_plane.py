@@ -32,10 +32,11 @@ def _scene():
 
 
 @pytest.mark.statistical
-def test_diffuse_plane_under_uniform_dome():
+@pytest.mark.parametrize("sampler", ["independent", "sobol"])
+def test_diffuse_plane_under_uniform_dome(sampler):
     st = core.RenderSettings()
     st.width, st.height, st.spp, st.max_depth, st.seed, st.threads = 48, 48, 16, 1, 5, 2
-    st.integrator = "pt"
+    st.integrator, st.sampler = "pt", sampler
     r = core.render(SceneBridge(core).update(_scene()), st)
     img = np.asarray(r.image, dtype=np.float64)
     var = np.asarray(r.variance, dtype=np.float64)
@@ -44,8 +45,9 @@ def test_diffuse_plane_under_uniform_dome():
     n = img.shape[0] * img.shape[1]
     expected = ALBEDO * RADIANCE
     mean = img.reshape(-1, 3).mean(0)
-    # r.variance is the variance of each pixel's estimate; pixels are
-    # independent, so the variance of the image mean is sum(var)/n^2
+    # r.variance is the variance of each pixel's estimate (with Sobol points an
+    # upper bound); pixels are independent, so the variance of the image mean is
+    # sum(var)/n^2
     se = np.sqrt(var.reshape(-1, 3).sum(0)) / n
     # The CI must not be vacuous: a wrong albedo factor (a*L/pi, a*L*0.9)
     # would lie outside it.
@@ -54,7 +56,13 @@ def test_diffuse_plane_under_uniform_dome():
     # (a cosine-sampled dome can be exact: allow float rounding on top)
     assert (np.abs(mean - expected) < 4.5 * se + 1e-5 * expected).all(), (mean, expected, se)
     # the reported variance agrees with the spread between pixels (every
-    # pixel has the same expectation here)
+    # pixel has the same expectation here) for independent samples; with Sobol
+    # points (stratified over a pixel's samples) it is the per-sample variance
+    # over the passes, and the pixels spread far less: the points' gain on a
+    # two-dimensional integrand (measured: 0.38x)
     spread = img.reshape(-1, 3).var(0, ddof=1)
     reported = var.reshape(-1, 3).mean(0)
-    assert np.all(np.abs(spread - reported) <= 0.25 * reported + 1e-10), (spread, reported)
+    if sampler == "independent":
+        assert np.all(np.abs(spread - reported) <= 0.25 * reported + 1e-10), (spread, reported)
+    else:
+        assert np.all(spread < 0.6 * reported), (spread, reported)
