@@ -55,9 +55,9 @@ CONFIGS = {
                                         smooth_normalization=True),
     # the two above with independent pixel-sample numbers (the default, auto, is
     # Owen-scrambled Sobol points: README "Pixel samples")
-    "independent, philox": dict(seed_per_frame=True, carry_states=False, smooth_normalization=False,
+    "independent (philox)": dict(seed_per_frame=True, carry_states=False, smooth_normalization=False,
                                 sampler="independent"),
-    "stored seeds, philox": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False,
+    "stored seeds (philox)": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False,
                                  sampler="independent"),
     # everything on but the chains' film offset kept at 0 (no camera reprojection)
     "all but reprojection": dict(seed_per_frame=False, carry_states=True,
