@@ -114,7 +114,6 @@ public:
     uint32_t pixel() const { return m_pixel; }
     uint32_t sample() const { return m_sample; }
     RngStream stream() const { return m_stream; }
-    PixelSequence sequence() const { return m_sequence; }
     Philox4x32Key key() const { return m_key; }
 
 private:

@@ -58,7 +58,7 @@ inline constexpr uint32_t k_pilot_sample_base = 0xC0000000u;
 
 /// The sample index whose counters seed the scrambles of a pixel's low-discrepancy
 /// sequence (RenderSettings::sampler "sobol", sampling/sobol.h): counter (pixel,
-/// k_sequence_seed_sample, dimension, stream) gives one dimension's three seeds. No pass
+/// k_sequence_seed_sample, dimension, stream) gives one dimension's seed words. No pass
 /// reaches it (the bases above leave 2^29 samples and more below it).
 inline constexpr uint32_t k_sequence_seed_sample = 0xFFFFFFFFu;
 

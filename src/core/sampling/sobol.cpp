@@ -12,11 +12,10 @@
 namespace cmlt::sobol {
 
 CMLT_SOBOL_CLONES
-void scrambled_points_lanes(size_t n, const uint32_t* __restrict index, uint32_t* __restrict w0,
-                            uint32_t* __restrict w1) {
+void scrambled_points_lanes(size_t n, uint32_t index, uint32_t* __restrict w0, uint32_t* __restrict w1) {
     for (size_t i = 0; i < n; ++i) {
         uint32_t w[2];
-        scrambled_point(index[i], w0[i], w1[i], w);
+        scrambled_point(index, w0[i], w1[i], w);
         w0[i] = w[0];
         w1[i] = w[1];
     }

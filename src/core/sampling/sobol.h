@@ -56,9 +56,6 @@ inline uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
     return reverse_bits(lower_bits_hash(reverse_bits(x), seed));
 }
 
-/// Sobol dimension 0 of point j (van der Corput in base 2), as 32 bits of [0, 1).
-inline uint32_t sobol0(uint32_t j) { return reverse_bits(j); }
-
 /// The superset transform of a word's bits over GF(2): bit i of the result is the XOR
 /// of the bits k of `j` whose positions contain i's (k & i == i), in five shift steps.
 inline uint32_t superset_xor(uint32_t j) {
@@ -95,13 +92,14 @@ inline uint32_t third_seed(uint32_t seed_a, uint32_t seed_b) {
 /// Sobol dimensions cancel in pairs; what is left is the same function.)
 inline void scrambled_point(uint32_t index, uint32_t seed_a, uint32_t seed_b, uint32_t* w) {
     const uint32_t j = reverse_bits(lower_bits_hash(reverse_bits(index), seed_a));  // shuffled index
-    // nested_uniform_scramble(sobol0(j)) = reverse(hash(j)); of sobol1(j): reverse(hash(superset_xor(j)))
+    // Sobol dimension 0 is reverse_bits(j) (van der Corput), so its scramble is
+    // reverse(hash(j)); dimension 1's is reverse(hash(superset_xor(j)))
     w[0] = reverse_bits(lower_bits_hash(j, seed_b));
     w[1] = reverse_bits(lower_bits_hash(superset_xor(j), third_seed(seed_a, seed_b)));
 }
 
-/// scrambled_point for n lanes at once: index[i], and the seeds in w0[i], w1[i], which
-/// receive the point (the loop vectorises; sobol.cpp).
-void scrambled_points_lanes(size_t n, const uint32_t* index, uint32_t* w0, uint32_t* w1);
+/// scrambled_point of one sample index for n lanes (dimensions or pixels) at once: the
+/// seeds in w0[i], w1[i], which receive the point (the loop vectorises; sobol.cpp).
+void scrambled_points_lanes(size_t n, uint32_t index, uint32_t* w0, uint32_t* w1);
 
 }  // namespace cmlt::sobol

@@ -118,21 +118,22 @@ TEST(Sobol, PointsAreUniformAndDimensionsIndependentAcrossPixels) {
 }
 
 TEST(Sobol, LanesGiveTheScalarWords) {
-    std::vector<uint32_t> index, w0, w1, s0, s1;
     CounterRng rng(5, RngDomain::test, 1);
-    for (int i = 0; i < 1000; ++i) {
-        index.push_back(uint32_t(i * 37));
-        s0.push_back(uint32_t(rng.uniform() * 4294967296.0));
-        s1.push_back(uint32_t(rng.uniform() * 4294967296.0));
-    }
-    w0 = s0;
-    w1 = s1;
-    sobol::scrambled_points_lanes(index.size(), index.data(), w0.data(), w1.data());
-    for (size_t i = 0; i < index.size(); ++i) {
-        uint32_t w[2];
-        sobol::scrambled_point(index[i], s0[i], s1[i], w);
-        ASSERT_EQ(w0[i], w[0]) << i;
-        ASSERT_EQ(w1[i], w[1]) << i;
+    for (uint32_t index : {0u, 37u, 1000u, k_direct_sample_base + 3u}) {
+        std::vector<uint32_t> w0, w1, s0, s1;
+        for (int i = 0; i < 1000; ++i) {
+            s0.push_back(uint32_t(rng.uniform() * 4294967296.0));
+            s1.push_back(uint32_t(rng.uniform() * 4294967296.0));
+        }
+        w0 = s0;
+        w1 = s1;
+        sobol::scrambled_points_lanes(w0.size(), index, w0.data(), w1.data());
+        for (size_t i = 0; i < w0.size(); ++i) {
+            uint32_t w[2];
+            sobol::scrambled_point(index, s0[i], s1[i], w);
+            ASSERT_EQ(w0[i], w[0]) << index << " " << i;
+            ASSERT_EQ(w1[i], w[1]) << index << " " << i;
+        }
     }
 }
 

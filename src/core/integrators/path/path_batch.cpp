@@ -32,12 +32,8 @@ void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t
     }
     philox4x32_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path),
                      seed_key(m_seed), m_w0.data(), m_w1.data());
-    if (sobol) {
-        n = 0;
-        for (uint32_t l : lanes)
-            for (uint32_t k = 0; k < count; ++k) m_c0[n++] = m_sampler[l].sample();
-        sobol::scrambled_points_lanes(n, m_c0.data(), m_w0.data(), m_w1.data());
-    }
+    if (sobol && !lanes.empty())  // a batch's lanes are samples of one index (trace_tile's s)
+        sobol::scrambled_points_lanes(n, m_sampler[lanes[0]].sample(), m_w0.data(), m_w1.data());
     n = 0;
     for (uint32_t l : lanes) {
         uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
