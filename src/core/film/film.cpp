@@ -17,6 +17,16 @@ bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, fl
         count_bad_sample(x, y, sample_index);
         return false;
     }
+    if (m_block > 1) {
+        Blocks& b = m_blocks[idx];
+        const uint32_t k = sample_index / m_block;
+        if (k != b.current) {
+            finish_block(b);
+            b.current = k;
+        }
+        b.w_cur += double(weight);
+        for (int c = 0; c < 3; ++c) b.sum_cur[c] += double(weight) * double(L[c]);
+    }
     Pixel& p = m_pixels[idx];
     p.n += 1;
     const double w = double(weight);
@@ -32,6 +42,31 @@ bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, fl
     return true;
 }
 
+void Film::finish_block(Blocks& b) {
+    const double w = b.w_cur;
+    const double sum[3] = {b.sum_cur[0], b.sum_cur[1], b.sum_cur[2]};
+    b.w_cur = 0.0;
+    b.sum_cur[0] = b.sum_cur[1] = b.sum_cur[2] = 0.0;
+    if (b.current == ~0u || w == 0.0) return;  // no block yet, or one without a mean
+    b.n += 1;
+    b.w += w;
+    if (b.w == 0.0) return;
+    const double share = w / b.w;
+    for (int c = 0; c < 3; ++c) {
+        const double v = sum[c] / w;
+        const double delta = v - b.mean[c];
+        b.mean[c] += delta * share;
+        b.m2[c] += w * delta * (v - b.mean[c]);
+    }
+}
+
+void Film::set_variance_block(uint32_t block) {
+    CMLT_CHECK(block >= 1);
+    m_block = block;
+    if (block > 1) m_blocks.assign(m_pixels.size(), Blocks());
+    else std::vector<Blocks>().swap(m_blocks);
+}
+
 void Film::count_bad_sample(int x, int y, uint32_t sample_index) {
     const size_t idx = size_t(y) * size_t(m_width) + size_t(x);
     m_nan_count.fetch_add(1, std::memory_order_relaxed);
@@ -44,10 +79,20 @@ void Film::count_bad_sample(int x, int y, uint32_t sample_index) {
 void Film::develop(float* image, float* variance) const {
     for (size_t i = 0; i < m_pixels.size(); ++i) {
         const Pixel& p = m_pixels[i];
+        // the samples' spread, or the finished blocks' (the same formula over blocks)
+        uint32_t n = p.n;
+        double w = p.w;
+        const double* m2 = p.m2;
+        if (m_block > 1) {
+            const Blocks& b = m_blocks[i];
+            n = b.n;
+            w = b.w;
+            m2 = b.m2;
+        }
         for (int c = 0; c < 3; ++c) {
             image[3 * i + c] = float(p.mean[c]);
             // weight 1: m2 / ((n - 1) n), the sample variance of the mean
-            double var = p.n > 1 && p.w > 0.0 ? std::max(0.0, p.m2[c] / (double(p.n - 1) * p.w)) : 0.0;
+            double var = n > 1 && w > 0.0 ? std::max(0.0, m2[c] / (double(n - 1) * w)) : 0.0;
             if (variance) variance[3 * i + c] = float(var);
         }
     }

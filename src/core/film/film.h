@@ -10,6 +10,14 @@
 /// is owned by one task at a time and its samples arrive in sample-index order, which
 /// makes the sums bit-reproducible. Non-finite samples are counted (with the first
 /// (pixel, sample) in index order) and dropped, never written.
+///
+/// The variance of the mean is the samples' spread over their count when the samples are
+/// independent. With samples that are not (a low-discrepancy sequence) but come in
+/// independent blocks of B consecutive sample indices (PixelSequence::sobol_blocks),
+/// set_variance_block(B) makes it the spread of the blocks' weighted means over the
+/// number of complete blocks (the same weighted Welford update, one block at a time);
+/// the mean is the samples' either way, bit for bit. An unfinished block counts in the
+/// mean, not in the variance.
 #include "math/vec.h"
 
 #include <atomic>
@@ -36,6 +44,11 @@ public:
     /// Write mean (H, W, 3) and variance of the mean (H, W, 3) as float32, row 0 on top.
     void develop(float* image, float* variance) const;
 
+    /// Variance from blocks of `block` consecutive sample indices (file comment); 1 (the
+    /// default): from the samples. Call before the first sample.
+    void set_variance_block(uint32_t block);
+    uint32_t variance_block() const { return m_block; }
+
     uint64_t nan_samples() const { return m_nan_count.load(); }
     /// First bad sample in (pixel, sample) order, or false if none.
     bool first_nan(int* x, int* y, uint32_t* sample) const;
@@ -47,8 +60,19 @@ private:
         double mean[3] = {0, 0, 0};
         double m2[3] = {0, 0, 0};
     };
+    /// A pixel's blocks (set_variance_block): the unfinished one's weighted sums, and the
+    /// weighted Welford state over the finished ones' means.
+    struct Blocks {
+        uint32_t current = ~0u;  ///< block index of the unfinished block (none: ~0)
+        uint32_t n = 0;          ///< finished blocks
+        double w_cur = 0, sum_cur[3] = {0, 0, 0};
+        double w = 0, mean[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
+    };
+    static void finish_block(Blocks& b);
     int m_width, m_height;
+    uint32_t m_block = 1;
     std::vector<Pixel> m_pixels;
+    std::vector<Blocks> m_blocks;  ///< per pixel, with m_block > 1
     std::atomic<uint64_t> m_nan_count{0};
     std::atomic<uint64_t> m_first_nan_key{~uint64_t(0)};  ///< pixel << 32 | sample
 };

@@ -54,18 +54,49 @@ inline double wrap01(double v) {
 }
 
 /// The numbers of a pixel sample (RenderSettings::sampler): independent (Philox of the
-/// sample's counter) or a randomised low-discrepancy sequence over a pixel's samples
-/// (Owen-scrambled Sobol, sampling/sobol.h). Either way a number is a pure function of
+/// sample's counter), a randomised low-discrepancy sequence over a pixel's samples
+/// (Owen-scrambled Sobol, sampling/sobol.h), or such sequences in blocks: samples
+/// [k B, (k + 1) B) of a pixel (B = k_sobol_block) are the first B points of block k's own
+/// scrambled sequence, each block scrambled independently of the others. The blocks'
+/// means are then independent estimates of the pixel (randomised QMC replicates), so
+/// their spread is an unbiased estimate of the variance of the pixel's mean, which a
+/// single sequence's samples do not give (their spread over-estimates it); each block
+/// keeps the stratification of a B-point net. Either way a number is a pure function of
 /// (seed, pixel, sample, dimension, stream), uniform on [0, 1).
-enum class PixelSequence : uint8_t { independent, sobol };
+enum class PixelSequence : uint8_t { independent, sobol, sobol_blocks };
+
+/// Samples per block of PixelSequence::sobol_blocks (a power of two, so a block is a
+/// net; README "Pixel samples" gives the measurements behind it).
+inline constexpr uint32_t k_sobol_block = 8;
+
+inline bool low_discrepancy(PixelSequence seq) { return seq != PixelSequence::independent; }
+
+/// The sample word of the counters that seed the scrambles of `sample`'s sequence: one
+/// sequence per pixel (k_sequence_seed_sample), or one per block of k_sobol_block
+/// samples, counting down from it (rng_domains.h).
+inline uint32_t sequence_seed_sample(PixelSequence seq, uint32_t sample) {
+    return seq == PixelSequence::sobol_blocks ? k_sequence_seed_sample - sample / k_sobol_block
+                                              : k_sequence_seed_sample;
+}
+/// The point of that sequence `sample` takes (before the index scramble).
+inline uint32_t sequence_index(PixelSequence seq, uint32_t sample) {
+    return seq == PixelSequence::sobol_blocks ? sample % k_sobol_block : sample;
+}
+/// Samples whose means are independent of each other's: the film's variance of the mean
+/// comes from the spread of such blocks (Film::set_variance_block); 1 for independent
+/// samples and for one sequence (whose spread over-estimates the variance).
+inline uint32_t variance_block(PixelSequence seq) {
+    return seq == PixelSequence::sobol_blocks ? k_sobol_block : 1u;
+}
 
 /// The two words of dimension d of pixel sample (pixel, sample, stream): the first two
 /// of the Philox output of its counter, or its Owen-scrambled Sobol point.
 inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample, uint32_t d,
                         RngStream stream, uint32_t* w) {
-    if (seq == PixelSequence::sobol) {
-        const Philox4x32Counter s = philox4x32(pixel_counter(pixel, k_sequence_seed_sample, d, stream), key);
-        sobol::scrambled_point(sample, s[0], s[1], w);
+    if (low_discrepancy(seq)) {
+        const Philox4x32Counter s =
+            philox4x32(pixel_counter(pixel, sequence_seed_sample(seq, sample), d, stream), key);
+        sobol::scrambled_point(sequence_index(seq, sample), s[0], s[1], w);
         return;
     }
     const Philox4x32Counter r = philox4x32(pixel_counter(pixel, sample, d, stream), key);

@@ -43,3 +43,52 @@ TEST(Film, NonFiniteSamplesAreCountedAndDropped) {
     for (float v : img) EXPECT_TRUE(std::isfinite(v));
     EXPECT_FLOAT_EQ(img[(1 * 4 + 2) * 3], 2.f);
 }
+
+TEST(Film, VarianceFromBlocksOfSamples) {
+    // blocks of 4 sample indices: the variance of the mean is the spread of the blocks'
+    // means over their count; the mean is the samples' (bit for bit the film without
+    // blocks); an unfinished block counts in the mean only
+    Film blocks(1, 1), plain(1, 1);
+    blocks.set_variance_block(4);
+    const double vals[] = {1, 2, 4, 8, 3, 3, 3, 3, 0, 1, 0, 1, 5, 7};  // 3 blocks + 2
+    for (uint32_t i = 0; i < 14; ++i) {
+        const Spectrum L(float(vals[i]), 1.f, 0.5f * float(i));
+        blocks.add_sample(0, 0, i, L);
+        plain.add_sample(0, 0, i, L);
+    }
+    std::vector<float> bi(3), bv(3), pi(3), pv(3);
+    blocks.develop(bi.data(), bv.data());
+    plain.develop(pi.data(), pv.data());
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(bi[c], pi[c]) << c;
+    const double m[3] = {15.0 / 4, 12.0 / 4, 2.0 / 4};
+    const double mm = (m[0] + m[1] + m[2]) / 3;
+    double ss = 0;
+    for (double v : m) ss += (v - mm) * (v - mm);
+    EXPECT_FLOAT_EQ(bv[0], float(ss / 2 / 3));
+    EXPECT_EQ(bv[1], 0.f);  // every block mean 1
+    // channel 2 (0.5 i): block means 0.75, 2.75, 4.75
+    EXPECT_FLOAT_EQ(bv[2], float((4.0 + 0.0 + 4.0) / 2 / 3));
+    EXPECT_NE(bv[0], pv[0]);
+}
+
+TEST(Film, BlockWeightsAreTheSamplesWeights) {
+    // weighted samples (a filter's): a block's mean is its weighted mean and its weight
+    // the sum of its samples' weights; one block: no variance yet
+    Film film(1, 1);
+    film.set_variance_block(2);
+    film.add_sample(0, 0, 0, Spectrum(2.f), 1.f);
+    film.add_sample(0, 0, 1, Spectrum(4.f), 3.f);  // block 0: mean 3.5, weight 4
+    std::vector<float> img(3), var(3);
+    film.develop(img.data(), var.data());
+    EXPECT_FLOAT_EQ(img[0], 3.5f);
+    EXPECT_EQ(var[0], 0.f);
+    film.add_sample(0, 0, 2, Spectrum(1.f), 2.f);
+    film.add_sample(0, 0, 3, Spectrum(1.f), 2.f);  // block 1: mean 1, weight 4
+    film.add_sample(0, 0, 4, Spectrum(9.f), 1.f);  // block 2 unfinished
+    film.develop(img.data(), var.data());
+    EXPECT_FLOAT_EQ(img[0], float((2.0 + 12.0 + 4.0 + 9.0) / 9.0));
+    // weighted Welford over the two finished blocks: m2 = Σ W (Y - Ȳ)^2, var = m2 / ((n - 1) Σ W)
+    const double ybar = (4 * 3.5 + 4 * 1.0) / 8;
+    const double m2 = 4 * (3.5 - ybar) * (3.5 - ybar) + 4 * (1.0 - ybar) * (1.0 - ybar);
+    EXPECT_FLOAT_EQ(var[0], float(m2 / (1 * 8)));
+}

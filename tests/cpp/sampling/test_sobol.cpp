@@ -45,12 +45,13 @@ bool is_net(const std::vector<std::pair<uint32_t, uint32_t>>& pts, int m) {
     return true;
 }
 
-std::vector<std::pair<uint32_t, uint32_t>> pixel_points(uint32_t pixel, uint32_t dim, uint32_t first, uint32_t n) {
+std::vector<std::pair<uint32_t, uint32_t>> pixel_points(uint32_t pixel, uint32_t dim, uint32_t first, uint32_t n,
+                                                        PixelSequence seq = PixelSequence::sobol) {
     std::vector<std::pair<uint32_t, uint32_t>> out;
     const Philox4x32Key key = seed_key(7);
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t w[2];
-        pixel_words(key, PixelSequence::sobol, pixel, first + i, dim, RngStream::camera_path, w);
+        pixel_words(key, seq, pixel, first + i, dim, RngStream::camera_path, w);
         out.push_back({w[0], w[1]});
     }
     return out;
@@ -147,4 +148,30 @@ TEST(Sobol, PixelSamplerReadsTheSequence) {
     EXPECT_EQ(u.x, uint_to_unit_float(w[0]));
     EXPECT_EQ(u.y, uint_to_unit_float(w[1]));
     EXPECT_NE(u.x, v.x);
+}
+
+TEST(Sobol, BlocksAreNetsOfTheirOwn) {
+    // sobol-blocks: every block of k_sobol_block samples (from 0 and from the direct
+    // pass's base) is a net, scrambled independently: blocks differ from each other;
+    // block 0 has the one sequence's seeds (its first points), the next ones do not
+    const uint32_t B = k_sobol_block;
+    int m = 0;
+    while ((1u << m) < B) ++m;
+    ASSERT_EQ(1u << m, B);
+    for (uint32_t pixel : {0u, 9u})
+        for (uint32_t dim : {0u, 4u})
+            for (uint32_t base : {0u, k_direct_sample_base})
+                for (uint32_t k = 0; k < 4; ++k) {
+                    const auto pts = pixel_points(pixel, dim, base + k * B, B, PixelSequence::sobol_blocks);
+                    EXPECT_TRUE(is_net(pts, m)) << pixel << " " << dim << " " << k;
+                    EXPECT_NE(pts, pixel_points(pixel, dim, base + (k + 1) * B, B, PixelSequence::sobol_blocks));
+                }
+    EXPECT_EQ(pixel_points(3, 1, 0, B, PixelSequence::sobol_blocks), pixel_points(3, 1, 0, B));
+    EXPECT_NE(pixel_points(3, 1, B, B, PixelSequence::sobol_blocks), pixel_points(3, 1, B, B));
+    // and two blocks together are not a net (independent scrambles do not stratify
+    // against each other), except by chance: over many pixels most are not
+    int nets = 0;
+    for (uint32_t pixel = 0; pixel < 64; ++pixel)
+        nets += is_net(pixel_points(pixel, 2, 0, 2 * B, PixelSequence::sobol_blocks), m + 1) ? 1 : 0;
+    EXPECT_LT(nets, 32);
 }

@@ -24,6 +24,7 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     const int W = settings.width, H = settings.height;
     const Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
+    film.set_variance_block(variance_block(pixel_sequence(settings)));
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     // light tracing reaches the film window (the image and the filter's margin), its
     // importance normalised over the window

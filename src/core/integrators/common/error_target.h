@@ -223,12 +223,17 @@ private:
 
 /// Passes (pt, bdpt): the chunk to render after `done` passes with a target, given the
 /// chunk the budgets allow (`budget_chunk`, PassSchedule::next; `remaining` passes of the
-/// sample budget when untimed, which the target's prediction then sizes).
-inline int target_chunk(const ErrorTarget& t, int done, int budget_chunk, bool timed, int remaining) {
+/// sample budget when untimed, which the target's prediction then sizes). `block`: the
+/// film's variance block (Film::set_variance_block): the predicted end is rounded up to
+/// a whole block, so that every check sees all its passes in the variance.
+inline int target_chunk(const ErrorTarget& t, int done, int budget_chunk, bool timed, int remaining,
+                        int block = 1) {
     if (!t.enabled() || budget_chunk <= 0) return budget_chunk;
     const int cap = timed ? budget_chunk : remaining;
     const double want = done == 0 ? t.min_work() : t.next_work(double(done));
-    return std::max(1, std::min(cap, int(std::ceil(want)) - done));
+    int end = int(std::ceil(want));
+    if (block > 1) end = (end + block - 1) / block * block;
+    return std::max(1, std::min(cap, end - done));
 }
 
 /// The stop reason of a frame (RenderResult::stop_reason).

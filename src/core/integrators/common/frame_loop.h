@@ -12,6 +12,7 @@
 /// frame depends on the machine's speed, so it is not reproducible bit for bit; a
 /// sample-budget frame is.
 #include "accel/accel.h"
+#include "film/film.h"
 #include "integrators/common/error_target.h"
 #include "integrators/common/path_counters.h"
 #include "integrators/common/render_settings.h"
@@ -199,7 +200,7 @@ int run_passes(const PassSchedule& schedule, const ProgressCallback& progress, b
     const bool targeted = target && target->target.enabled();
     int done = 0;
     while (const int n = targeted ? target_chunk(target->target, done, schedule.next(done), schedule.timed(),
-                                                 schedule.spp() - done)
+                                                 schedule.spp() - done, int(target->film.variance_block()))
                                   : schedule.next(done)) {
         run(done, done + n);
         done += n;

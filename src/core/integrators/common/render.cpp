@@ -65,7 +65,7 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
             RenderResult res = e.render(scene, *use, progress);
             res.stats.pixel_filter = filter.name();
             res.stats.filter_radius = filter.radius();
-            res.stats.sampler = pixel_sequence(*use) == PixelSequence::sobol ? "sobol" : "independent";
+            res.stats.sampler = pixel_sequence_name(pixel_sequence(*use));
             return res;
         }
     CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '" << settings.integrator << "'");

@@ -171,12 +171,13 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "out first; 0 = off")                                                               \
     BOOL(keep_group_images, false, "", "--group-images",                                     \
          "pssmlt/cmlt: write the error groups' images (partial renders) beside the frame")   \
-    TOKEN(sampler, "auto", "auto independent sobol", "cmlt:sampler", "--sampler",             \
+    TOKEN(sampler, "auto", "auto independent sobol sobol-blocks", "cmlt:sampler", "--sampler",   \
           "numbers of the pixel samples (pt, bdpt, the Metropolis integrators' direct pass "  \
           "and pilot): sobol (Owen-scrambled Sobol points, each dimension stratified over a " \
-          "pixel's samples: sampling/sobol.h), independent (Philox), or auto: sobol, but "    \
-          "independent with --target-error (whose estimate needs independent samples); the "  \
-          "chains' numbers are independent either way")                                      \
+          "pixel's samples: sampling/sobol.h), sobol-blocks (a sequence of its own for each " \
+          "block of 8 samples, so that the error estimate is unbiased), independent "         \
+          "(Philox), or auto: sobol, but sobol-blocks with --target-error (whose estimate "   \
+          "needs independent blocks); the chains' numbers are independent either way")      \
     TOKEN(pixel_filter, "gaussian", "box triangle gaussian mitchell blackman-harris",        \
           "cmlt:pixelFilter", "--pixel-filter",                                              \
           "pixel reconstruction filter (film/filter.h): gaussian (the default: pbrt-v4's, "  \
@@ -254,13 +255,24 @@ struct RenderSettings {
 };
 
 /// RenderSettings::sampler as the pixel samplers' sequence (sampling/rng.h).
-/// "auto" is Sobol except for a frame that stops at a target error: its relMSE estimate
-/// is the pixels' sample variance over the passes, which is the variance of their mean
-/// only for independent samples (with Sobol points it over-estimates the error, by the
-/// factor the points gain: README, "Pixel samples").
+/// "auto" is one Sobol sequence per pixel except for a frame that stops at a target
+/// error: its relMSE estimate needs the variance of the pixels' means, which the spread
+/// of independent blocks gives (sobol-blocks) and the spread of one sequence's samples
+/// over-estimates (by about the factor the points gain: README, "Pixel samples").
 inline PixelSequence pixel_sequence(const RenderSettings& s) {
     if (s.sampler == "sobol" || (s.sampler == "auto" && !(s.target_error > 0.0))) return PixelSequence::sobol;
+    if (s.sampler == "sobol-blocks" || s.sampler == "auto") return PixelSequence::sobol_blocks;
     return PixelSequence::independent;
+}
+
+/// The resolved sampler's name (RenderStats::sampler).
+inline const char* pixel_sequence_name(PixelSequence seq) {
+    switch (seq) {
+        case PixelSequence::sobol: return "sobol";
+        case PixelSequence::sobol_blocks: return "sobol-blocks";
+        case PixelSequence::independent: break;
+    }
+    return "independent";
 }
 
 /// Statistics of a Metropolis render (pssmlt, cmlt).
@@ -335,7 +347,7 @@ struct RenderStats {
     double caster_coverage = -1;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
-    std::string sampler;        ///< the pixel samples' numbers: "sobol" | "independent" (resolved)
+    std::string sampler;        ///< the pixel samples' numbers: "sobol" | "sobol-blocks" | "independent" (resolved)
     /// pt, bdpt: the variance of a sum of many neighbouring pixels over the sum of their
     /// variance-AOV entries — 1 for independent pixels (the one-pixel box), the filter's
     /// PixelFilter::splat_correlation when camera samples are splatted to neighbours

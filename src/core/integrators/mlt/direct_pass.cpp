@@ -15,6 +15,7 @@ PtPass::PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base
       m_filter(PixelFilter::from_settings(s.pixel_filter, s.filter_radius)), m_tracer(scene, max_depth),
       m_motion_blur(scene.motion_blur()), m_film(s.width, s.height), m_sample_base(sample_base) {
     m_tracer.set_sequence(pixel_sequence(s));
+    m_film.set_variance_block(variance_block(pixel_sequence(s)));
 }
 
 uint64_t PtPass::evaluations() const {

@@ -25,6 +25,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
     const int W = settings.width, H = settings.height;
     const Camera camera(scene.camera_desc(), W, H);
     Film film(W, H);
+    film.set_variance_block(variance_block(pixel_sequence(settings)));
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     PathTracer tracer(scene, settings.max_depth);
     tracer.set_sequence(pixel_sequence(settings));

@@ -56,6 +56,7 @@ std::vector<float> reference_image(const Scene& scene, const RenderSettings& st,
     const bool caustic_on = st.caustic_tracing && caustic.active();
     if (caustic_on) tracer.set_caustic_light_tracing(&caustic);
     Film film(st.width, st.height);
+    film.set_variance_block(variance_block(pixel_sequence(st)));
     PathCounters c;
     PassSplatter splatter(filter, film);
     if (!splatter.active() && !caustic_on) {
@@ -98,10 +99,11 @@ void check_scene(const std::function<void(Scene&)>& build, const char* what, boo
     build(scene);
     scene.select_kernels(false);
     for (const char* filter : {"box", "gaussian"})
-      for (const char* sampler : {"sobol", "independent"}) {
+      for (const char* sampler : {"sobol", "independent", "sobol-blocks"}) {
         const std::string name = std::string(what) + " (" + filter + ", " + sampler + ")";
-        // 1. no packets: the reference's image bit for bit
-        RenderSettings st = settings(8, false);
+        // 1. no packets: the reference's image bit for bit (sobol-blocks: 3 blocks, so
+        // that the variance, which comes from the blocks, is not 0)
+        RenderSettings st = settings(std::string(sampler) == "sobol-blocks" ? 3 * int(k_sobol_block) : 8, false);
         st.pixel_filter = filter;
         st.sampler = sampler;
         st.caustic_tracing = caustic_tracing;
