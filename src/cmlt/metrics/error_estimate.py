@@ -297,7 +297,9 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
       with the shared-normalisation term of pssmlt/cmlt (b_stderr / b, on the chains'
       part: image minus ``result.direct``);
     * pt, bdpt, and pssmlt/cmlt without chains (``paths`` none): estimate_from_variance
-      on ``result.variance`` (passes are independent);
+      on ``result.variance`` (the variance of the mean from independent passes, or from
+      independent blocks of passes with ``sampler`` sobol-blocks; with one Sobol sequence,
+      ``sobol``, it reads about what independent samples would have: conservative);
     * otherwise (pssmlt, cmlt without groups): None.
     """
     stats = dict(result.stats) if stats is None else stats
