@@ -7,8 +7,10 @@
 /// e = v / D with v the variance of the pixel's mean and D the geometric denominator
 /// sqrt((I² + ε)(max(I² − v, 0) + ε)), ε = 10⁻²; the image's estimate is the mean of e.
 ///
-/// * passes (pt, bdpt): v is the film's variance of the mean over independent passes;
-///   the standard error comes from 4 × 4 interleaved sub-images (sd / 4);
+/// * passes (pt, bdpt): v is the film's variance of the mean over independent passes,
+///   or over independent blocks of passes (Sobol points in blocks, the sampler of a
+///   frame with a target error: Film::set_variance_block); the standard error comes
+///   from 4 × 4 interleaved sub-images (sd / 4);
 /// * chain groups (pssmlt, cmlt): G images Y_g of the same frame from disjoint sets of
 ///   chains (n_g path evaluations each), v = Σ n_g (Y_g − I)² / ((G − 1) N) plus the parts
 ///   every group shares — the direct pass's variance and b's, (b_se / b)² C² on the
