@@ -211,8 +211,11 @@ def test_11_ctrl_c_keeps_finished_frames(make_shot, tmp_path):
     frame not written, no temporaries, a resume hint; --resume finishes."""
     shot = make_shot("long.usda", {"endTimeCode = 3": "endTimeCode = 200"})
     out = tmp_path / "int"
+    # --no-frame-hold: the shot is static, and held frames take no time, so on a loaded
+    # machine all 200 could be written before the signal arrives
     cmd = [sys.executable, "-m", "cmlt", "render", shot, "--frames", "1:200",
-           "--out", str(out / "i.####.exr"), "--spp", "128", "--res", "64x48", "--threads", "2"]
+           "--out", str(out / "i.####.exr"), "--spp", "128", "--res", "64x48", "--threads", "2",
+           "--no-frame-hold"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 240
     while time.time() < deadline and not (out.is_dir() and _exrs(out)):
