@@ -37,27 +37,24 @@ def scene():
     return SceneBridge(core).update(cornell_scene())
 
 
-def _render(scene, integrator, spp, seed, sampler, **kw):
+def _result(scene, integrator, spp, seed, sampler, **kw):
     st = core.RenderSettings()
     st.width, st.height = RES
     st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, 5
     st.integrator, st.sampler = integrator, sampler
     for k, v in kw.items():
         setattr(st, k, v)
-    r = core.render(scene, st)
-    img = np.asarray(r.image, np.float64)
+    return core.render(scene, st)
+
+
+def _render(scene, integrator, spp, seed, sampler, **kw):
+    img = np.asarray(_result(scene, integrator, spp, seed, sampler, **kw).image, np.float64)
     assert np.isfinite(img).all()
     return img
 
 
 def _render_var(scene, integrator, spp, seed, sampler, **kw):
-    st = core.RenderSettings()
-    st.width, st.height = RES
-    st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, 5
-    st.integrator, st.sampler = integrator, sampler
-    for k, v in kw.items():
-        setattr(st, k, v)
-    r = core.render(scene, st)
+    r = _result(scene, integrator, spp, seed, sampler, **kw)
     assert r.stats["sampler"] == sampler
     return np.asarray(r.image, np.float64), np.asarray(r.variance, np.float64)
 
