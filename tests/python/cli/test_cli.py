@@ -216,7 +216,10 @@ def test_11_ctrl_c_keeps_finished_frames(make_shot, tmp_path):
     cmd = [sys.executable, "-m", "cmlt", "render", shot, "--frames", "1:200",
            "--out", str(out / "i.####.exr"), "--spp", "128", "--res", "64x48", "--threads", "2",
            "--no-frame-hold"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # the child's SIGINT at its default disposition: a shell runs a background job with
+    # SIGINT ignored, which the child would inherit (Python then installs no handler)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 240
     while time.time() < deadline and not (out.is_dir() and _exrs(out)):
         time.sleep(0.05)
