@@ -24,6 +24,7 @@ bool Film::add_sample(int x, int y, uint32_t sample_index, const Spectrum& L, fl
             finish_block(b);
             b.current = k;
         }
+        b.n_cur += 1;
         b.w_cur += double(weight);
         for (int c = 0; c < 3; ++c) b.sum_cur[c] += double(weight) * double(L[c]);
     }
@@ -46,6 +47,7 @@ void Film::finish_block(Blocks& b) {
     const double w = b.w_cur;
     const double sum[3] = {b.sum_cur[0], b.sum_cur[1], b.sum_cur[2]};
     b.w_cur = 0.0;
+    b.n_cur = 0;
     b.sum_cur[0] = b.sum_cur[1] = b.sum_cur[2] = 0.0;
     if (b.current == ~0u || w == 0.0) return;  // no block yet, or one without a mean
     b.n += 1;
@@ -83,8 +85,10 @@ void Film::develop(float* image, float* variance) const {
         uint32_t n = p.n;
         double w = p.w;
         const double* m2 = p.m2;
+        Blocks b;  // with m_block > 1: the finished blocks, and the latest if complete
         if (m_block > 1) {
-            const Blocks& b = m_blocks[i];
+            b = m_blocks[i];
+            if (b.n_cur == m_block) finish_block(b);
             n = b.n;
             w = b.w;
             m2 = b.m2;

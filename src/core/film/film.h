@@ -16,8 +16,8 @@
 /// independent blocks of B consecutive sample indices (PixelSequence::sobol_blocks),
 /// set_variance_block(B) makes it the spread of the blocks' weighted means over the
 /// number of complete blocks (the same weighted Welford update, one block at a time);
-/// the mean is the samples' either way, bit for bit. An unfinished block counts in the
-/// mean, not in the variance.
+/// the mean is the samples' either way, bit for bit. A block is complete once it has B
+/// samples; an unfinished one counts in the mean, not in the variance.
 #include "math/vec.h"
 
 #include <atomic>
@@ -63,8 +63,9 @@ private:
     /// A pixel's blocks (set_variance_block): the unfinished one's weighted sums, and the
     /// weighted Welford state over the finished ones' means.
     struct Blocks {
-        uint32_t current = ~0u;  ///< block index of the unfinished block (none: ~0)
-        uint32_t n = 0;          ///< finished blocks
+        uint32_t current = ~0u;  ///< block index of the latest block (none: ~0)
+        uint32_t n_cur = 0;      ///< its samples so far
+        uint32_t n = 0;          ///< blocks before it (finished)
         double w_cur = 0, sum_cur[3] = {0, 0, 0};
         double w = 0, mean[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
     };

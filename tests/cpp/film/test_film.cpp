@@ -82,6 +82,12 @@ TEST(Film, BlockWeightsAreTheSamplesWeights) {
     film.develop(img.data(), var.data());
     EXPECT_FLOAT_EQ(img[0], 3.5f);
     EXPECT_EQ(var[0], 0.f);
+    // a complete last block counts at once (no sample of the next one needed)
+    Film two(1, 1);
+    two.set_variance_block(2);
+    for (uint32_t i = 0; i < 4; ++i) two.add_sample(0, 0, i, Spectrum(i < 2 ? 1.f : 3.f));
+    two.develop(img.data(), var.data());
+    EXPECT_FLOAT_EQ(var[0], float((1.0 + 1.0) / 1 / 2));  // block means 1, 3
     film.add_sample(0, 0, 2, Spectrum(1.f), 2.f);
     film.add_sample(0, 0, 3, Spectrum(1.f), 2.f);  // block 1: mean 1, weight 4
     film.add_sample(0, 0, 4, Spectrum(9.f), 1.f);  // block 2 unfinished
