@@ -250,12 +250,9 @@ inline std::string stop_reason(bool cancelled, bool target_reached, bool timed, 
 /// variance of fewer passes misses the rare bright samples of most pixels, and the
 /// estimate is low (Cornell box pt, 32x32: estimate × passes 0.28-0.40 after 16 passes,
 /// 0.40-0.44 from 128 on, tests/bench/target_error.py).
-/// With Sobol points in blocks of 8 (the sampler of such a frame) that is 4 blocks: their
-/// per-pixel variances have 3 degrees of freedom, and the geometric denominator's
-/// correction then makes the estimate read high (Cornell box pt, 64x64: estimate /
-/// measured 1.32 with 4 blocks, 1.07 with 8, 1.06 with 16), so such a frame stops early
-/// below its target rather than above it; a minimum of 8 blocks was tried and costs
-/// loose targets twice the work (README, "Pixel samples").
+/// With Sobol points in blocks of 8 (the sampler of such a frame) that is 4 blocks, whose
+/// estimate is as calibrated (Cornell box pt, 64x64: estimate / measured 0.96-0.98 from
+/// 2 to 16 blocks; README, "Pixel samples").
 constexpr double k_target_min_passes = 32.0;
 
 }  // namespace cmlt
