@@ -2,6 +2,7 @@
 
 #include "util/error.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace cmlt {
@@ -78,26 +79,26 @@ void Film::count_bad_sample(int x, int y, uint32_t sample_index) {
     }
 }
 
+namespace {
+/// The variance of the mean from a weighted Welford state (weight 1: m2 / ((n - 1) n)).
+void variance_of_mean(uint32_t n, double w, const double* m2, float* out) {
+    for (int c = 0; c < 3; ++c)
+        out[c] = float(n > 1 && w > 0.0 ? std::max(0.0, m2[c] / (double(n - 1) * w)) : 0.0);
+}
+}  // namespace
+
 void Film::develop(float* image, float* variance) const {
     for (size_t i = 0; i < m_pixels.size(); ++i) {
         const Pixel& p = m_pixels[i];
-        // the samples' spread, or the finished blocks' (the same formula over blocks)
-        uint32_t n = p.n;
-        double w = p.w;
-        const double* m2 = p.m2;
-        Blocks b;  // with m_block > 1: the finished blocks, and the latest if complete
+        for (int c = 0; c < 3; ++c) image[3 * i + c] = float(p.mean[c]);
+        if (!variance) continue;
         if (m_block > 1) {
-            b = m_blocks[i];
+            // the finished blocks' spread, and the latest block's if it is complete
+            Blocks b = m_blocks[i];
             if (b.n_cur == m_block) finish_block(b);
-            n = b.n;
-            w = b.w;
-            m2 = b.m2;
-        }
-        for (int c = 0; c < 3; ++c) {
-            image[3 * i + c] = float(p.mean[c]);
-            // weight 1: m2 / ((n - 1) n), the sample variance of the mean
-            double var = n > 1 && w > 0.0 ? std::max(0.0, m2[c] / (double(n - 1) * w)) : 0.0;
-            if (variance) variance[3 * i + c] = float(var);
+            variance_of_mean(b.n, b.w, b.m2, variance + 3 * i);
+        } else {
+            variance_of_mean(p.n, p.w, p.m2, variance + 3 * i);
         }
     }
 }

@@ -20,21 +20,24 @@ void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t
     // Philox of every lane's dimensions at once: the numbers themselves, or with a Sobol
     // sequence the dimensions' seeds (counter (pixel, sequence_seed_sample, d)), from
     // which each lane's point follows (sampling/rng.h pixel_words)
+    if (lanes.empty()) return;
     const PixelSequence seq = m_tracer.sequence();
     const bool sobol = low_discrepancy(seq);
+    // a batch's lanes are samples of one index (trace_tile's s): one counter word for all
+    const uint32_t sample = m_sampler[lanes[0]].sample();
+    const uint32_t c1 = sobol ? sequence_seed_sample(seq, sample) : sample;
     size_t n = 0;
     for (uint32_t l : lanes) {
         const uint32_t d0 = first(l);
         for (uint32_t k = 0; k < count; ++k, ++n) {
             m_c0[n] = m_sampler[l].pixel();
-            m_c1[n] = sobol ? sequence_seed_sample(seq, m_sampler[l].sample()) : m_sampler[l].sample();
+            m_c1[n] = c1;
             m_c2[n] = d0 + k;
         }
     }
     philox4x32_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path),
                      seed_key(m_seed), m_w0.data(), m_w1.data());
-    if (sobol && !lanes.empty())  // a batch's lanes are samples of one index (trace_tile's s)
-        sobol::scrambled_points_lanes(n, sequence_index(seq, m_sampler[lanes[0]].sample()), m_w0.data(), m_w1.data());
+    if (sobol) sobol::scrambled_points_lanes(n, sequence_index(seq, sample), m_w0.data(), m_w1.data());
     n = 0;
     for (uint32_t l : lanes) {
         uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
