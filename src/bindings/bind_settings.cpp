@@ -192,6 +192,28 @@ void bind_settings(nb::module_& m) {
                "reparametrisation: the same image in expectation; default 0)");
     cls.def_rw("film_offset_y", &RenderSettings::film_offset_y, "as film_offset_x");
     cls.def_prop_rw(
+        "pixel_keys",
+        [](const RenderSettings& s) -> nb::object {
+            if (!s.pixel_keys) return nb::none();
+            return nb::cast(*s.pixel_keys);
+        },
+        [](RenderSettings& s, nb::object v) {
+            if (v.is_none()) {
+                s.pixel_keys.reset();
+                return;
+            }
+            nb::ndarray<const uint32_t, nb::ndim<1>, nb::c_contig, nb::device::cpu> a;
+            if (nb::try_cast(v, a))  // a uint32 array: copied as is
+                s.pixel_keys = std::make_shared<const std::vector<uint32_t>>(a.data(), a.data() + a.size());
+            else
+                s.pixel_keys = std::make_shared<const std::vector<uint32_t>>(nb::cast<std::vector<uint32_t>>(v));
+        },
+        nb::arg("value").none(),
+        "the sample key of each image pixel (W*H ints, row-major, a permutation of "
+        "0..W*H-1) replacing the film offset's shift of the pixel passes' keys, so each "
+        "pixel's numbers follow its own screen motion (the temporal driver's key map); "
+        "None (default): the film offset's");
+    cls.def_prop_rw(
         "pilot",
         [](const RenderSettings& s) -> nb::object {
             if (!s.pilot) return nb::none();

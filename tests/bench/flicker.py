@@ -59,6 +59,10 @@ CONFIGS = {
                                 sampler="independent"),
     "stored seeds (philox)": dict(seed_per_frame=False, carry_states=False, smooth_normalization=False,
                                  sampler="independent"),
+    # stored seeds with every pixel's key following the film offset (one motion for the
+    # image: the behaviour before the key maps)
+    "keys by the film offset": dict(seed_per_frame=False, carry_states=False,
+                                    smooth_normalization=False, _pixel_keys=False),
     # everything on but the chains' film offset kept at 0 (no camera reprojection)
     "all but reprojection": dict(seed_per_frame=False, carry_states=True,
                                         smooth_normalization=True, _reproject=False),
@@ -100,6 +104,7 @@ def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: i
     seconds per frame)."""
     from cmlt.temporal import driver
     driver.REPROJECT = bool(kw.pop("_reproject", True))
+    driver.PIXEL_KEYS = bool(kw.pop("_pixel_keys", True))
     t0 = time.perf_counter()
     r = render_sequence(shot, frames, os.path.join(out, "f.####.exr"),
                         RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,

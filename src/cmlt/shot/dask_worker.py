@@ -135,10 +135,13 @@ def prepare_task(spec: dict, prev: Optional[dict]) -> dict:
                    "pilot": None if pilot is None else np.asarray(pilot, dtype=np.float32),
                    "bootstrap_f": boot,
                    "initial_states": None if states is None else bytes(states.to_bytes()),
-                   "film_offset": (float(st.film_offset_x), float(st.film_offset_y))},
+                   "film_offset": (float(st.film_offset_x), float(st.film_offset_y)),
+                   "pixel_keys": None if getattr(st, "pixel_keys", None) is None
+                   else np.asarray(st.pixel_keys, dtype=np.uint32)},
             # what the next frame's preparation reads (as its FrameState would hold it)
             "carry": {"anchors": list(pending["anchors"]),
                       "film_offset": tuple(pending["film_offset"]),
+                      "pixel_keys": pending.get("pixel_keys"),
                       "boot_f": b"" if boot is None else boot,      # the same values
                       "start_picks": list(pending["picks"])},
             "worker": _address(),
@@ -160,6 +163,8 @@ def render_part(spec: dict, shared: Optional[dict]) -> dict:
         if given:
             st.seed = given["seed"]
             st.film_offset_x, st.film_offset_y = given["film_offset"]
+            if given.get("pixel_keys") is not None:
+                st.pixel_keys = given["pixel_keys"]
             if given.get("pilot") is not None:
                 st.pilot = given["pilot"]
             if given.get("bootstrap_f") is not None:

@@ -249,6 +249,8 @@ def hold_key(job: ShotJob, st) -> Optional[bytes]:
         v = getattr(st, name, None)
         h.update(name.encode() + b":" + (b"-" if v is None else
                                          np.ascontiguousarray(v, dtype=np.float64).tobytes()))
+    keys = getattr(st, "pixel_keys", None)
+    h.update(b"pixel_keys:" + (b"-" if keys is None else np.asarray(keys, dtype="<u4").tobytes()))
     return h.digest()
 
 

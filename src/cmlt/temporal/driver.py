@@ -81,8 +81,73 @@ def frame_key(frame: float) -> int:
 #: it does)
 REPROJECT = True
 #: screen-motion anchors per frame (a grid of camera rays: what they hit, followed
-#: into the next frame to measure how far the image moved)
-ANCHOR_GRID = (16, 16)
+#: into the next frame to measure how far the image moved): one per pixel up to this
+#: many per axis (anchor_grid)
+ANCHOR_MAX = 128
+#: the pixels' sample keys follow each pixel's own screen motion (a key map: parallax,
+#: moving objects); False: every key follows the film offset (one motion for the image)
+PIXEL_KEYS = True
+
+
+def anchor_grid(width: int, height: int) -> Tuple[int, int]:
+    """The screen anchors' grid for a width x height frame: one per pixel, at most
+    ANCHOR_MAX per axis (then the key map interpolates the motion between them)."""
+    return max(1, min(int(width), ANCHOR_MAX)), max(1, min(int(height), ANCHOR_MAX))
+
+
+def key_map(prev_keys, anchors, projected, width: int, height: int) -> Optional[np.ndarray]:
+    """The pixels' sample keys of the next frame (uint32, H*W row-major, a permutation of
+    0..H*W-1), following each pixel's own screen motion: pixel q's key (``prev_keys``,
+    None: the identity) moves to the pixel its surface is in next frame, q + d(q) with
+    d the anchors' displacement (``anchors`` on an :func:`anchor_grid`, ``projected``
+    into the next frame; invalid ones — nothing hit, behind the camera — take the
+    median) interpolated bilinearly at the pixel centre. Where several keys land on one
+    pixel the one nearest its centre stays (ties: the lower source index); the keys
+    left over (pushed out of the image or off a taken pixel) go to the pixels nobody
+    reached, both in raster order — under a pure whole-pixel pan that is the film
+    offset's torus shift exactly. None when fewer than a quarter of the anchors are
+    valid (no motion to follow). The map depends only on the geometry and the camera,
+    never on a pixel's random numbers, so every pixel's estimator is unchanged."""
+    W, H = int(width), int(height)
+    n_x, n_y = anchor_grid(W, H)
+    a = np.asarray(anchors, dtype=np.float64).reshape(-1, 6)
+    p = np.asarray(projected, dtype=np.float64).reshape(-1, 2)
+    if a.shape[0] != n_x * n_y or p.shape[0] != a.shape[0]:
+        return None
+    ok = np.isfinite(p).all(axis=1) & (a[:, 0] >= 0)
+    if ok.sum() < max(1, a.shape[0] // 4):
+        return None
+    d = p - a[:, 4:6]
+    d[~ok] = np.median(d[ok], axis=0)
+    d = d.reshape(n_y, n_x, 2)
+    # bilinear interpolation of the grid's displacement at the pixel centres
+    gx = np.clip((np.arange(W) + 0.5) * n_x / W - 0.5, 0.0, n_x - 1)
+    gy = np.clip((np.arange(H) + 0.5) * n_y / H - 0.5, 0.0, n_y - 1)
+    x0 = np.floor(gx).astype(np.int64)
+    y0 = np.floor(gy).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, n_x - 1), np.minimum(y0 + 1, n_y - 1)
+    fx, fy = (gx - x0)[None, :, None], (gy - y0)[:, None, None]
+    D = ((d[y0][:, x0] * (1 - fx) + d[y0][:, x1] * fx) * (1 - fy)
+         + (d[y1][:, x0] * (1 - fx) + d[y1][:, x1] * fx) * fy)
+    tx = np.arange(W)[None, :] + 0.5 + D[..., 0]
+    ty = np.arange(H)[:, None] + 0.5 + D[..., 1]
+    ix, iy = np.floor(tx), np.floor(ty)
+    inside = ((ix >= 0) & (ix < W) & (iy >= 0) & (iy < H)).ravel()
+    resid = (np.abs(tx - ix - 0.5) + np.abs(ty - iy - 0.5)).ravel()
+    target = (np.where(inside, iy.ravel(), 0) * W + np.where(inside, ix.ravel(), 0)).astype(np.int64)
+    src = np.flatnonzero(inside)
+    order = src[np.lexsort((src, resid[src], target[src]))]
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = target[order][1:] != target[order][:-1]
+    chosen = order[first]
+    keys = (np.arange(W * H, dtype=np.uint32) if prev_keys is None
+            else np.asarray(prev_keys, dtype=np.uint32).reshape(-1))
+    out = np.full(W * H, W * H, dtype=np.int64)
+    out[target[chosen]] = keys[chosen]
+    taken = np.zeros(W * H, dtype=bool)
+    taken[chosen] = True
+    out[out == W * H] = keys[~taken]
+    return out.astype(np.uint32)
 
 
 def film_shift(anchors, projected, width: int, height: int) -> Tuple[float, float]:
@@ -96,6 +161,11 @@ def film_shift(anchors, projected, width: int, height: int) -> Tuple[float, floa
         return 0.0, 0.0
     d = p[ok] - a[ok, 4:6]
     return float(np.median(d[:, 0])) / width, float(np.median(d[:, 1])) / height
+
+
+def _key_bytes(keys) -> bytes:
+    """A key map as a state file holds it (little-endian u32), b"" for none."""
+    return b"" if keys is None else np.asarray(keys, dtype="<u4").tobytes()
 
 
 def bootstrap_ratio(f_old, f_new) -> Optional[dict]:
@@ -118,7 +188,9 @@ def carry_of(prev) -> Optional[dict]:
     float64 bytes, or an array of them) and starts."""
     if prev is None:
         return None
+    keys = np.frombuffer(prev.pixel_keys, dtype="<u4") if prev.pixel_keys else None
     return {"anchors": list(prev.anchors), "film_offset": tuple(prev.film_offset),
+            "pixel_keys": keys,
             "boot_f": bytes(prev.boot_f), "start_picks": list(prev.start_picks)}
 
 
@@ -132,6 +204,8 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
     per_frame, carry = bool(config["per_frame"]), bool(config["carry"])
     st.seed = frame_seed(int(config["base_seed"]), frame, per_frame)
     st.film_offset_x = st.film_offset_y = 0.0
+    if hasattr(st, "pixel_keys"):
+        st.pixel_keys = None
     if hasattr(st, "mlt_initial_states"):
         st.mlt_initial_states = None
         st.mlt_bootstrap_f = None
@@ -140,7 +214,7 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
            "state_in": None, "carried_chains": 0, "refreshed_chains": 0,
            "film_offset": [0.0, 0.0]}
     pending = {"ratio": None, "picks": [], "boot_f": None, "film_offset": (0.0, 0.0),
-               "anchors": []}
+               "anchors": [], "pixel_keys": None}
     if config["integrator"] in MLT_INTEGRATORS and hasattr(core, "mlt_resolve_paths"):
         # what the chains render, resolved for this frame's scene as the render
         # resolves it (the bootstrap and chain counts below depend on it)
@@ -163,17 +237,30 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
         # nearest a pixel's numbers can follow it; rounding the accumulated offset
         # instead would move them 0 or 2 pixels in some frames of a 1-pixel pan)
         offset = (0.0, 0.0)
+        projected = None
         if prev_ok and prev["anchors"]:
-            dx, dy = film_shift(prev["anchors"],
-                                core.temporal_project_anchors(scene, st, prev["anchors"]),
-                                st.width, st.height)
+            projected = core.temporal_project_anchors(scene, st, prev["anchors"])
+            dx, dy = film_shift(prev["anchors"], projected, st.width, st.height)
             dx, dy = round(dx * st.width) / st.width, round(dy * st.height) / st.height
             offset = ((prev["film_offset"][0] + dx) % 1.0, (prev["film_offset"][1] + dy) % 1.0)
         st.film_offset_x = offset[0] if offset[0] < 1.0 else 0.0
         st.film_offset_y = offset[1] if offset[1] < 1.0 else 0.0
         pending["film_offset"] = (float(st.film_offset_x), float(st.film_offset_y))
-        pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *ANCHOR_GRID))
         rec["film_offset"] = list(pending["film_offset"])
+        if PIXEL_KEYS and hasattr(st, "pixel_keys"):
+            # each pixel's key follows its own motion (key_map); the film offset then
+            # moves only the chains' film position
+            keys = prev.get("pixel_keys") if prev_ok else None
+            if prev_ok and projected is not None:
+                moved = key_map(keys, prev["anchors"], projected, st.width, st.height)
+                if moved is not None:
+                    keys = moved
+            if keys is not None and len(keys) == st.width * st.height:
+                keys = np.asarray(keys, dtype=np.uint32)
+                st.pixel_keys = keys if not np.array_equal(keys, np.arange(keys.size)) else None
+                pending["pixel_keys"] = keys
+                rec["pixel_keys_moved"] = int(np.count_nonzero(keys != np.arange(keys.size)))
+        pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *anchor_grid(st.width, st.height)))
     if not carry:
         return rec, pending
     n_boot = int(core.temporal_bootstrap_count(st))
@@ -339,6 +426,7 @@ class TemporalDriver:
                         start_picks=picks,
                         film_offset=tuple(self._pending.get("film_offset", (0.0, 0.0))),
                         anchors=list(self._pending.get("anchors", [])),
+                        pixel_keys=_key_bytes(self._pending.get("pixel_keys")),
                         boot_f=np.asarray(boot_f, dtype="<f8").tobytes()
                         if boot_f is not None else b"",
                         history=history)

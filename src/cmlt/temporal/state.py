@@ -22,6 +22,8 @@ reads ``state.0012.bin``). Little-endian::
              2 × f64                the chains' film offset (x, y) in this frame
              u64 a | a × 6 × f64    screen anchors (instance, object-space x, y, z,
                                     raster x, y): the next frame's screen motion
+             u64 m | m bytes        the pixels' sample keys (version 4; m = 0: none):
+                                    zlib of the W·H u32 (key − pixel index) mod 2³²
              u32 k | k × record     normalisation history, oldest first (see below)
     trailer  u32 CRC-32 (zlib) of header + payload
 
@@ -44,6 +46,8 @@ import zlib
 from dataclasses import dataclass, field
 from typing import List, Optional
 
+import numpy as np
+
 from .normalization import NormRecord
 
 __all__ = ["STATE_MAGIC", "STATE_VERSION", "StateError", "FrameState", "encode_state",
@@ -51,7 +55,9 @@ __all__ = ["STATE_MAGIC", "STATE_VERSION", "StateError", "FrameState", "encode_s
            "settings_hash", "HISTORY_LIMIT"]
 
 STATE_MAGIC = b"CMLTSTAT"
-STATE_VERSION = 3
+STATE_VERSION = 4
+#: versions this cmlt reads (3: before the pixels' key maps)
+READ_VERSIONS = (3, 4)
 #: normalisation records kept (oldest dropped)
 HISTORY_LIMIT = 256
 
@@ -85,6 +91,8 @@ class FrameState:
     film_offset: tuple = (0.0, 0.0)
     #: flat screen anchors, 6 numbers each (core temporal_screen_anchors)
     anchors: List[float] = field(default_factory=list)
+    #: the pixels' sample keys this frame (W·H little-endian u32), b"": none
+    pixel_keys: bytes = b""
     history: List[NormRecord] = field(default_factory=list)
 
     @property
@@ -125,6 +133,15 @@ def encode_state(s: FrameState) -> bytes:
         raise ValueError("FrameState.anchors: not 6 numbers per anchor")
     payload += struct.pack("<Q", len(s.anchors) // 6)
     payload += struct.pack(f"<{len(s.anchors)}d", *s.anchors)
+    if s.pixel_keys:
+        if len(s.pixel_keys) != 4 * s.width * s.height:
+            raise ValueError("FrameState.pixel_keys: not W*H u32 keys")
+        keys = np.frombuffer(s.pixel_keys, dtype="<u4")
+        delta = (keys - np.arange(keys.size, dtype=np.uint32)).astype("<u4")
+        packed = zlib.compress(delta.tobytes(), 6)
+    else:
+        packed = b""
+    payload += struct.pack("<Q", len(packed)) + packed
     payload += struct.pack("<I", len(hist))
     for r in hist:
         payload += _RECORD.pack(*(float(getattr(r, k)) for k in _REC_FIELDS), 1 if r.change else 0)
@@ -145,8 +162,9 @@ def decode_state(data: bytes, path: str = "<state>") -> FrameState:
     if len(data) < _HEADER.size:
         raise bad(f"truncated state file ({len(data)} bytes, the header alone is {_HEADER.size})")
     (_, version, sh, w, h, integ, seed, count, frame, seth, plen) = _HEADER.unpack_from(data, 0)
-    if version != STATE_VERSION:
-        raise bad(f"state format version {version}, this cmlt reads version {STATE_VERSION}")
+    if version not in READ_VERSIONS:
+        raise bad(f"state format version {version}, this cmlt reads versions "
+                  f"{', '.join(map(str, READ_VERSIONS))}")
     want = _HEADER.size + plen + 4
     if len(data) < want:
         raise bad(f"truncated state file ({len(data)} of {want} bytes)")
@@ -175,6 +193,22 @@ def decode_state(data: bytes, path: str = "<state>") -> FrameState:
         if p + 48 * a > len(data):
             raise struct.error("screen anchors run past the end")
         out.anchors = list(struct.unpack_from(f"<{6 * a}d", data, p)); p += 48 * a
+        if version >= 4:
+            (m,) = struct.unpack_from("<Q", data, p); p += 8
+            if p + m > len(data):
+                raise struct.error("pixel keys run past the end")
+            if m:
+                try:
+                    raw = zlib.decompress(bytes(data[p:p + m]))
+                except zlib.error:
+                    raise struct.error("pixel keys do not decompress") from None
+                if len(raw) != 4 * w * h:
+                    raise struct.error(f"{len(raw) // 4} pixel keys for {w}x{h} pixels")
+                keys = (np.frombuffer(raw, dtype="<u4") + np.arange(w * h, dtype=np.uint32)).astype("<u4")
+                if not np.array_equal(np.sort(keys), np.arange(w * h, dtype=np.uint32)):
+                    raise struct.error("the pixel keys are not a permutation")
+                out.pixel_keys = keys.tobytes()
+            p += m
         (k,) = struct.unpack_from("<I", data, p); p += 4
         for _ in range(k):
             vals = _RECORD.unpack_from(data, p); p += _RECORD.size

@@ -50,6 +50,7 @@ int wrap_shift(int v, int d, int n) {
 
 uint32_t PassSplatter::window_key(int x, int y, int width, int height, int reach, KeyShift shift) {
     if (x >= 0 && y >= 0 && x < width && y < height) {
+        if (shift.keys) return shift.keys[size_t(y) * size_t(width) + size_t(x)];
         if (!shift.identity()) {
             // the image's pixels on the image's torus (the film offset wraps at its size);
             // the ring outside keeps its keys (it only reaches the border pixels' filters)

@@ -47,15 +47,21 @@ class Film;
 /// noise moves with the image instead of staying on the screen. A bijection of the keys:
 /// each pixel still gets its own independent stream and uniform positions, so its
 /// estimator is unchanged; (0, 0) is the identity.
+/// With a key map (RenderSettings::pixel_keys) image pixel (x, y) takes key
+/// keys[y W + x] instead: any permutation of the image's keys, so each pixel can follow
+/// its own screen motion (parallax, moving objects); the same argument holds.
 struct KeyShift {
     int dx = 0, dy = 0;
+    const uint32_t* keys = nullptr;  ///< W·H keys (a permutation), or nullptr
     /// The film offset (fractions of the image, [0, 1)) rounded to whole pixels.
     static KeyShift of_offset(double offset_x, double offset_y, int width, int height);
-    /// The frame's: RenderSettings::film_offset_x/y on its width x height.
+    /// The frame's: its key map if it has one, else RenderSettings::film_offset_x/y on its
+    /// width x height.
     static KeyShift of(const RenderSettings& s) {
+        if (s.pixel_keys && !s.pixel_keys->empty()) return KeyShift{0, 0, s.pixel_keys->data()};
         return of_offset(s.film_offset_x, s.film_offset_y, s.width, s.height);
     }
-    bool identity() const { return dx == 0 && dy == 0; }
+    bool identity() const { return dx == 0 && dy == 0 && !keys; }
 };
 
 class PassSplatter {

@@ -24,7 +24,7 @@ from pxr import Sdf, Usd  # noqa: E402
 
 #: RenderSettings properties that are inputs handed over per frame (by the temporal
 #: driver; the part of a frame a Dask task renders), not settings
-CORE_INPUTS = {"mlt_initial_states", "pilot", "mlt_bootstrap_f", "film_offset_x",
+CORE_INPUTS = {"mlt_initial_states", "pilot", "mlt_bootstrap_f", "film_offset_x", "pixel_keys",
                "film_offset_y", "partial", "part_row_begin", "part_row_end",
                "part_chain_begin", "part_chain_end"}
 

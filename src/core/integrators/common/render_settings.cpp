@@ -69,6 +69,19 @@ void RenderSettings::validate() const {
           film_offset_y < 1.0))
         CMLT_THROW(SettingsError, "RenderSettings.film_offset must be in [0, 1) per axis, got "
                                       << film_offset_x << ", " << film_offset_y);
+    if (pixel_keys) {
+        const uint64_t n = uint64_t(width) * uint64_t(height);
+        if (pixel_keys->size() != n)
+            CMLT_THROW(SettingsError, "RenderSettings.pixel_keys: " << pixel_keys->size()
+                                          << " keys for " << width << " x " << height << " pixels");
+        std::vector<bool> seen(n, false);
+        for (uint32_t k : *pixel_keys) {
+            if (k >= n || seen[k])
+                CMLT_THROW(SettingsError, "RenderSettings.pixel_keys: not a permutation of 0.." << n - 1 << " (key "
+                                              << k << (k >= n ? " out of range)" : " twice)"));
+            seen[k] = true;
+        }
+    }
     if (partial && !(part_row_begin >= 0 && part_row_begin <= part_row_end && part_row_end <= height &&
                      part_chain_begin <= part_chain_end))
         CMLT_THROW(SettingsError, "RenderSettings.part_*: rows [" << part_row_begin << ", " << part_row_end

@@ -233,6 +233,12 @@ struct RenderSettings {
     /// (film/pass_splatter.h KeyShift: pt, bdpt, the Metropolis direct pass, the AOVs); both
     /// are bijections, so every pixel's estimator is unchanged. Default 0, 0.
     double film_offset_x = 0.0, film_offset_y = 0.0;
+    /// The sample key of each image pixel (W·H, row-major; a permutation of 0..W·H−1):
+    /// when given, it replaces the film offset's shift of the pixel passes' keys, so each
+    /// pixel's numbers can follow its own screen motion (the temporal driver's key map:
+    /// parallax, moving objects). A bijection like the shift: every pixel's estimator is
+    /// unchanged. nullptr (default): the film offset's shift.
+    std::shared_ptr<const std::vector<uint32_t>> pixel_keys;
     /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
     /// (the temporal driver renders it once per frame for the render and its carry-over
     /// evaluations). Its cost is counted as if rendered (pilot_spp · W·H evaluations).
