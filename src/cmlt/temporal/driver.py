@@ -101,11 +101,12 @@ def key_map(prev_keys, anchors, projected, width: int, height: int) -> Optional[
     None: the identity) moves to the pixel its surface is in next frame, q + d(q) with
     d the anchors' displacement (``anchors`` on an :func:`anchor_grid`, ``projected``
     into the next frame; invalid ones — nothing hit, behind the camera — take the
-    median) interpolated bilinearly at the pixel centre. Where several keys land on one
-    pixel the one nearest its centre stays (ties: the lower source index); the keys
-    left over (pushed out of the image or off a taken pixel) go to the pixels nobody
-    reached, both in raster order — under a pure whole-pixel pan that is the film
-    offset's torus shift exactly. None when fewer than a quarter of the anchors are
+    median) interpolated bilinearly at the pixel centre; a key pushed out of the image
+    wraps around to the opposite edge. Where several keys land on one pixel the one
+    nearest its centre stays (ties: the lower source index; wrapped keys after those
+    that came from inside); the keys left over go to the pixels nobody reached, both in
+    raster order. Under a pure whole-pixel pan that is the film offset's torus shift
+    exactly. None when fewer than a quarter of the anchors are
     valid (no motion to follow). The map depends only on the geometry and the camera,
     never on a pixel's random numbers, so every pixel's estimator is unchanged."""
     W, H = int(width), int(height)
@@ -133,9 +134,14 @@ def key_map(prev_keys, anchors, projected, width: int, height: int) -> Optional[
     ty = np.arange(H)[:, None] + 0.5 + D[..., 1]
     ix, iy = np.floor(tx), np.floor(ty)
     inside = ((ix >= 0) & (ix < W) & (iy >= 0) & (iy < H)).ravel()
-    resid = (np.abs(tx - ix - 0.5) + np.abs(ty - iy - 0.5)).ravel()
-    target = (np.where(inside, iy.ravel(), 0) * W + np.where(inside, ix.ravel(), 0)).astype(np.int64)
-    src = np.flatnonzero(inside)
+    # a key pushed out of the image wraps around to the opposite edge (the film
+    # offset's torus), behind any key that reached that pixel from inside
+    resid = (np.abs(tx - ix - 0.5) + np.abs(ty - iy - 0.5)).ravel() + np.where(inside, 0.0, 4.0)
+    ok_t = np.isfinite(tx).ravel() & np.isfinite(ty).ravel()
+    ixw = np.mod(np.where(ok_t, ix.ravel(), 0), W)
+    iyw = np.mod(np.where(ok_t, iy.ravel(), 0), H)
+    target = (iyw * W + ixw).astype(np.int64)
+    src = np.flatnonzero(ok_t)
     order = src[np.lexsort((src, resid[src], target[src]))]
     first = np.ones(order.size, dtype=bool)
     first[1:] = target[order][1:] != target[order][:-1]

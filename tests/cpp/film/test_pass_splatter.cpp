@@ -3,7 +3,9 @@
 // the order samples arrive in and of row parts, dropped non-finite samples.
 #include "film/film.h"
 #include "film/pass_splatter.h"
+#include "integrators/common/render_settings.h"
 #include "sampling/rng.h"
+#include "util/error.h"
 
 #include <gtest/gtest.h>
 
@@ -112,6 +114,41 @@ TEST(PassSplatter, ShiftedKeysAreTheKeysOfTheSourcePixelsTheImageCameFrom) {
     const KeyShift b = KeyShift::of_offset(0.99, 0.95, W, H);  // 6.93 -> 7 = W -> 0; 4.75 -> 5 -> 0
     EXPECT_TRUE(b.identity());
     EXPECT_TRUE(KeyShift::of_offset(std::nan(""), -0.5, W, H).identity());  // outside [0, 1): none
+}
+
+TEST(PassSplatter, KeyMapsGiveEachImagePixelItsMappedKey) {
+    // With a key map (RenderSettings::pixel_keys) image pixel (x, y) takes keys[y W + x],
+    // the ring keeps its keys, the film offset is ignored, and the settings' map wins
+    // over their offset; every key of the window is still used once.
+    const int W = 7, H = 5;
+    std::vector<uint32_t> map(size_t(W * H));
+    for (size_t i = 0; i < map.size(); ++i) map[i] = uint32_t((i * 12 + 5) % map.size());  // 12 coprime to 35
+    RenderSettings st;
+    st.width = W;
+    st.height = H;
+    st.film_offset_x = 0.3;
+    st.pixel_keys = std::make_shared<const std::vector<uint32_t>>(map);
+    st.validate();
+    const KeyShift s = KeyShift::of(st);
+    EXPECT_FALSE(s.identity());
+    EXPECT_EQ(s.dx, 0);
+    for (int R : {0, 2}) {
+        std::set<uint32_t> keys;
+        for (int y = -R; y < H + R; ++y)
+            for (int x = -R; x < W + R; ++x) {
+                const uint32_t k = PassSplatter::window_key(x, y, W, H, R, s);
+                EXPECT_TRUE(keys.insert(k).second);
+                const bool inside = x >= 0 && y >= 0 && x < W && y < H;
+                EXPECT_EQ(k, inside ? map[size_t(y * W + x)] : PassSplatter::window_key(x, y, W, H, R));
+            }
+        EXPECT_EQ(keys.size(), size_t(W + 2 * R) * size_t(H + 2 * R));
+    }
+    // a map that is not a permutation, or of the wrong size, is refused
+    map[3] = map[4];
+    st.pixel_keys = std::make_shared<const std::vector<uint32_t>>(map);
+    EXPECT_THROW(st.validate(), SettingsError);
+    st.pixel_keys = std::make_shared<const std::vector<uint32_t>>(size_t(W * H - 1), 0u);
+    EXPECT_THROW(st.validate(), SettingsError);
 }
 
 TEST(PassSplatter, OneSourceGivesTheFilterRatio) {

@@ -322,3 +322,61 @@ def test_bad_state_files(tmp_path):
     assert len(res.written) == 1
     assert any("truncated" in w and "fresh" in w for w in res.warnings)
     assert _temporal(res)[0]["state_in"] is None
+
+
+def test_state_carries_the_pixel_keys(tmp_path):
+    """Format 4 stores the pixels' key map (zlib of key − index): it round-trips; a
+    format-3 file (no map) is still read; a map that is not a permutation or does not
+    decompress is refused with the file's name."""
+    import struct
+    import zlib
+    from cmlt.temporal.state import FrameState, decode_state, encode_state, _HEADER
+    w, h = 6, 4
+    keys = np.random.default_rng(3).permutation(w * h).astype("<u4")
+    s = FrameState(shot_hash=1, width=w, height=h, integrator="pt", seed=2, frame=3.0,
+                   settings_hash=4, film_offset=(0.25, 0.5), anchors=[0, 1, 2, 3, 4, 5],
+                   pixel_keys=keys.tobytes())
+    data = encode_state(s)
+    back = decode_state(data, "k.bin")
+    assert back.pixel_keys == keys.tobytes() and back.anchors == s.anchors
+    none = decode_state(encode_state(FrameState(shot_hash=1, width=w, height=h, integrator="pt",
+                                                seed=2, frame=3.0, settings_hash=4)))
+    assert none.pixel_keys == b""
+
+    def rebuilt(payload, version):
+        head = list(_HEADER.unpack_from(data, 0))
+        head[1], head[-1] = version, len(payload)
+        body = _HEADER.pack(*head) + payload
+        return body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF)
+
+    payload = data[_HEADER.size:-4]
+    # the key map's field sits after the anchors: 8 + 0 (boot) + 8 + 0 (picks) + 16 + 8 + 48
+    at = 8 + 8 + 16 + 8 + 48
+    (m,) = struct.unpack_from("<Q", payload, at)
+    v3 = payload[:at] + payload[at + 8 + m:]
+    old = decode_state(rebuilt(v3, 3), "old.bin")
+    assert old.pixel_keys == b"" and old.film_offset == (0.25, 0.5)
+    dup = keys.copy()
+    dup[1] = dup[0]
+    packed = zlib.compress((dup - np.arange(w * h, dtype=np.uint32)).astype("<u4").tobytes())
+    bad = payload[:at] + struct.pack("<Q", len(packed)) + packed + payload[at + 8 + m:]
+    with pytest.raises(StateError, match=r"dup\.bin: malformed payload \(the pixel keys are not a permutation"):
+        decode_state(rebuilt(bad, 4), "dup.bin")
+    junk = payload[:at] + struct.pack("<Q", 5) + b"12345" + payload[at + 8 + m:]
+    with pytest.raises(StateError, match="junk.bin: malformed payload .pixel keys do not decompress"):
+        decode_state(rebuilt(junk, 4), "junk.bin")
+    with pytest.raises(StateError, match="reads versions 3, 4"):
+        decode_state(rebuilt(payload, 5), "new.bin")
+
+
+def test_split_pan_bit_identical_with_key_maps(tmp_path):
+    """camera_pan with pt: 1:4 in one job == 1:2 + 3:4 with --state-dir, bit for bit
+    (the key map of frame 2 comes from its state file); the keys did move."""
+    kw = dict(resolution=(24, 16), spp=4, integrator="pt")
+    one = _render(tmp_path, "one", PAN, "1:4", state_dir=str(tmp_path / "s1"), **kw)
+    a = _render(tmp_path, "two", PAN, "1:2", state_dir=str(tmp_path / "s2"), **kw)
+    b = _render(tmp_path, "two", PAN, "3:4", state_dir=str(tmp_path / "s2"), **kw)
+    assert all(r.get("pixel_keys_moved", 0) > 0 for r in _temporal(one)[1:])
+    assert read_state(state_path(str(tmp_path / "s2"), 2)).pixel_keys
+    for p, q in zip(one.written, a.written + b.written):
+        assert np.array_equal(load_image(p), load_image(q)), (p, q)
