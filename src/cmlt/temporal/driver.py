@@ -6,6 +6,10 @@ Before the render (:meth:`TemporalDriver.prepare`):
   are keyed by (seed, domain, chain, proposal, dimension), never by frame,
   so consecutive frames use the same numbers), or with ``seed_per_frame`` a
   per-frame seed mixed from (shot seed, frame) — for comparison;
+* with stored seeds, the screen motion (camera rays through the pixel centres,
+  their hits followed into this frame): each pixel's sample key moves with its
+  own pixel's motion (:func:`key_map`, a permutation: RenderSettings.pixel_keys)
+  and the chains' film position with the median motion (the film offset);
 * with ``carry_states``: the frame's bootstrap points are evaluated here
   (``temporal_bootstrap_states``; the render is given their f* and does not
   evaluate them again) and the chain starts are chosen among them — the first
