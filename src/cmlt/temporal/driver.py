@@ -146,7 +146,8 @@ def key_map(prev_keys, anchors, projected, width: int, height: int) -> Optional[
     iyw = np.mod(np.where(ok_t, iy.ravel(), 0), H)
     target = (iyw * W + ixw).astype(np.int64)
     src = np.flatnonzero(ok_t)
-    order = src[np.lexsort((src, resid[src], target[src]))]
+    # by target pixel, then distance from its centre (resid < 8), then source index
+    order = src[np.argsort(target[src] + resid[src] / 8.0, kind="stable")]
     first = np.ones(order.size, dtype=bool)
     first[1:] = target[order][1:] != target[order][:-1]
     chosen = order[first]
