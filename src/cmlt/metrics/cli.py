@@ -2,7 +2,7 @@
 
 ::
 
-    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png] [--cvvdp]
+    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png] [--cvvdp] [--shot SHOT]
     cmlt compare A B [--json [OUT.json]]
 
 SEQUENCE is a frame pattern (``renders/shot.####.exr``, ``$F4``, ``%04d``)
@@ -50,6 +50,11 @@ def add_parsers(sub) -> None:
                    "cvvdp; says why when it cannot run)")
     f.add_argument("--fps", type=float, default=24.0,
                    help="frame rate the sequence is shown at for --cvvdp (default 24)")
+    f.add_argument("--shot", metavar="SHOT",
+                   help="the USD shot the frames were rendered from: also the "
+                   "motion-compensated TF, each frame's error compared with the next "
+                   "frame's where its surface point went (the shot's camera and geometry "
+                   "motion at the frames' resolution) — the measure for camera moves")
 
     c = sub.add_parser("compare", help="compare two images: relMSE, RMSE, mean ratio, "
                        "max abs diff, PSNR",
@@ -231,6 +236,18 @@ def _cmd_flicker(args) -> int:
     data = report.to_dict()
     data["sequence"] = args.sequence
     data["reference"] = args.reference
+    mc_line = None
+    if getattr(args, "shot", None):
+        refs = None if reference is None else (
+            reference if isinstance(reference, list) else [reference] * len(images))
+        terms = _motion_terms(args.shot, frames, images, refs)
+        finite = [t for t in terms if t == t]
+        tf_mc = sum(finite) / len(finite) if finite else None
+        data["shot"] = args.shot
+        data["delta_motion_compensated"] = [None] + [t if t == t else None for t in terms]
+        data["tf_motion_compensated"] = tf_mc
+        mc_line = (f"TF, motion-compensated along {args.shot}'s screen motion "
+                   f"{_fmt(tf_mc)}")
     jod_line = None
     if getattr(args, "cvvdp", False):
         from . import cvvdp
@@ -248,6 +265,8 @@ def _cmd_flicker(args) -> int:
             jod_line = f"ColorVideoVDP: {jod:.3f} JOD (10 = no visible difference), {args.fps:g} fps"
     if args.json_out != "-":
         print_report(report, args.sequence, args.reference)
+        if mc_line:
+            _console().print(mc_line, soft_wrap=True, markup=False)
         if jod_line:
             _console().print(jod_line, soft_wrap=True, markup=False)
     elif jod_line and data["cvvdp"]["jod"] is None:
@@ -258,6 +277,29 @@ def _cmd_flicker(args) -> int:
         plot_report(report, args.plot, title=args.sequence
                     + (f" vs {args.reference}" if args.reference else ""))
     return EXIT_OK
+
+
+def _motion_terms(shot: str, frames, images, refs):
+    """motion_compensated_terms of the frames along the shot's screen motion (the
+    frames' numbers are the shot's time codes); a shot that cannot be read, or frames
+    it does not have, is a MetricsError naming it."""
+    import os
+
+    from ..shot.motion import screen_flow
+    from ..usd.errors import UsdLoadError
+    from .flicker import motion_compensated_terms
+
+    if not os.path.isfile(shot):
+        raise MetricsError(f"--shot {shot}: no such file")
+    if any(f is None for f in frames):
+        raise MetricsError(f"--shot {shot}: the sequence's files carry no frame numbers to "
+                           f"find the frames in the shot")
+    h, w = images[0].shape[:2]
+    try:
+        flow = screen_flow(shot, [float(f) for f in frames], (w, h))
+    except UsdLoadError as exc:
+        raise MetricsError(f"--shot {shot}: {exc}") from None
+    return motion_compensated_terms(images, refs, flow)
 
 
 def _cmd_compare(args) -> int:

@@ -34,7 +34,7 @@ import numpy as np
 from .sequence import MetricsError
 
 __all__ = ["FlickerReport", "FrameDifferenceFlicker", "flicker", "compare", "rel_mse",
-           "REL_MSE_EPS", "motion_compensated_tf"]
+           "REL_MSE_EPS", "motion_compensated_tf", "motion_compensated_terms"]
 
 #: the ε of relMSE's denominator, R² + ε
 REL_MSE_EPS = 1e-2
@@ -314,12 +314,17 @@ def compare(a, b) -> Dict[str, float]:
     }
 
 
-def motion_compensated_tf(images, refs, flow) -> float:
-    """TF with the error of frame f compared to frame f+1's error where that surface
-    point went (nearest pixel): mean |E_{f+1}(p') − E_f(p)| / mean R over the pixels
-    whose point stays in the image. On a static shot it is TF."""
-    E = np.asarray(images, np.float64) - np.asarray(refs, np.float64)
-    norm = float(np.asarray(refs, np.float64).mean())
+def motion_compensated_terms(images, refs, flow) -> List[float]:
+    """Per frame pair k: mean |E_{k+1}(p') − E_k(p)| / mean R over the pixels p whose
+    surface point p' (``flow[k]``: raster positions in frame k+1, NaN where nothing was
+    hit) stays in the image, E = I − R. Without references (``refs`` None) E = I and
+    the normaliser is mean I (the frame-difference measure along the motion)."""
+    I = np.asarray(images, np.float64)
+    if refs is None:
+        E, norm = I, float(I.mean())
+    else:
+        R = np.asarray(refs, np.float64)
+        E, norm = I - R, float(R.mean())
     H, W = E.shape[1:3]
     terms = []
     for k, fl in enumerate(flow):
@@ -328,5 +333,13 @@ def motion_compensated_tf(images, refs, flow) -> float:
         ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (x < W) & (y >= 0) & (y < H)
         yy, xx = np.nonzero(ok)
         d = np.abs(E[k + 1][y[ok].astype(int), x[ok].astype(int)] - E[k][yy, xx])
-        terms.append(float(d.mean()) / norm if d.size else 0.0)
+        terms.append(float(d.mean()) / norm if d.size and norm > 0 else math.nan)
+    return terms
+
+
+def motion_compensated_tf(images, refs, flow) -> float:
+    """TF with the error of frame f compared to frame f+1's error where that surface
+    point went (nearest pixel): the mean of :func:`motion_compensated_terms`. On a
+    static shot it is TF."""
+    terms = [t for t in motion_compensated_terms(images, refs, flow) if math.isfinite(t)]
     return float(np.mean(terms)) if terms else math.nan

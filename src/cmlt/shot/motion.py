@@ -11,10 +11,11 @@ import numpy as np
 __all__ = ["screen_flow"]
 
 
-def screen_flow(shot: str, frames: str, res):
+def screen_flow(shot: str, frames, res):
     """Where each pixel centre's first hit is in the next frame: a list over frame pairs
     of (H, W, 2) raster positions (NaN: nothing hit, or behind the camera), from the
-    core's screen anchors (the geometry and camera of each frame)."""
+    core's screen anchors (the geometry and camera of each frame). ``frames``: a
+    ``--frames`` spec or a list of time codes."""
     import cmlt._core as core
 
     from ..usd import load_frame, open_stage, stage_info
@@ -22,7 +23,8 @@ def screen_flow(shot: str, frames: str, res):
     from .frames import parse_frames
     stage = open_stage(shot)
     info = stage_info(stage)
-    times = parse_frames(frames, info.start, info.end, info.has_authored_time_range)
+    times = (parse_frames(frames, info.start, info.end, info.has_authored_time_range)
+             if isinstance(frames, str) else [float(t) for t in frames])
     st = core.RenderSettings()
     st.width, st.height = int(res[0]), int(res[1])
     bridge = SceneBridge(core)

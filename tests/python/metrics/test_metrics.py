@@ -272,3 +272,61 @@ def test_cli_errors(three, capsys):
     assert code == 2 and "no reference for frame(s) 3" in err and err.count("\n") == 1
     assert main(["flicker"]) == 2
     capsys.readouterr()
+
+
+def test_motion_compensated_terms_follow_the_flow():
+    """An error pattern that moves one pixel right per frame, on a flow that says so:
+    the motion-compensated terms are 0 where the plain TF is not; without references
+    the images themselves are compared along the flow."""
+    from cmlt.metrics.flicker import motion_compensated_terms, motion_compensated_tf
+    rng = np.random.default_rng(0)
+    H, W, F = 8, 12, 4
+    noise = rng.normal(0.0, 0.1, (H, W + F, 3))
+    ref = np.ones((F, H, W, 3))
+    imgs = np.stack([ref[f] + noise[:, F - f:F - f + W] for f in range(F)])
+    yy, xx = np.mgrid[0:H, 0:W]
+    fl = np.stack([xx + 1.5, yy + 0.5], -1).astype(np.float64)   # every point moves right by 1
+    flow = [fl] * (F - 1)
+    terms = motion_compensated_terms(imgs, ref, flow)
+    assert len(terms) == F - 1 and max(terms) < 1e-12
+    assert flicker(imgs, list(ref)).tf > 0.05
+    # without references: the images along the flow (the same moving pattern)
+    assert max(motion_compensated_terms(imgs, None, flow)) < 1e-12
+    # a flow that points nowhere (nothing hit) gives no term
+    nan = [np.full((H, W, 2), np.nan)] * (F - 1)
+    assert all(math.isnan(t) for t in motion_compensated_terms(imgs, ref, nan))
+    assert math.isnan(motion_compensated_tf(imgs, ref, nan))
+
+
+def test_cli_flicker_shot_adds_the_motion_compensated_tf(tmp_path, capsys):
+    """`cmlt flicker SEQ --reference REF --shot SHOT`: the motion-compensated TF along the
+    shot's screen motion, the same number the library computes, below the plain TF on a
+    pan whose noise follows the surfaces; a missing shot is a one-line error."""
+    import support
+    from cmlt.metrics.flicker import motion_compensated_tf
+    from cmlt.shot import RenderOptions, render_sequence
+    from cmlt.shot.motion import screen_flow
+    pan = os.path.join(str(support.SEQUENCES), "camera_pan", "shot.usda")
+    res = (32, 24)
+
+    def run(name, spp, seed):
+        r = render_sequence(pan, "1:3", str(tmp_path / name / "f.####.exr"),
+                            RenderOptions(integrator="pt", resolution=res, spp=spp, seed=seed, threads=0),
+                            progress=False, quiet=True)
+        return [load_sequence([p])[1][0] for p in r.written]
+
+    imgs, refs = run("r", 8, 1), run("ref", 256, 9)
+    out = tmp_path / "f.json"
+    code = main(["flicker", str(tmp_path / "r" / "f.####.exr"), "--reference",
+                 str(tmp_path / "ref" / "f.####.exr"), "--shot", pan, "--json", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "TF, motion-compensated along" in text
+    data = json.loads(out.read_text())
+    want = motion_compensated_tf(imgs, refs, screen_flow(pan, "1:3", res))
+    assert data["tf_motion_compensated"] == pytest.approx(want, rel=1e-12)
+    assert data["delta_motion_compensated"][0] is None and len(data["delta_motion_compensated"]) == 3
+    assert 0 < data["tf_motion_compensated"] < 0.8 * data["tf"]
+    code = main(["flicker", str(tmp_path / "r" / "f.####.exr"), "--shot", str(tmp_path / "nope.usda")])
+    err = capsys.readouterr().err
+    assert code == 2 and "nope.usda: no such file" in err and err.count("\n") == 1
