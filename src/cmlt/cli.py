@@ -22,7 +22,7 @@
                      [--resume] [--quiet | --log-json] [-v [N] | -vv | -vvv]
     cmlt inspect SHOT [--frames SPEC] [--json] [--variant [/PRIM:]SET=VALUE ...] | --image FILE.exr
     cmlt contact-sheet PATTERN --out SHEET.png [--columns N] [--display NAME] [--view NAME]
-    cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG]
+    cmlt flicker SEQUENCE [--reference REF] [--json OUT] [--plot PNG] [--cvvdp] [--shot SHOT]
     cmlt compare A B [--json [OUT]]
     cmlt accuracy SHOT [--seconds 1,2,4,8] [--integrators LIST] [--res WxH] ...  (cmlt.accuracy.cli)
     cmlt --version
