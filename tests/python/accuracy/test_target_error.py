@@ -161,3 +161,16 @@ def test_pt_target_error_without_caustics_does_not_warn(tmp_path, capsys):
     assert main(["render", CORNELL, *FAST, "--integrator", "pt", "--target-error", "0.01",
                  "--out", out]) == 0
     assert "--target-error with pt" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sampler,first", [("sobol-blocks", 16), ("independent", 32)])
+def test_a_loose_target_stops_at_the_minimum(cornell, sampler, first):
+    """A target every check meets stops the frame at the minimum work: two blocks of 8
+    passes with the blocks' sampler (the default of a targeted frame), 32 passes with
+    independent numbers (whose per-pixel variance needs more passes)."""
+    st = cornell.settings(parse_integrator(f"pt:sampler={sampler}", cornell.core), None, 256, 0)
+    st.target_error = 10.0
+    s = dict(cornell.core.render(cornell.scene, st).stats)
+    assert s["stop_reason"] == "target"
+    assert [h[0] for h in s["error_history"]] == [first]
+    assert s["spp"] == first

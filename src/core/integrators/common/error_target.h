@@ -250,9 +250,16 @@ inline std::string stop_reason(bool cancelled, bool target_reached, bool timed, 
 /// variance of fewer passes misses the rare bright samples of most pixels, and the
 /// estimate is low (Cornell box pt, 32x32: estimate × passes 0.28-0.40 after 16 passes,
 /// 0.40-0.44 from 128 on, tests/bench/target_error.py).
-/// With Sobol points in blocks of 8 (the sampler of such a frame) that is 4 blocks, whose
-/// estimate is as calibrated (Cornell box pt, 64x64: estimate / measured 0.96-0.98 from
-/// 2 to 16 blocks; README, "Pixel samples").
+/// With Sobol points in blocks (the sampler of such a frame: target_min_passes) the
+/// estimate is calibrated from 2 blocks on (Cornell box pt, 64x64: estimate / measured
+/// 0.96-0.98 from 2 to 16 blocks; README, "Pixel samples").
 constexpr double k_target_min_passes = 32.0;
+
+/// The minimum for a film whose variance comes from blocks of `block` passes
+/// (Film::variance_block): two blocks, the fewest a spread is taken from; independent
+/// passes (block 1): k_target_min_passes.
+inline double target_min_passes(uint32_t block) {
+    return block > 1 ? 2.0 * double(block) : k_target_min_passes;
+}
 
 }  // namespace cmlt

@@ -181,7 +181,8 @@ private:
 /// A pass frame's target error (RenderSettings.target_error, error_target.h): the film
 /// its estimates come from, and whether it was reached.
 struct PassTarget {
-    PassTarget(const RenderSettings& s, const Film& f) : target(s.target_error, k_target_min_passes), film(f) {}
+    PassTarget(const RenderSettings& s, const Film& f)
+        : target(s.target_error, target_min_passes(f.variance_block())), film(f) {}
     ErrorTarget target;
     const Film& film;
     bool reached = false;
