@@ -240,13 +240,12 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
             st.pilot = core.render_pilot(scene, st)
     prev_ok = prev is not None and not per_frame
     if REPROJECT and not per_frame:
-        # the film offset follows the image's screen motion (camera, moving geometry):
-        # the pixels' sample keys (pt, bdpt, the direct pass) and the chains' film
-        # position move with it, so a pixel sample's numbers, or a chain start kept from
-        # the previous frame, land on the surface they saw before
-        # (in steps of whole pixels: the keys move by the frame's motion rounded, the
-        # nearest a pixel's numbers can follow it; rounding the accumulated offset
-        # instead would move them 0 or 2 pixels in some frames of a 1-pixel pan)
+        # the film offset follows the image's median screen motion (camera, moving
+        # geometry): the chains' film position (and, with PIXEL_KEYS off, the pixels'
+        # sample keys) move with it, so a chain start kept from the previous frame lands
+        # on the surface it saw before (in steps of whole pixels: the frame's motion
+        # rounded; rounding the accumulated offset instead would move them 0 or 2 pixels
+        # in some frames of a 1-pixel pan)
         offset = (0.0, 0.0)
         projected = None
         if prev_ok and prev["anchors"]:
@@ -259,18 +258,22 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
         pending["film_offset"] = (float(st.film_offset_x), float(st.film_offset_y))
         rec["film_offset"] = list(pending["film_offset"])
         if PIXEL_KEYS and hasattr(st, "pixel_keys"):
-            # each pixel's key follows its own motion (key_map); the film offset then
-            # moves only the chains' film position
+            # the pixels' sample keys (pt, bdpt, the direct pass, the AOVs) follow each
+            # pixel's own motion (key_map): a pixel sample's numbers land on the surface
+            # they saw before, near and far surfaces alike
             keys = prev.get("pixel_keys") if prev_ok else None
-            if prev_ok and projected is not None:
+            if keys is not None and len(keys) != st.width * st.height:
+                keys = None
+            if projected is not None:
                 moved = key_map(keys, prev["anchors"], projected, st.width, st.height)
-                if moved is not None:
-                    keys = moved
-            if keys is not None and len(keys) == st.width * st.height:
+                keys = moved if moved is not None else keys
+            if keys is not None:
                 keys = np.asarray(keys, dtype=np.uint32)
-                st.pixel_keys = keys if not np.array_equal(keys, np.arange(keys.size)) else None
-                pending["pixel_keys"] = keys
-                rec["pixel_keys_moved"] = int(np.count_nonzero(keys != np.arange(keys.size)))
+                n_moved = int(np.count_nonzero(keys != np.arange(keys.size, dtype=np.uint32)))
+                rec["pixel_keys_moved"] = n_moved
+                keys = keys if n_moved else None          # the identity: no map
+            st.pixel_keys = keys
+            pending["pixel_keys"] = keys
         pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *anchor_grid(st.width, st.height)))
     if not carry:
         return rec, pending
