@@ -422,6 +422,19 @@ def _cmd_inspect(args) -> int:
     return EXIT_OK
 
 
+def _screen_flow(shot: str, times, res):
+    """The shot's screen motion for ``cmlt flicker --shot`` (cmlt.shot.motion; the
+    metrics package does not import the shot package); a shot that cannot be read is
+    a MetricsError naming it."""
+    from .metrics import MetricsError
+    from .shot.motion import screen_flow
+    from .usd.errors import UsdLoadError
+    try:
+        return screen_flow(shot, times, res)
+    except UsdLoadError as exc:
+        raise MetricsError(f"--shot {shot}: {exc}") from None
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of the ``cmlt`` console script; returns the exit code."""
     argv = _husk_argv(sys.argv[1:] if argv is None else argv)
@@ -447,7 +460,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return _cmd_contact_sheet(args)
         if args.command in ("flicker", "compare"):
             from .metrics.cli import run as _run_metrics
-            return _run_metrics(args)
+            return _run_metrics(args, screen_flow=_screen_flow)
     except KeyboardInterrupt:
         return _error("interrupted", EXIT_INTERRUPTED)
     except Exception as exc:            # a bug: still one line unless asked for more

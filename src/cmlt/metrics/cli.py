@@ -203,7 +203,7 @@ def plot_report(report: FlickerReport, path: str, title: str = "") -> str:
     return path
 
 
-def _cmd_flicker(args) -> int:
+def _cmd_flicker(args, screen_flow=None) -> int:
     if args.plot:
         _pyplot()                       # before the work: a missing matplotlib fails fast
     frames, images = load_sequence(args.sequence)
@@ -240,7 +240,7 @@ def _cmd_flicker(args) -> int:
     if getattr(args, "shot", None):
         refs = None if reference is None else (
             reference if isinstance(reference, list) else [reference] * len(images))
-        terms = _motion_terms(args.shot, frames, images, refs)
+        terms = _motion_terms(args.shot, frames, images, refs, screen_flow)
         finite = [t for t in terms if t == t]
         tf_mc = sum(finite) / len(finite) if finite else None
         data["shot"] = args.shot
@@ -279,26 +279,24 @@ def _cmd_flicker(args) -> int:
     return EXIT_OK
 
 
-def _motion_terms(shot: str, frames, images, refs):
+def _motion_terms(shot: str, frames, images, refs, screen_flow):
     """motion_compensated_terms of the frames along the shot's screen motion (the
-    frames' numbers are the shot's time codes); a shot that cannot be read, or frames
-    it does not have, is a MetricsError naming it."""
+    frames' numbers are the shot's time codes). ``screen_flow(shot, times, (w, h))``:
+    cmlt.shot.motion's, handed in by cmlt.cli (metrics does not import the shot
+    package), raising MetricsError for a shot it cannot read."""
     import os
 
-    from ..shot.motion import screen_flow
-    from ..usd.errors import UsdLoadError
     from .flicker import motion_compensated_terms
 
+    if screen_flow is None:
+        raise MetricsError("--shot: no screen motion available (run through `cmlt flicker`)")
     if not os.path.isfile(shot):
         raise MetricsError(f"--shot {shot}: no such file")
     if any(f is None for f in frames):
         raise MetricsError(f"--shot {shot}: the sequence's files carry no frame numbers to "
                            f"find the frames in the shot")
     h, w = images[0].shape[:2]
-    try:
-        flow = screen_flow(shot, [float(f) for f in frames], (w, h))
-    except UsdLoadError as exc:
-        raise MetricsError(f"--shot {shot}: {exc}") from None
+    flow = screen_flow(shot, [float(f) for f in frames], (w, h))
     return motion_compensated_terms(images, refs, flow)
 
 
@@ -324,11 +322,13 @@ def _cmd_compare(args) -> int:
     return EXIT_OK
 
 
-def run(args) -> int:
-    """Run ``flicker`` or ``compare``; MetricsError becomes a one-line error, exit 2."""
+def run(args, screen_flow=None) -> int:
+    """Run ``flicker`` or ``compare``; MetricsError becomes a one-line error, exit 2.
+    ``screen_flow``: what ``flicker --shot`` measures the motion with (cmlt.cli hands in
+    the shot package's)."""
     try:
         if args.command == "flicker":
-            return _cmd_flicker(args)
+            return _cmd_flicker(args, screen_flow)
         if args.command == "compare":
             return _cmd_compare(args)
     except MetricsError as exc:

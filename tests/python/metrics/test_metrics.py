@@ -330,3 +330,8 @@ def test_cli_flicker_shot_adds_the_motion_compensated_tf(tmp_path, capsys):
     code = main(["flicker", str(tmp_path / "r" / "f.####.exr"), "--shot", str(tmp_path / "nope.usda")])
     err = capsys.readouterr().err
     assert code == 2 and "nope.usda: no such file" in err and err.count("\n") == 1
+    bad = tmp_path / "bad.usda"
+    bad.write_text("#usda 1.0\nthis is not usd {\n")
+    code = main(["flicker", str(tmp_path / "r" / "f.####.exr"), "--shot", str(bad)])
+    err = capsys.readouterr().err
+    assert code == 2 and f"--shot {bad}" in err and err.count("\n") == 1, err
