@@ -210,9 +210,9 @@ void bind_settings(nb::module_& m) {
         },
         nb::arg("value").none(),
         "the sample key of each image pixel (W*H ints, row-major, a permutation of "
-        "0..W*H-1) replacing the film offset's shift of the pixel passes' keys, so each "
-        "pixel's numbers follow its own screen motion (the temporal driver's key map); "
-        "None (default): the film offset's");
+        "0..W*H-1) replacing the film offset for the pixel passes' keys and the chains' "
+        "film position, so each pixel's numbers and states follow its own screen motion "
+        "(the temporal driver's key map); None (default): the film offset");
     cls.def_prop_rw(
         "pilot",
         [](const RenderSettings& s) -> nb::object {

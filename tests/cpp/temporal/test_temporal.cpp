@@ -8,6 +8,7 @@
 
 #include "integrators/common/render.h"
 #include "integrators/mlt/chain_state.h"
+#include "integrators/mlt/pssmlt_tracer.h"
 #include "temporal/carry.h"
 #include "util/error.h"
 
@@ -391,16 +392,68 @@ TEST(Temporal, ScreenAnchorsFollowTheCamera) {
     EXPECT_GT(checked, 12);
 }
 
+// The chains' film map with a key map: a film sample in key k's pixel cell lands in the
+// pixel whose key is k at the same place within the pixel, the filter's ring stays put,
+// and the cells' measure is kept (a stratified grid of samples gives every pixel the
+// count its key's cell had); without a key map it is the film offset's torus shift.
+TEST(Temporal, FilmMapPermutesPixelCells) {
+    const int W = 6, H = 4;
+    std::vector<uint32_t> keys(size_t(W * H)), inv(keys.size());
+    for (size_t i = 0; i < keys.size(); ++i) keys[i] = uint32_t((i * 7 + 3) % keys.size());  // 7 coprime to 24
+    for (size_t p = 0; p < keys.size(); ++p) inv[keys[p]] = uint32_t(p);
+    for (float margin : {0.f, 1.5f}) {
+        mlt::FilmMap map;
+        map.pixel_of_key = inv.data();
+        map.width = W;
+        map.height = H;
+        map.margin = margin;
+        const float sx = float(W) + 2.f * margin, sy = float(H) + 2.f * margin;
+        const int n = 240;  // samples per axis over the window
+        std::vector<int> count(keys.size(), 0), count_mapped(keys.size(), 0);
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const Vec2 u((float(i) + 0.5f) / float(n), (float(j) + 0.5f) / float(n));
+                const Vec2 v = map(u);
+                ASSERT_TRUE(v.x >= 0.f && v.x < 1.f && v.y >= 0.f && v.y < 1.f);
+                const float px = u.x * sx - margin, py = u.y * sy - margin;
+                const float qx = v.x * sx - margin, qy = v.y * sy - margin;
+                const bool inside = px >= 0.f && py >= 0.f && px < float(W) && py < float(H);
+                if (!inside) {
+                    EXPECT_EQ(v.x, u.x);
+                    EXPECT_EQ(v.y, u.y);
+                    continue;
+                }
+                const size_t k = size_t(int(py)) * W + size_t(int(px));
+                const uint32_t p = inv[k];
+                EXPECT_EQ(int(qx), int(p % W)) << i << "," << j;
+                EXPECT_EQ(int(qy), int(p / W)) << i << "," << j;
+                EXPECT_NEAR(qx - std::floor(qx), px - std::floor(px), 1e-4f);
+                EXPECT_NEAR(qy - std::floor(qy), py - std::floor(py), 1e-4f);
+                ++count[k];
+                ++count_mapped[size_t(int(qy)) * W + size_t(int(qx))];
+            }
+        for (size_t p = 0; p < keys.size(); ++p) EXPECT_EQ(count_mapped[p], count[keys[p]]) << p;
+    }
+    mlt::FilmMap shift;
+    shift.offset = Vec2(0.25f, 0.5f);
+    const Vec2 u(0.9f, 0.1f);
+    EXPECT_EQ(shift(u).x, mlt::shift_film(u, shift.offset).x);
+    EXPECT_EQ(shift(u).y, mlt::shift_film(u, shift.offset).y);
+}
+
 // The film offset reparametrises the chains' film position (a bijection of the film
 // square that keeps its measure): the expected image does not change. Block means over
-// seeds with and without an offset agree within their standard errors, for pssmlt and
-// cmlt; and the offset does move where a given state lands.
+// seeds with and without an offset, and with a key map (a permutation of the pixel
+// cells), agree within their standard errors, for pssmlt and cmlt with the chains on
+// every path; and the offset does move where a given state lands.
 TEST(Temporal, FilmOffsetKeepsTheExpectedImage) {
     Scene s;
     lamp_scene(s, 0.2f);
     const int W = 16, H = 12, nb = 12, seeds = 24;  // 4x4-pixel blocks
+    auto keys = std::make_shared<std::vector<uint32_t>>(size_t(W * H));
+    for (size_t i = 0; i < keys->size(); ++i) (*keys)[i] = uint32_t((i * 37 + 11) % keys->size());  // 37 coprime to 192
     for (const char* integ : {"pssmlt", "cmlt"}) {
-        std::vector<std::vector<double>> a, b;
+        std::vector<std::vector<double>> a, b, c;
         for (int seed = 1; seed <= seeds; ++seed) {
             RenderSettings st;
             st.width = W;
@@ -411,31 +464,36 @@ TEST(Temporal, FilmOffsetKeepsTheExpectedImage) {
             st.integrator = integ;
             st.chains = 64;
             st.bootstrap_samples = 512;
-            for (int k = 0; k < 2; ++k) {
-                st.film_offset_x = k ? 0.37 : 0.0;
-                st.film_offset_y = k ? 0.81 : 0.0;
+            st.mlt_paths = "all";  // the chains on every path: they are what moves
+            for (int k = 0; k < 3; ++k) {
+                st.film_offset_x = k == 1 ? 0.37 : 0.0;
+                st.film_offset_y = k == 1 ? 0.81 : 0.0;
+                st.pixel_keys = k == 2 ? keys : nullptr;
                 const RenderResult r = render(s, st);
                 std::vector<double> m(nb, 0.0);
                 for (int y = 0; y < H; ++y)
                     for (int x = 0; x < W; ++x)
-                        for (int c = 0; c < 3; ++c) m[size_t((y / 4) * (W / 4) + x / 4)] += r.image[size_t(3 * (y * W + x) + c)];
-                (k ? b : a).push_back(m);
+                        for (int ch = 0; ch < 3; ++ch)
+                            m[size_t((y / 4) * (W / 4) + x / 4)] += r.image[size_t(3 * (y * W + x) + ch)];
+                (k == 0 ? a : k == 1 ? b : c).push_back(m);
             }
         }
-        double chi2 = 0;
-        for (int i = 0; i < nb; ++i) {
-            double ma = 0, mb = 0, va = 0, vb = 0;
-            for (int j = 0; j < seeds; ++j) ma += a[size_t(j)][size_t(i)], mb += b[size_t(j)][size_t(i)];
-            ma /= seeds, mb /= seeds;
-            for (int j = 0; j < seeds; ++j) {
-                va += (a[size_t(j)][size_t(i)] - ma) * (a[size_t(j)][size_t(i)] - ma);
-                vb += (b[size_t(j)][size_t(i)] - mb) * (b[size_t(j)][size_t(i)] - mb);
+        for (const auto* other : {&b, &c}) {
+            double chi2 = 0;
+            for (int i = 0; i < nb; ++i) {
+                double ma = 0, mb = 0, va = 0, vb = 0;
+                for (int j = 0; j < seeds; ++j) ma += a[size_t(j)][size_t(i)], mb += (*other)[size_t(j)][size_t(i)];
+                ma /= seeds, mb /= seeds;
+                for (int j = 0; j < seeds; ++j) {
+                    va += (a[size_t(j)][size_t(i)] - ma) * (a[size_t(j)][size_t(i)] - ma);
+                    vb += ((*other)[size_t(j)][size_t(i)] - mb) * ((*other)[size_t(j)][size_t(i)] - mb);
+                }
+                const double se2 = (va + vb) / double(seeds - 1) / double(seeds);
+                ASSERT_GT(se2, 0.0);
+                chi2 += (ma - mb) * (ma - mb) / se2;
             }
-            const double se2 = (va + vb) / double(seeds - 1) / double(seeds);
-            ASSERT_GT(se2, 0.0);
-            chi2 += (ma - mb) * (ma - mb) / se2;
+            EXPECT_LT(chi2, 32.9) << integ << (other == &c ? " key map" : " offset");  // chi-square, 12 dof, p = 0.001
         }
-        EXPECT_LT(chi2, 32.9) << integ;  // chi-square, 12 dof, p = 0.001
     }
     // the same state lands elsewhere
     RenderSettings st;

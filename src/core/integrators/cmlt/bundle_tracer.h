@@ -230,7 +230,7 @@ public:
         for (size_t i = 0; i < n; ++i) {
             states[i].extent.fill(0);
             m_samplers[i].emplace(states[i], seed);
-            m_adapters[i].emplace(*m_samplers[i], tracer.film_offset());
+            m_adapters[i].emplace(*m_samplers[i], tracer.film_map());
             m_query[i] = begin_lane(tracer, *m_samplers[i], *m_adapters[i], m_ws[i], m_lanes[i]);
         }
         // rounds: every lane's pending query answered together, until none is left

@@ -234,10 +234,12 @@ struct RenderSettings {
     /// are bijections, so every pixel's estimator is unchanged. Default 0, 0.
     double film_offset_x = 0.0, film_offset_y = 0.0;
     /// The sample key of each image pixel (W·H, row-major; a permutation of 0..W·H−1):
-    /// when given, it replaces the film offset's shift of the pixel passes' keys, so each
-    /// pixel's numbers can follow its own screen motion (the temporal driver's key map:
-    /// parallax, moving objects). A bijection like the shift: every pixel's estimator is
-    /// unchanged. nullptr (default): the film offset's shift.
+    /// when given, it replaces the film offset for the pixel passes' keys (KeyShift) and
+    /// for the chains' film position (pssmlt_tracer.h FilmMap: the film sample in key k's
+    /// pixel cell lands in the pixel whose key is k), so each pixel's numbers and states
+    /// follow its own screen motion (the temporal driver's key map: parallax, moving
+    /// objects). Bijections like the shift: every estimator is unchanged. nullptr
+    /// (default): the film offset.
     std::shared_ptr<const std::vector<uint32_t>> pixel_keys;
     /// The pilot image (H, W, 3) of the "pixel" importance to use instead of rendering one
     /// (the temporal driver renders it once per frame for the render and its carry-over

@@ -46,7 +46,18 @@ struct MltContext {
         }
         tracer.set_importance(importance.get());
         tracer.set_filter(&filter);
-        tracer.set_film_offset(Vec2(float(s.film_offset_x), float(s.film_offset_y)));
+        // the chains' film position follows the frame's key map, or its film offset
+        FilmMap map;
+        map.offset = Vec2(float(s.film_offset_x), float(s.film_offset_y));
+        if (s.pixel_keys && s.pixel_keys->size() == size_t(s.width) * size_t(s.height)) {
+            pixel_of_key.resize(s.pixel_keys->size());
+            for (size_t p = 0; p < pixel_of_key.size(); ++p) pixel_of_key[(*s.pixel_keys)[p]] = uint32_t(p);
+            map.pixel_of_key = pixel_of_key.data();
+            map.width = s.width;
+            map.height = s.height;
+            map.margin = filter.margin();
+        }
+        tracer.set_film_map(map);
     }
     MltContext(const MltContext&) = delete;
     MltContext& operator=(const MltContext&) = delete;
@@ -155,6 +166,7 @@ struct MltContext {
     PathTracer pt;
     BdptTracer bdpt;
     uint64_t pilot_rendered = 0;  ///< pilot samples rendered here (0 if given or not needed)
+    std::vector<uint32_t> pixel_of_key;  ///< the key map's inverse (the tracer's FilmMap points here)
     /// caster_coverage of the scene where auto guiding asked for it, else −1
     double caster_coverage = -1.0;
     std::shared_ptr<const PixelImportance> importance;

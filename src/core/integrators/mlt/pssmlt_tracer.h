@@ -58,15 +58,43 @@ inline Vec2 shift_film(const Vec2& u, const Vec2& offset) {
     return offset.x == 0.f && offset.y == 0.f ? u : Vec2(wrap(u.x + offset.x), wrap(u.y + offset.y));
 }
 
+/// Where the chains' film sample u ∈ [0,1)² lands (RenderSettings::film_offset_x/y and
+/// pixel_keys): the film offset's torus shift (shift_film), or with a key map a
+/// permutation of the image's pixel cells — u in the cell of image pixel k (the film
+/// window [-margin, W + margin) x [-margin, H + margin) mapped to u's square, as the
+/// tracers map it) moves to the pixel whose key is k, its position within the pixel
+/// kept; the margin's ring stays. Both keep the film square's measure, so the chains'
+/// target and every estimator stay what they are; a chain replayed with the same
+/// numbers follows its own pixel's screen motion, as the pixel passes' samples do
+/// (film/pass_splatter.h KeyShift).
+struct FilmMap {
+    Vec2 offset{0.f, 0.f};
+    const uint32_t* pixel_of_key = nullptr;  ///< the inverse of the key map (W·H), or nullptr
+    int width = 0, height = 0;
+    float margin = 0.f;
+
+    Vec2 operator()(const Vec2& u) const {
+        if (!pixel_of_key) return shift_film(u, offset);
+        const float sx = float(width) + 2.f * margin, sy = float(height) + 2.f * margin;
+        const float px = u.x * sx - margin, py = u.y * sy - margin;
+        if (!(px >= 0.f && py >= 0.f && px < float(width) && py < float(height))) return u;
+        const int cx = std::min(int(px), width - 1), cy = std::min(int(py), height - 1);
+        const uint32_t p = pixel_of_key[size_t(cy) * size_t(width) + size_t(cx)];
+        const float qx = float(p % uint32_t(width)) + (px - float(cx));
+        const float qy = float(p / uint32_t(width)) + (py - float(cy));
+        return Vec2(clamp_below_one((qx + margin) / sx), clamp_below_one((qy + margin) / sy));
+    }
+};
+
 /// BdptSampler over a StreamSampler (base/sampler.h): BDPT's connection stream starts
 /// after the technique dimensions; the camera stream's first 2-D sample (the film
-/// position) is shifted by the film offset.
+/// position) goes through the film map.
 template <class Sampler>
 class BdptStreamAdapter final : public BdptSampler {
     static_assert(is_stream_sampler_v<Sampler>, "BdptStreamAdapter wraps a StreamSampler (base/sampler.h)");
 
 public:
-    explicit BdptStreamAdapter(Sampler& s, Vec2 film_offset = Vec2(0.f, 0.f)) : m_s(s), m_offset(film_offset) {}
+    explicit BdptStreamAdapter(Sampler& s, const FilmMap& film_map = FilmMap()) : m_s(s), m_map(film_map) {}
     void start_stream(int index) override {
         m_s.start_stream(uint32_t(index));
         m_film = index == BdptSampler::k_camera;
@@ -79,12 +107,12 @@ public:
     Vec2 next2d() override {
         const bool film = m_film;
         m_film = false;
-        return film ? shift_film(m_s.get2d(), m_offset) : m_s.get2d();
+        return film ? m_map(m_s.get2d()) : m_s.get2d();
     }
 
 private:
     Sampler& m_s;
-    Vec2 m_offset;
+    FilmMap m_map;
     bool m_film = false;
 };
 
@@ -112,9 +140,9 @@ public:
         return m_filter ? *m_filter : unit_box;
     }
 
-    /// Film offset of the camera stream's film position (shift_film); default none.
-    void set_film_offset(const Vec2& offset) { m_film_offset = offset; }
-    Vec2 film_offset() const { return m_film_offset; }
+    /// Where the camera stream's film position lands (FilmMap); default: unmoved.
+    void set_film_map(const FilmMap& map) { m_film_map = map; }
+    const FilmMap& film_map() const { return m_film_map; }
 
     /// The importance function of f* (pixel_importance.h); default: luminance.
     void set_importance(const PixelImportance* importance) { m_importance = importance; }
@@ -134,7 +162,7 @@ public:
         static_assert(is_stream_sampler_v<Sampler>, "a StreamSampler (base/sampler.h)");
         sampler.start_stream(MltSampler::camera);
         sampler.set_dimension(0);
-        const Vec2 u = shift_film(sampler.get2d(), m_film_offset);
+        const Vec2 u = m_film_map(sampler.get2d());
         const Vec2 p_raster(u.x * (float(m_width) + 2.f * m_margin) - m_margin,
                             u.y * (float(m_height) + 2.f * m_margin) - m_margin);
         *pixel = pixel_of(p_raster);
@@ -229,7 +257,7 @@ private:
         const double pmf = choose_technique(sampler, s);
         thread_local BdptWorkspace ws;
         BdptCounters c;
-        BdptStreamAdapter<Sampler> adapter(sampler, m_film_offset);
+        BdptStreamAdapter<Sampler> adapter(sampler, m_film_map);
         Vec2 p_raster;
         const Spectrum C = evaluate_technique(s, adapter, ws, &p_raster, c);
         finish_sample(s, pmf, C, p_raster, c, counters);
@@ -252,7 +280,7 @@ private:
     const Camera& m_camera;
     int m_width, m_height;
     TechniqueSampler m_technique;
-    Vec2 m_film_offset{0.f, 0.f};
+    FilmMap m_film_map;
 };
 
 }  // namespace cmlt::mlt
