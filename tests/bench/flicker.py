@@ -65,7 +65,7 @@ CONFIGS = {
                                     smooth_normalization=False, _pixel_keys=False),
     # everything on with the keys and the chains' film position following the film
     # offset (one motion for the image: the behaviour before the key maps)
-    "everything on, film offset": dict(seed_per_frame=False, carry_states=True,
+    "everything on (film offset)": dict(seed_per_frame=False, carry_states=True,
                                        smooth_normalization=True, _pixel_keys=False),
     # everything on but the chains' film offset kept at 0 (no camera reprojection)
     "all but reprojection": dict(seed_per_frame=False, carry_states=True,
