@@ -188,8 +188,9 @@ void bind_settings(nb::module_& m) {
         "evaluate");
     cls.def_rw("film_offset_x", &RenderSettings::film_offset_x,
                "the frame's film offset on the torus, [0, 1): the chains' film position and, "
-               "rounded to pixels, the pixel passes' sample keys move with it (a "
-               "reparametrisation: the same image in expectation; default 0)");
+               "rounded to pixels, the pixel passes' sample keys move with it, unless "
+               "pixel_keys is given (a reparametrisation: the same image in expectation; "
+               "default 0)");
     cls.def_rw("film_offset_y", &RenderSettings::film_offset_y, "as film_offset_x");
     cls.def_prop_rw(
         "pixel_keys",

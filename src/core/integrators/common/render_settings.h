@@ -231,7 +231,8 @@ struct RenderSettings {
     /// with the surfaces. The chains' film position is shifted by it (pssmlt_tracer.h
     /// shift_film) and the pixel passes' sample keys by it rounded to pixels
     /// (film/pass_splatter.h KeyShift: pt, bdpt, the Metropolis direct pass, the AOVs); both
-    /// are bijections, so every pixel's estimator is unchanged. Default 0, 0.
+    /// are bijections, so every pixel's estimator is unchanged. A key map (pixel_keys)
+    /// replaces it for both. Default 0, 0.
     double film_offset_x = 0.0, film_offset_y = 0.0;
     /// The sample key of each image pixel (W·H, row-major; a permutation of 0..W·H−1):
     /// when given, it replaces the film offset for the pixel passes' keys (KeyShift) and
