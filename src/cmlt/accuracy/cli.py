@@ -275,10 +275,15 @@ def run(args) -> int:
                              else f"{ref.time_s:.1f} s")
                           + (f"; its own relMSE ~ {ref.relmse_floor:.2g}"
                              if math.isfinite(ref.relmse_floor) else ""), count=False)
+                warning = ref.warning()
+                if warning:
+                    prog.say(f"cmlt: warning: frame {frame:g}: {warning}")
             references.append({"frame": frame, "source": _rel(ref.source), "integrator": ref.integrator,
                                "spp": ref.spp, "time_s": ref.time_s,
                                "relmse_floor": ref.relmse_floor,
                                "relmse_floor_stderr": ref.relmse_floor_stderr,
+                               "relmse_floor_variance": ref.relmse_floor_variance,
+                               "relmse_floor_halves": ref.relmse_floor_halves,
                                "cached": ref.cached})
             # ---- peers on this frame
             if peers:

@@ -20,7 +20,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 import numpy as np
 
 __all__ = ["AccuracyError", "IntegratorSpec", "parse_integrator", "ShotFrame", "RenderRun",
-           "CmltRenderer", "Reference", "render_reference", "load_reference", "stage_start",
+           "CmltRenderer", "Reference", "render_reference", "halves_floor", "load_reference", "stage_start",
            "TIME_BUDGET_SPP_CAP", "INTEGRATORS"]
 
 #: the sample budget of a render to a time budget (a cap it never reaches)
@@ -264,9 +264,11 @@ class CmltRenderer:
 
 @dataclass
 class Reference:
-    """A converged image of one frame, where it came from, and its own relMSE
-    (estimated from its per-pixel variance when it has one: the floor of what can be
-    measured against it)."""
+    """A converged image of one frame, where it came from, and its own relMSE: the floor
+    of what can be measured against it. ``relmse_floor`` is the larger of two estimates
+    of it (when it has them): from its per-pixel variance, and from the difference of
+    its two independent halves (``relmse_floor_halves``, :func:`halves_floor`), which
+    also sees rare bright paths one half found and the other did not."""
 
     image: np.ndarray
     source: str                               # cache file or user file
@@ -277,13 +279,49 @@ class Reference:
     relmse_floor_stderr: float = math.nan
     cached: bool = False
     meta: Dict[str, Any] = field(default_factory=dict)
+    relmse_floor_variance: float = math.nan
+    relmse_floor_halves: float = math.nan
+
+    def warning(self) -> Optional[str]:
+        """A one-line warning when the halves differ by far more than the variance says
+        (HALVES_WARN_RATIO): the reference has not converged where a few pixels carry
+        rare bright paths, and errors below its floor mean nothing; else None."""
+        v, hv = self.relmse_floor_variance, self.relmse_floor_halves
+        if not (math.isfinite(v) and math.isfinite(hv)) or hv <= HALVES_WARN_RATIO * max(v, 1e-12):
+            return None
+        return (f"the reference's two halves differ by relMSE ~ {hv:.2g} ({hv / max(v, 1e-12):.0f}x "
+                f"what its variance says): a few pixels with rare bright paths have not "
+                f"converged, so errors below ~{hv:.2g} cannot be measured against it "
+                f"(raise --reference-spp, or give a --reference you trust)")
+
+
+#: the halves' floor beyond which a reference is reported as not converged: for a
+#: reference whose per-pixel variance is right, the two estimates agree to within the
+#: noise of a mean over every pixel (a few percent)
+HALVES_WARN_RATIO = 3.0
+#: how references are made (part of the cache key): "h2" = two independent halves
+REFERENCE_METHOD = "h2"
+
+
+def halves_floor(a: np.ndarray, b: np.ndarray) -> float:
+    """The relMSE of the mean of two independent renders of equal budget, from their
+    difference: E[(A − B)²] = 4 Var((A + B) / 2) per pixel and channel, so
+    mean((A − B)² / 4 / (R² + ε)) with R = (A + B) / 2 (the relMSE's denominator,
+    cmlt.metrics.flicker.REL_MSE_EPS). Unlike a render's own per-pixel variance it counts
+    what one half found and the other missed."""
+    from ..metrics.flicker import REL_MSE_EPS
+
+    a = np.asarray(a, np.float64)
+    b = np.asarray(b, np.float64)
+    r = 0.5 * (a + b)
+    return float(np.mean((a - b) ** 2 / 4.0 / (r * r + REL_MSE_EPS)))
 
 
 def _reference_key(sf: ShotFrame, integrator: str, spp: int, seed: int) -> str:
     w, h = sf.resolution
     lam = "_lambert" if sf.lambert else ""
     return (f"{sf.name}_f{sf.frame:g}_{w}x{h}_{integrator}_{spp}spp_s{seed}{lam}_"
-            f"{sf.digest()}.exr")
+            f"{REFERENCE_METHOD}_{sf.digest()}.exr")
 
 
 def render_reference(sf: ShotFrame, integrator: str = "bdpt", spp: int = 4096,
@@ -291,8 +329,11 @@ def render_reference(sf: ShotFrame, integrator: str = "bdpt", spp: int = 4096,
                      progress: Optional[Callable[[float], None]] = None) -> Reference:
     """The frame's reference: ``integrator`` at ``spp`` samples per pixel, from
     ``cache_dir`` if rendered before (key: shot, frame, resolution, integrator, spp,
-    seed, the Lambert switch and a hash of the stage's files), else rendered and cached
-    there as an EXR (image + variance channels + ``cmlt:*`` metadata)."""
+    seed, the Lambert switch, REFERENCE_METHOD and a hash of the stage's files), else
+    rendered and cached there as an EXR (image + variance channels + ``cmlt:*``
+    metadata). pt and bdpt references are the mean of two independent halves (seeds
+    ``seed`` and ``seed + 1``), so that their floor is also estimated from the halves'
+    difference (Reference.warning tells when that is far above the variance's)."""
     from ..io.exr import read_exr, write_exr
     from ..metrics.error_estimate import estimate_from_variance
 
@@ -307,24 +348,45 @@ def render_reference(sf: ShotFrame, integrator: str = "bdpt", spp: int = 4096,
             info = json.loads(str(meta.get("cmlt:reference", "{}")))
             return Reference(img, str(path), integrator, int(spp), float(info.get("time_s", math.nan)),
                              float(info.get("relmse_floor", math.nan)),
-                             float(info.get("relmse_floor_stderr", math.nan)), True, info)
-    run = sf.render(spec, spp=spp, seed=seed, progress=progress)
-    floor = floor_se = math.nan
-    if spec.name in ("pt", "bdpt"):
-        est = estimate_from_variance(run.image, run.variance, passes=int(run.stats.get("spp", 0)),
-                                     keep_pixels=False)
-        floor, floor_se = est.relmse, est.stderr
+                             float(info.get("relmse_floor_stderr", math.nan)), True, info,
+                             float(info.get("relmse_floor_variance", math.nan)),
+                             float(info.get("relmse_floor_halves", math.nan)))
+    floor = floor_se = floor_var = floor_halves = math.nan
+    if spec.name in ("pt", "bdpt") and spp >= 2:
+        # two independent halves (seeds seed, seed + 1), their mean the reference
+        n1 = spp // 2
+        n2 = spp - n1
+        part = (lambda lo, hi: (lambda f: progress(lo + (hi - lo) * f))) if progress else (lambda lo, hi: None)
+        ra = sf.render(spec, spp=n1, seed=seed, progress=part(0.0, n1 / spp))
+        rb = sf.render(spec, spp=n2, seed=seed + 1, progress=part(n1 / spp, 1.0))
+        wa, wb = n1 / spp, n2 / spp
+        image = wa * ra.image + wb * rb.image
+        variance = wa * wa * ra.variance + wb * wb * rb.variance
+        time_s = ra.time_s + rb.time_s
+        est = estimate_from_variance(image, variance, passes=spp, keep_pixels=False)
+        floor_var, floor_se = est.relmse, est.stderr
+        floor_halves = halves_floor(ra.image, rb.image) * (4.0 * wa * wb)   # unequal halves: Var(A − B)
+        floor = max(floor_var, floor_halves)
+    else:
+        run = sf.render(spec, spp=spp, seed=seed, progress=progress)
+        image, variance, time_s = run.image, run.variance, run.time_s
+        if spec.name in ("pt", "bdpt"):
+            est = estimate_from_variance(image, variance, passes=int(run.stats.get("spp", 0)),
+                                         keep_pixels=False)
+            floor = floor_var = est.relmse
+            floor_se = est.stderr
     info = {"shot": os.path.abspath(sf.shot), "frame": sf.frame, "resolution": list(sf.resolution),
-            "integrator": integrator, "spp": int(spp), "seed": int(seed), "time_s": run.time_s,
-            "relmse_floor": floor, "relmse_floor_stderr": floor_se, "lambert": sf.lambert,
-            "digest": sf.digest()}
-    ref = Reference(run.image, str(path) if path else "", integrator, int(spp), run.time_s,
-                    floor, floor_se, False, info)
+            "integrator": integrator, "spp": int(spp), "seed": int(seed), "time_s": time_s,
+            "relmse_floor": floor, "relmse_floor_stderr": floor_se,
+            "relmse_floor_variance": floor_var, "relmse_floor_halves": floor_halves,
+            "method": REFERENCE_METHOD, "lambert": sf.lambert, "digest": sf.digest()}
+    ref = Reference(image, str(path) if path else "", integrator, int(spp), time_s,
+                    floor, floor_se, False, info, floor_var, floor_halves)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_exr(str(path), run.image.astype(np.float32), colorspace="ACEScg",
+        write_exr(str(path), image.astype(np.float32), colorspace="ACEScg",
                   metadata={"reference": json.dumps(info)},
-                  aovs={"variance": run.variance.astype(np.float32)})
+                  aovs={"variance": np.asarray(variance).astype(np.float32)})
     return ref
 
 
