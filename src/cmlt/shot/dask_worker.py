@@ -136,8 +136,7 @@ def prepare_task(spec: dict, prev: Optional[dict]) -> dict:
                    "bootstrap_f": boot,
                    "initial_states": None if states is None else bytes(states.to_bytes()),
                    "film_offset": (float(st.film_offset_x), float(st.film_offset_y)),
-                   "pixel_keys": None if getattr(st, "pixel_keys", None) is None
-                   else np.asarray(st.pixel_keys, dtype=np.uint32)},
+                   "pixel_keys": pending.get("pixel_keys")},
             # what the next frame's preparation reads (as its FrameState would hold it)
             "carry": {"anchors": list(pending["anchors"]),
                       "film_offset": tuple(pending["film_offset"]),

@@ -20,8 +20,9 @@ reads ``state.0012.bin``). Little-endian::
                                     change test; stored seeds make them the same points)
              u64 n | n × u32        bootstrap index each chain started this frame from
              2 × f64                the chains' film offset (x, y) in this frame
-             u64 a | a × 6 × f64    screen anchors (instance, object-space x, y, z,
-                                    raster x, y): the next frame's screen motion
+             u64 a | a × (i32 + 5 × f32)  screen anchors (instance, object-space x, y,
+                                    z, raster x, y; the core's own types — version 3:
+                                    6 × f64): the next frame's screen motion
              u64 m | m bytes        the pixels' sample keys (version 4; m = 0: none):
                                     zlib of the W·H u32 (key − pixel index) mod 2³²
              u32 k | k × record     normalisation history, oldest first (see below)
@@ -100,6 +101,20 @@ class FrameState:
         return self.history[-1] if self.history else None
 
 
+#: a screen anchor as version 4 stores it: the core's own types (instance id, floats)
+_ANCHOR = np.dtype([("instance", "<i4"), ("values", "<f4", (5,))])
+
+
+def _anchor_bytes(anchors) -> bytes:
+    """Flat anchors (6 numbers each) as version 4's records; the core's anchors are
+    int32 and float32, so nothing is lost."""
+    a = np.asarray(anchors, dtype=np.float64).reshape(-1, 6)
+    rec = np.empty(a.shape[0], dtype=_ANCHOR)
+    rec["instance"] = a[:, 0].astype(np.int32)
+    rec["values"] = a[:, 1:].astype(np.float32)
+    return rec.tobytes()
+
+
 def shot_hash(shot: str) -> int:
     return int.from_bytes(hashlib.sha256(os.path.abspath(shot).encode("utf-8")).digest()[:8],
                           "little")
@@ -132,7 +147,7 @@ def encode_state(s: FrameState) -> bytes:
     if len(s.anchors) % 6:
         raise ValueError("FrameState.anchors: not 6 numbers per anchor")
     payload += struct.pack("<Q", len(s.anchors) // 6)
-    payload += struct.pack(f"<{len(s.anchors)}d", *s.anchors)
+    payload += _anchor_bytes(s.anchors)
     if s.pixel_keys:
         if len(s.pixel_keys) != 4 * s.width * s.height:
             raise ValueError("FrameState.pixel_keys: not W*H u32 keys")
@@ -190,9 +205,18 @@ def decode_state(data: bytes, path: str = "<state>") -> FrameState:
             raise struct.error("a chain start is not a bootstrap index")
         out.film_offset = struct.unpack_from("<2d", data, p); p += 16
         (a,) = struct.unpack_from("<Q", data, p); p += 8
-        if p + 48 * a > len(data):
+        size = (48 if version < 4 else _ANCHOR.itemsize) * a
+        if p + size > len(data):
             raise struct.error("screen anchors run past the end")
-        out.anchors = list(struct.unpack_from(f"<{6 * a}d", data, p)); p += 48 * a
+        if version < 4:
+            out.anchors = list(struct.unpack_from(f"<{6 * a}d", data, p))
+        else:
+            rec = np.frombuffer(data, dtype=_ANCHOR, count=a, offset=p)
+            flat = np.empty((a, 6), dtype=np.float64)
+            flat[:, 0] = rec["instance"]
+            flat[:, 1:] = rec["values"]
+            out.anchors = flat.ravel().tolist()
+        p += size
         if version >= 4:
             (m,) = struct.unpack_from("<Q", data, p); p += 8
             if p + m > len(data):

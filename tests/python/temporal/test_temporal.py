@@ -325,8 +325,9 @@ def test_bad_state_files(tmp_path):
 
 
 def test_state_carries_the_pixel_keys(tmp_path):
-    """Format 4 stores the pixels' key map (zlib of key − index): it round-trips; a
-    format-3 file (no map) is still read; a map that is not a permutation or does not
+    """Format 4 stores the pixels' key map (zlib of key − index) and the anchors in the
+    core's own types (i32 + 5 f32: the same values): both round-trip; a format-3 file
+    (f64 anchors, no map) is still read; a map that is not a permutation or does not
     decompress is refused with the file's name."""
     import struct
     import zlib
@@ -334,7 +335,7 @@ def test_state_carries_the_pixel_keys(tmp_path):
     w, h = 6, 4
     keys = np.random.default_rng(3).permutation(w * h).astype("<u4")
     s = FrameState(shot_hash=1, width=w, height=h, integrator="pt", seed=2, frame=3.0,
-                   settings_hash=4, film_offset=(0.25, 0.5), anchors=[0, 1, 2, 3, 4, 5],
+                   settings_hash=4, film_offset=(0.25, 0.5), anchors=[7, 1.5, -2.25, 3.0, 4.5, 5.75],
                    pixel_keys=keys.tobytes())
     data = encode_state(s)
     back = decode_state(data, "k.bin")
@@ -350,12 +351,14 @@ def test_state_carries_the_pixel_keys(tmp_path):
         return body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF)
 
     payload = data[_HEADER.size:-4]
-    # the key map's field sits after the anchors: 8 + 0 (boot) + 8 + 0 (picks) + 16 + 8 + 48
-    at = 8 + 8 + 16 + 8 + 48
+    # the key map's field sits after the anchors: 8 + 0 (boot) + 8 + 0 (picks) + 16 (offset)
+    # + 8 + 24 (one anchor: i32 + 5 f32)
+    at = 8 + 8 + 16 + 8 + 24
     (m,) = struct.unpack_from("<Q", payload, at)
-    v3 = payload[:at] + payload[at + 8 + m:]
+    # version 3: the anchors as 6 f64, no key map
+    v3 = payload[:40] + struct.pack("<6d", *s.anchors) + payload[at + 8 + m:]
     old = decode_state(rebuilt(v3, 3), "old.bin")
-    assert old.pixel_keys == b"" and old.film_offset == (0.25, 0.5)
+    assert old.pixel_keys == b"" and old.film_offset == (0.25, 0.5) and old.anchors == s.anchors
     dup = keys.copy()
     dup[1] = dup[0]
     packed = zlib.compress((dup - np.arange(w * h, dtype=np.uint32)).astype("<u4").tobytes())
