@@ -356,7 +356,8 @@ def render_reference(sf: ShotFrame, integrator: str = "bdpt", spp: int = 4096,
         # two independent halves (seeds seed, seed + 1), their mean the reference
         n1 = spp // 2
         n2 = spp - n1
-        part = (lambda lo, hi: (lambda f: progress(lo + (hi - lo) * f))) if progress else (lambda lo, hi: None)
+        def part(lo, hi):       # a half's progress as a share of the whole reference's
+            return (lambda f: progress(lo + (hi - lo) * f)) if progress else None
         ra = sf.render(spec, spp=n1, seed=seed, progress=part(0.0, n1 / spp))
         rb = sf.render(spec, spp=n2, seed=seed + 1, progress=part(n1 / spp, 1.0))
         wa, wb = n1 / spp, n2 / spp

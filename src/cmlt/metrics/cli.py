@@ -292,9 +292,6 @@ def _motion_terms(shot: str, frames, images, refs, screen_flow):
         raise MetricsError("--shot: no screen motion available (run through `cmlt flicker`)")
     if not os.path.isfile(shot):
         raise MetricsError(f"--shot {shot}: no such file")
-    if any(f is None for f in frames):
-        raise MetricsError(f"--shot {shot}: the sequence's files carry no frame numbers to "
-                           f"find the frames in the shot")
     h, w = images[0].shape[:2]
     flow = screen_flow(shot, [float(f) for f in frames], (w, h))
     return motion_compensated_terms(images, refs, flow)

@@ -115,14 +115,10 @@ def key_map(prev_keys, anchors, projected, width: int, height: int) -> Optional[
     never on a pixel's random numbers, so every pixel's estimator is unchanged."""
     W, H = int(width), int(height)
     n_x, n_y = anchor_grid(W, H)
-    a = np.asarray(anchors, dtype=np.float64).reshape(-1, 6)
-    p = np.asarray(projected, dtype=np.float64).reshape(-1, 2)
-    if a.shape[0] != n_x * n_y or p.shape[0] != a.shape[0]:
+    motion = _anchor_motion(anchors, projected)
+    if motion is None or motion[0].shape[0] != n_x * n_y:
         return None
-    ok = np.isfinite(p).all(axis=1) & (a[:, 0] >= 0)
-    if ok.sum() < max(1, a.shape[0] // 4):
-        return None
-    d = p - a[:, 4:6]
+    d, ok = motion
     d[~ok] = np.median(d[ok], axis=0)
     d = d.reshape(n_y, n_x, 2)
     # bilinear interpolation of the grid's displacement at the pixel centres
@@ -165,13 +161,25 @@ def film_shift(anchors, projected, width: int, height: int) -> Tuple[float, floa
     """The image's screen motion from one frame to the next in film units (fractions
     of the width and height): the median displacement of the anchors that are still
     in front of the camera. (0, 0) when fewer than a quarter of them are."""
+    motion = _anchor_motion(anchors, projected)
+    if motion is None:
+        return 0.0, 0.0
+    d, ok = motion
+    return float(np.median(d[ok, 0])) / width, float(np.median(d[ok, 1])) / height
+
+
+def _anchor_motion(anchors, projected):
+    """The anchors' raster displacement into the next frame (n, 2) and which anchors
+    have one (hit something, still in front of the camera); None when fewer than a
+    quarter of them do (or the two lists do not match)."""
     a = np.asarray(anchors, dtype=np.float64).reshape(-1, 6)
     p = np.asarray(projected, dtype=np.float64).reshape(-1, 2)
+    if a.shape[0] == 0 or p.shape[0] != a.shape[0]:
+        return None
     ok = np.isfinite(p).all(axis=1) & (a[:, 0] >= 0)
-    if a.shape[0] == 0 or ok.sum() < max(1, a.shape[0] // 4):
-        return 0.0, 0.0
-    d = p[ok] - a[ok, 4:6]
-    return float(np.median(d[:, 0])) / width, float(np.median(d[:, 1])) / height
+    if ok.sum() < max(1, a.shape[0] // 4):
+        return None
+    return p - a[:, 4:6], ok
 
 
 def _key_bytes(keys) -> bytes:
