@@ -55,6 +55,17 @@ struct HitGeometry {
     uint32_t material_id = 0;
 };
 
+/// The corners of a static instance's hit triangle, what the path tracer's diffuse lanes
+/// gather (integrators/path/diffuse_lanes.h; Scene::triangle_corners): world-space
+/// points as hit_geometry places them, and with vertex normals the object-space corner
+/// normals and the instance's normal matrix (null without).
+struct TriangleCorners {
+    Vec3 p[3];
+    const float* n[3] = {nullptr, nullptr, nullptr};
+    const Mat4* normal = nullptr;
+    uint32_t material_id = 0;
+};
+
 /// Fraction of the mean light power given to every light at least (so none has pmf 0).
 constexpr double k_light_power_floor = 1e-3;
 
@@ -191,6 +202,9 @@ public:
     void fill_interaction(const Ray& ray, const Hit& hit, SurfaceInteraction* si) const;
     /// The part of fill_interaction a diffuse shading point needs (the same floats).
     void hit_geometry(const Ray& ray, const Hit& hit, HitGeometry* g) const;
+    /// The corners of `hit`'s triangle (TriangleCorners); false for a moving instance
+    /// (placed at the ray's time: hit_geometry).
+    bool triangle_corners(const Hit& hit, TriangleCorners* c) const;
     /// The nearest analytic area light `ray` sees within (tnear, tmax): its t (k_infinity
     /// if none), index and emitted radiance (resolve_hit's test).
     float nearest_light(const Ray& ray, float tmax, uint32_t* light_index, Spectrum* le) const;

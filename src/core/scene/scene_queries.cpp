@@ -131,6 +131,27 @@ void Scene::hit_geometry(const Ray& ray, const Hit& hit, HitGeometry* g) const {
                        m_placed[hit.instance_id].empty() ? nullptr : m_placed[hit.instance_id].data(), &tri, g);
 }
 
+bool Scene::triangle_corners(const Hit& hit, TriangleCorners* c) const {
+    const Instance& inst = m_instances[hit.instance_id];
+    if (inst.motion.size() > 1) return false;
+    const Mesh& mesh = m_meshes[inst.mesh_id];
+    uint32_t v[3];
+    mesh.triangle(hit.prim_id, v);
+    const std::vector<float>& placed = m_placed[hit.instance_id];
+    for (int k = 0; k < 3; ++k) {
+        if (!placed.empty()) {
+            const float* w = placed.data() + 3 * size_t(v[k]);
+            c->p[k] = Vec3(w[0], w[1], w[2]);
+        } else {
+            c->p[k] = inst.xf.m.transform_affine_point(mesh.point(v[k]));
+        }
+        c->n[k] = mesh.data.normals ? mesh.data.normals + 3 * size_t(v[k]) : nullptr;
+    }
+    c->normal = mesh.data.normals ? &inst.xf.normal : nullptr;
+    c->material_id = mesh.material_id(hit.prim_id);
+    return true;
+}
+
 float Scene::nearest_light(const Ray& ray, float tmax, uint32_t* light_index, Spectrum* le) const {
     float t_best = k_infinity;
     for (size_t k = 0; k < m_analytic_area.size(); ++k) {

@@ -67,6 +67,137 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_scattering.reserve(n);
     for (auto* v : {&m_c0, &m_c1, &m_c2, &m_w0, &m_w1}) v->resize(n * k_prefetch);
     m_words.resize(n * 2 * k_prefetch);
+    m_lanes = std::make_unique<DiffuseLanes>();
+    m_diffuse.reserve(n);
+    m_diffuse_light.resize(n);
+}
+
+bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
+    // Stage 1 of diffuse_lanes.h for lane l, if its hit is a constant Lambertian of a
+    // static instance. A path at its last scattering event ends here (step(LambertHit)).
+    const Hit& h = m_hits[l];
+    TriangleCorners tri;
+    if (!m_scene.triangle_corners(h, &tri)) return false;
+    const Spectrum* r = m_scene.constant_lambert(tri.material_id);
+    if (!r) return false;
+    PathState& st = m_state[l];
+    if (st.depth == m_tracer.max_depth()) {
+        ++st.bounce;
+        c.rays += 1;
+        st.done = true;
+        return true;
+    }
+    DiffuseLanes& L = *m_lanes;
+    const size_t k = m_diffuse.size();
+    m_diffuse.push_back(l);
+    const Ray& ray = m_rays[l];
+    L.dx[k] = ray.d.x;
+    L.dy[k] = ray.d.y;
+    L.dz[k] = ray.d.z;
+    L.b1[k] = h.u;
+    L.b2[k] = h.v;
+    L.p0x[k] = tri.p[0].x, L.p0y[k] = tri.p[0].y, L.p0z[k] = tri.p[0].z;
+    L.p1x[k] = tri.p[1].x, L.p1y[k] = tri.p[1].y, L.p1z[k] = tri.p[1].z;
+    L.p2x[k] = tri.p[2].x, L.p2y[k] = tri.p[2].y, L.p2z[k] = tri.p[2].z;
+    L.has_n[k] = tri.normal != nullptr;
+    if (tri.normal) {
+        L.n0x[k] = tri.n[0][0], L.n0y[k] = tri.n[0][1], L.n0z[k] = tri.n[0][2];
+        L.n1x[k] = tri.n[1][0], L.n1y[k] = tri.n[1][1], L.n1z[k] = tri.n[1][2];
+        L.n2x[k] = tri.n[2][0], L.n2y[k] = tri.n[2][1], L.n2z[k] = tri.n[2][2];
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) L.nm[3 * a + b][k] = tri.normal->m[a][b];
+    } else {
+        L.n0x[k] = L.n0y[k] = L.n0z[k] = L.n1x[k] = L.n1y[k] = L.n1z[k] = 0.f;
+        L.n2x[k] = L.n2y[k] = L.n2z[k] = 0.f;
+        for (int a = 0; a < 9; ++a) L.nm[a][k] = 0.0;
+    }
+    L.rr[k] = r->x;
+    L.rg[k] = r->y;
+    L.rb[k] = r->z;
+    L.beta_r[k] = st.beta.x;
+    L.beta_g[k] = st.beta.y;
+    L.beta_b[k] = st.beta.z;
+    L.eta_scale[k] = st.eta_scale;
+    L.depth[k] = st.depth;
+    // the bounce's numbers (PathTracer::scatter: light, light position, BSDF direction,
+    // lobe, roulette), prefetched for this round
+    const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
+    L.u_bx[k] = uint_to_unit_float(w[4]);
+    L.u_by[k] = uint_to_unit_float(w[5]);
+    L.u_rr[k] = uint_to_unit_float(w[8]);
+    return true;
+}
+
+void PathBatch::shade_diffuse_lanes(PathCounters& c) {
+    DiffuseLanes& L = *m_lanes;
+    const size_t n = m_diffuse.size();
+    diffuse_geometry(L, n);
+    // Stage 3: next-event estimation's light sample, one lane at a time.
+    const bool nee = m_scene.light_count() > 0;
+    for (size_t k = 0; k < n; ++k) {
+        const uint32_t l = m_diffuse[k];
+        const PathState& st = m_state[l];
+        L.ls_ok[k] = 0;
+        L.ls_inf[k] = 0;
+        L.ls_delta[k] = 0;
+        L.wix[k] = L.wiy[k] = L.wiz[k] = 0.f;
+        L.li_r[k] = L.li_g[k] = L.li_b[k] = 0.f;
+        L.plx[k] = L.ply[k] = L.plz[k] = L.nlx[k] = L.nly[k] = L.nlz[k] = L.lerr[k] = 0.f;
+        L.light_pdf[k] = 0.f;
+        if (!nee || st.depth + 1 < m_tracer.min_depth()) continue;
+        const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
+        float pmf = 0.f;
+        const size_t li = m_scene.sample_light(uint_to_unit_float(w[0]), &pmf);
+        const LightSample ls = m_scene.light(li).sample_li(
+            Vec3(L.px[k], L.py[k], L.pz[k]), Vec2(uint_to_unit_float(w[2]), uint_to_unit_float(w[3])));
+        if (!(ls.valid() && pmf > 0.f)) continue;
+        m_diffuse_light[k] = uint32_t(li);
+        L.ls_ok[k] = 1;
+        L.ls_inf[k] = std::isinf(ls.dist);
+        L.ls_delta[k] = ls.is_delta;
+        L.wix[k] = ls.wi.x, L.wiy[k] = ls.wi.y, L.wiz[k] = ls.wi.z;
+        L.li_r[k] = ls.li.x, L.li_g[k] = ls.li.y, L.li_b[k] = ls.li.z;
+        L.plx[k] = ls.p_light.x, L.ply[k] = ls.p_light.y, L.plz[k] = ls.p_light.z;
+        L.nlx[k] = ls.n_light.x, L.nly[k] = ls.n_light.y, L.nlz[k] = ls.n_light.z;
+        L.lerr[k] = ls.error_scale;
+        L.light_pdf[k] = pmf * ls.pdf;
+    }
+    diffuse_next_event(L, n);
+    diffuse_disk(L, n);
+    diffuse_sample(L, n);
+    // Stage 6: back into the lanes' paths.
+    for (size_t k = 0; k < n; ++k) {
+        PathState& st = m_state[m_diffuse[k]];
+        const float time = st.ray.time;
+        ++st.bounce;
+        c.rays += 1;
+        if (L.shadow[k]) {
+            c.shadow_rays += 1;
+            c.rays += 1;
+            st.has_shadow = true;
+            st.shadow = Ray(Vec3(L.sox[k], L.soy[k], L.soz[k]), Vec3(L.sdx[k], L.sdy[k], L.sdz[k]), 0.f, L.stfar[k]);
+            st.shadow.time = time;
+            st.shadow_light = m_diffuse_light[k];
+            st.shadow_delta = L.ls_delta[k] != 0;
+            st.shadow_light_pdf = L.light_pdf[k];
+            st.shadow_bsdf_pdf = L.shadow_bsdf_pdf[k];
+            st.shadow_f = Spectrum(L.sf_r[k], L.sf_g[k], L.sf_b[k]);
+        }
+        if (L.done[k]) {
+            st.done = true;
+            continue;
+        }
+        st.beta = Spectrum(L.beta_r[k], L.beta_g[k], L.beta_b[k]);
+        st.specular_bounce = false;
+        st.prev_bsdf_pdf = L.pdf[k];
+        st.prev_p = Vec3(L.px[k], L.py[k], L.pz[k]);
+        st.ray = Ray(Vec3(L.rox[k], L.roy[k], L.roz[k]), Vec3(L.rdx[k], L.rdy[k], L.rdz[k]), 0.f, k_infinity);
+        st.ray.time = time;
+        st.diffuse_before_last = st.diffuse_seen;
+        st.diffuse_seen = true;
+        st.last_specular = false;
+        ++st.depth;
+    }
 }
 
 void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectrum* L, float* w, Vec2* p) {
@@ -112,15 +243,19 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         prefetch_dimensions(m_scattering, k_prefetch,
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();
+        m_diffuse.clear();
         const bool lights = m_scene.has_analytic_area_lights();
+        const bool lanes = m_use_lanes && m_tracer.plain();
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
             const Hit& h = m_hits[l];
             // The diffuse fast path: a mesh hit (no analytic light in front of it) on a
-            // constant Lambertian; everything else through the full hit.
+            // constant Lambertian, in the SoA lanes (static instances) or from the hit's
+            // geometry; everything else through the full hit.
             uint32_t light;
             Spectrum le;
             if (h.valid() && !(lights && m_scene.nearest_light(m_rays[l], h.t, &light, &le) < k_infinity)) {
+                if (lanes && gather_diffuse(l, c)) continue;
                 HitGeometry g;
                 m_scene.hit_geometry(m_rays[l], h, &g);
                 if (const Spectrum* r = m_scene.constant_lambert(g.material_id)) {
@@ -131,6 +266,10 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             } else {
                 m_tracer.step(st, m_scene.resolve_hit(m_rays[l], h), m_sampler[l], c);
             }
+        }
+        if (!m_diffuse.empty()) shade_diffuse_lanes(c);
+        for (uint32_t l : m_live) {
+            PathState& st = m_state[l];
             if (!st.has_shadow) continue;
             // Scene::transmittance, split around the BVH query: analytic lights first.
             if (m_scene.blocked_by_light(st.shadow, st.shadow_light)) {

@@ -18,10 +18,12 @@
 /// packets it shared: the image does not depend on the thread count.
 #include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
+#include "integrators/path/diffuse_lanes.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng.h"
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace cmlt {
@@ -47,6 +49,11 @@ public:
 
     uint64_t packets() const { return m_packets; }
 
+    /// Shade constant-Lambertian hits in structure-of-arrays lanes (diffuse_lanes.h; the
+    /// default) or one lane at a time through PathTracer::step(LambertHit): the same
+    /// floats either way (tests/cpp).
+    void set_diffuse_lanes(bool on) { m_use_lanes = on; }
+
 private:
     const PathTracer& m_tracer;
     const Scene& m_scene;
@@ -70,6 +77,15 @@ private:
     // random numbers computed ahead for every live lane (prefetch_dimensions)
     std::vector<uint32_t> m_c0, m_c1, m_c2, m_w0, m_w1;
     std::vector<uint32_t> m_words;  ///< per lane: k_prefetch dimensions x 2 words
+    // the diffuse lanes of a round: their batch lanes, the lights their shadow rays aim at
+    bool m_use_lanes = true;
+    std::unique_ptr<DiffuseLanes> m_lanes;
+    std::vector<uint32_t> m_diffuse, m_diffuse_light;
+
+    /// Stage 1 of diffuse_lanes.h for lane l: false if its hit is not one the lanes take.
+    bool gather_diffuse(uint32_t l, PathCounters& counters);
+    /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse (gathered).
+    void shade_diffuse_lanes(PathCounters& counters);
 
     /// Hands every lane of `lanes` the numbers of dimensions [first(lane), first(lane) +
     /// count) (PixelSampler::prefetch), computed for all of them at once.

@@ -131,6 +131,13 @@ public:
     void set_sequence(PixelSequence sequence) { m_sequence = sequence; }
     PixelSequence sequence() const { return m_sequence; }
 
+    int max_depth() const { return m_max_depth; }
+    int min_depth() const { return m_min_depth; }
+    /// Neither a partition nor caustic light tracing: a constant-Lambertian hit is
+    /// shaded by step(LambertHit) alone, what PathBatch's diffuse lanes compute
+    /// (diffuse_lanes.h).
+    bool plain() const { return !m_partition && !m_caustic; }
+
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
     void begin(PathState& st, const Ray& camera_ray, PathCounters& counters) const;
     /// Take `hit`, the answer to st.ray (counted as a ray): add what it sees, and leave

@@ -1,0 +1,215 @@
+// The diffuse fast path in structure-of-arrays lanes; see diffuse_lanes.h. Every
+// expression below is the per-lane routine's (Scene::hit_geometry's place_triangle,
+// PathTracer::scatter with Bsdf's Lambertian branch, Frame, offset_ray_origin), written
+// component by component in the same order; where the routine branches, both sides are
+// computed and one is selected.
+#include "integrators/path/diffuse_lanes.h"
+
+#include "integrators/path/path_tracer.h"
+#include "math/safe_math.h"
+#include "sampling/warp.h"
+#include "scene/interaction.h"
+
+#include <cmath>
+#include <limits>
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CMLT_LANES_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define CMLT_LANES_CLONES
+#endif
+
+namespace cmlt {
+
+namespace {
+/// std::isfinite without the library call (x − x is 0 exactly for finite x, NaN else).
+inline bool finite(float x) { return x - x == 0.f; }
+/// std::max(a, b) and std::min(a, b) as the standard defines them.
+inline float fmax_std(float a, float b) { return a < b ? b : a; }
+inline float fmin_std(float a, float b) { return b < a ? b : a; }
+/// offset_ray_origin, one component: `side` is dot(w, n) < 0.
+inline float offset(float p, float n, float e, bool side) {
+    const float off = n * (k_offset_rel * e);
+    return side ? p - off : p + off;
+}
+}  // namespace
+
+CMLT_LANES_CLONES
+void diffuse_geometry(DiffuseLanes& L, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+        // p from the barycentrics; error_scale = max_component(vmax(|p0|, vmax(|p1|, |p2|)))
+        const float b1 = L.b1[i], b2 = L.b2[i], b0 = 1.f - b1 - b2;
+        const float p0x = L.p0x[i], p0y = L.p0y[i], p0z = L.p0z[i];
+        const float p1x = L.p1x[i], p1y = L.p1y[i], p1z = L.p1z[i];
+        const float p2x = L.p2x[i], p2y = L.p2y[i], p2z = L.p2z[i];
+        L.px[i] = p0x * b0 + p1x * b1 + p2x * b2;
+        L.py[i] = p0y * b0 + p1y * b1 + p2y * b2;
+        L.pz[i] = p0z * b0 + p1z * b1 + p2z * b2;
+        const float ex = fmax_std(std::fabs(p0x), fmax_std(std::fabs(p1x), std::fabs(p2x)));
+        const float ey = fmax_std(std::fabs(p0y), fmax_std(std::fabs(p1y), std::fabs(p2y)));
+        const float ez = fmax_std(std::fabs(p0z), fmax_std(std::fabs(p1z), std::fabs(p2z)));
+        L.err[i] = fmax_std(ex, fmax_std(ey, ez));
+    }
+    for (size_t i = 0; i < n; ++i) {
+        // wo = -normalize(d)
+        const float dx = L.dx[i], dy = L.dy[i], dz = L.dz[i];
+        const float dl = std::sqrt(dx * dx + dy * dy + dz * dz);
+        const float dr = 1.f / dl;
+        const bool pos = dl > 0.f;
+        L.wox[i] = -(pos ? dx * dr : 0.f);
+        L.woy[i] = -(pos ? dy * dr : 0.f);
+        L.woz[i] = -(pos ? dz * dr : 0.f);
+    }
+    for (size_t i = 0; i < n; ++i) {
+        // ng = normalize(cross(p1 - p0, p2 - p0)), or wo for a degenerate triangle
+        const float p0x = L.p0x[i], p0y = L.p0y[i], p0z = L.p0z[i];
+        const float ax = L.p1x[i] - p0x, ay = L.p1y[i] - p0y, az = L.p1z[i] - p0z;
+        const float bx = L.p2x[i] - p0x, by = L.p2y[i] - p0y, bz = L.p2z[i] - p0z;
+        const float cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
+        const float cl = std::sqrt(cx * cx + cy * cy + cz * cz);
+        const float cr = 1.f / cl;
+        // (normalize gives 0 where cl is not positive, which counts as degenerate: the
+        // quotient is needed only where cl > 0, so it is taken unconditionally)
+        const float gx = cx * cr, gy = cy * cr, gz = cz * cr;
+        const bool bad = (!(cl > 0.f)) | ((gx == 0.f) & (gy == 0.f) & (gz == 0.f)) |
+                         !(finite(gx) & finite(gy) & finite(gz));
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        L.ngx[i] = bad ? wox : gx;
+        L.ngy[i] = bad ? woy : gy;
+        L.ngz[i] = bad ? woz : gz;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        const float b1 = L.b1[i], b2 = L.b2[i], b0 = 1.f - b1 - b2;
+        const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+        // ns: the interpolated vertex normal by the normal matrix (double), normalised,
+        // on ng's side; ng without vertex normals or where that fails
+        const float mx = L.n0x[i] * b0 + L.n1x[i] * b1 + L.n2x[i] * b2;
+        const float my = L.n0y[i] * b0 + L.n1y[i] * b1 + L.n2y[i] * b2;
+        const float mz = L.n0z[i] * b0 + L.n1z[i] * b1 + L.n2z[i] * b2;
+        const double x = mx, y = my, z = mz;
+        const float tx = float(L.nm[0][i] * x + L.nm[1][i] * y + L.nm[2][i] * z);
+        const float ty = float(L.nm[3][i] * x + L.nm[4][i] * y + L.nm[5][i] * z);
+        const float tz = float(L.nm[6][i] * x + L.nm[7][i] * y + L.nm[8][i] * z);
+        const float tl = std::sqrt(tx * tx + ty * ty + tz * tz);
+        const float tr = 1.f / tl;
+        const float ux = tx * tr, uy = ty * tr, uz = tz * tr;
+        const bool use = (L.has_n[i] != 0) & (tl > 0.f) & !((ux == 0.f) & (uy == 0.f) & (uz == 0.f)) &
+                         finite(ux) & finite(uy) & finite(uz);
+        const bool flip = ux * gx + uy * gy + uz * gz < 0.f;
+        const float fx = flip ? -ux : ux, fy = flip ? -uy : uy, fz = flip ? -uz : uz;
+        L.nsx[i] = use ? fx : gx;
+        L.nsy[i] = use ? fy : gy;
+        L.nsz[i] = use ? fz : gz;
+    }
+}
+
+CMLT_LANES_CLONES
+void diffuse_next_event(DiffuseLanes& L, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+        const float sx = L.nsx[i], sy = L.nsy[i], sz = L.nsz[i];
+        const float wx = L.wix[i], wy = L.wiy[i], wz = L.wiz[i];
+        // Bsdf::eval's Lambertian branch (consistent_cosines), then |cos| at the light
+        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
+        const float lz = wox * sx + woy * sy + woz * sz, iz = wx * sx + wy * sy + wz * sz;
+        const bool cons = (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (lz * iz > 0.f));
+        const bool lit = cons & !(lz * iz <= 0.f);
+        const float c = std::fabs(iz);
+        const float fr = lit ? L.rr[i] * k_inv_pi : 0.f, fg = lit ? L.rg[i] * k_inv_pi : 0.f,
+                    fb = lit ? L.rb[i] * k_inv_pi : 0.f;
+        const float f_r = fr * c, f_g = fg * c, f_b = fb * c;
+        const bool sh = (L.ls_ok[i] != 0) & !((f_r == 0.f) & (f_g == 0.f) & (f_b == 0.f));
+        L.shadow[i] = sh;
+        // the shadow ray: toward an infinite light spawn_ray(wi); else spawn_ray_to the
+        // target, offset off the light's surface toward the ray (shadow_target)
+        const float px = L.px[i], py = L.py[i], pz = L.pz[i], e = L.err[i];
+        const float nlx = L.nlx[i], nly = L.nly[i], nlz = L.nlz[i];
+        const bool surf = !((nlx == 0.f) & (nly == 0.f) & (nlz == 0.f));
+        const bool lside = (-wx) * nlx + (-wy) * nly + (-wz) * nlz < 0.f;
+        const float qx = surf ? offset(L.plx[i], nlx, L.lerr[i], lside) : L.plx[i];
+        const float qy = surf ? offset(L.ply[i], nly, L.lerr[i], lside) : L.ply[i];
+        const float qz = surf ? offset(L.plz[i], nlz, L.lerr[i], lside) : L.plz[i];
+        const bool inf = L.ls_inf[i];
+        const float tx = inf ? wx : qx - px, ty = inf ? wy : qy - py, tz = inf ? wz : qz - pz;
+        const bool side = tx * gx + ty * gy + tz * gz < 0.f;
+        const float ox = offset(px, gx, e, side), oy = offset(py, gy, e, side), oz = offset(pz, gz, e, side);
+        L.sox[i] = ox;
+        L.soy[i] = oy;
+        L.soz[i] = oz;
+        L.sdx[i] = inf ? wx : qx - ox;
+        L.sdy[i] = inf ? wy : qy - oy;
+        L.sdz[i] = inf ? wz : qz - oz;
+        L.stfar[i] = inf ? std::numeric_limits<float>::infinity() : 1.f - k_shadow_epsilon;
+        // Bsdf::pdf's Lambertian branch (0 toward a Dirac light)
+        L.shadow_bsdf_pdf[i] = L.ls_delta[i] ? 0.f : (lit ? c * k_inv_pi : 0.f);
+        // shadow_f = beta * f * li
+        L.sf_r[i] = L.beta_r[i] * f_r * L.li_r[i];
+        L.sf_g[i] = L.beta_g[i] * f_g * L.li_g[i];
+        L.sf_b[i] = L.beta_b[i] * f_b * L.li_b[i];
+    }
+}
+
+void diffuse_disk(DiffuseLanes& L, size_t n) {
+    // The concentric map itself (its cos and sin are libm's, which no vector loop
+    // reproduces bit for bit)
+    for (size_t i = 0; i < n; ++i) {
+        const Vec2 d = square_to_uniform_disk_concentric(Vec2(L.u_bx[i], L.u_by[i]));
+        L.disk_x[i] = d.x;
+        L.disk_y[i] = d.y;
+    }
+}
+
+CMLT_LANES_CLONES
+void diffuse_sample(DiffuseLanes& L, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
+        // LambertianBsdf::sample in the frame of ns (only lo.z enters)
+        const float loz = wox * nx + woy * ny + woz * nz;
+        const float ddx = L.disk_x[i], ddy = L.disk_y[i];
+        float z = safe_sqrt(1.f - ddx * ddx - ddy * ddy);
+        z = loz < 0.f ? -z : z;
+        const float pdf = std::fabs(z) * k_inv_pi;
+        const float fr = L.rr[i] * k_inv_pi, fg = L.rg[i] * k_inv_pi, fb = L.rb[i] * k_inv_pi;
+        bool ok = (loz != 0.f) & (pdf > 0.f) & finite(fr) & finite(fg) & finite(fb);
+        const bool local_reflect = loz * z > 0.f;
+        // Frame(ns).to_world
+        const float sign = std::copysign(1.f, nz);
+        const float a = -1.f / (sign + nz);
+        const float b = nx * ny * a;
+        const float sx = 1.f + sign * nx * nx * a, sy = sign * b, sz = -sign * nx;
+        const float tx = b, ty = sign + ny * ny * a, tz = -ny;
+        const float wx = sx * ddx + tx * ddy + nx * z;
+        const float wy = sy * ddx + ty * ddy + ny * z;
+        const float wz = sz * ddx + tz * ddy + nz * z;
+        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
+        ok = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
+        // beta *= f * (|cos| / pdf)
+        const float s = std::fabs(wx * nx + wy * ny + wz * nz) / pdf;
+        const float br = L.beta_r[i] * (fr * s), bg = L.beta_g[i] * (fg * s), bb = L.beta_b[i] * (fb * s);
+        ok = ok & !((br == 0.f) & (bg == 0.f) & (bb == 0.f)) & finite(br) & finite(bg) & finite(bb);
+        // the next ray: spawn_ray(wi)
+        const float px = L.px[i], py = L.py[i], pz = L.pz[i], e = L.err[i];
+        const bool side = wx * gx + wy * gy + wz * gz < 0.f;
+        L.rox[i] = offset(px, gx, e, side);
+        L.roy[i] = offset(py, gy, e, side);
+        L.roz[i] = offset(pz, gz, e, side);
+        L.rdx[i] = wx;
+        L.rdy[i] = wy;
+        L.rdz[i] = wz;
+        L.pdf[i] = pdf;
+        // Russian roulette from k_rr_start_depth
+        const bool roulette = L.depth[i] + 1 >= PathTracer::k_rr_start_depth;
+        const float q = fmin_std(0.95f, fmax_std(br, fmax_std(bg, bb)) * L.eta_scale[i]);
+        const bool killed = roulette & !(L.u_rr[i] < q);
+        const float iq = 1.f / q;
+        L.beta_r[i] = roulette ? br * iq : br;
+        L.beta_g[i] = roulette ? bg * iq : bg;
+        L.beta_b[i] = roulette ? bb * iq : bb;
+        L.done[i] = !ok | killed;
+    }
+}
+
+}  // namespace cmlt

@@ -1,0 +1,90 @@
+#pragma once
+/// \file The diffuse fast path of PathBatch in structure-of-arrays lanes: the hits of a
+/// round that land on a constant-Lambertian triangle of a static instance are shaded
+/// together, one loop per stage over all of them, each component of each quantity in an
+/// array of its own, so that the compiler turns the loops into SIMD code.
+///
+/// The SIMD layer is deliberately the compiler's auto-vectoriser over plain SoA loops,
+/// each kernel compiled for AVX-512, AVX2 and the portable baseline and chosen when the
+/// module loads (GCC target_clones, as philox4x32_lanes): no intrinsics, no new
+/// dependency, and the same source is the scalar reference. The loops compute exactly
+/// the floats PathTracer::step(LambertHit) computes — the same operations in the same
+/// order, branches written as selects, no contraction into fused multiply-adds (the
+/// clones' instruction sets do not include FMA) — so a lane's path is the per-lane
+/// routine's bit for bit (tests/cpp: PathBatch against PathTracer::li without packets).
+///
+/// Stages, per round (PathBatch::trace_tile):
+///   1. gather (PathBatch, scalar): ray, the triangle's corners (and corner normals with
+///      the instance's normal matrix), barycentrics, reflectance, throughput, the
+///      bounce's numbers;
+///   2. diffuse_geometry: point, wo, geometric and shading normals, offset scale;
+///   3. next-event sampling (PathBatch, scalar: one light by power, Light::sample_li —
+///      virtual per light type);
+///   4. diffuse_next_event: the Lambertian value and density toward the light sample,
+///      the shadow ray and its pending contribution;
+///   5. diffuse_disk (scalar: the concentric map, libm's cos/sin) and diffuse_sample:
+///      the cosine-weighted direction in the shading frame, the throughput, the next
+///      ray, Russian roulette;
+///   6. scatter back into the lanes' PathState (PathBatch, scalar).
+#include "integrators/common/frame_loop.h"
+
+#include <cstddef>
+#include <cstdint>
+
+namespace cmlt {
+
+struct DiffuseLanes {
+    /// Lanes per call: a tile's pixels (PathBatch's lanes).
+    static constexpr size_t k_capacity = size_t(k_tile_size) * size_t(k_tile_size);
+    static constexpr size_t N = k_capacity;
+
+    // 1. inputs
+    alignas(64) float dx[N], dy[N], dz[N];           ///< ray direction
+    alignas(64) float b1[N], b2[N];                  ///< barycentrics of corners 1 and 2
+    alignas(64) float p0x[N], p0y[N], p0z[N], p1x[N], p1y[N], p1z[N], p2x[N], p2y[N], p2z[N];
+    alignas(64) uint8_t has_n[N];                    ///< the mesh has vertex normals
+    alignas(64) float n0x[N], n0y[N], n0z[N], n1x[N], n1y[N], n1z[N], n2x[N], n2y[N], n2z[N];
+    alignas(64) double nm[9][N];                     ///< instance normal matrix, row-major 3x3
+    alignas(64) float rr[N], rg[N], rb[N];           ///< reflectance
+    alignas(64) float beta_r[N], beta_g[N], beta_b[N];
+    alignas(64) float eta_scale[N];
+    alignas(64) int32_t depth[N];
+    alignas(64) float u_bx[N], u_by[N], u_rr[N];     ///< BSDF direction, roulette
+
+    // 2. geometry
+    alignas(64) float px[N], py[N], pz[N];
+    alignas(64) float wox[N], woy[N], woz[N];
+    alignas(64) float ngx[N], ngy[N], ngz[N];
+    alignas(64) float nsx[N], nsy[N], nsz[N];
+    alignas(64) float err[N];
+
+    // 3. the light sample (ls_ok: sampled, valid, pmf > 0)
+    alignas(64) uint8_t ls_ok[N], ls_delta[N], ls_inf[N];
+    alignas(64) float wix[N], wiy[N], wiz[N];
+    alignas(64) float li_r[N], li_g[N], li_b[N];
+    alignas(64) float light_pdf[N];                  ///< pmf times the sample's pdf
+    alignas(64) float plx[N], ply[N], plz[N], nlx[N], nly[N], nlz[N], lerr[N];
+
+    // 4. the pending shadow ray
+    alignas(64) uint8_t shadow[N];
+    alignas(64) float sox[N], soy[N], soz[N], sdx[N], sdy[N], sdz[N], stfar[N];
+    alignas(64) float sf_r[N], sf_g[N], sf_b[N];
+    alignas(64) float shadow_bsdf_pdf[N];
+
+    // 5. the point on the concentric disk
+    alignas(64) float disk_x[N], disk_y[N];
+    // 5. the next ray
+    alignas(64) uint8_t done[N];
+    alignas(64) float pdf[N];
+    alignas(64) float rox[N], roy[N], roz[N], rdx[N], rdy[N], rdz[N];
+};
+
+/// Stage 2 over lanes [0, n).
+void diffuse_geometry(DiffuseLanes& L, size_t n);
+/// Stage 4 over lanes [0, n) (lanes without ls_ok get no shadow ray).
+void diffuse_next_event(DiffuseLanes& L, size_t n);
+/// Stage 5: the concentric disk's point (scalar), then the rest.
+void diffuse_disk(DiffuseLanes& L, size_t n);
+void diffuse_sample(DiffuseLanes& L, size_t n);
+
+}  // namespace cmlt
