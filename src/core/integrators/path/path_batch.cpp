@@ -166,6 +166,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     diffuse_disk(L, n);
     diffuse_sample(L, n);
     // Stage 6: back into the lanes' paths.
+    const CausticLightTracing* caustic = m_tracer.caustic_light_tracing();
     for (size_t k = 0; k < n; ++k) {
         PathState& st = m_state[m_diffuse[k]];
         const float time = st.ray.time;
@@ -186,6 +187,30 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         if (L.done[k]) {
             st.done = true;
             continue;
+        }
+        if (caustic) {
+            // PathTracer::scatter's camera side of r (a Lambertian vertex: never Dirac):
+            // at the first vertex 1 / (p_cam p(z1 -> z2)), later reverse over forward density
+            const float nx = L.nsx[k], ny = L.nsy[k], nz = L.nsz[k];
+            const float wx = L.rdx[k], wy = L.rdy[k], wz = L.rdz[k];
+            const float cos_i = std::fabs(wx * nx + wy * ny + wz * nz);
+            const float fwd = cos_i > 0.f ? L.pdf[k] / cos_i : 0.f;
+            if (st.depth == 0) {
+                const double den = double(caustic->camera_density(st.prev_p, Vec3(L.px[k], L.py[k], L.pz[k]),
+                                                                  Vec3(L.ngx[k], L.ngy[k], L.ngz[k]))) *
+                                   fwd;
+                st.lt = den > 0.0 ? 1.0 / den : 0.0;
+            } else if (st.lt > 0.0) {
+                const Vec3 wo(L.wox[k], L.woy[k], L.woz[k]), wi(wx, wy, wz), ng(L.ngx[k], L.ngy[k], L.ngz[k]),
+                    ns(nx, ny, nz);
+                const float cos_o = std::fabs(dot(wo, ns));
+                // Bsdf::pdf(wi, wo), Lambertian: consistent sides, then |cos| / pi
+                const float go = dot(wi, ng), gi = dot(wo, ng), lz = dot(wi, ns), iz = dot(wo, ns);
+                const bool cons = go != 0.f && gi != 0.f && (go * gi > 0.f) == (lz * iz > 0.f);
+                const float pdf_rev = cons && !(lz * iz <= 0.f) ? std::fabs(iz) * k_inv_pi : 0.f;
+                const float rev = cos_o > 0.f ? pdf_rev / cos_o : 0.f;
+                st.lt = fwd > 0.f ? st.lt * double(rev) / double(fwd) : 0.0;
+            }
         }
         st.beta = Spectrum(L.beta_r[k], L.beta_g[k], L.beta_b[k]);
         st.specular_bounce = false;

@@ -133,10 +133,11 @@ public:
 
     int max_depth() const { return m_max_depth; }
     int min_depth() const { return m_min_depth; }
-    /// Neither a partition nor caustic light tracing: a constant-Lambertian hit is
-    /// shaded by step(LambertHit) alone, what PathBatch's diffuse lanes compute
-    /// (diffuse_lanes.h).
-    bool plain() const { return !m_partition && !m_caustic; }
+    /// No partition: a constant-Lambertian hit is shaded by step(LambertHit) alone, what
+    /// PathBatch's diffuse lanes compute (diffuse_lanes.h; with caustic light tracing
+    /// they also carry PathState::lt as scatter does: lanes_caustic_factor).
+    bool plain() const { return !m_partition; }
+    const CausticLightTracing* caustic_light_tracing() const { return m_caustic; }
 
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
     void begin(PathState& st, const Ray& camera_ray, PathCounters& counters) const;
