@@ -190,6 +190,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     d["rays"] = st.rays;
     d["rays_per_s"] = st.rays_per_s;
     if (st.packets > 0) d["packet_queries"] = st.packets;
+    if (st.lane_hits > 0) d["lane_hits"] = st.lane_hits;
     if (st.lens_lights > 0) d["lens_lights"] = st.lens_lights;
     if (st.caustic_casters > 0) d["caustic_casters"] = st.caustic_casters;
     if (st.emission_guiding > 0) d["emission_guiding"] = st.emission_guiding;

@@ -104,8 +104,8 @@ def part_ranges(n: int, parts: int) -> List[tuple]:
 
 #: RenderResult.stats entries that add up over the parts of a frame
 _ADDITIVE = ("samples", "camera_rays", "shadow_rays", "rays", "splats", "busy_s", "trace_s",
-             "shade_s", "nan_samples", "packet_queries", "packet_rays", "packet_shadow_rays",
-             "bundle_rays", "bundle_busy_s", "bundle_trace_s", "states_visited",
+             "shade_s", "nan_samples", "packet_queries", "lane_hits", "packet_rays",
+             "packet_shadow_rays", "bundle_rays", "bundle_busy_s", "bundle_trace_s", "states_visited",
              "long_streak_rejections")
 
 

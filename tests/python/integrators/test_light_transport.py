@@ -438,3 +438,25 @@ def test12_pt_traces_a_sub_pixel_bulb_from_the_light_side(pixel_filter):
     agree_over_seeds(pt_runs, bd_runs, 4, f"pt vs bdpt, sub-pixel bulb, {pixel_filter}")
     one = core.render(scene, _settings("pt", res, 4, 3, threads=1, **kw))
     assert np.array_equal(np.asarray(one.image), np.asarray(core.render(scene, _settings("pt", res, 4, 3, **kw)).image))
+
+
+# ---- 5. the diffuse lanes --------------------------------------------------------------
+
+def test13_pt_shades_lambertian_hits_in_lanes_with_and_without_packets():
+    """pt shades constant-Lambertian hits of static instances in structure-of-arrays
+    lanes (src/core/integrators/path/diffuse_lanes.h), with packets or without: the
+    sidecar's ``lane_hits`` counts them, within 1 % either way (packets change only
+    Embree's last-ulp hits), fewer than the surface hits (the moving block is placed at
+    each ray's time, outside the lanes), and the two images are close. (ior 1 and no
+    metal: no specular lobe, so the diffuse-only kernel renders the walls as Lambertian,
+    Scene::constant_lambert.)"""
+    fs = _cornell_with([], moving_block=True)
+    for m in fs.materials:
+        m.ior = 1.0
+    scene = SceneBridge(core).update(fs)
+    on = core.render(scene, _settings("pt", (32, 32), 8, 5, packets=True))
+    off = core.render(scene, _settings("pt", (32, 32), 8, 5, packets=False))
+    hits = on.stats["rays"] - on.stats["shadow_rays"]
+    assert 0 < on.stats["lane_hits"] < hits
+    assert on.stats["lane_hits"] == pytest.approx(off.stats["lane_hits"], rel=0.01)
+    assert np.abs(np.asarray(on.image) - np.asarray(off.image)).mean() < 0.05 * np.asarray(off.image).mean()

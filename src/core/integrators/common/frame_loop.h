@@ -40,6 +40,7 @@ struct FrameCounters {
     std::atomic<uint64_t> camera_rays{0}, shadow_rays{0}, rays{0}, samples{0};
     std::atomic<uint64_t> invalid{0}, packets{0}, splats{0}, bad_splats{0};
     std::atomic<uint64_t> busy_ticks{0}, trace_ticks{0};
+    std::atomic<uint64_t> lane_hits{0};  ///< pt: hits shaded in the diffuse lanes (PathBatch)
 
     /// Ray counts of PathCounters or BdptCounters.
     template <class C>
@@ -88,6 +89,7 @@ inline void fill_frame_stats(RenderStats& st, const FrameCounters& c, const Cycl
     st.rays = c.rays.load();
     st.rays_per_s = secs > 0 ? double(st.rays) / secs : 0.0;
     st.packets = c.packets.load();
+    st.lane_hits = c.lane_hits.load();
     const double per_s = rate.per_second();
     st.busy_s = double(c.busy_ticks.load()) / per_s;
     st.trace_s = std::min(st.busy_s, double(c.trace_ticks.load()) / per_s);

@@ -340,6 +340,7 @@ struct RenderStats {
     uint64_t shadow_rays = 0;
     uint64_t rays = 0;          ///< every BVH query (camera + bounce + shadow)
     uint64_t packets = 0;       ///< pt: packet queries (rtcIntersectN + rtcOccludedN calls)
+    uint64_t lane_hits = 0;     ///< pt: surface hits shaded in the diffuse lanes (diffuse_lanes.h)
     uint64_t splats = 0;        ///< bdpt: light-tracing (t = 1) contributions splatted
     /// Every integrator: lights under a pixel across traced from the light side to the
     /// lens ((1, 1): integrators/path/lens_light_tracing.h)

@@ -81,6 +81,7 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
     const Spectrum* r = m_scene.constant_lambert(tri.material_id);
     if (!r) return false;
     PathState& st = m_state[l];
+    ++m_lane_hits;
     if (st.depth == m_tracer.max_depth()) {
         ++st.bounce;
         c.rays += 1;

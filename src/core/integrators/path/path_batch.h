@@ -48,6 +48,8 @@ public:
                     Vec2* p = nullptr);
 
     uint64_t packets() const { return m_packets; }
+    /// Hits shaded in the diffuse lanes so far (a path at its last vertex included).
+    uint64_t lane_hits() const { return m_lane_hits; }
 
     /// Shade constant-Lambertian hits in structure-of-arrays lanes (diffuse_lanes.h; the
     /// default) or one lane at a time through PathTracer::step(LambertHit): the same
@@ -65,6 +67,7 @@ private:
     KeyShift m_shift;
     int m_packet_width;
     uint64_t m_packets = 0;
+    uint64_t m_lane_hits = 0;
 
     // per lane (capacity: a tile)
     std::vector<PathState> m_state;

@@ -94,6 +94,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                         }
                     }
                     counters.add(c, 0, batch.packets());
+                    counters.lane_hits.fetch_add(batch.lane_hits(), std::memory_order_relaxed);
                 },
                 tbb::simple_partitioner());
         }, &target);
@@ -117,7 +118,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                     [&](const tbb::blocked_range<size_t>& r) {
                         PathCounters c;
                         PathBatch& batch = batches.local();
-                        const uint64_t packets0 = batch.packets();
+                        const uint64_t packets0 = batch.packets(), lanes0 = batch.lane_hits();
                         Spectrum L[k_tile_size * k_tile_size];
                         float w[k_tile_size * k_tile_size];
                         Vec2 p[k_tile_size * k_tile_size];
@@ -132,6 +133,7 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                                 }
                         }
                         counters.add(c, 0, batch.packets() - packets0);
+                        counters.lane_hits.fetch_add(batch.lane_hits() - lanes0, std::memory_order_relaxed);
                     },
                     tbb::simple_partitioner());
                 const double* splats =

@@ -1,4 +1,5 @@
-// The batched path tracer (integrators/path/path_batch.h) against the scalar reference:
+// The batched path tracer (integrators/path/path_batch.h, its constant-Lambertian hits in
+// the structure-of-arrays lanes of diffuse_lanes.h) against the scalar reference:
 // PathTracer::pixel_sample, one path and one query at a time (path_tracer.h). Without
 // packets the batch answers every query as the reference does and must give its image
 // bit for bit; with packets (Embree's packet kernels may differ from single rays in the
@@ -113,6 +114,10 @@ void check_scene(const std::function<void(Scene&)>& build, const char* what, boo
         ASSERT_EQ(scalar.image.size(), ref.size());
         EXPECT_EQ(std::memcmp(scalar.image.data(), ref.data(), ref.size() * sizeof(float)), 0) << name;
         EXPECT_EQ(std::memcmp(scalar.variance.data(), ref_var.data(), ref.size() * sizeof(float)), 0) << name;
+        // the Lambertian walls' hits went through the diffuse lanes (diffuse_lanes.h), so
+        // the comparison above holds them to the per-lane routine's floats
+        EXPECT_GT(scalar.stats.lane_hits, 0u) << name;
+        EXPECT_LE(scalar.stats.lane_hits, scalar.stats.rays - scalar.stats.shadow_rays) << name;
         // 2. packets: the same estimator; image means per channel within 4.5 standard
         // errors of the difference (two independent-looking renders: different last-ulp
         // hits decorrelate them only where a hit changes, so this is conservative; the
