@@ -5,13 +5,18 @@
 /// array of its own, so that the compiler turns the loops into SIMD code.
 ///
 /// The SIMD layer is deliberately the compiler's auto-vectoriser over plain SoA loops,
-/// each kernel compiled for AVX-512, AVX2 and the portable baseline and chosen when the
-/// module loads (GCC target_clones, as philox4x32_lanes): no intrinsics, no new
-/// dependency, and the same source is the scalar reference. The loops compute exactly
-/// the floats PathTracer::step(LambertHit) computes — the same operations in the same
-/// order, branches written as selects, no contraction into fused multiply-adds (the
-/// clones' instruction sets do not include FMA) — so a lane's path is the per-lane
-/// routine's bit for bit (tests/cpp: PathBatch against PathTracer::li without packets).
+/// each kernel compiled for AVX2 and the portable baseline and chosen when the module
+/// loads (GCC target_clones, as philox4x32_lanes): no intrinsics, no new dependency
+/// (Highway or xsimd would bring their own dispatch and a second, hand-vectorised
+/// formulation to keep equal to the scalar one), and the same source is the scalar
+/// reference. The loops compute exactly the floats PathTracer::step(LambertHit)
+/// computes — the same operations in the same order, branches written as selects
+/// (computed on both sides, so the file is built without trapping-math and errno: no
+/// change to any value), no contraction into fused multiply-adds (-ffp-contract=off) —
+/// so a lane's path is the per-lane routine's bit for bit (tests/cpp: PathBatch against
+/// PathTracer::li without packets). An AVX-512 clone was tried and dropped: with it the
+/// frame ran at 0.91x the per-lane routine's speed, perf putting the scalar libm calls
+/// that follow (sincosf) at ten times their cost (tests/bench/results/profile.md).
 ///
 /// Stages, per round (PathBatch::trace_tile):
 ///   1. gather (PathBatch, scalar): ray, the triangle's corners (and corner normals with
