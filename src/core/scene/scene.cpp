@@ -201,9 +201,15 @@ void Scene::classify_constant_lambert() {
     const size_t n = m_materials.size();
     m_constant_lambert.assign(n, 0);
     m_lambert_r.assign(n, Spectrum(0.f));
+    m_constant_preview.assign(n, nullptr);
     for (size_t i = 0; i < n; ++i) {
         if (i < m_material_passes.size() && m_material_passes[i]) continue;
-        m_constant_lambert[i] = cmlt::constant_lambert(m_materials[i], m_textures, &m_lambert_r[i]) ? 1 : 0;
+        const Material& m = m_materials[i];
+        m_constant_lambert[i] = cmlt::constant_lambert(m, m_textures, &m_lambert_r[i]) ? 1 : 0;
+        // make_bsdf's constant preview case (Material::constant_bsdf) without a normal map
+        if (!m_constant_lambert[i] && m.preview && !m.lambert_kernel && m.constant_bsdf && m.tex_normal < 0 &&
+            !m.is_emissive())
+            m_constant_preview[i] = &*m.constant_bsdf;
     }
 }
 

@@ -218,6 +218,13 @@ public:
     const Spectrum* constant_lambert(uint32_t material_id) const {
         return m_constant_lambert[material_id] ? &m_lambert_r[material_id] : nullptr;
     }
+    /// The BSDF a hit on `material_id` shades with when it is the same at every hit and
+    /// its geometry alone places it (PathBatch's lanes): a UsdPreviewSurface with constant
+    /// inputs (Material::constant_bsdf), no normal map, no emission, opaque, not a
+    /// constant Lambertian. Null otherwise. After commit() and select_kernels().
+    const PreviewSurfaceBsdf* constant_preview(uint32_t material_id) const {
+        return m_constant_preview[material_id];
+    }
 
 private:
     /// transmittance() past a BVH occlusion: step through the hits in order.
@@ -247,6 +254,7 @@ private:
     std::vector<Material> m_materials;
     std::vector<uint8_t> m_material_passes;  ///< per material: may_pass_rays (at commit)
     std::vector<uint8_t> m_constant_lambert;  ///< per material: constant_lambert applies
+    std::vector<const PreviewSurfaceBsdf*> m_constant_preview;  ///< per material: constant_preview
     std::vector<Spectrum> m_lambert_r;        ///< its reflectance
     void classify_constant_lambert();
     bool m_pass_through = false;             ///< some entry of m_material_passes is set

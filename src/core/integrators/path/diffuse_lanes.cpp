@@ -35,8 +35,8 @@ inline float offset(float p, float n, float e, bool side) {
 }  // namespace
 
 CMLT_LANES_CLONES
-void diffuse_geometry(DiffuseLanes& L, size_t n) {
-    for (size_t i = 0; i < n; ++i) {
+void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
         // p from the barycentrics; error_scale = max_component(vmax(|p0|, vmax(|p1|, |p2|)))
         const float b1 = L.b1[i], b2 = L.b2[i], b0 = 1.f - b1 - b2;
         const float p0x = L.p0x[i], p0y = L.p0y[i], p0z = L.p0z[i];
@@ -50,7 +50,7 @@ void diffuse_geometry(DiffuseLanes& L, size_t n) {
         const float ez = fmax_std(std::fabs(p0z), fmax_std(std::fabs(p1z), std::fabs(p2z)));
         L.err[i] = fmax_std(ex, fmax_std(ey, ez));
     }
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = begin; i < end; ++i) {
         // wo = -normalize(d)
         const float dx = L.dx[i], dy = L.dy[i], dz = L.dz[i];
         const float dl = std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -60,7 +60,7 @@ void diffuse_geometry(DiffuseLanes& L, size_t n) {
         L.woy[i] = -(pos ? dy * dr : 0.f);
         L.woz[i] = -(pos ? dz * dr : 0.f);
     }
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = begin; i < end; ++i) {
         // ng = normalize(cross(p1 - p0, p2 - p0)), or wo for a degenerate triangle
         const float p0x = L.p0x[i], p0y = L.p0y[i], p0z = L.p0z[i];
         const float ax = L.p1x[i] - p0x, ay = L.p1y[i] - p0y, az = L.p1z[i] - p0z;
@@ -78,7 +78,7 @@ void diffuse_geometry(DiffuseLanes& L, size_t n) {
         L.ngy[i] = bad ? woy : gy;
         L.ngz[i] = bad ? woz : gz;
     }
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = begin; i < end; ++i) {
         const float b1 = L.b1[i], b2 = L.b2[i], b0 = 1.f - b1 - b2;
         const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
         // ns: the interpolated vertex normal by the normal matrix (double), normalised,

@@ -31,6 +31,10 @@
 ///      the cosine-weighted direction in the shading frame, the throughput, the next
 ///      ray, Russian roulette;
 ///   6. scatter back into the lanes' PathState (PathBatch, scalar).
+///
+/// Hits on a constant preview BSDF (Scene::constant_preview: UsdPreviewSurface with
+/// constant inputs) take stages 1 and 2 only, from the top of the arrays down; their
+/// shading is the per-lane routine's (PathTracer::step(PreviewHit)).
 #include "integrators/common/frame_loop.h"
 
 #include <cstddef>
@@ -84,8 +88,8 @@ struct DiffuseLanes {
     alignas(64) float rox[N], roy[N], roz[N], rdx[N], rdy[N], rdz[N];
 };
 
-/// Stage 2 over lanes [0, n).
-void diffuse_geometry(DiffuseLanes& L, size_t n);
+/// Stage 2 over lanes [begin, end).
+void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end);
 /// Stage 4 over lanes [0, n) (lanes without ls_ok get no shadow ray).
 void diffuse_next_event(DiffuseLanes& L, size_t n);
 /// Stage 5: the concentric disk's point (scalar), then the rest.

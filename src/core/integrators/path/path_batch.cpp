@@ -67,30 +67,43 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_scattering.reserve(n);
     for (auto* v : {&m_c0, &m_c1, &m_c2, &m_w0, &m_w1}) v->resize(n * k_prefetch);
     m_words.resize(n * 2 * k_prefetch);
-    m_lanes = std::make_unique<DiffuseLanes>();
+    m_lanes.reset(new DiffuseLanes);  // not value-initialised: every lane is written before it is read
     m_diffuse.reserve(n);
     m_diffuse_light.resize(n);
+    m_preview.reserve(n);
+    m_preview_material.reserve(n);
+    m_preview_bsdf.reserve(n);
 }
 
 bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
-    // Stage 1 of diffuse_lanes.h for lane l, if its hit is a constant Lambertian of a
-    // static instance. A path at its last scattering event ends here (step(LambertHit)).
+    // Stage 1 of diffuse_lanes.h for lane l, if its hit is a constant Lambertian or a
+    // constant preview BSDF of a static instance. A path at its last scattering event on
+    // a Lambertian ends here (step(LambertHit)).
     const Hit& h = m_hits[l];
     TriangleCorners tri;
     if (!m_scene.triangle_corners(h, &tri)) return false;
     const Spectrum* r = m_scene.constant_lambert(tri.material_id);
-    if (!r) return false;
+    const PreviewSurfaceBsdf* preview = r ? nullptr : m_scene.constant_preview(tri.material_id);
+    if (!r && !preview) return false;
     PathState& st = m_state[l];
     ++m_lane_hits;
-    if (st.depth == m_tracer.max_depth()) {
-        ++st.bounce;
-        c.rays += 1;
-        st.done = true;
-        return true;
-    }
     DiffuseLanes& L = *m_lanes;
-    const size_t k = m_diffuse.size();
-    m_diffuse.push_back(l);
+    size_t k;
+    if (preview) {
+        k = DiffuseLanes::k_capacity - 1 - m_preview.size();
+        m_preview.push_back(l);
+        m_preview_bsdf.push_back(preview);
+        m_preview_material.push_back(tri.material_id);
+    } else {
+        if (st.depth == m_tracer.max_depth()) {
+            ++st.bounce;
+            c.rays += 1;
+            st.done = true;
+            return true;
+        }
+        k = m_diffuse.size();
+        m_diffuse.push_back(l);
+    }
     const Ray& ray = m_rays[l];
     L.dx[k] = ray.d.x;
     L.dy[k] = ray.d.y;
@@ -112,6 +125,7 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
         L.n2x[k] = L.n2y[k] = L.n2z[k] = 0.f;
         for (int a = 0; a < 9; ++a) L.nm[a][k] = 0.0;
     }
+    if (preview) return true;
     L.rr[k] = r->x;
     L.rg[k] = r->y;
     L.rb[k] = r->z;
@@ -131,8 +145,29 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
 
 void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     DiffuseLanes& L = *m_lanes;
+    if (!m_preview.empty()) {
+        // the preview lanes, from the top of the arrays down: placed here, shaded one at
+        // a time by the per-lane routine
+        const size_t top = DiffuseLanes::k_capacity;
+        diffuse_geometry(L, top - m_preview.size(), top);
+        for (size_t j = 0; j < m_preview.size(); ++j) {
+            const size_t k = top - 1 - j;
+            const uint32_t l = m_preview[j];
+            PathState& st = m_state[l];
+            HitGeometry g;
+            g.sp.p = Vec3(L.px[k], L.py[k], L.pz[k]);
+            g.sp.ng = Vec3(L.ngx[k], L.ngy[k], L.ngz[k]);
+            g.sp.error_scale = L.err[k];
+            g.sp.time = st.ray.time;
+            g.ns = Vec3(L.nsx[k], L.nsy[k], L.nsz[k]);
+            g.wo = Vec3(L.wox[k], L.woy[k], L.woz[k]);
+            g.material_id = m_preview_material[j];
+            m_tracer.step(st, PreviewHit{&g, m_preview_bsdf[j]}, m_sampler[l], c);
+        }
+    }
     const size_t n = m_diffuse.size();
-    diffuse_geometry(L, n);
+    if (n == 0) return;
+    diffuse_geometry(L, 0, n);
     // Stage 3: next-event estimation's light sample, one lane at a time.
     const bool nee = m_scene.light_count() > 0;
     for (size_t k = 0; k < n; ++k) {
@@ -270,6 +305,9 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();
         m_diffuse.clear();
+        m_preview.clear();
+        m_preview_bsdf.clear();
+        m_preview_material.clear();
         const bool lights = m_scene.has_analytic_area_lights();
         const bool lanes = m_use_lanes && m_tracer.plain();
         for (uint32_t l : m_live) {
@@ -293,7 +331,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                 m_tracer.step(st, m_scene.resolve_hit(m_rays[l], h), m_sampler[l], c);
             }
         }
-        if (!m_diffuse.empty()) shade_diffuse_lanes(c);
+        if (!m_diffuse.empty() || !m_preview.empty()) shade_diffuse_lanes(c);
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
             if (!st.has_shadow) continue;

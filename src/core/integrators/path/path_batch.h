@@ -84,10 +84,16 @@ private:
     bool m_use_lanes = true;
     std::unique_ptr<DiffuseLanes> m_lanes;
     std::vector<uint32_t> m_diffuse, m_diffuse_light;
+    // the preview lanes of a round (placed in the lanes from the top down): batch lanes,
+    // their BSDFs and materials
+    std::vector<uint32_t> m_preview, m_preview_material;
+    std::vector<const PreviewSurfaceBsdf*> m_preview_bsdf;
 
-    /// Stage 1 of diffuse_lanes.h for lane l: false if its hit is not one the lanes take.
+    /// Stage 1 of diffuse_lanes.h for lane l: false if its hit is not one the lanes take
+    /// (constant Lambertian or constant preview BSDF on a static instance).
     bool gather_diffuse(uint32_t l, PathCounters& counters);
-    /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse (gathered).
+    /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse, stage 2 and
+    /// PathTracer::step(PreviewHit) for those in m_preview.
     void shade_diffuse_lanes(PathCounters& counters);
 
     /// Hands every lane of `lanes` the numbers of dimensions [first(lane), first(lane) +

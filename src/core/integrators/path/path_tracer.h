@@ -50,6 +50,7 @@ class LensLightTracing;
 class PixelFilter;
 class Scene;
 struct HitGeometry;
+class PreviewSurfaceBsdf;
 struct SceneHit;
 struct SurfacePoint;
 
@@ -59,6 +60,14 @@ struct SurfacePoint;
 struct LambertHit {
     const HitGeometry* geometry;
     const Spectrum* reflectance;
+};
+
+/// A surface hit whose material has a constant preview BSDF (Scene::constant_preview):
+/// placed in PathBatch's lanes, shaded by step(PreviewHit), the same path as
+/// step(SceneHit) on the full hit.
+struct PreviewHit {
+    const HitGeometry* geometry;
+    const PreviewSurfaceBsdf* bsdf;
 };
 
 /// One path of PathTracer between two ray queries (path_tracer.h).
@@ -148,6 +157,9 @@ public:
     /// step() for a constant-Lambertian surface hit, from its geometry alone.
     template <class Sampler>
     void step(PathState& st, const LambertHit& hit, Sampler& sampler, PathCounters& counters) const;
+    /// step() for a surface hit with a constant preview BSDF, from its geometry alone.
+    template <class Sampler>
+    void step(PathState& st, const PreviewHit& hit, Sampler& sampler, PathCounters& counters) const;
     /// Complete a pending shadow ray: `tr` and `pass_pdf` as Scene::transmittance gives them.
     static void finish_shadow(PathState& st, float tr, float pass_pdf) {
         st.has_shadow = false;
@@ -196,6 +208,8 @@ extern template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&,
 extern template void PathTracer::step<PixelSampler>(PathState&, const SceneHit&, PixelSampler&,
                                                     PathCounters&) const;
 extern template void PathTracer::step<PixelSampler>(PathState&, const LambertHit&, PixelSampler&,
+                                                    PathCounters&) const;
+extern template void PathTracer::step<PixelSampler>(PathState&, const PreviewHit&, PixelSampler&,
                                                     PathCounters&) const;
 
 }  // namespace cmlt

@@ -147,6 +147,21 @@ void PathTracer::step(PathState& st, const LambertHit& hit, Sampler& sampler, Pa
 }
 
 template <class Sampler>
+void PathTracer::step(PathState& st, const PreviewHit& hit, Sampler& sampler, PathCounters& c) const {
+    // What step(SceneHit) does for a surface hit whose material constant_preview accepts:
+    // no emission, opaque, the constant preview BSDF make_bsdf returns (no normal map).
+    const uint32_t bounce = st.bounce++;
+    c.rays += 1;
+    if (st.depth == m_max_depth) {
+        st.done = true;
+        return;
+    }
+    const HitGeometry& g = *hit.geometry;
+    const bool specular = m_partition && m_partition->specular(g.material_id);
+    scatter(st, bounce, g.sp, g.wo, Bsdf(*hit.bsdf, g.ns, g.sp.ng), false, false, specular, sampler, c);
+}
+
+template <class Sampler>
 void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp, const Vec3& wo, const Bsdf& bsdf,
                          bool passes, bool last, bool specular, Sampler& sampler, PathCounters& c) const {
     const Scene& scene = m_scene;

@@ -148,6 +148,30 @@ TEST(PathBatch, MatchesTheScalarReferenceOnTheBox) {
     check_scene([](Scene& s) { box_scene(s, 10.f, true); s.commit(); }, "box");
 }
 
+TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfaces) {
+    // glossy UsdPreviewSurfaces with constant inputs (Scene::constant_preview): placed in
+    // the lanes, shaded by PathTracer::step(PreviewHit); a mirror-like clear coat on one
+    check_scene(
+        [](Scene& s) {
+            box_scene(s, 10.f, true);
+            std::vector<Material> m = {Material{Spectrum(0.7f), Spectrum(0.f)},
+                                       Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
+                                       Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
+                                       Material{Spectrum(0.5f), Spectrum(10.f)}};
+            for (int i = 0; i < 3; ++i) {
+                m[size_t(i)].preview = true;
+                m[size_t(i)].roughness = 0.25f + 0.25f * float(i);
+            }
+            m[1].metallic = 0.6f;
+            m[2].clearcoat = 0.8f;
+            s.set_materials(m);
+            s.commit();
+            for (uint32_t i = 0; i < 3; ++i) EXPECT_NE(s.constant_preview(i), nullptr) << i;
+            EXPECT_EQ(s.constant_preview(3), nullptr);  // emissive
+        },
+        "preview box");
+}
+
 TEST(PathBatch, MatchesTheScalarReferenceWithAnalyticLights) {
     check_scene(
         [](Scene& s) {
