@@ -117,20 +117,22 @@ Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
             }
         }
     }
+    return make_bsdf_at(mat, si.uv, ns, si.ng, textures, si.primvars, si.n_primvars);
+}
+
+Bsdf make_bsdf_at(const Material& mat, const Vec2& st, const Vec3& ns, const Vec3& ng,
+                  const std::vector<Texture>& textures, const float* primvars, int n_primvars) {
     if (!mat.preview) {
-        return Bsdf(LambertianBsdf(colour_input(mat.diffuse, mat.tex_diffuse, -1, si.uv, textures,
-                                                nullptr, 0)),
-                    ns, si.ng);
+        return Bsdf(LambertianBsdf(colour_input(mat.diffuse, mat.tex_diffuse, -1, st, textures, nullptr, 0)), ns,
+                    ng);
     }
     if (mat.lambert_kernel) {  // the diffuse-only kernel: only the colour varies
-        return Bsdf(LambertianBsdf(preview_colour(colour_input(
-                        mat.diffuse, mat.tex_diffuse, mat.pv_diffuse, si.uv, textures,
-                        si.primvars, si.primvars ? si.n_primvars : 0))),
-                    ns, si.ng);
+        return Bsdf(LambertianBsdf(preview_colour(colour_input(mat.diffuse, mat.tex_diffuse, mat.pv_diffuse, st,
+                                                               textures, primvars, primvars ? n_primvars : 0))),
+                    ns, ng);
     }
-    if (mat.constant_bsdf) return Bsdf(*mat.constant_bsdf, ns, si.ng);
-    return Bsdf(PreviewSurfaceBsdf(preview_params(mat, si.uv, textures, si.primvars, si.n_primvars)),
-                ns, si.ng);
+    if (mat.constant_bsdf) return Bsdf(*mat.constant_bsdf, ns, ng);
+    return Bsdf(PreviewSurfaceBsdf(preview_params(mat, st, textures, primvars, n_primvars)), ns, ng);
 }
 
 bool constant_lambert(const Material& mat, const std::vector<Texture>& textures, Spectrum* reflectance) {

@@ -21,6 +21,10 @@ PreviewSurfaceParams preview_params(const Material& mat, const Vec2& st,
 /// when it has one and si.dpdu is known; it stays on si.ng's side.
 Bsdf make_bsdf(const Material& mat, const SurfaceInteraction& si,
                const std::vector<Texture>& textures);
+/// make_bsdf after the normal map: the BSDF with shading normal `ns` (geometric `ng`),
+/// textures at `st`, primvar inputs from `primvars` (n_primvars of them; null: none).
+Bsdf make_bsdf_at(const Material& mat, const Vec2& st, const Vec3& ns, const Vec3& ng,
+                  const std::vector<Texture>& textures, const float* primvars, int n_primvars);
 
 /// The diffuse colour (UsdPreviewSurface diffuseColor, or the Lambert colour) at texture
 /// coordinate `st`, textured (and read from the hit's primvars) as make_bsdf does: what the

@@ -202,14 +202,17 @@ void Scene::classify_constant_lambert() {
     m_constant_lambert.assign(n, 0);
     m_lambert_r.assign(n, Spectrum(0.f));
     m_constant_preview.assign(n, nullptr);
+    m_lane_material.assign(n, 0);
     for (size_t i = 0; i < n; ++i) {
         if (i < m_material_passes.size() && m_material_passes[i]) continue;
         const Material& m = m_materials[i];
         m_constant_lambert[i] = cmlt::constant_lambert(m, m_textures, &m_lambert_r[i]) ? 1 : 0;
+        if (m_constant_lambert[i] || m.tex_normal >= 0 || m.is_emissive()) continue;
         // make_bsdf's constant preview case (Material::constant_bsdf) without a normal map
-        if (!m_constant_lambert[i] && m.preview && !m.lambert_kernel && m.constant_bsdf && m.tex_normal < 0 &&
-            !m.is_emissive())
+        if (m.preview && !m.lambert_kernel && m.constant_bsdf)
             m_constant_preview[i] = &*m.constant_bsdf;
+        else
+            m_lane_material[i] = 1;
     }
 }
 

@@ -63,6 +63,8 @@ struct TriangleCorners {
     Vec3 p[3];
     const float* n[3] = {nullptr, nullptr, nullptr};
     const Mat4* normal = nullptr;
+    const float* uv[3] = {nullptr, nullptr, nullptr};  ///< the corners' uvs (null: none)
+    bool primvars = false;                              ///< the mesh has primvar columns
     uint32_t material_id = 0;
 };
 
@@ -225,6 +227,13 @@ public:
     const PreviewSurfaceBsdf* constant_preview(uint32_t material_id) const {
         return m_constant_preview[material_id];
     }
+    /// The material, if PathBatch's lanes may place its hits and make its BSDF from the
+    /// hit's uv and normals alone (make_bsdf_at): no normal map, no emission, opaque,
+    /// neither constant_lambert nor constant_preview. Null otherwise. (Its mesh must have
+    /// no primvar columns: TriangleCorners::primvars.)
+    const Material* lane_material(uint32_t material_id) const {
+        return m_lane_material[material_id] ? &m_materials[material_id] : nullptr;
+    }
 
 private:
     /// transmittance() past a BVH occlusion: step through the hits in order.
@@ -255,6 +264,7 @@ private:
     std::vector<uint8_t> m_material_passes;  ///< per material: may_pass_rays (at commit)
     std::vector<uint8_t> m_constant_lambert;  ///< per material: constant_lambert applies
     std::vector<const PreviewSurfaceBsdf*> m_constant_preview;  ///< per material: constant_preview
+    std::vector<uint8_t> m_lane_material;                        ///< per material: lane_material
     std::vector<Spectrum> m_lambert_r;        ///< its reflectance
     void classify_constant_lambert();
     bool m_pass_through = false;             ///< some entry of m_material_passes is set

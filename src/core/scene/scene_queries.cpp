@@ -146,7 +146,9 @@ bool Scene::triangle_corners(const Hit& hit, TriangleCorners* c) const {
             c->p[k] = inst.xf.m.transform_affine_point(mesh.point(v[k]));
         }
         c->n[k] = mesh.data.normals ? mesh.data.normals + 3 * size_t(v[k]) : nullptr;
+        c->uv[k] = mesh.data.uvs ? mesh.data.uvs + 2 * size_t(v[k]) : nullptr;
     }
+    c->primvars = mesh.data.n_primvar_columns > 0;
     c->normal = mesh.data.normals ? &inst.xf.normal : nullptr;
     c->material_id = mesh.material_id(hit.prim_id);
     return true;

@@ -70,30 +70,42 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_lanes.reset(new DiffuseLanes);  // not value-initialised: every lane is written before it is read
     m_diffuse.reserve(n);
     m_diffuse_light.resize(n);
-    m_preview.reserve(n);
-    m_preview_material.reserve(n);
-    m_preview_bsdf.reserve(n);
+    m_placed.reserve(n);
+    m_placed_material.reserve(n);
+    m_placed_preview.reserve(n);
+    m_placed_uv.reserve(n);
 }
 
 bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
-    // Stage 1 of diffuse_lanes.h for lane l, if its hit is a constant Lambertian or a
-    // constant preview BSDF of a static instance. A path at its last scattering event on
-    // a Lambertian ends here (step(LambertHit)).
+    // Stage 1 of diffuse_lanes.h for lane l, if its hit is a static instance's triangle
+    // with a constant Lambertian (shaded in the lanes) or a material the lanes place and
+    // the per-lane routine shades (a constant preview BSDF, or one make_bsdf_at makes from
+    // the uv: no primvars). A path at its last scattering event on a Lambertian ends here
+    // (step(LambertHit)).
     const Hit& h = m_hits[l];
     TriangleCorners tri;
     if (!m_scene.triangle_corners(h, &tri)) return false;
     const Spectrum* r = m_scene.constant_lambert(tri.material_id);
     const PreviewSurfaceBsdf* preview = r ? nullptr : m_scene.constant_preview(tri.material_id);
-    if (!r && !preview) return false;
+    const bool placed = !r && (preview || (!tri.primvars && m_scene.lane_material(tri.material_id)));
+    if (!r && !placed) return false;
     PathState& st = m_state[l];
     ++m_lane_hits;
     DiffuseLanes& L = *m_lanes;
     size_t k;
-    if (preview) {
-        k = DiffuseLanes::k_capacity - 1 - m_preview.size();
-        m_preview.push_back(l);
-        m_preview_bsdf.push_back(preview);
-        m_preview_material.push_back(tri.material_id);
+    if (placed) {
+        k = DiffuseLanes::k_capacity - 1 - m_placed.size();
+        m_placed.push_back(l);
+        m_placed_preview.push_back(preview);
+        m_placed_material.push_back(tri.material_id);
+        // the texture coordinates as Scene::fill_interaction interpolates them
+        const float b1 = h.u, b2 = h.v, b0 = 1.f - b1 - b2;
+        if (tri.uv[0]) {
+            const float *t0 = tri.uv[0], *t1 = tri.uv[1], *t2 = tri.uv[2];
+            m_placed_uv.push_back(Vec2(t0[0] * b0 + t1[0] * b1 + t2[0] * b2, t0[1] * b0 + t1[1] * b1 + t2[1] * b2));
+        } else {
+            m_placed_uv.push_back(Vec2(b1, b2));
+        }
     } else {
         if (st.depth == m_tracer.max_depth()) {
             ++st.bounce;
@@ -125,7 +137,7 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
         L.n2x[k] = L.n2y[k] = L.n2z[k] = 0.f;
         for (int a = 0; a < 9; ++a) L.nm[a][k] = 0.0;
     }
-    if (preview) return true;
+    if (placed) return true;
     L.rr[k] = r->x;
     L.rg[k] = r->y;
     L.rb[k] = r->z;
@@ -145,14 +157,14 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
 
 void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     DiffuseLanes& L = *m_lanes;
-    if (!m_preview.empty()) {
-        // the preview lanes, from the top of the arrays down: placed here, shaded one at
-        // a time by the per-lane routine
+    if (!m_placed.empty()) {
+        // the lanes from the top of the arrays down: placed here, shaded one at a time by
+        // the per-lane routine with the BSDF make_bsdf would make
         const size_t top = DiffuseLanes::k_capacity;
-        diffuse_geometry(L, top - m_preview.size(), top);
-        for (size_t j = 0; j < m_preview.size(); ++j) {
+        diffuse_geometry(L, top - m_placed.size(), top);
+        for (size_t j = 0; j < m_placed.size(); ++j) {
             const size_t k = top - 1 - j;
-            const uint32_t l = m_preview[j];
+            const uint32_t l = m_placed[j];
             PathState& st = m_state[l];
             HitGeometry g;
             g.sp.p = Vec3(L.px[k], L.py[k], L.pz[k]);
@@ -161,8 +173,12 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
             g.sp.time = st.ray.time;
             g.ns = Vec3(L.nsx[k], L.nsy[k], L.nsz[k]);
             g.wo = Vec3(L.wox[k], L.woy[k], L.woz[k]);
-            g.material_id = m_preview_material[j];
-            m_tracer.step(st, PreviewHit{&g, m_preview_bsdf[j]}, m_sampler[l], c);
+            g.material_id = m_placed_material[j];
+            const Bsdf bsdf = m_placed_preview[j]
+                                  ? Bsdf(*m_placed_preview[j], g.ns, g.sp.ng)
+                                  : make_bsdf_at(m_scene.material(g.material_id), m_placed_uv[j], g.ns, g.sp.ng,
+                                                 m_scene.textures(), nullptr, 0);
+            m_tracer.step(st, BsdfHit{&g, &bsdf}, m_sampler[l], c);
         }
     }
     const size_t n = m_diffuse.size();
@@ -305,9 +321,10 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();
         m_diffuse.clear();
-        m_preview.clear();
-        m_preview_bsdf.clear();
-        m_preview_material.clear();
+        m_placed.clear();
+        m_placed_preview.clear();
+        m_placed_material.clear();
+        m_placed_uv.clear();
         const bool lights = m_scene.has_analytic_area_lights();
         const bool lanes = m_use_lanes && m_tracer.plain();
         for (uint32_t l : m_live) {
@@ -331,7 +348,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                 m_tracer.step(st, m_scene.resolve_hit(m_rays[l], h), m_sampler[l], c);
             }
         }
-        if (!m_diffuse.empty() || !m_preview.empty()) shade_diffuse_lanes(c);
+        if (!m_diffuse.empty() || !m_placed.empty()) shade_diffuse_lanes(c);
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
             if (!st.has_shadow) continue;

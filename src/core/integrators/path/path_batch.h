@@ -30,6 +30,7 @@ namespace cmlt {
 
 class Camera;
 class PixelFilter;
+class PreviewSurfaceBsdf;
 class Scene;
 struct Hit;
 
@@ -84,16 +85,18 @@ private:
     bool m_use_lanes = true;
     std::unique_ptr<DiffuseLanes> m_lanes;
     std::vector<uint32_t> m_diffuse, m_diffuse_light;
-    // the preview lanes of a round (placed in the lanes from the top down): batch lanes,
-    // their BSDFs and materials
-    std::vector<uint32_t> m_preview, m_preview_material;
-    std::vector<const PreviewSurfaceBsdf*> m_preview_bsdf;
+    // the lanes of a round placed from the top down and shaded one at a time: batch
+    // lanes, materials, constant preview BSDFs (null: make_bsdf_at), texture coordinates
+    std::vector<uint32_t> m_placed, m_placed_material;
+    std::vector<const PreviewSurfaceBsdf*> m_placed_preview;
+    std::vector<Vec2> m_placed_uv;
 
     /// Stage 1 of diffuse_lanes.h for lane l: false if its hit is not one the lanes take
-    /// (constant Lambertian or constant preview BSDF on a static instance).
+    /// (a static instance's triangle with a constant Lambertian, a constant preview BSDF
+    /// or a Scene::lane_material on a mesh without primvars).
     bool gather_diffuse(uint32_t l, PathCounters& counters);
     /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse, stage 2 and
-    /// PathTracer::step(PreviewHit) for those in m_preview.
+    /// PathTracer::step(BsdfHit) for those in m_placed.
     void shade_diffuse_lanes(PathCounters& counters);
 
     /// Hands every lane of `lanes` the numbers of dimensions [first(lane), first(lane) +

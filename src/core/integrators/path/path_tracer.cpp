@@ -37,6 +37,6 @@ template Spectrum PathTracer::li<PixelSampler>(const Ray&, PixelSampler&, PathCo
                                               const SceneHit*) const;
 template void PathTracer::step<PixelSampler>(PathState&, const SceneHit&, PixelSampler&, PathCounters&) const;
 template void PathTracer::step<PixelSampler>(PathState&, const LambertHit&, PixelSampler&, PathCounters&) const;
-template void PathTracer::step<PixelSampler>(PathState&, const PreviewHit&, PixelSampler&, PathCounters&) const;
+template void PathTracer::step<PixelSampler>(PathState&, const BsdfHit&, PixelSampler&, PathCounters&) const;
 
 }  // namespace cmlt

@@ -50,7 +50,7 @@ class LensLightTracing;
 class PixelFilter;
 class Scene;
 struct HitGeometry;
-class PreviewSurfaceBsdf;
+class Bsdf;
 struct SceneHit;
 struct SurfacePoint;
 
@@ -62,12 +62,13 @@ struct LambertHit {
     const Spectrum* reflectance;
 };
 
-/// A surface hit whose material has a constant preview BSDF (Scene::constant_preview):
-/// placed in PathBatch's lanes, shaded by step(PreviewHit), the same path as
-/// step(SceneHit) on the full hit.
-struct PreviewHit {
+/// A surface hit placed in PathBatch's lanes with its BSDF already made (a constant
+/// preview BSDF, Scene::constant_preview, or make_bsdf_at for Scene::lane_material): the
+/// material emits nothing and lets no ray through, and step(BsdfHit) takes the same path
+/// as step(SceneHit) on the full hit.
+struct BsdfHit {
     const HitGeometry* geometry;
-    const PreviewSurfaceBsdf* bsdf;
+    const Bsdf* bsdf;
 };
 
 /// One path of PathTracer between two ray queries (path_tracer.h).
@@ -157,9 +158,9 @@ public:
     /// step() for a constant-Lambertian surface hit, from its geometry alone.
     template <class Sampler>
     void step(PathState& st, const LambertHit& hit, Sampler& sampler, PathCounters& counters) const;
-    /// step() for a surface hit with a constant preview BSDF, from its geometry alone.
+    /// step() for a surface hit whose BSDF is made (BsdfHit), from its geometry alone.
     template <class Sampler>
-    void step(PathState& st, const PreviewHit& hit, Sampler& sampler, PathCounters& counters) const;
+    void step(PathState& st, const BsdfHit& hit, Sampler& sampler, PathCounters& counters) const;
     /// Complete a pending shadow ray: `tr` and `pass_pdf` as Scene::transmittance gives them.
     static void finish_shadow(PathState& st, float tr, float pass_pdf) {
         st.has_shadow = false;
@@ -209,7 +210,7 @@ extern template void PathTracer::step<PixelSampler>(PathState&, const SceneHit&,
                                                     PathCounters&) const;
 extern template void PathTracer::step<PixelSampler>(PathState&, const LambertHit&, PixelSampler&,
                                                     PathCounters&) const;
-extern template void PathTracer::step<PixelSampler>(PathState&, const PreviewHit&, PixelSampler&,
+extern template void PathTracer::step<PixelSampler>(PathState&, const BsdfHit&, PixelSampler&,
                                                     PathCounters&) const;
 
 }  // namespace cmlt

@@ -147,9 +147,9 @@ void PathTracer::step(PathState& st, const LambertHit& hit, Sampler& sampler, Pa
 }
 
 template <class Sampler>
-void PathTracer::step(PathState& st, const PreviewHit& hit, Sampler& sampler, PathCounters& c) const {
-    // What step(SceneHit) does for a surface hit whose material constant_preview accepts:
-    // no emission, opaque, the constant preview BSDF make_bsdf returns (no normal map).
+void PathTracer::step(PathState& st, const BsdfHit& hit, Sampler& sampler, PathCounters& c) const {
+    // What step(SceneHit) does for a surface hit on a material that emits nothing and lets
+    // no ray through, with the BSDF make_bsdf returns there.
     const uint32_t bounce = st.bounce++;
     c.rays += 1;
     if (st.depth == m_max_depth) {
@@ -158,7 +158,7 @@ void PathTracer::step(PathState& st, const PreviewHit& hit, Sampler& sampler, Pa
     }
     const HitGeometry& g = *hit.geometry;
     const bool specular = m_partition && m_partition->specular(g.material_id);
-    scatter(st, bounce, g.sp, g.wo, Bsdf(*hit.bsdf, g.ns, g.sp.ng), false, false, specular, sampler, c);
+    scatter(st, bounce, g.sp, g.wo, *hit.bsdf, false, false, specular, sampler, c);
 }
 
 template <class Sampler>

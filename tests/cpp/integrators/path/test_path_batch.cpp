@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include <tbb/task_arena.h>
@@ -170,6 +171,44 @@ TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfaces) {
             EXPECT_EQ(s.constant_preview(3), nullptr);  // emissive
         },
         "preview box");
+}
+
+TEST(PathBatch, MatchesTheScalarReferenceOnTexturedMaterials) {
+    // textured Lambert, textured preview surface (colour and roughness) and a textured
+    // preview the diffuse-only kernel renders (Scene::lane_material): placed in the
+    // lanes, their BSDF made from the hit's uv (make_bsdf_at)
+    check_scene(
+        [](Scene& s) {
+            box_scene(s, 10.f, true);
+            auto texels = std::make_shared<std::vector<float>>();
+            for (int i = 0; i < 16; ++i) {
+                const float a = ((i + i / 4) % 2) ? 0.85f : 0.2f;
+                texels->insert(texels->end(), {a, 0.5f * a + 0.1f, 1.f - a});
+            }
+            TextureDesc d;
+            d.data = texels->data();
+            d.width = d.height = 4;
+            d.channels = 3;
+            d.owner = texels;
+            const int32_t tex = int32_t(s.add_texture(d, "checker"));
+            std::vector<Material> m = {Material{Spectrum(0.7f), Spectrum(0.f)},
+                                       Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
+                                       Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
+                                       Material{Spectrum(0.5f), Spectrum(10.f)}};
+            m[0].tex_diffuse = tex;
+            m[1].preview = true;
+            m[1].tex_diffuse = tex;
+            m[1].tex_roughness = tex;
+            m[1].ch_roughness = 1;
+            m[2].preview = true;
+            m[2].ior = 1.f;  // no specular lobe: the diffuse-only kernel
+            m[2].tex_diffuse = tex;
+            s.set_materials(m);
+            s.commit();
+            for (uint32_t i = 0; i < 3; ++i) EXPECT_NE(s.lane_material(i), nullptr) << i;
+            EXPECT_EQ(s.lane_material(3), nullptr);  // emissive
+        },
+        "textured box");
 }
 
 TEST(PathBatch, MatchesTheScalarReferenceWithAnalyticLights) {
