@@ -443,9 +443,9 @@ def test12_pt_traces_a_sub_pixel_bulb_from_the_light_side(pixel_filter):
 # ---- 5. the diffuse lanes --------------------------------------------------------------
 
 def test13_pt_shades_lambertian_hits_in_lanes_with_and_without_packets():
-    """pt shades constant-Lambertian hits of static instances in structure-of-arrays
-    lanes (src/core/integrators/path/diffuse_lanes.h), with packets or without: the
-    sidecar's ``lane_hits`` counts them, within 1 % either way (packets change only
+    """pt places the hits of static instances in structure-of-arrays lanes and shades
+    constant-Lambertian ones there (src/core/integrators/path/diffuse_lanes.h), with
+    packets or without: the sidecar's ``lane_hits`` counts them, within 1 % either way (packets change only
     Embree's last-ulp hits), fewer than the surface hits (the moving block is placed at
     each ray's time, outside the lanes), and the two images are close. (ior 1 and no
     metal: no specular lobe, so the diffuse-only kernel renders the walls as Lambertian,
