@@ -3,15 +3,18 @@
 
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/mlt_context.h"
+#include "integrators/path/path_batch.h"
 #include "scene/scene.h"
 
 #include <algorithm>
 #include <cmath>
 
+#include <tbb/enumerable_thread_specific.h>
+
 namespace cmlt::mlt {
 
 PtPass::PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth)
-    : m_settings(s), m_camera(scene.camera_desc(), s.width, s.height),
+    : m_settings(s), m_scene(scene), m_camera(scene.camera_desc(), s.width, s.height),
       m_filter(PixelFilter::from_settings(s.pixel_filter, s.filter_radius)), m_tracer(scene, max_depth),
       m_motion_blur(scene.motion_blur()), m_film(s.width, s.height), m_sample_base(sample_base) {
     m_tracer.set_sequence(pixel_sequence(s));
@@ -40,24 +43,33 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
         m_splatter = std::make_unique<PassSplatter>(m_filter, m_film, y0, y1);
         m_splatter->set_key_shift(KeyShift::of(m_settings));  // keys follow the film offset
     }
-    const int R = m_splatter->reach();
     // camera samples, each uniform in its pixel: this part's rows (and, with a wide
-    // filter, the source rows around them and the window's columns: film/pass_splatter.h)
-    const int cy0 = m_splatter->source_row_begin(), cy1 = m_splatter->source_row_end();
+    // filter, the source rows around them and the window's columns: film/pass_splatter.h),
+    // tile by tile in PathBatch's lanes (one query at a time: the same floats as
+    // pixel_sample, so cmlt's image does not depend on its packets)
     const PixelFilter unit_box;
+    const std::vector<Tile>& src_tiles = m_splatter->source_tiles();
+    tbb::enumerable_thread_specific<PathBatch> batches([&] {
+        return PathBatch(m_tracer, m_scene, m_camera, unit_box, m_motion_blur, m_settings.seed, W, H,
+                         m_splatter->reach(), 1, KeyShift::of(m_settings));
+    });
     for (int k = s0; k < s1; ++k) {
         const uint32_t index = m_sample_base + uint32_t(k);
-        parallel_tasks(arena, counters, size_t(cy1 - cy0), size_t(2), [&](const tbb::blocked_range<size_t>& r) {
+        parallel_tasks(arena, counters, src_tiles.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
             PathCounters c;
-            for (size_t yy = r.begin(); yy != r.end(); ++yy) {
-                const int y = cy0 + int(yy);
-                for (int x = -R; x < W + R; ++x) {
-                    float w = 1.f;
-                    Vec2 p;
-                    const Spectrum L = m_tracer.pixel_sample(m_camera, unit_box, m_motion_blur, m_settings.seed, x, y,
-                                                             m_splatter->key(x, y), index, c, &w, &p);
-                    m_splatter->set(x, y, p, L, index);
-                }
+            PathBatch& batch = batches.local();
+            Spectrum L[k_tile_size * k_tile_size];
+            float w[k_tile_size * k_tile_size];
+            Vec2 p[k_tile_size * k_tile_size];
+            for (size_t ti = r.begin(); ti != r.end(); ++ti) {
+                const Tile& tile = src_tiles[ti];
+                const int tw = tile.x1 - tile.x0;
+                batch.trace_tile(tile, index, c, L, w, p);
+                for (int y = tile.y0; y < tile.y1; ++y)
+                    for (int x = tile.x0; x < tile.x1; ++x) {
+                        const int i = (y - tile.y0) * tw + (x - tile.x0);
+                        m_splatter->set(x, y, p[i], L[i], index);
+                    }
             }
             counters.add(c);
         });
@@ -77,19 +89,34 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
     }
     const int s0 = m_passes, s1 = total, W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
-    const KeyShift shift = KeyShift::of(m_settings);  // keys follow the film offset
-    parallel_tasks(arena, counters, std::max(0, y1 - y0), 2, [&](const tbb::blocked_range<int>& r) {
+    // this part's rows, tile by tile, each tile's samples in PathBatch's lanes (one query
+    // at a time: pixel_sample's floats); the keys follow the film offset
+    std::vector<Tile> tiles;
+    for (Tile t : image_tiles(W, H)) {
+        t.y0 = std::max(t.y0, y0);
+        t.y1 = std::min(t.y1, y1);
+        if (t.y0 < t.y1) tiles.push_back(t);
+    }
+    parallel_tasks(arena, counters, tiles.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
         PathCounters c;
-        for (int y = y0 + r.begin(); y != y0 + r.end(); ++y)
-            for (int x = 0; x < W; ++x)
-                for (int k = s0; k < s1; ++k) {
-                    const uint32_t index = m_sample_base + uint32_t(k);
-                    float w = 1.f;
-                    const Spectrum L = m_tracer.pixel_sample(m_camera, m_filter, m_motion_blur, m_settings.seed, x,
-                                                             y, PassSplatter::window_key(x, y, W, H, 0, shift), index,
-                                                             c, &w);
-                    m_film.add_sample(x, y, index, L, w);
-                }
+        PathBatch batch(m_tracer, m_scene, m_camera, m_filter, m_motion_blur, m_settings.seed, W, H, 0, 1,
+                        KeyShift::of(m_settings));
+        Spectrum L[k_tile_size * k_tile_size];
+        float w[k_tile_size * k_tile_size];
+        for (size_t ti = r.begin(); ti != r.end(); ++ti) {
+            const Tile& tile = tiles[ti];
+            const int tw = tile.x1 - tile.x0;
+            for (int k = s0; k < s1; ++k) {
+                const uint32_t index = m_sample_base + uint32_t(k);
+                batch.trace_tile(tile, index, c, L, w);
+                // a pixel's samples arrive in sample order (film.h)
+                for (int y = tile.y0; y < tile.y1; ++y)
+                    for (int x = tile.x0; x < tile.x1; ++x) {
+                        const int i = (y - tile.y0) * tw + (x - tile.x0);
+                        m_film.add_sample(x, y, index, L[i], w[i]);
+                    }
+            }
+        }
         counters.add(c);
     });
     m_passes = total;

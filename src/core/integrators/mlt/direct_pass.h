@@ -83,6 +83,7 @@ private:
     /// footprint (film/pass_splatter.h).
     void render_passes_indexed(tbb::task_arena& arena, int s0, int s1, FrameCounters& counters);
 
+    const Scene& m_scene;
     Camera m_camera;
     PixelFilter m_filter;
     PathTracer m_tracer;
