@@ -184,8 +184,11 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     const size_t n = m_diffuse.size();
     if (n == 0) return;
     diffuse_geometry(L, 0, n);
-    // Stage 3: next-event estimation's light sample, one lane at a time.
-    const bool nee = m_scene.light_count() > 0;
+    // Stage 3: next-event estimation's light sample, one lane at a time; with a partition
+    // only where it wants the path (PathTracer::scatter: a Lambertian vertex is never
+    // specular, so the path through it is not a caustic one)
+    const PathPartition* partition = m_tracer.partition();
+    const bool nee = m_scene.light_count() > 0 && (!partition || partition->wants(PathPartition::caustic(false, false)));
     for (size_t k = 0; k < n; ++k) {
         const uint32_t l = m_diffuse[k];
         const PathState& st = m_state[l];
@@ -326,7 +329,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         m_placed_material.clear();
         m_placed_uv.clear();
         const bool lights = m_scene.has_analytic_area_lights();
-        const bool lanes = m_use_lanes && m_tracer.plain();
+        const bool lanes = m_use_lanes;
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
             const Hit& h = m_hits[l];

@@ -143,10 +143,10 @@ public:
 
     int max_depth() const { return m_max_depth; }
     int min_depth() const { return m_min_depth; }
-    /// No partition: a constant-Lambertian hit is shaded by step(LambertHit) alone, what
-    /// PathBatch's diffuse lanes compute (diffuse_lanes.h; with caustic light tracing
-    /// they also carry PathState::lt as scatter does: lanes_caustic_factor).
-    bool plain() const { return !m_partition; }
+    /// What PathBatch's diffuse lanes (diffuse_lanes.h) follow as scatter does: the
+    /// partition (next-event estimation only for the paths it wants) and caustic light
+    /// tracing (PathState::lt).
+    const PathPartition* partition() const { return m_partition; }
     const CausticLightTracing* caustic_light_tracing() const { return m_caustic; }
 
     /// Start a path at `camera_ray` (counted as a sample and a camera ray).
