@@ -58,19 +58,7 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
         parallel_tasks(arena, counters, src_tiles.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
             PathCounters c;
             PathBatch& batch = batches.local();
-            Spectrum L[k_tile_size * k_tile_size];
-            float w[k_tile_size * k_tile_size];
-            Vec2 p[k_tile_size * k_tile_size];
-            for (size_t ti = r.begin(); ti != r.end(); ++ti) {
-                const Tile& tile = src_tiles[ti];
-                const int tw = tile.x1 - tile.x0;
-                batch.trace_tile(tile, index, c, L, w, p);
-                for (int y = tile.y0; y < tile.y1; ++y)
-                    for (int x = tile.x0; x < tile.x1; ++x) {
-                        const int i = (y - tile.y0) * tw + (x - tile.x0);
-                        m_splatter->set(x, y, p[i], L[i], index);
-                    }
-            }
+            for (size_t ti = r.begin(); ti != r.end(); ++ti) batch.trace_tile_to(src_tiles[ti], index, c, *m_splatter);
             counters.add(c);
         });
         // light samples (lens light tracing): every pixel of the frame
@@ -101,22 +89,9 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
         PathCounters c;
         PathBatch batch(m_tracer, m_scene, m_camera, m_filter, m_motion_blur, m_settings.seed, W, H, 0, 1,
                         KeyShift::of(m_settings));
-        Spectrum L[k_tile_size * k_tile_size];
-        float w[k_tile_size * k_tile_size];
-        for (size_t ti = r.begin(); ti != r.end(); ++ti) {
-            const Tile& tile = tiles[ti];
-            const int tw = tile.x1 - tile.x0;
-            for (int k = s0; k < s1; ++k) {
-                const uint32_t index = m_sample_base + uint32_t(k);
-                batch.trace_tile(tile, index, c, L, w);
-                // a pixel's samples arrive in sample order (film.h)
-                for (int y = tile.y0; y < tile.y1; ++y)
-                    for (int x = tile.x0; x < tile.x1; ++x) {
-                        const int i = (y - tile.y0) * tw + (x - tile.x0);
-                        m_film.add_sample(x, y, index, L[i], w[i]);
-                    }
-            }
-        }
+        // a pixel's samples arrive in sample order (film.h)
+        for (size_t ti = r.begin(); ti != r.end(); ++ti)
+            for (int k = s0; k < s1; ++k) batch.trace_tile_to(tiles[ti], m_sample_base + uint32_t(k), c, m_film);
         counters.add(c);
     });
     m_passes = total;

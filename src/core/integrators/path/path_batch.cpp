@@ -3,6 +3,7 @@
 
 #include "accel/accel.h"
 #include "cameras/camera.h"
+#include "film/film.h"
 #include "film/filter.h"
 #include "film/pass_splatter.h"
 #include "integrators/path/path_tracer_impl.h"
@@ -278,6 +279,31 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         st.last_specular = false;
         ++st.depth;
     }
+}
+
+void PathBatch::trace_tile_to(const Tile& tile, uint32_t s, PathCounters& c, Film& film) {
+    Spectrum L[k_tile_size * k_tile_size];
+    float w[k_tile_size * k_tile_size];
+    trace_tile(tile, s, c, L, w);
+    const int tw = tile.x1 - tile.x0;
+    for (int y = tile.y0; y < tile.y1; ++y)
+        for (int x = tile.x0; x < tile.x1; ++x) {
+            const int i = (y - tile.y0) * tw + (x - tile.x0);
+            film.add_sample(x, y, s, L[i], w[i]);
+        }
+}
+
+void PathBatch::trace_tile_to(const Tile& tile, uint32_t s, PathCounters& c, PassSplatter& splatter) {
+    Spectrum L[k_tile_size * k_tile_size];
+    float w[k_tile_size * k_tile_size];
+    Vec2 p[k_tile_size * k_tile_size];
+    trace_tile(tile, s, c, L, w, p);
+    const int tw = tile.x1 - tile.x0;
+    for (int y = tile.y0; y < tile.y1; ++y)
+        for (int x = tile.x0; x < tile.x1; ++x) {
+            const int i = (y - tile.y0) * tw + (x - tile.x0);
+            splatter.set(x, y, p[i], L[i], s);
+        }
 }
 
 void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectrum* L, float* w, Vec2* p) {

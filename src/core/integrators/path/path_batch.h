@@ -29,6 +29,7 @@
 namespace cmlt {
 
 class Camera;
+class Film;
 class PixelFilter;
 class PreviewSurfaceBsdf;
 class Scene;
@@ -47,6 +48,12 @@ public:
     /// pixel of the tile in row-major order, and its film position p[i] if p is given.
     void trace_tile(const Tile& tile, uint32_t s, PathCounters& counters, Spectrum* L, float* w,
                     Vec2* p = nullptr);
+
+    /// trace_tile, each pixel's sample then added to `film` (Film::add_sample).
+    void trace_tile_to(const Tile& tile, uint32_t s, PathCounters& counters, Film& film);
+    /// trace_tile, each pixel's sample then set in `splatter` at its film position
+    /// (PassSplatter::set; the batch's filter is the unit box).
+    void trace_tile_to(const Tile& tile, uint32_t s, PathCounters& counters, PassSplatter& splatter);
 
     uint64_t packets() const { return m_packets; }
     /// Hits shaded in the diffuse lanes so far (a path at its last vertex included).

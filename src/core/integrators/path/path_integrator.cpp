@@ -78,21 +78,9 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                 [&](const tbb::blocked_range<size_t>& r) {
                     PathCounters c;
                     PathBatch batch(tracer, scene, camera, filter, motion_blur, settings.seed, W, H, 0, packet_width, shift);
-                    Spectrum L[k_tile_size * k_tile_size];
-                    float w[k_tile_size * k_tile_size];
-                    for (size_t ti = r.begin(); ti != r.end(); ++ti) {
-                        const Tile& tile = tiles[ti];
-                        const int tw = tile.x1 - tile.x0;
-                        for (int s = s0; s < s1; ++s) {
-                            batch.trace_tile(tile, uint32_t(s), c, L, w);
-                            // a pixel's samples arrive in sample order (film.h)
-                            for (int y = tile.y0; y < tile.y1; ++y)
-                                for (int x = tile.x0; x < tile.x1; ++x) {
-                                    const int i = (y - tile.y0) * tw + (x - tile.x0);
-                                    film.add_sample(x, y, uint32_t(s), L[i], w[i]);
-                                }
-                        }
-                    }
+                    // a pixel's samples arrive in sample order (film.h)
+                    for (size_t ti = r.begin(); ti != r.end(); ++ti)
+                        for (int s = s0; s < s1; ++s) batch.trace_tile_to(tiles[ti], uint32_t(s), c, film);
                     counters.add(c, 0, batch.packets());
                     counters.lane_hits.fetch_add(batch.lane_hits(), std::memory_order_relaxed);
                 },
@@ -119,19 +107,8 @@ RenderResult render_pt(const Scene& scene, const RenderSettings& settings, const
                         PathCounters c;
                         PathBatch& batch = batches.local();
                         const uint64_t packets0 = batch.packets(), lanes0 = batch.lane_hits();
-                        Spectrum L[k_tile_size * k_tile_size];
-                        float w[k_tile_size * k_tile_size];
-                        Vec2 p[k_tile_size * k_tile_size];
-                        for (size_t ti = r.begin(); ti != r.end(); ++ti) {
-                            const Tile& tile = src_tiles[ti];
-                            const int tw = tile.x1 - tile.x0;
-                            batch.trace_tile(tile, uint32_t(s), c, L, w, p);
-                            for (int y = tile.y0; y < tile.y1; ++y)
-                                for (int x = tile.x0; x < tile.x1; ++x) {
-                                    const int i = (y - tile.y0) * tw + (x - tile.x0);
-                                    splatter.set(x, y, p[i], L[i], uint32_t(s));
-                                }
-                        }
+                        for (size_t ti = r.begin(); ti != r.end(); ++ti)
+                            batch.trace_tile_to(src_tiles[ti], uint32_t(s), c, splatter);
                         counters.add(c, 0, batch.packets() - packets0);
                         counters.lane_hits.fetch_add(batch.lane_hits() - lanes0, std::memory_order_relaxed);
                     },
