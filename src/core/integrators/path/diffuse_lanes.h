@@ -33,8 +33,9 @@
 ///   6. scatter back into the lanes' PathState (PathBatch, scalar).
 ///
 /// Hits on a constant preview BSDF (Scene::constant_preview: UsdPreviewSurface with
-/// constant inputs) take stages 1 and 2 only, from the top of the arrays down; their
-/// shading is the per-lane routine's (PathTracer::step(PreviewHit)).
+/// constant inputs) or on a material whose BSDF the uv alone makes (Scene::lane_material)
+/// take stages 1 and 2 only, from the top of the arrays down; their shading is the
+/// per-lane routine's (PathTracer::step(BsdfHit)).
 #include "integrators/common/frame_loop.h"
 
 #include <cstddef>
