@@ -187,6 +187,9 @@ public:
                           Vec2* p_film = nullptr) const;
 
 private:
+    /// A hit on an opaque, non-emitting surface (step(LambertHit), step(BsdfHit)): counts
+    /// the bounce (its index in *bounce) and the ray; false if the path ends there.
+    bool enter_opaque_hit(PathState& st, PathCounters& counters, uint32_t* bounce) const;
     /// The scattering part of step at a surface point: next-event estimation, BSDF
     /// sampling, Russian roulette. `passes`: the material may let the ray through;
     /// `last`: the path has its max_depth scattering events (only a crossing goes on).

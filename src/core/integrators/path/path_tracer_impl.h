@@ -131,16 +131,22 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     scatter(st, bounce, si, si.wo, make_bsdf(mat, si, scene.textures()), passes, last, specular, sampler, c);
 }
 
+inline bool PathTracer::enter_opaque_hit(PathState& st, PathCounters& c, uint32_t* bounce) const {
+    *bounce = st.bounce++;
+    c.rays += 1;
+    if (st.depth == m_max_depth) {  // max_depth scattering events: an opaque hit ends it
+        st.done = true;
+        return false;
+    }
+    return true;
+}
+
 template <class Sampler>
 void PathTracer::step(PathState& st, const LambertHit& hit, Sampler& sampler, PathCounters& c) const {
     // What step(SceneHit) does for a surface hit whose material constant_lambert accepts:
     // no emission, opaque, the Lambertian make_bsdf builds.
-    const uint32_t bounce = st.bounce++;
-    c.rays += 1;
-    if (st.depth == m_max_depth) {
-        st.done = true;
-        return;
-    }
+    uint32_t bounce;
+    if (!enter_opaque_hit(st, c, &bounce)) return;
     const HitGeometry& g = *hit.geometry;
     scatter(st, bounce, g.sp, g.wo, Bsdf(LambertianBsdf(*hit.reflectance), g.ns, g.sp.ng), false, false, false, sampler,
             c);
@@ -150,12 +156,8 @@ template <class Sampler>
 void PathTracer::step(PathState& st, const BsdfHit& hit, Sampler& sampler, PathCounters& c) const {
     // What step(SceneHit) does for a surface hit on a material that emits nothing and lets
     // no ray through, with the BSDF make_bsdf returns there.
-    const uint32_t bounce = st.bounce++;
-    c.rays += 1;
-    if (st.depth == m_max_depth) {
-        st.done = true;
-        return;
-    }
+    uint32_t bounce;
+    if (!enter_opaque_hit(st, c, &bounce)) return;
     const HitGeometry& g = *hit.geometry;
     const bool specular = m_partition && m_partition->specular(g.material_id);
     scatter(st, bounce, g.sp, g.wo, *hit.bsdf, false, false, specular, sampler, c);
