@@ -60,7 +60,7 @@ struct Material {
     /// (Scene::select_kernels, materials/material_eval.h prepare_constant_bsdf) and copied
     /// at every hit instead of rebuilt from the inputs; the same object, so the same
     /// image. Empty otherwise, and for the Lambert kernels.
-    std::optional<PreviewSurfaceBsdf> constant_bsdf;
+    std::optional<PreviewSurfaceBsdf> constant_bsdf{};
 
     bool is_emissive() const { return max_component(emission) > 0.f || tex_emission >= 0; }
 };

@@ -186,8 +186,8 @@ float PreviewSurfaceBsdf::clearcoat_attenuation(float abs_cos) const {
 
 PreviewSurfaceBsdf::LobeProbabilities PreviewSurfaceBsdf::lobe_probabilities(
     float abs_cos_o) const {
-    if (abs_cos_o == m_lobes_cos[0]) return m_lobes[0];
-    if (abs_cos_o == m_lobes_cos[1]) return m_lobes[1];
+    if (abs_cos_o == m_lobes_cos) return m_lobes;
+    m_lobes_cos = abs_cos_o;
     const float opacity = m_params.opacity;
     const float att = clearcoat_attenuation(abs_cos_o);
     std::array<bool, 4> active{m_has_diffuse, m_has_specular, m_has_clearcoat,
@@ -215,11 +215,8 @@ PreviewSurfaceBsdf::LobeProbabilities PreviewSurfaceBsdf::lobe_probabilities(
         for (int i = 0; i < 4; ++i)
             if (active[i]) prob[i] = raw[i] * scale + uniform;
     }
-    const int e = m_lobes_next;
-    m_lobes_next ^= 1;
-    m_lobes_cos[e] = abs_cos_o;
-    m_lobes[e] = {prob[0], prob[1], prob[2], prob[3]};
-    return m_lobes[e];
+    m_lobes = {prob[0], prob[1], prob[2], prob[3]};
+    return m_lobes;
 }
 
 Spectrum PreviewSurfaceBsdf::eval(const Vec3& wo, const Vec3& wi, TransportMode mode) const {

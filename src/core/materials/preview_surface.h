@@ -136,12 +136,10 @@ private:
     bool m_has_diffuse = false, m_has_specular = false, m_has_clearcoat = false;
     bool m_specular_delta = false, m_clearcoat_delta = false;
     DielectricKind m_dielectric = DielectricKind::None;
-    /// lobe_probabilities of the last two |cos θo| asked for (a BSDF lives at one hit,
-    /// used by one thread): sample, eval and pdf of one vertex ask for the same wo, and
-    /// BDPT's densities alternate between pdf(wo, wi) and the reverse pdf(wi, wo).
-    mutable float m_lobes_cos[2] = {-1.f, -1.f};
-    mutable LobeProbabilities m_lobes[2];
-    mutable uint8_t m_lobes_next = 0;  ///< the entry the next new |cos θo| replaces
+    /// lobe_probabilities of the last |cos θo| asked for: sample, eval and pdf of one
+    /// vertex ask for the same wo (a BSDF lives at one hit, used by one thread).
+    mutable float m_lobes_cos = -1.f;
+    mutable LobeProbabilities m_lobes;
 };
 
 }  // namespace cmlt

@@ -176,7 +176,9 @@ TEST(Accel, PacketOfLightSubpathBouncesFindsFlatInstances) {
             EXPECT_EQ(s.instance_id, hits[i].instance_id) << "width " << width << " lane " << i;
             EXPECT_EQ(s.prim_id, hits[i].prim_id) << "width " << width << " lane " << i;
             EXPECT_EQ(accel.occluded(rays[i]), occ[i]);
-            if (i % 8 >= 4) EXPECT_EQ(s.instance_id, 6u);  // the large quad, 0.41 away
+            if (i % 8 >= 4) {
+                EXPECT_EQ(s.instance_id, 6u);  // the large quad, 0.41 away
+            }
         }
     }
 }

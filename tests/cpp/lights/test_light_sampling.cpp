@@ -123,7 +123,9 @@ void expect_emission(const EmitterCase& c, uint32_t stream, int n = 200000) {
             ASSERT_NEAR(s.pdf_pos, 1.0 / c.area, 1e-4 / c.area) << c.name << ": pdf_pos is not 1/area";
             Vec3 ne = l.emitter_normal(s.p);
             ASSERT_NEAR(std::fabs(dot(ne, s.n)), 1.f, 1e-4f) << c.name;
-            if (!c.two_sided) ASSERT_GT(dot(ne, s.n), 0.f) << c.name;
+            if (!c.two_sided) {
+                ASSERT_GT(dot(ne, s.n), 0.f) << c.name;
+            }
             ASSERT_EQ(s.le, c.radiance) << c.name;
         }
         obs[size_t(c.cell(s.p))] += 1;
