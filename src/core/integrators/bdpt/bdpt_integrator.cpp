@@ -53,11 +53,6 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
     std::vector<double> splat_img(3 * n_pix);
     std::vector<std::vector<BdptSplat>> tile_splats(tiles.size());
     tbb::enumerable_thread_specific<BdptWorkspace> workspaces;
-    struct TileNumbers {
-        std::vector<uint32_t> keys;
-        PixelStreamPrefetch words;
-    };
-    tbb::enumerable_thread_specific<TileNumbers> tile_numbers;
 
     FrameCounters counters;
     const CycleRate rate;
@@ -69,22 +64,14 @@ RenderResult render_bdpt(const Scene& scene, const RenderSettings& settings,
             arena, counters, tiles.size(), size_t(1),
             [&](const tbb::blocked_range<size_t>& r) {
                 BdptWorkspace& ws = workspaces.local();
-                TileNumbers& tn = tile_numbers.local();
                 BdptCounters c;
                 for (size_t ti = r.begin(); ti != r.end(); ++ti) {
                     const Tile& tile = tiles[ti];
                     std::vector<BdptSplat>& out = tile_splats[ti];
                     out.clear();
-                    // the first numbers of every pixel's sample, for the whole tile at once
-                    tn.keys.clear();
                     for (int y = tile.y0; y < tile.y1; ++y)
-                        for (int x = tile.x0; x < tile.x1; ++x) tn.keys.push_back(splatter.key(x, y));
-                    tn.words.compute(settings.seed, sequence, tn.keys.data(), tn.keys.size(), uint32_t(pass));
-                    size_t i = 0;
-                    for (int y = tile.y0; y < tile.y1; ++y)
-                        for (int x = tile.x0; x < tile.x1; ++x, ++i) {
-                            PixelStreamSampler sampler(settings.seed, tn.keys[i], uint32_t(pass), sequence);
-                            tn.words.apply(i, sampler);
+                        for (int x = tile.x0; x < tile.x1; ++x) {
+                            PixelStreamSampler sampler(settings.seed, splatter.key(x, y), uint32_t(pass), sequence);
                             sampler.start_stream(BdptSampler::k_camera);
                             // the film position, uniform in the pixel (the light-tracing
                             // splats below are filtered where they land)
