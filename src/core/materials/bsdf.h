@@ -68,6 +68,21 @@ public:
         if (!consistent_sides(wo, wi, &lo, &li)) return 0.f;
         return std::visit([&](const auto& m) { return m.pdf(lo, li); }, m_model);
     }
+    /// eval(wo, wi, mode) and, in *pdf, pdf(wo, wi): the same floats, the side test and
+    /// the local directions once, the model's shared terms once
+    /// (PreviewSurfaceBsdf::eval_pdf).
+    Spectrum eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const {
+        *pdf = 0.f;
+        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
+            float lz, iz;
+            if (!consistent_cosines(wo, wi, &lz, &iz)) return Spectrum(0.f);
+            *pdf = lambert->pdf(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
+            return lambert->eval(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
+        }
+        Vec3 lo, li;
+        if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
+        return std::get<PreviewSurfaceBsdf>(m_model).eval_pdf(lo, li, mode, pdf);
+    }
     /// Sample wi given wo; `u2` picks the direction, `u1` the lobe.
     BsdfSample sample(const Vec3& wo, const Vec2& u2, float u1,
                       TransportMode mode = TransportMode::Radiance) const {

@@ -282,6 +282,72 @@ float PreviewSurfaceBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
     return pdf;
 }
 
+Spectrum PreviewSurfaceBsdf::eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf_out) const {
+    // eval and pdf above, term by term with the same operations; what both compute
+    // (wm, D(wm), s(wo), the rough dielectric's value and density) is computed once.
+    *pdf_out = 0.f;
+    const float co = std::fabs(wo.z), ci = std::fabs(wi.z);
+    if (co < k_preview_min_cos || ci < k_preview_min_cos) return Spectrum(0.f);
+    const LobeProbabilities p = lobe_probabilities(co);
+    const float opacity = m_params.opacity;
+    const float att = clearcoat_attenuation(co) * clearcoat_attenuation(ci);
+    const bool reflection = wo.z * wi.z > 0.f;
+    const bool rough_dielectric = m_dielectric == DielectricKind::Rough;
+    ScalarEval dielectric;
+    if (rough_dielectric) {
+        // the value for eval, the density (the same for either transport mode) for pdf
+        dielectric = eval_rough_dielectric(GgxDistribution(m_alpha), m_eta, wo, wi, mode);
+    }
+
+    Spectrum f(0.f);
+    float pdf = 0.f;
+    if (reflection) {
+        const Vec3 wo_u = to_upper(wo), wi_u = to_upper(wi);
+        const Vec3 wm = normalize(wo_u + wi_u);
+        Spectrum base(0.f);
+        if (m_has_diffuse) {
+            Spectrum t_o = Spectrum(1.f) - specular_fresnel(co);
+            Spectrum t_i = Spectrum(1.f) - specular_fresnel(ci);
+            base += m_diffuse * t_o * t_i * k_inv_pi;
+        }
+        if (p.diffuse > 0.f) pdf += p.diffuse * ci * k_inv_pi;
+        const bool spec_f = m_has_specular && !m_specular_delta;
+        const bool spec_p = p.specular > 0.f && !m_specular_delta;
+        if (spec_f || spec_p) {
+            const GgxDistribution ggx(m_alpha);
+            const float d = ggx.d(wm), s_o = ggx.smith_s(wo_u);
+            if (spec_f) {
+                // ggx_reflection_no_fresnel: D G2 / (cos cos) / 4
+                const float den = s_o * std::fabs(wi_u.z) + ggx.smith_s(wi_u) * std::fabs(wo_u.z);
+                const float g2 = den > 0.f ? 2.f / den : 0.f;
+                base += specular_fresnel(dot(wo_u, wm)) * (d * g2 * 0.25f);
+            }
+            // ggx_reflection_pdf: G1(wo) / cos * D / 4 where wm faces wo
+            if (spec_p && dot(wo_u, wm) * wo_u.z > 0.f) pdf += p.specular * (2.f / (std::fabs(wo_u.z) + s_o) * d * 0.25f);
+        }
+        f = base * (opacity * att);
+        if (rough_dielectric) f += Spectrum((1.f - opacity) * att * dielectric.f);
+        const bool cc_f = m_has_clearcoat && !m_clearcoat_delta;
+        const bool cc_p = p.clearcoat > 0.f && !m_clearcoat_delta;
+        if (cc_f || cc_p) {
+            const GgxDistribution ggx(m_alpha_cc);
+            const float d = ggx.d(wm), s_o = ggx.smith_s(wo_u);
+            if (cc_f) {
+                const float fc = clearcoat_fresnel(dot(wo_u, wm));
+                const float den = s_o * std::fabs(wi_u.z) + ggx.smith_s(wi_u) * std::fabs(wo_u.z);
+                const float g2 = den > 0.f ? 2.f / den : 0.f;
+                f += Spectrum(m_params.clearcoat * fc * (d * g2 * 0.25f));
+            }
+            if (cc_p && dot(wo_u, wm) * wo_u.z > 0.f) pdf += p.clearcoat * (2.f / (std::fabs(wo_u.z) + s_o) * d * 0.25f);
+        }
+    } else if (rough_dielectric) {
+        f = Spectrum((1.f - opacity) * att * dielectric.f);
+    }
+    if (p.dielectric > 0.f && rough_dielectric) pdf += p.dielectric * dielectric.pdf;
+    *pdf_out = pdf;
+    return f;
+}
+
 std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample_mirror(
     const Vec3& wo, const LobeProbabilities& p) const {
     // All Dirac reflections share the mirror direction: return them as one delta whose
@@ -408,9 +474,8 @@ std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample(const Vec3& wo, f
     if (std::fabs(wi.z) < k_preview_min_cos) return std::nullopt;
     PreviewSurfaceSample s;
     s.wi = wi;
-    s.pdf = pdf(wo, wi);
+    s.f = eval_pdf(wo, wi, mode, &s.pdf);
     if (!(s.pdf > 0.f) || !std::isfinite(s.pdf)) return std::nullopt;
-    s.f = eval(wo, wi, mode);
     s.is_delta = false;
     s.is_transmission = wi.z * wo.z < 0.f;
     s.eta = s.is_transmission ? (wo.z > 0.f ? m_eta : 1.f / m_eta) : 1.f;

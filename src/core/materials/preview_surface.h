@@ -85,6 +85,10 @@ public:
     /// Exact mixture pdf of `sample` over the non-delta lobes (lobe selection probabilities
     /// included). Zero for delta lobes. Integrates to 1 - P(delta) - P(sample fails).
     float pdf(const Vec3& wo, const Vec3& wi) const;
+    /// eval(wo, wi, mode) and, in *pdf, pdf(wo, wi) — the same floats — computed together:
+    /// the half vector, the microfacet distribution, the masking of wo and the rough
+    /// dielectric's terms once for both (next-event estimation and `sample` need both).
+    Spectrum eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const;
     /// Pick a lobe with `u_lobe` (the remainder of u_lobe picks reflection vs refraction of
     /// the dielectric), then a direction with `u`. Non-delta samples carry the full mixture
     /// f = eval(wo, wi) and pdf = pdf(wo, wi) (one-sample MIS over the lobes). Returns

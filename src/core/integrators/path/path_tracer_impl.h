@@ -183,7 +183,8 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
         const Light& light = scene.light(li);
         LightSample ls = light.sample_li(sp.p, u_light_pos);
         if (ls.valid() && pmf > 0.f) {
-            Spectrum f = bsdf.eval(wo, ls.wi) * std::fabs(dot(ls.wi, ns));
+            float bsdf_pdf = 0.f;
+            Spectrum f = bsdf.eval_pdf(wo, ls.wi, TransportMode::Radiance, &bsdf_pdf) * std::fabs(dot(ls.wi, ns));
             if (!is_black(f)) {
                 if (std::isinf(ls.dist)) {
                     st.shadow = sp.spawn_ray(ls.wi);
@@ -198,7 +199,7 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
                 st.shadow_light = uint32_t(li);
                 st.shadow_delta = ls.is_delta;
                 st.shadow_light_pdf = pmf * ls.pdf;
-                st.shadow_bsdf_pdf = ls.is_delta ? 0.f : bsdf.pdf(wo, ls.wi);
+                st.shadow_bsdf_pdf = ls.is_delta ? 0.f : bsdf_pdf;
                 st.shadow_f = st.beta * f * ls.li;
             }
         }
