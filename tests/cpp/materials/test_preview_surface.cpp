@@ -4,6 +4,7 @@
 /// tests in test_preview_surface_chi2.cpp.
 #include "bsdf_test_util.h"
 #include "preview_surface_checks.h"
+#include "materials/bsdf.h"
 #include "materials/fresnel.h"
 #include "materials/preview_surface.h"
 
@@ -157,6 +158,41 @@ TEST_P(PreviewSurfaceConfig, test04_sample_matches_eval_and_pdf) {
     }
     if (!bsdf.is_pure_delta()) {
         EXPECT_GT(checked, 1000);
+    }
+}
+
+TEST_P(PreviewSurfaceConfig, test04b_eval_pdf_is_eval_and_pdf_bit_for_bit) {
+    // eval_pdf computes what eval and pdf compute, sharing their common terms: the same
+    // floats, for reflection and transmission pairs, both transport modes, and through the
+    // Bsdf wrapper with a shading normal away from the geometric one
+    const PreviewSurfaceBsdf bsdf(GetParam().params);
+    const Bsdf wrapped(bsdf, normalize(Vec3(0.3f, -0.2f, 1.f)), Vec3(0.f, 0.f, 1.f));
+    TestRng rng(29, 4);
+    int nonzero = 0;
+    for (int i = 0; i < 4000; ++i) {
+        const Vec3 wo = i < 100 ? test_outgoing_directions()[size_t(i) % 10] : rng.uniform_sphere();
+        const Vec3 wi = rng.uniform_sphere();
+        for (TransportMode mode : {TransportMode::Radiance, TransportMode::Importance}) {
+            float pdf = -1.f;
+            const Spectrum f = bsdf.eval_pdf(wo, wi, mode, &pdf);
+            const Spectrum f0 = bsdf.eval(wo, wi, mode);
+            const float pdf0 = bsdf.pdf(wo, wi);
+            ASSERT_EQ(f.x, f0.x) << "wo " << str(wo) << " wi " << str(wi);
+            ASSERT_EQ(f.y, f0.y);
+            ASSERT_EQ(f.z, f0.z);
+            ASSERT_EQ(pdf, pdf0) << "wo " << str(wo) << " wi " << str(wi);
+            nonzero += pdf > 0.f;
+            float wpdf = -1.f;
+            const Spectrum wf = wrapped.eval_pdf(wo, wi, mode, &wpdf);
+            const Spectrum wf0 = wrapped.eval(wo, wi, mode);
+            ASSERT_EQ(wf.x, wf0.x);
+            ASSERT_EQ(wf.y, wf0.y);
+            ASSERT_EQ(wf.z, wf0.z);
+            ASSERT_EQ(wpdf, wrapped.pdf(wo, wi));
+        }
+    }
+    if (!bsdf.is_pure_delta()) {
+        EXPECT_GT(nonzero, 500);
     }
 }
 
