@@ -83,6 +83,21 @@ public:
         if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
         return std::get<PreviewSurfaceBsdf>(m_model).eval_pdf(lo, li, mode, pdf);
     }
+    /// pdf(wo, wi) in *fwd and pdf(wi, wo) in *rev: the same floats, the side test and the
+    /// local directions once (the test is symmetric), the model's shared terms once.
+    void pdf_pair(const Vec3& wo, const Vec3& wi, float* fwd, float* rev) const {
+        *fwd = *rev = 0.f;
+        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
+            float lz, iz;
+            if (!consistent_cosines(wo, wi, &lz, &iz)) return;
+            *fwd = lambert->pdf(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
+            *rev = lambert->pdf(Vec3(0.f, 0.f, iz), Vec3(0.f, 0.f, lz));
+            return;
+        }
+        Vec3 lo, li;
+        if (!consistent_sides(wo, wi, &lo, &li)) return;
+        std::get<PreviewSurfaceBsdf>(m_model).pdf_pair(lo, li, fwd, rev);
+    }
     /// Sample wi given wo; `u2` picks the direction, `u1` the lobe.
     BsdfSample sample(const Vec3& wo, const Vec2& u2, float u1,
                       TransportMode mode = TransportMode::Radiance) const {

@@ -348,6 +348,41 @@ Spectrum PreviewSurfaceBsdf::eval_pdf(const Vec3& wo, const Vec3& wi, TransportM
     return f;
 }
 
+void PreviewSurfaceBsdf::pdf_pair(const Vec3& wo, const Vec3& wi, float* fwd, float* rev) const {
+    // pdf above for (wo, wi) and for (wi, wo), term by term with the same operations; the
+    // half vector (wo_u + wi_u is wi_u + wo_u) and D(wm) are computed once.
+    *fwd = *rev = 0.f;
+    const float co = std::fabs(wo.z), ci = std::fabs(wi.z);
+    if (co < k_preview_min_cos || ci < k_preview_min_cos) return;
+    const LobeProbabilities po = lobe_probabilities(co);
+    const LobeProbabilities pi = lobe_probabilities(ci);
+    const bool reflection = wo.z * wi.z > 0.f;
+    float a = 0.f, b = 0.f;  // pdf(wo, wi), pdf(wi, wo)
+    if (reflection) {
+        const Vec3 wo_u = to_upper(wo), wi_u = to_upper(wi);
+        const Vec3 wm = normalize(wo_u + wi_u);
+        if (po.diffuse > 0.f) a += po.diffuse * ci * k_inv_pi;
+        if (pi.diffuse > 0.f) b += pi.diffuse * co * k_inv_pi;
+        const auto ggx_pair = [&](float alpha, float prob_o, float prob_i) {
+            const GgxDistribution ggx(alpha);
+            const float d = ggx.d(wm);
+            // ggx_reflection_pdf(ggx, w, wm) = G1(w) / cos * D / 4 where wm faces w
+            if (prob_o > 0.f && dot(wo_u, wm) * wo_u.z > 0.f) a += prob_o * (ggx.g1_over_cos(wo_u) * d * 0.25f);
+            if (prob_i > 0.f && dot(wi_u, wm) * wi_u.z > 0.f) b += prob_i * (ggx.g1_over_cos(wi_u) * d * 0.25f);
+        };
+        if (!m_specular_delta && (po.specular > 0.f || pi.specular > 0.f)) ggx_pair(m_alpha, po.specular, pi.specular);
+        if (!m_clearcoat_delta && (po.clearcoat > 0.f || pi.clearcoat > 0.f))
+            ggx_pair(m_alpha_cc, po.clearcoat, pi.clearcoat);
+    }
+    if (m_dielectric == DielectricKind::Rough) {
+        const GgxDistribution ggx(m_alpha);
+        if (po.dielectric > 0.f) a += po.dielectric * eval_rough_dielectric(ggx, m_eta, wo, wi, TransportMode::Radiance).pdf;
+        if (pi.dielectric > 0.f) b += pi.dielectric * eval_rough_dielectric(ggx, m_eta, wi, wo, TransportMode::Radiance).pdf;
+    }
+    *fwd = a;
+    *rev = b;
+}
+
 std::optional<PreviewSurfaceSample> PreviewSurfaceBsdf::sample_mirror(
     const Vec3& wo, const LobeProbabilities& p) const {
     // All Dirac reflections share the mirror direction: return them as one delta whose

@@ -89,6 +89,9 @@ public:
     /// the half vector, the microfacet distribution, the masking of wo and the rough
     /// dielectric's terms once for both (next-event estimation and `sample` need both).
     Spectrum eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const;
+    /// pdf(wo, wi) in *fwd and pdf(wi, wo) in *rev — the same floats — computed together
+    /// (the half vector and D are the same both ways): BDPT asks for both at a vertex.
+    void pdf_pair(const Vec3& wo, const Vec3& wi, float* fwd, float* rev) const;
     /// Pick a lobe with `u_lobe` (the remainder of u_lobe picks reflection vs refraction of
     /// the dielectric), then a direction with `u`. Non-delta samples carry the full mixture
     /// f = eval(wo, wi) and pdf = pdf(wo, wi) (one-sample MIS over the lobes). Returns

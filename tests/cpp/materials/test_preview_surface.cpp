@@ -161,10 +161,11 @@ TEST_P(PreviewSurfaceConfig, test04_sample_matches_eval_and_pdf) {
     }
 }
 
-TEST_P(PreviewSurfaceConfig, test04b_eval_pdf_is_eval_and_pdf_bit_for_bit) {
-    // eval_pdf computes what eval and pdf compute, sharing their common terms: the same
-    // floats, for reflection and transmission pairs, both transport modes, and through the
-    // Bsdf wrapper with a shading normal away from the geometric one
+TEST_P(PreviewSurfaceConfig, test04b_eval_pdf_and_pdf_pair_are_eval_and_pdf_bit_for_bit) {
+    // eval_pdf computes what eval and pdf compute, and pdf_pair what pdf computes both
+    // ways, sharing their common terms: the same floats, for reflection and transmission
+    // pairs, both transport modes, and through the Bsdf wrapper with a shading normal away
+    // from the geometric one
     const PreviewSurfaceBsdf bsdf(GetParam().params);
     const Bsdf wrapped(bsdf, normalize(Vec3(0.3f, -0.2f, 1.f)), Vec3(0.f, 0.f, 1.f));
     TestRng rng(29, 4);
@@ -190,6 +191,14 @@ TEST_P(PreviewSurfaceConfig, test04b_eval_pdf_is_eval_and_pdf_bit_for_bit) {
             ASSERT_EQ(wf.z, wf0.z);
             ASSERT_EQ(wpdf, wrapped.pdf(wo, wi));
         }
+        // pdf_pair: both directions' densities, bit for bit
+        float fwd = -1.f, rev = -1.f;
+        bsdf.pdf_pair(wo, wi, &fwd, &rev);
+        ASSERT_EQ(fwd, bsdf.pdf(wo, wi)) << "wo " << str(wo) << " wi " << str(wi);
+        ASSERT_EQ(rev, bsdf.pdf(wi, wo)) << "wo " << str(wo) << " wi " << str(wi);
+        wrapped.pdf_pair(wo, wi, &fwd, &rev);
+        ASSERT_EQ(fwd, wrapped.pdf(wo, wi));
+        ASSERT_EQ(rev, wrapped.pdf(wi, wo));
     }
     if (!bsdf.is_pure_delta()) {
         EXPECT_GT(nonzero, 500);

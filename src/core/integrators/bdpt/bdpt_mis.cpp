@@ -72,6 +72,28 @@ float BdptTracer::pdf(const PathVertex* prev, const PathVertex& v, const PathVer
     return convert_density(pdf_sa, v, next);
 }
 
+void BdptTracer::pdf_pair(const PathVertex& a, const PathVertex& v, const PathVertex& b, float* ab,
+                          float* ba) const {
+    if (v.type != VertexType::surface || !v.bsdf) {
+        *ab = pdf(&a, v, b);
+        *ba = pdf(&b, v, a);
+        return;
+    }
+    // pdf for a surface vertex, both ways: a direction is the same floats whether it
+    // is the one toward `next` or toward `prev`
+    *ab = *ba = 0.f;
+    Vec3 wa = a.infinite ? -a.w_inf : a.p - v.p;
+    Vec3 wb = b.infinite ? -b.w_inf : b.p - v.p;
+    const float la = length(wa), lb = length(wb);
+    if (!(la > 0.f) || !(lb > 0.f)) return;
+    wa = wa / la;
+    wb = wb / lb;
+    float to_b = 0.f, to_a = 0.f;
+    v.bsdf->pdf_pair(wa, wb, &to_b, &to_a);
+    *ab = convert_density(to_b, v, b);
+    *ba = convert_density(to_a, v, a);
+}
+
 float BdptTracer::scatter_probability(const PathVertex& v, const PathVertex& toward) const {
     if (v.type != VertexType::surface || !v.bsdf || !m_scene.material_passes(v.si.material_id))
         return 1.f;
@@ -122,11 +144,24 @@ float BdptTracer::mis_weight(const PathVertex* light, int s, const PathVertex* c
     // the pass-through crossings on it: conn_pass_pdf for the connection segment,
     // pt->pass_pdf for pt - pt_minus and qs->pass_pdf for qs_minus - qs (1 without
     // pass-through surfaces).
-    pl[s] = s > 0 ? pdf(qs_minus, *qs, *pt) * conn_pass_pdf : pdf_light_origin(*pt, *pt_minus);
-    if (pt_minus)
-        pl[s + 1] = (s > 0 ? pdf(qs, *pt, *pt_minus) : pdf_light(*pt, *pt_minus)) * pt->pass_pdf;
-    if (qs) pe[s - 1] = pdf(pt_minus, *pt, *qs) * conn_pass_pdf;
-    if (qs_minus) pe[s - 2] = pdf(pt, *qs, *qs_minus) * qs->pass_pdf;
+    // (the two densities at qs, and the two at pt, in pairs: pdf_pair)
+    if (qs_minus) {
+        float to_pt, to_qs_minus;
+        pdf_pair(*qs_minus, *qs, *pt, &to_pt, &to_qs_minus);
+        pl[s] = to_pt * conn_pass_pdf;
+        pe[s - 2] = to_qs_minus * qs->pass_pdf;
+    } else {
+        pl[s] = s > 0 ? pdf(qs_minus, *qs, *pt) * conn_pass_pdf : pdf_light_origin(*pt, *pt_minus);
+    }
+    if (qs && pt_minus) {
+        float to_pt_minus, to_qs;
+        pdf_pair(*qs, *pt, *pt_minus, &to_pt_minus, &to_qs);
+        pl[s + 1] = to_pt_minus * pt->pass_pdf;
+        pe[s - 1] = to_qs * conn_pass_pdf;
+    } else {
+        if (pt_minus) pl[s + 1] = (s > 0 ? pdf(qs, *pt, *pt_minus) : pdf_light(*pt, *pt_minus)) * pt->pass_pdf;
+        if (qs) pe[s - 1] = pdf(pt_minus, *pt, *qs) * conn_pass_pdf;
+    }
     delta[s] = false;
     if (s > 0) delta[s - 1] = false;
 

@@ -64,9 +64,9 @@ bool BdptTracer::walk_step(BdptWalk& wk, const SceneHit& hit, BdptSampler& sampl
     auto edge = [&](const Vec3& w) {
         PathVertex& prev = path[n - 1];
         if (n - 1 < start || prev.type != VertexType::surface || prev.delta || !prev.bsdf) return;
-        pdf_fwd_sa = prev.bsdf->pdf(prev.wo, w);
-        path[n - 2].pdf_rev =
-            convert_density(prev.bsdf->pdf(w, prev.wo), prev, path[n - 2]) * prev.pass_pdf;
+        float rev = 0.f;
+        prev.bsdf->pdf_pair(prev.wo, w, &pdf_fwd_sa, &rev);
+        path[n - 2].pdf_rev = convert_density(rev, prev, path[n - 2]) * prev.pass_pdf;
     };
     c.rays += 1;
     PathVertex& prev = path[n - 1];

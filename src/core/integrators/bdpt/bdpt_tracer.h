@@ -341,6 +341,10 @@ private:
     // vertex).
     inline float convert_density(float pdf_sa, const PathVertex& from, const PathVertex& to) const;
     float pdf(const PathVertex* prev, const PathVertex& v, const PathVertex& next) const;
+    /// pdf(&a, v, b) in *ab and pdf(&b, v, a) in *ba, the same floats, the directions and
+    /// the BSDF's shared terms computed once (mis_weight asks for both at each connection
+    /// vertex).
+    void pdf_pair(const PathVertex& a, const PathVertex& v, const PathVertex& b, float* ab, float* ba) const;
     float pdf_light(const PathVertex& v, const PathVertex& next) const;
     float pdf_light_origin(const PathVertex& v, const PathVertex& next) const;
     /// Solid-angle density of light `li` (finite) emitting from `p` along unit `w`, the
