@@ -80,13 +80,6 @@ float ggx_reflection_no_fresnel(const GgxDistribution& ggx, const Vec3& wo, cons
     return ggx.d(wm) * ggx.g2_over_cos2(wo, wi) * 0.25f;
 }
 
-/// Pdf of wi = reflect(wo, wm) with wm ~ visible normals of wo:
-/// D_wo(wm) / (4 |wo.wm|) = G1(wo) / |cos wo| * D(wm) / 4.
-float ggx_reflection_pdf(const GgxDistribution& ggx, const Vec3& wo, const Vec3& wm) {
-    if (!(dot(wo, wm) * wo.z > 0.f)) return 0.f;
-    return ggx.g1_over_cos(wo) * ggx.d(wm) * 0.25f;
-}
-
 struct ScalarEval {
     float f = 0.f;
     float pdf = 0.f;  ///< pdf conditioned on the dielectric lobe being chosen
@@ -219,160 +212,119 @@ PreviewSurfaceBsdf::LobeProbabilities PreviewSurfaceBsdf::lobe_probabilities(
     return m_lobes;
 }
 
-Spectrum PreviewSurfaceBsdf::eval(const Vec3& wo, const Vec3& wi, TransportMode mode) const {
+PreviewSurfaceBsdf::GgxTerms PreviewSurfaceBsdf::ggx_terms(float alpha, const Vec3& w, const Vec3& wm) {
+    const GgxDistribution ggx(alpha);
+    GgxTerms t;
+    t.d = ggx.d(wm);
+    t.s = ggx.smith_s(w);
+    t.g1 = 2.f / (std::fabs(w.z) + t.s);  // GgxDistribution::g1_over_cos
+    return t;
+}
+
+float PreviewSurfaceBsdf::reflection_pdf(const LobeProbabilities& p, float ci, bool faces, const GgxTerms& base,
+                                         const GgxTerms& coat) const {
+    float pdf = 0.f;
+    if (p.diffuse > 0.f) pdf += p.diffuse * ci * k_inv_pi;
+    // GGX visible normals, reflected: G1(wo) / |cos wo| * D(wm) / 4, where wm faces wo
+    if (p.specular > 0.f && !m_specular_delta && faces) pdf += p.specular * (base.g1 * base.d * 0.25f);
+    if (p.clearcoat > 0.f && !m_clearcoat_delta && faces) pdf += p.clearcoat * (coat.g1 * coat.d * 0.25f);
+    return pdf;
+}
+
+template <bool F, bool P>
+Spectrum PreviewSurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf_out) const {
+    if constexpr (P) *pdf_out = 0.f;
     const float co = std::fabs(wo.z), ci = std::fabs(wi.z);
     if (co < k_preview_min_cos || ci < k_preview_min_cos) return Spectrum(0.f);
+    LobeProbabilities p;
+    if constexpr (P) p = lobe_probabilities(co);
     const float opacity = m_params.opacity;
-    const float att = clearcoat_attenuation(co) * clearcoat_attenuation(ci);
+    const float att = F ? clearcoat_attenuation(co) * clearcoat_attenuation(ci) : 1.f;
     const bool reflection = wo.z * wi.z > 0.f;
+    const bool rough_dielectric = m_dielectric == DielectricKind::Rough;
+    // the rough dielectric's value (for f) and density (for the pdf: the same in either
+    // transport mode) from one evaluation
+    ScalarEval dielectric;
+    if (rough_dielectric && (F || p.dielectric > 0.f))
+        dielectric = eval_rough_dielectric(GgxDistribution(m_alpha), m_eta, wo, wi, mode);
 
     Spectrum f(0.f);
+    float pdf = 0.f;
     if (reflection) {
         // Opaque lobes, two-sided: evaluated with both directions flipped above the surface.
         const Vec3 wo_u = to_upper(wo), wi_u = to_upper(wi);
         const Vec3 wm = normalize(wo_u + wi_u);
-        Spectrum base(0.f);
-        if (m_has_diffuse) {
-            Spectrum t_o = Spectrum(1.f) - specular_fresnel(co);
-            Spectrum t_i = Spectrum(1.f) - specular_fresnel(ci);
-            base += m_diffuse * t_o * t_i * k_inv_pi;
+        const bool spec = !m_specular_delta && ((F && m_has_specular) || (P && p.specular > 0.f));
+        const bool coat = !m_clearcoat_delta && ((F && m_has_clearcoat) || (P && p.clearcoat > 0.f));
+        const GgxTerms gs = spec ? ggx_terms(m_alpha, wo_u, wm) : GgxTerms();
+        const GgxTerms gc = coat ? ggx_terms(m_alpha_cc, wo_u, wm) : GgxTerms();
+        if constexpr (F) {
+            // GGX reflection without Fresnel: D G2 / (4 |cos wo| |cos wi|), G2 / (|cos wo|
+            // |cos wi|) = 2 / (s(wo) |cos wi| + s(wi) |cos wo|) (GgxDistribution::g2_over_cos2)
+            const auto no_fresnel = [&](float alpha, const GgxTerms& t) {
+                const float den = t.s * std::fabs(wi_u.z) + GgxDistribution(alpha).smith_s(wi_u) * std::fabs(wo_u.z);
+                return t.d * (den > 0.f ? 2.f / den : 0.f) * 0.25f;
+            };
+            Spectrum base(0.f);
+            if (m_has_diffuse) {
+                Spectrum t_o = Spectrum(1.f) - specular_fresnel(co);
+                Spectrum t_i = Spectrum(1.f) - specular_fresnel(ci);
+                base += m_diffuse * t_o * t_i * k_inv_pi;
+            }
+            if (m_has_specular && !m_specular_delta)
+                base += specular_fresnel(dot(wo_u, wm)) * no_fresnel(m_alpha, gs);
+            f = base * (opacity * att);
+            if (rough_dielectric) f += Spectrum((1.f - opacity) * att * dielectric.f);
+            if (m_has_clearcoat && !m_clearcoat_delta)
+                f += Spectrum(m_params.clearcoat * clearcoat_fresnel(dot(wo_u, wm)) * no_fresnel(m_alpha_cc, gc));
         }
-        if (m_has_specular && !m_specular_delta) {
-            GgxDistribution ggx(m_alpha);
-            base += specular_fresnel(dot(wo_u, wm)) * ggx_reflection_no_fresnel(ggx, wo_u, wi_u, wm);
-        }
-        f = base * (opacity * att);
-        if (m_dielectric == DielectricKind::Rough) {
-            GgxDistribution ggx(m_alpha);
-            f += Spectrum((1.f - opacity) * att * eval_rough_dielectric(ggx, m_eta, wo, wi, mode).f);
-        }
-        if (m_has_clearcoat && !m_clearcoat_delta) {
-            GgxDistribution ggx(m_alpha_cc);
-            float fc = clearcoat_fresnel(dot(wo_u, wm));
-            f += Spectrum(m_params.clearcoat * fc * ggx_reflection_no_fresnel(ggx, wo_u, wi_u, wm));
-        }
-    } else if (m_dielectric == DielectricKind::Rough) {
-        GgxDistribution ggx(m_alpha);
-        f = Spectrum((1.f - opacity) * att * eval_rough_dielectric(ggx, m_eta, wo, wi, mode).f);
+        if constexpr (P) pdf = reflection_pdf(p, ci, dot(wo_u, wm) * wo_u.z > 0.f, gs, gc);
+    } else if (F && rough_dielectric) {
+        f = Spectrum((1.f - opacity) * att * dielectric.f);
+    }
+    if constexpr (P) {
+        if (p.dielectric > 0.f && rough_dielectric) pdf += p.dielectric * dielectric.pdf;
+        *pdf_out = pdf;
     }
     return f;
+}
+
+Spectrum PreviewSurfaceBsdf::eval(const Vec3& wo, const Vec3& wi, TransportMode mode) const {
+    return evaluate<true, false>(wo, wi, mode, nullptr);
 }
 
 float PreviewSurfaceBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
-    const float co = std::fabs(wo.z), ci = std::fabs(wi.z);
-    if (co < k_preview_min_cos || ci < k_preview_min_cos) return 0.f;
-    const LobeProbabilities p = lobe_probabilities(co);
-    const bool reflection = wo.z * wi.z > 0.f;
-
     float pdf = 0.f;
-    if (reflection) {
-        const Vec3 wo_u = to_upper(wo), wi_u = to_upper(wi);
-        const Vec3 wm = normalize(wo_u + wi_u);
-        if (p.diffuse > 0.f) pdf += p.diffuse * ci * k_inv_pi;
-        if (p.specular > 0.f && !m_specular_delta)
-            pdf += p.specular * ggx_reflection_pdf(GgxDistribution(m_alpha), wo_u, wm);
-        if (p.clearcoat > 0.f && !m_clearcoat_delta)
-            pdf += p.clearcoat * ggx_reflection_pdf(GgxDistribution(m_alpha_cc), wo_u, wm);
-    }
-    if (p.dielectric > 0.f && m_dielectric == DielectricKind::Rough) {
-        GgxDistribution ggx(m_alpha);
-        pdf += p.dielectric *
-               eval_rough_dielectric(ggx, m_eta, wo, wi, TransportMode::Radiance).pdf;
-    }
+    evaluate<false, true>(wo, wi, TransportMode::Radiance, &pdf);
     return pdf;
 }
 
-Spectrum PreviewSurfaceBsdf::eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf_out) const {
-    // eval and pdf above, term by term with the same operations; what both compute
-    // (wm, D(wm), s(wo), the rough dielectric's value and density) is computed once.
-    *pdf_out = 0.f;
-    const float co = std::fabs(wo.z), ci = std::fabs(wi.z);
-    if (co < k_preview_min_cos || ci < k_preview_min_cos) return Spectrum(0.f);
-    const LobeProbabilities p = lobe_probabilities(co);
-    const float opacity = m_params.opacity;
-    const float att = clearcoat_attenuation(co) * clearcoat_attenuation(ci);
-    const bool reflection = wo.z * wi.z > 0.f;
-    const bool rough_dielectric = m_dielectric == DielectricKind::Rough;
-    ScalarEval dielectric;
-    if (rough_dielectric) {
-        // the value for eval, the density (the same for either transport mode) for pdf
-        dielectric = eval_rough_dielectric(GgxDistribution(m_alpha), m_eta, wo, wi, mode);
-    }
-
-    Spectrum f(0.f);
-    float pdf = 0.f;
-    if (reflection) {
-        const Vec3 wo_u = to_upper(wo), wi_u = to_upper(wi);
-        const Vec3 wm = normalize(wo_u + wi_u);
-        Spectrum base(0.f);
-        if (m_has_diffuse) {
-            Spectrum t_o = Spectrum(1.f) - specular_fresnel(co);
-            Spectrum t_i = Spectrum(1.f) - specular_fresnel(ci);
-            base += m_diffuse * t_o * t_i * k_inv_pi;
-        }
-        if (p.diffuse > 0.f) pdf += p.diffuse * ci * k_inv_pi;
-        const bool spec_f = m_has_specular && !m_specular_delta;
-        const bool spec_p = p.specular > 0.f && !m_specular_delta;
-        if (spec_f || spec_p) {
-            const GgxDistribution ggx(m_alpha);
-            const float d = ggx.d(wm), s_o = ggx.smith_s(wo_u);
-            if (spec_f) {
-                // ggx_reflection_no_fresnel: D G2 / (cos cos) / 4
-                const float den = s_o * std::fabs(wi_u.z) + ggx.smith_s(wi_u) * std::fabs(wo_u.z);
-                const float g2 = den > 0.f ? 2.f / den : 0.f;
-                base += specular_fresnel(dot(wo_u, wm)) * (d * g2 * 0.25f);
-            }
-            // ggx_reflection_pdf: G1(wo) / cos * D / 4 where wm faces wo
-            if (spec_p && dot(wo_u, wm) * wo_u.z > 0.f) pdf += p.specular * (2.f / (std::fabs(wo_u.z) + s_o) * d * 0.25f);
-        }
-        f = base * (opacity * att);
-        if (rough_dielectric) f += Spectrum((1.f - opacity) * att * dielectric.f);
-        const bool cc_f = m_has_clearcoat && !m_clearcoat_delta;
-        const bool cc_p = p.clearcoat > 0.f && !m_clearcoat_delta;
-        if (cc_f || cc_p) {
-            const GgxDistribution ggx(m_alpha_cc);
-            const float d = ggx.d(wm), s_o = ggx.smith_s(wo_u);
-            if (cc_f) {
-                const float fc = clearcoat_fresnel(dot(wo_u, wm));
-                const float den = s_o * std::fabs(wi_u.z) + ggx.smith_s(wi_u) * std::fabs(wo_u.z);
-                const float g2 = den > 0.f ? 2.f / den : 0.f;
-                f += Spectrum(m_params.clearcoat * fc * (d * g2 * 0.25f));
-            }
-            if (cc_p && dot(wo_u, wm) * wo_u.z > 0.f) pdf += p.clearcoat * (2.f / (std::fabs(wo_u.z) + s_o) * d * 0.25f);
-        }
-    } else if (rough_dielectric) {
-        f = Spectrum((1.f - opacity) * att * dielectric.f);
-    }
-    if (p.dielectric > 0.f && rough_dielectric) pdf += p.dielectric * dielectric.pdf;
-    *pdf_out = pdf;
-    return f;
+Spectrum PreviewSurfaceBsdf::eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const {
+    return evaluate<true, true>(wo, wi, mode, pdf);
 }
 
 void PreviewSurfaceBsdf::pdf_pair(const Vec3& wo, const Vec3& wi, float* fwd, float* rev) const {
-    // pdf above for (wo, wi) and for (wi, wo), term by term with the same operations; the
-    // half vector (wo_u + wi_u is wi_u + wo_u) and D(wm) are computed once.
+    // pdf both ways: the half vector (wo_u + wi_u is wi_u + wo_u) and D(wm) once
     *fwd = *rev = 0.f;
     const float co = std::fabs(wo.z), ci = std::fabs(wi.z);
     if (co < k_preview_min_cos || ci < k_preview_min_cos) return;
     const LobeProbabilities po = lobe_probabilities(co);
     const LobeProbabilities pi = lobe_probabilities(ci);
-    const bool reflection = wo.z * wi.z > 0.f;
     float a = 0.f, b = 0.f;  // pdf(wo, wi), pdf(wi, wo)
-    if (reflection) {
+    if (wo.z * wi.z > 0.f) {
         const Vec3 wo_u = to_upper(wo), wi_u = to_upper(wi);
         const Vec3 wm = normalize(wo_u + wi_u);
-        if (po.diffuse > 0.f) a += po.diffuse * ci * k_inv_pi;
-        if (pi.diffuse > 0.f) b += pi.diffuse * co * k_inv_pi;
-        const auto ggx_pair = [&](float alpha, float prob_o, float prob_i) {
-            const GgxDistribution ggx(alpha);
-            const float d = ggx.d(wm);
-            // ggx_reflection_pdf(ggx, w, wm) = G1(w) / cos * D / 4 where wm faces w
-            if (prob_o > 0.f && dot(wo_u, wm) * wo_u.z > 0.f) a += prob_o * (ggx.g1_over_cos(wo_u) * d * 0.25f);
-            if (prob_i > 0.f && dot(wi_u, wm) * wi_u.z > 0.f) b += prob_i * (ggx.g1_over_cos(wi_u) * d * 0.25f);
-        };
-        if (!m_specular_delta && (po.specular > 0.f || pi.specular > 0.f)) ggx_pair(m_alpha, po.specular, pi.specular);
-        if (!m_clearcoat_delta && (po.clearcoat > 0.f || pi.clearcoat > 0.f))
-            ggx_pair(m_alpha_cc, po.clearcoat, pi.clearcoat);
+        GgxTerms so, si, co_cc, ci_cc;  // per distribution, seen from wo_u and from wi_u
+        if (!m_specular_delta && (po.specular > 0.f || pi.specular > 0.f)) {
+            so = ggx_terms(m_alpha, wo_u, wm);
+            si = ggx_terms(m_alpha, wi_u, wm);
+        }
+        if (!m_clearcoat_delta && (po.clearcoat > 0.f || pi.clearcoat > 0.f)) {
+            co_cc = ggx_terms(m_alpha_cc, wo_u, wm);
+            ci_cc = ggx_terms(m_alpha_cc, wi_u, wm);
+        }
+        a = reflection_pdf(po, ci, dot(wo_u, wm) * wo_u.z > 0.f, so, co_cc);
+        b = reflection_pdf(pi, co, dot(wi_u, wm) * wi_u.z > 0.f, si, ci_cc);
     }
     if (m_dielectric == DielectricKind::Rough) {
         const GgxDistribution ggx(m_alpha);

@@ -127,6 +127,20 @@ private:
     };
 
     LobeProbabilities lobe_probabilities(float abs_cos_o) const;
+    /// eval (F), pdf (P) or both at (wo, wi), each term computed once.
+    template <bool F, bool P>
+    Spectrum evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const;
+    /// One GGX distribution's terms at half vector wm seen from w: D(wm), the Smith term
+    /// s(w) and G1(w) / |cos w| (GgxDistribution's d, smith_s, g1_over_cos).
+    struct GgxTerms {
+        float d = 0.f, s = 0.f, g1 = 0.f;
+    };
+    static GgxTerms ggx_terms(float alpha, const Vec3& w, const Vec3& wm);
+    /// The reflection lobes' density toward a direction of |cos| ci, seen from a direction
+    /// with lobe probabilities p whose half vector it `faces`, from the base and clearcoat
+    /// distributions' terms (read where their lobe has a density).
+    float reflection_pdf(const LobeProbabilities& p, float ci, bool faces, const GgxTerms& base,
+                         const GgxTerms& coat) const;
     Spectrum specular_fresnel(float cos_theta) const;
     float clearcoat_fresnel(float cos_theta) const;
     float clearcoat_attenuation(float abs_cos) const;
