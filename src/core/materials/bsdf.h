@@ -40,48 +40,18 @@ public:
 
     Spectrum eval(const Vec3& wo, const Vec3& wi,
                   TransportMode mode = TransportMode::Radiance) const {
-        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
-            // Only the cosines enter: the z of the local directions, without the rest of
-            // the frame (the same floats as to_local's z).
-            float lz, iz;
-            if (!consistent_cosines(wo, wi, &lz, &iz)) return Spectrum(0.f);
-            return lambert->eval(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
-        }
-        Vec3 lo, li;
-        if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
-        return std::visit(
-            [&](const auto& m) -> Spectrum {
-                if constexpr (std::is_same_v<std::decay_t<decltype(m)>, PreviewSurfaceBsdf>)
-                    return m.eval(lo, li, mode);
-                else
-                    return m.eval(lo, li);
-            },
-            m_model);
+        return evaluate<true, false>(wo, wi, mode, nullptr);
     }
     float pdf(const Vec3& wo, const Vec3& wi) const {
-        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
-            float lz, iz;
-            if (!consistent_cosines(wo, wi, &lz, &iz)) return 0.f;
-            return lambert->pdf(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
-        }
-        Vec3 lo, li;
-        if (!consistent_sides(wo, wi, &lo, &li)) return 0.f;
-        return std::visit([&](const auto& m) { return m.pdf(lo, li); }, m_model);
+        float p = 0.f;
+        evaluate<false, true>(wo, wi, TransportMode::Radiance, &p);
+        return p;
     }
     /// eval(wo, wi, mode) and, in *pdf, pdf(wo, wi): the same floats, the side test and
     /// the local directions once, the model's shared terms once
     /// (PreviewSurfaceBsdf::eval_pdf).
     Spectrum eval_pdf(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const {
-        *pdf = 0.f;
-        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
-            float lz, iz;
-            if (!consistent_cosines(wo, wi, &lz, &iz)) return Spectrum(0.f);
-            *pdf = lambert->pdf(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
-            return lambert->eval(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
-        }
-        Vec3 lo, li;
-        if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
-        return std::get<PreviewSurfaceBsdf>(m_model).eval_pdf(lo, li, mode, pdf);
+        return evaluate<true, true>(wo, wi, mode, pdf);
     }
     /// pdf(wo, wi) in *fwd and pdf(wi, wo) in *rev: the same floats, the side test and the
     /// local directions once (the test is symmetric), the model's shared terms once.
@@ -173,6 +143,30 @@ public:
     const Vec3& geometric_normal() const { return m_ng; }
 
 private:
+    /// eval (F), pdf (P) or both: the side test, then the model in the local frame.
+    template <bool F, bool P>
+    Spectrum evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode, float* pdf) const {
+        if constexpr (P) *pdf = 0.f;
+        if (const auto* lambert = std::get_if<LambertianBsdf>(&m_model)) {
+            // Only the cosines enter: the z of the local directions, without the rest of
+            // the frame (the same floats as to_local's z).
+            float lz, iz;
+            if (!consistent_cosines(wo, wi, &lz, &iz)) return Spectrum(0.f);
+            if constexpr (P) *pdf = lambert->pdf(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz));
+            return F ? lambert->eval(Vec3(0.f, 0.f, lz), Vec3(0.f, 0.f, iz)) : Spectrum(0.f);
+        }
+        Vec3 lo, li;
+        if (!consistent_sides(wo, wi, &lo, &li)) return Spectrum(0.f);
+        const PreviewSurfaceBsdf& preview = std::get<PreviewSurfaceBsdf>(m_model);
+        if constexpr (F && P) {
+            return preview.eval_pdf(lo, li, mode, pdf);
+        } else if constexpr (F) {
+            return preview.eval(lo, li, mode);
+        } else {
+            *pdf = preview.pdf(lo, li);
+            return Spectrum(0.f);
+        }
+    }
     /// consistent_sides for models that read only the local z (cos theta) of wo and wi.
     bool consistent_cosines(const Vec3& wo, const Vec3& wi, float* lz, float* iz) const {
         float go = dot(wo, m_ng), gi = dot(wi, m_ng);
