@@ -28,6 +28,13 @@ struct MeshData {
     std::shared_ptr<void> owner;           ///< keeps the arrays alive (set by the bindings)
 };
 
+/// The texture coordinates of a hit at barycentrics (b0, b1, b2) of a triangle whose
+/// corners' uvs are t[0..2] (t[0] null: the mesh has none, and (b1, b2) stand in).
+inline Vec2 hit_uv(const float* const t[3], float b0, float b1, float b2) {
+    if (!t[0]) return Vec2(b1, b2);
+    return Vec2(t[0][0] * b0 + t[1][0] * b1 + t[2][0] * b2, t[0][1] * b0 + t[1][1] * b1 + t[2][1] * b2);
+}
+
 struct Mesh {
     std::string name;
     MeshData data;

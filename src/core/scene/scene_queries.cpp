@@ -78,9 +78,12 @@ void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mes
     si->t = hit.t;
     const uint32_t* v = tri.v;
     const float b0 = tri.b0, b1 = tri.b1, b2 = tri.b2;
-    if (mesh.data.uvs) {
+    const float* const uvs = mesh.data.uvs;
+    const float* const t[3] = {uvs ? uvs + 2 * size_t(v[0]) : nullptr, uvs ? uvs + 2 * size_t(v[1]) : nullptr,
+                               uvs ? uvs + 2 * size_t(v[2]) : nullptr};
+    si->uv = hit_uv(t, b0, b1, b2);
+    if (uvs) {
         Vec2 t0 = mesh.uv(v[0]), t1 = mesh.uv(v[1]), t2 = mesh.uv(v[2]);
-        si->uv = Vec2(t0.x * b0 + t1.x * b1 + t2.x * b2, t0.y * b0 + t1.y * b1 + t2.y * b2);
         // dp/du from the uv parametrisation of the triangle (pbrt's Triangle::Intersect).
         float du02 = t0.x - t2.x, du12 = t1.x - t2.x, dv02 = t0.y - t2.y, dv12 = t1.y - t2.y;
         float det = du02 * dv12 - dv02 * du12;
@@ -90,7 +93,6 @@ void fill_placed(const Ray& ray, const Hit& hit, const Instance& inst, const Mes
             if (is_finite(d)) si->dpdu = d;
         }
     } else {
-        si->uv = Vec2(b1, b2);
         si->dpdu = Vec3(0.f);
     }
     si->instance_id = hit.instance_id;

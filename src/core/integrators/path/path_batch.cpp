@@ -99,14 +99,8 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
         m_placed.push_back(l);
         m_placed_preview.push_back(preview);
         m_placed_material.push_back(tri.material_id);
-        // the texture coordinates as Scene::fill_interaction interpolates them
-        const float b1 = h.u, b2 = h.v, b0 = 1.f - b1 - b2;
-        if (tri.uv[0]) {
-            const float *t0 = tri.uv[0], *t1 = tri.uv[1], *t2 = tri.uv[2];
-            m_placed_uv.push_back(Vec2(t0[0] * b0 + t1[0] * b1 + t2[0] * b2, t0[1] * b0 + t1[1] * b1 + t2[1] * b2));
-        } else {
-            m_placed_uv.push_back(Vec2(b1, b2));
-        }
+        // the texture coordinates as Scene::fill_interaction gives them
+        m_placed_uv.push_back(hit_uv(tri.uv, 1.f - h.u - h.v, h.u, h.v));
     } else {
         if (st.depth == m_tracer.max_depth()) {
             ++st.bounce;
