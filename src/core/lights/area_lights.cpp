@@ -109,6 +109,18 @@ float RectLight::power() const {
     return k_pi * m_area * luminance(m * m_radiance) * m_shaping.power_factor(true);
 }
 
+bool RectLight::rect_constants(RectLightConstants* out) const {
+    if (m_tex || m_shaping.active || !(m_area > 0.f) || is_black(m_radiance)) return false;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) out->m[r][c] = m_xf.m.m[r][c];
+    out->w = m_w;
+    out->h = m_h;
+    out->n_emit = m_n_emit;
+    out->area = m_area;
+    out->radiance = m_radiance;
+    return true;
+}
+
 bool RectLight::inside(float x, float y) const {
     return std::fabs(x) <= 0.5f * m_w && std::fabs(y) <= 0.5f * m_h;
 }

@@ -49,6 +49,7 @@ public:
     explicit RectLight(const LightDesc& desc);
     void bind_texture(const Texture* tex) override;
     float power() const override;
+    bool rect_constants(RectLightConstants* out) const override;
 
 protected:
     bool inside(float x, float y) const override;

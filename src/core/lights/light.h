@@ -67,9 +67,24 @@ struct LightDesc {
     int32_t texture_id = -1;
 };
 
+/// What a rect light's sample_li computes its sample from, for many shading points at
+/// once (Light::rect_constants; integrators/path/diffuse_lanes.h, rect_light_samples).
+struct RectLightConstants {
+    double m[3][4] = {};   ///< object to world, the affine rows (Transform::m)
+    float w = 0.f, h = 0.f;  ///< extents along local x and y
+    Vec3 n_emit;           ///< unit world normal of the emitting side
+    float area = 0.f;      ///< world area
+    Spectrum radiance;     ///< what sample_li returns as li
+};
+
 class Light {
 public:
     virtual ~Light() = default;
+
+    /// True, with `*out`, for a light whose sample_li is RectLightConstants' rect sample
+    /// exactly: an untextured rect light without shaping, of positive area and non-black
+    /// radiance (RectLight). False for every other light.
+    virtual bool rect_constants(RectLightConstants* /*out*/) const { return false; }
 
     virtual LightSample sample_li(const Vec3& p, const Vec2& u) const = 0;
     /// Solid-angle pdf of sampling direction `wi` from `p` (0 for Dirac lights).

@@ -104,6 +104,44 @@ void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end) {
 }
 
 CMLT_LANES_CLONES
+void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLightConstants& c) {
+    // PlanarLight::sample_li with RectLight's sample_local and no texture or shaping (li is
+    // the radiance times 1), then the per-lane loop's validity test (ls.valid() && pmf > 0)
+    const double m00 = c.m[0][0], m01 = c.m[0][1], m02 = c.m[0][2], m03 = c.m[0][3];
+    const double m10 = c.m[1][0], m11 = c.m[1][1], m12 = c.m[1][2], m13 = c.m[1][3];
+    const double m20 = c.m[2][0], m21 = c.m[2][1], m22 = c.m[2][2], m23 = c.m[2][3];
+    const float w = c.w, h = c.h, area = c.area;
+    const float nx = c.n_emit.x, ny = c.n_emit.y, nz = c.n_emit.z;
+    const float lr = c.radiance.x * 1.f, lg = c.radiance.y * 1.f, lb = c.radiance.z * 1.f;
+    for (size_t i = 0; i < n; ++i) {
+        const double x = double((L.rect_ux[i] - 0.5f) * w), y = double((L.rect_uy[i] - 0.5f) * h), z = 0.0;
+        const float qx = float(m00 * x + m01 * y + m02 * z + m03);
+        const float qy = float(m10 * x + m11 * y + m12 * z + m13);
+        const float qz = float(m20 * x + m21 * y + m22 * z + m23);
+        const float dx = qx - L.px[i], dy = qy - L.py[i], dz = qz - L.pz[i];
+        const float dist2 = dx * dx + dy * dy + dz * dz;
+        const float r = 1.f / std::sqrt(dist2);
+        const float wx = dx * r, wy = dy * r, wz = dz * r;
+        const float cos_l = -(nx * wx + ny * wy + nz * wz);
+        const float pdf = dist2 / (cos_l * area);
+        const float pmf = L.rect_pmf[i];
+        const bool ok = (L.rect_slot[i] == slot) & (dist2 > 0.f) & (cos_l > 0.f) & finite(pdf) & (pdf > 0.f) &
+                        (pmf > 0.f);
+        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
+        L.wix[i] = ok ? wx : L.wix[i];
+        L.wiy[i] = ok ? wy : L.wiy[i];
+        L.wiz[i] = ok ? wz : L.wiz[i];
+        L.li_r[i] = ok ? lr : L.li_r[i];
+        L.li_g[i] = ok ? lg : L.li_g[i];
+        L.li_b[i] = ok ? lb : L.li_b[i];
+        L.plx[i] = ok ? qx : L.plx[i];
+        L.ply[i] = ok ? qy : L.ply[i];
+        L.plz[i] = ok ? qz : L.plz[i];
+        L.light_pdf[i] = ok ? pmf * pdf : L.light_pdf[i];
+    }
+}
+
+CMLT_LANES_CLONES
 void diffuse_next_event(DiffuseLanes& L, size_t n) {
     for (size_t i = 0; i < n; ++i) {
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];

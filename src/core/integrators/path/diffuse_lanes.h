@@ -37,6 +37,7 @@
 /// take stages 1 and 2 only, from the top of the arrays down; their shading is the
 /// per-lane routine's (PathTracer::step(BsdfHit)).
 #include "integrators/common/frame_loop.h"
+#include "lights/light.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -74,6 +75,14 @@ struct DiffuseLanes {
     alignas(64) float li_r[N], li_g[N], li_b[N];
     alignas(64) float light_pdf[N];                  ///< pmf times the sample's pdf
     alignas(64) float plx[N], ply[N], plz[N], nlx[N], nly[N], nlz[N], lerr[N];
+    /// 3b. a sample of a rect light with RectLightConstants (rect_light_samples): its slot
+    /// (k_no_rect_slot: sampled one lane at a time, or none), its numbers and the light's pmf
+    alignas(64) uint8_t rect_slot[N];
+    alignas(64) float rect_ux[N], rect_uy[N], rect_pmf[N];
+    static constexpr uint8_t k_no_rect_slot = 0xFF;
+    /// Rect lights per frame whose samples the lanes compute (PathBatch: the first ones
+    /// by light index; a lane loop per slot).
+    static constexpr size_t k_rect_slots = 4;
 
     // 4. the pending shadow ray
     alignas(64) uint8_t shadow[N];
@@ -91,6 +100,11 @@ struct DiffuseLanes {
 
 /// Stage 2 over lanes [begin, end).
 void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end);
+/// Stage 3's rect light samples over lanes [0, n): for each lane with rect_slot[k] == slot,
+/// RectLight::sample_li at (px, py, pz) with (rect_ux, rect_uy), written where valid (with
+/// pmf > 0) as the per-lane loop writes a LightSample (ls_ok, wi, li, light_pdf, the point
+/// on the light; no normal, no error scale, finite distance, not Dirac).
+void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLightConstants& c);
 /// Stage 4 over lanes [0, n) (lanes without ls_ok get no shadow ray).
 void diffuse_next_event(DiffuseLanes& L, size_t n);
 /// Stage 5: the concentric disk's point (scalar), then the rest.

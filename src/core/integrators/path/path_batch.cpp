@@ -75,6 +75,13 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_placed_material.reserve(n);
     m_placed_preview.reserve(n);
     m_placed_uv.reserve(n);
+    m_rect_slot.assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
+    for (size_t i = 0; i < scene.light_count() && m_rect.size() < DiffuseLanes::k_rect_slots; ++i) {
+        RectLightConstants c;
+        if (!scene.light(i).rect_constants(&c)) continue;
+        m_rect_slot[i] = uint8_t(m_rect.size());
+        m_rect.push_back(c);
+    }
 }
 
 bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
@@ -194,10 +201,21 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         L.li_r[k] = L.li_g[k] = L.li_b[k] = 0.f;
         L.plx[k] = L.ply[k] = L.plz[k] = L.nlx[k] = L.nly[k] = L.nlz[k] = L.lerr[k] = 0.f;
         L.light_pdf[k] = 0.f;
+        L.rect_slot[k] = DiffuseLanes::k_no_rect_slot;
+        L.rect_ux[k] = L.rect_uy[k] = L.rect_pmf[k] = 0.f;
         if (!nee || st.depth + 1 < m_tracer.min_depth()) continue;
         const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
         float pmf = 0.f;
         const size_t li = m_scene.sample_light(uint_to_unit_float(w[0]), &pmf);
+        if (m_rect_slot[li] != DiffuseLanes::k_no_rect_slot) {
+            // sampled below, in rect_light_samples
+            m_diffuse_light[k] = uint32_t(li);
+            L.rect_slot[k] = m_rect_slot[li];
+            L.rect_ux[k] = uint_to_unit_float(w[2]);
+            L.rect_uy[k] = uint_to_unit_float(w[3]);
+            L.rect_pmf[k] = pmf;
+            continue;
+        }
         const LightSample ls = m_scene.light(li).sample_li(
             Vec3(L.px[k], L.py[k], L.pz[k]), Vec2(uint_to_unit_float(w[2]), uint_to_unit_float(w[3])));
         if (!(ls.valid() && pmf > 0.f)) continue;
@@ -212,6 +230,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         L.lerr[k] = ls.error_scale;
         L.light_pdf[k] = pmf * ls.pdf;
     }
+    for (size_t s = 0; s < m_rect.size(); ++s) rect_light_samples(L, n, uint8_t(s), m_rect[s]);
     diffuse_next_event(L, n);
     diffuse_disk(L, n);
     diffuse_sample(L, n);

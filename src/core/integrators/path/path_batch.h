@@ -92,6 +92,10 @@ private:
     bool m_use_lanes = true;
     std::unique_ptr<DiffuseLanes> m_lanes;
     std::vector<uint32_t> m_diffuse, m_diffuse_light;
+    // the rect lights whose samples the lanes compute (Light::rect_constants): per light
+    // its slot or DiffuseLanes::k_no_rect_slot, per slot the constants
+    std::vector<uint8_t> m_rect_slot;
+    std::vector<RectLightConstants> m_rect;
     // the lanes of a round placed from the top down and shaded one at a time: batch
     // lanes, materials, constant preview BSDFs (null: make_bsdf_at), texture coordinates
     std::vector<uint32_t> m_placed, m_placed_material;
