@@ -232,6 +232,64 @@ TEST(PathBatch, MatchesTheScalarReferenceWithAnalyticLights) {
         "analytic lights");
 }
 
+TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfacesUnderAnalyticLights) {
+    // placed lanes (constant preview BSDFs, a textured preview surface) lit by two rect
+    // lights whose samples the diffuse lanes take in lanes (Light::rect_constants) and a
+    // sphere light (the per-lane routine samples every light for the placed lanes)
+    check_scene(
+        [](Scene& s) {
+            box_scene(s, 0.f, false);
+            auto texels = std::make_shared<std::vector<float>>();
+            for (int i = 0; i < 16; ++i) {
+                const float a = ((i + i / 4) % 2) ? 0.85f : 0.2f;
+                texels->insert(texels->end(), {a, 0.5f * a + 0.1f, 1.f - a});
+            }
+            TextureDesc d;
+            d.data = texels->data();
+            d.width = d.height = 4;
+            d.channels = 3;
+            d.owner = texels;
+            const int32_t tex = int32_t(s.add_texture(d, "checker"));
+            std::vector<Material> m = {Material{Spectrum(0.7f), Spectrum(0.f)},
+                                       Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
+                                       Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
+                                       Material{Spectrum(0.5f), Spectrum(0.f)}};
+            for (int i = 0; i < 4; ++i) {
+                m[size_t(i)].preview = true;
+                m[size_t(i)].roughness = 0.2f + 0.2f * float(i);
+            }
+            m[1].metallic = 0.6f;
+            m[2].clearcoat = 0.8f;
+            m[3].tex_diffuse = tex;
+            s.set_materials(m);
+            LightDesc rect;
+            rect.kind = LightDesc::Kind::rect;
+            rect.transform = Mat4::translate(0, 0.95, 0) * Mat4::rotate(-90, 1, 0, 0);
+            rect.width = rect.height = 0.5f;
+            rect.radiance = Spectrum(8.f);
+            s.add_light(rect);
+            LightDesc side = rect;
+            side.transform = Mat4::translate(0.9, 0.2, 0) * Mat4::rotate(-90, 0, 1, 0);
+            side.width = 0.3f;
+            side.radiance = Spectrum(2.f, 3.f, 4.f);
+            s.add_light(side);
+            LightDesc sph;
+            sph.kind = LightDesc::Kind::sphere;
+            sph.transform = Mat4::translate(-0.5, 0.3, -0.4);
+            sph.radius = 0.08f;
+            sph.radiance = Spectrum(20.f, 15.f, 10.f);
+            s.add_light(sph);
+            s.commit();
+            for (uint32_t i = 0; i < 3; ++i) EXPECT_NE(s.constant_preview(i), nullptr) << i;
+            EXPECT_NE(s.lane_material(3), nullptr);
+            RectLightConstants c;
+            EXPECT_TRUE(s.light(0).rect_constants(&c));
+            EXPECT_TRUE(s.light(1).rect_constants(&c));
+            EXPECT_FALSE(s.light(2).rect_constants(&c));
+        },
+        "preview box, analytic lights");
+}
+
 TEST(PathBatch, MatchesTheScalarReferenceThroughPassThroughSurfaces) {
     check_scene([](Scene& s) { pass_through_box(s); }, "pass-through box");
 }
