@@ -230,6 +230,8 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["b_bootstrap_stderr"] = m.b_bootstrap_stderr;
         d["bootstrap_samples"] = m.bootstrap_samples;
         d["bootstrap_nonzero"] = m.bootstrap_nonzero;
+        d["bootstrap_probe"] = m.bootstrap_probe;
+        d["bootstrap_probe_nonzero"] = m.bootstrap_probe_nonzero;
         d["chains"] = m.chains;
         d["mutations"] = m.mutations;
         d["mutations_per_pixel"] = m.mutations_per_pixel;

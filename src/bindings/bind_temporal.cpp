@@ -90,7 +90,8 @@ void bind_temporal(nb::module_& m) {
         },
         "scene"_a, "settings"_a, "count"_a,
         "The render's bootstrap points 0..count-1 evaluated in this frame's scene: (MltStates "
-        "with f_star = f*, {'rays', 'samples'} traced; temporal/carry.h).");
+        "with f_star = f*, {'rays', 'samples'} traced; temporal/carry.h). count 0: as many as "
+        "the render would evaluate (bootstrap_samples 0, auto: sized by a probe).");
     m.def(
         "temporal_couple_starts",
         [](const std::vector<double>& f_old, const std::vector<double>& f_new,

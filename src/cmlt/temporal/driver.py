@@ -245,7 +245,9 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
         # carry-over evaluations below (f* must be the same function in all of them)
         st.pilot = None
         if str(getattr(st, "importance", "luminance")) == "pixel":
+            t_pilot = time.perf_counter()
             st.pilot = core.render_pilot(scene, st)
+            rec["pilot_time_s"] = time.perf_counter() - t_pilot
     prev_ok = prev is not None and not per_frame
     if REPROJECT and not per_frame:
         # the film offset follows the image's median screen motion (camera, moving
@@ -285,13 +287,23 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
         pending["anchors"] = list(core.temporal_screen_anchors(scene, st, *anchor_grid(st.width, st.height)))
     if not carry:
         return rec, pending
+    # the bootstrap's size: the setting's, or with bootstrap_samples 0 (auto) the size the
+    # render would pick (0: temporal_bootstrap_states runs its probe) — kept from the
+    # frame before where there is one, so that the frames' starts stay coupled
     n_boot = int(core.temporal_bootstrap_count(st))
+    if int(getattr(st, "bootstrap_samples", 1)) == 0:
+        n_boot = len(prev["boot_f"]) // 8 if prev_ok and prev.get("boot_f") else 0  # float64 bytes
     t0 = time.perf_counter()
     boot, traced = core.temporal_bootstrap_states(scene, st, n_boot)
     f_new = list(core.temporal_f_star(boot))
     # the render counts these evaluations in its budget but not their rays (as the
     # pilot's): the record says what the frame loop traced for them
     rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0)
+    if float(getattr(st, "time_budget", 0.0) or 0.0) > 0.0:
+        # the pilot and the bootstrap evaluated here are the render's work: a time
+        # budget pays for them as the render's own pilot and bootstrap would
+        spent = rec["bootstrap_time_s"] + rec.get("pilot_time_s", 0.0)
+        st.time_budget = max(float(st.time_budget) - spent, 1e-3)
     # the render uses these values for b and does not evaluate the points again
     st.mlt_bootstrap_f = f_new
     pending["boot_f"] = f_new

@@ -94,6 +94,7 @@ enum class RngDomain : uint32_t {
     bootstrap = 1,          ///< id = bootstrap sample index (pssmlt and cmlt: the same points)
     chain = 2,              ///< id = chain index
     resample = 3,           ///< id = 0: resampling the chains' start states
+    bootstrap_probe = 4,    ///< id = probe sample index (mlt_frame.h bootstrap_size)
     carry_evaluate = 0x40,  ///< temporal/carry.h: id = carried state index
     carry_keep = 0x43,      ///< temporal/carry.h: id = chain, draw = frame key: keep tests
     carry_refresh = 0x44,   ///< temporal/carry.h: id = group, draw = frame key: refresh draws

@@ -130,6 +130,18 @@ std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const Ren
     check_settings(settings, "bootstrap_states");
     const RenderSettings resolved = mlt::MltContext::resolve_paths(scene, settings);
     const Tracers tr(scene, resolved);
+    if (count == 0) {
+        tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::info::default_concurrency());
+        FrameCounters probe;
+        RenderSettings unsized = resolved;
+        unsized.mlt_bootstrap_f = nullptr;
+        count = mlt::FrameBudget::plan(unsized, mlt::bootstrap_size(unsized, tr.tracer, arena, probe).wanted).bootstrap;
+        if (counters) {
+            counters->rays += probe.rays.load();
+            counters->camera_rays += probe.camera_rays.load();
+            counters->shadow_rays += probe.shadow_rays.load();
+        }
+    }
     auto out = std::make_shared<mlt::ChainStates>();
     out->path_sampler = settings.mlt_path_sampler;
     out->chains.resize(size_t(count));

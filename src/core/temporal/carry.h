@@ -45,7 +45,9 @@ std::shared_ptr<mlt::ChainStates> evaluate_states(const Scene& scene, const Rend
                                                   const mlt::ChainStates& states);
 
 /// Bootstrap samples the frame's render evaluates (mlt_frame.h FrameBudget: min(bootstrap
-/// samples, half of what the pilot and the direct pass leave)).
+/// samples, half of what the pilot and the direct pass leave)); with bootstrap_samples 0
+/// (auto) the default's, without the probe that may size it up (bootstrap_states with
+/// count 0 runs it).
 uint64_t bootstrap_count(const RenderSettings& settings);
 
 /// Chains a render with these settings starts without initial states: settings.chains,
@@ -60,7 +62,9 @@ uint64_t chain_count(const RenderSettings& settings);
 /// i < count — evaluated in `scene` as the render evaluates them: their states, f_star
 /// = f*. Given to the render (RenderSettings::mlt_bootstrap_f) the render does not
 /// evaluate them again; a chain started from state i starts from bootstrap point i.
-/// `counters`, if given, receives the rays and samples traced.
+/// `counters`, if given, receives the rays and samples traced. `count` 0: the size
+/// the render would choose with settings.bootstrap_samples (auto: mlt_frame.h
+/// bootstrap_size's probe, run here with the frame's scene and pilot).
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
                                                    uint64_t count, PathCounters* counters = nullptr);
 

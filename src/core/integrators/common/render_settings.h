@@ -94,10 +94,13 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
     INT(chains, 1000, 1, settings_limits::k_int_max, "cmlt:chains", "--chains N",            \
         "pssmlt/cmlt: Markov chains per frame (fixed, so that the image does not depend on " \
         "the thread count)")                                                                 \
-    INT(bootstrap_samples, 100000, 1, settings_limits::k_int_max, "cmlt:bootstrapSamples",   \
+    INT(bootstrap_samples, 0, 0, settings_limits::k_int_max, "cmlt:bootstrapSamples",        \
         "--bootstrap-samples N",                                                             \
         "pssmlt/cmlt: large-step samples estimating the normalisation b and seeding the "    \
-        "chains, counted in the sample budget (at most half of it is used)")                 \
+        "chains, counted in the sample budget (at most half of it is used); 0 = auto: "      \
+        "100000, or as many as give about one sample that carries light per chain where "    \
+        "fewer than 1 % do (a probe of 16384 samples counts them), up to a quarter of the "  \
+        "budget")                                                                            \
     TOKEN(inner, "bundle", "seed mtm bundle", "cmlt:inner", "--inner",                  \
           "cmlt inner rule: bundle (multiple-proposal MH, Calderhead 2014; exact), mtm "     \
           "(multiple-try Metropolis, Liu et al. 2000; exact), seed (the seminar's 2k "       \
@@ -291,6 +294,8 @@ struct MltStats {
     double b_bootstrap = 0, b_bootstrap_stderr = 0;  ///< from the bootstrap alone
     uint64_t bootstrap_samples = 0;                  ///< used (≤ the setting, ≤ half the budget)
     uint64_t bootstrap_nonzero = 0;                  ///< bootstrap samples with f* > 0
+    uint64_t bootstrap_probe = 0;                    ///< samples of the auto size's probe (0: none ran)
+    uint64_t bootstrap_probe_nonzero = 0;            ///< of them with f* > 0
     uint64_t chains = 0;
     uint64_t mutations = 0;                          ///< Markov-chain steps taken
     double mutations_per_pixel = 0;                  ///< mutations / (W·H)

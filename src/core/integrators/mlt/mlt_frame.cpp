@@ -1,28 +1,82 @@
 // The frame of the Metropolis integrators; see mlt_frame.h.
 #include "integrators/mlt/mlt_frame.h"
 
+#include "integrators/mlt/mlt_sampler.h"
+#include "integrators/mlt/pssmlt_tracer.h"
+#include "integrators/path/path_tracer_impl.h"
+#include "sampling/rng_domains.h"
 #include "scene/scene.h"
 #include "util/error.h"
+
+#include <cmath>
 
 #include <algorithm>
 
 namespace cmlt::mlt {
 
-FrameBudget FrameBudget::plan(const RenderSettings& s) {
+FrameBudget FrameBudget::plan(const RenderSettings& s, uint64_t bootstrap) {
     FrameBudget b;
     b.pilot = MltContext::pilot_cost(s);
     b.direct = MltContext::direct_cost(s);  // a sample budget's; timed: as it runs
     if (!MltContext::chains_needed(s)) return b;  // max_depth 1 with a direct pass
     const uint64_t left = MltContext::evaluation_budget(s);
-    b.bootstrap = std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(s.bootstrap_samples), left / 2));
+    // auto with given values: the driver sized them (bootstrap_size); a set size must match
+    const uint64_t wanted =
+        s.mlt_bootstrap_f && s.bootstrap_samples == 0 ? uint64_t(s.mlt_bootstrap_f->size()) : bootstrap;
+    b.bootstrap = std::max<uint64_t>(1, std::min<uint64_t>(wanted, left / 2));
     b.chains = left - b.bootstrap;
     return b;
 }
 
+FrameBudget FrameBudget::plan(const RenderSettings& s) {
+    return plan(s, s.bootstrap_samples > 0 ? uint64_t(s.bootstrap_samples) : k_bootstrap_default);
+}
+
+BootstrapSize bootstrap_size(const RenderSettings& s, const PssmltTracer& tracer, tbb::task_arena& arena,
+                             FrameCounters& counters) {
+    BootstrapSize out;
+    if (s.bootstrap_samples > 0) {
+        out.wanted = uint64_t(s.bootstrap_samples);
+        return out;
+    }
+    out.wanted = k_bootstrap_default;
+    // given values (the temporal driver sized them), no chains, or no room to grow: no probe
+    if (s.mlt_bootstrap_f || !MltContext::chains_needed(s)) return out;
+    uint64_t cap = uint64_t(k_bootstrap_share * double(MltContext::evaluation_budget(s)));
+    if (cap <= k_bootstrap_default) return out;
+    const uint64_t n = k_bootstrap_probe;
+    std::vector<uint8_t> carries(n, 0);
+    const auto start = std::chrono::steady_clock::now();
+    parallel_tasks(arena, counters, n, uint64_t(256), [&](const tbb::blocked_range<uint64_t>& r) {
+        PathCounters c;
+        uint64_t bad = 0;
+        for (uint64_t i = r.begin(); i != r.end(); ++i) {
+            MltSampler smp(s.seed, s.sigma, s.large_step_probability, RngDomain::bootstrap_probe, uint32_t(i));
+            smp.start_iteration(true);
+            const PathSample x = tracer.evaluate(smp, c);
+            bad += x.invalid ? 1 : 0;
+            carries[i] = !x.invalid && x.f > 0.0;
+        }
+        counters.add(c, bad);
+    });
+    const double seconds = seconds_since(start);
+    out.probe = n;
+    for (uint8_t v : carries) out.probe_nonzero += v;
+    if (s.time_budget > 0.0 && seconds > 0.0)
+        cap = std::min<uint64_t>(cap, uint64_t(k_bootstrap_share * s.time_budget * double(n) / seconds));
+    // about one sample that carries light per chain (none seen: as if one had been)
+    const double want = std::ceil(double(std::max(s.chains, 1)) * double(n) /
+                                  double(std::max<uint64_t>(out.probe_nonzero, 1)));
+    out.wanted = std::max(k_bootstrap_default, std::min<uint64_t>(cap, uint64_t(std::min(want, 1e15))));
+    return out;
+}
+
 MltFrame::MltFrame(const Scene& scene_, const RenderSettings& s)
     : scene(scene_), settings(s), threads(frame_threads(s)), arena(threads), t0(std::chrono::steady_clock::now()),
-      ctx(scene_, s, m_pilot_counters), direct_pass(scene_, s), budget(FrameBudget::plan(s)),
-      film(s.width, s.height, error_layers(s)), direct{direct_pass, s, arena, counters} {
+      ctx(scene_, s, m_pilot_counters), direct_pass(scene_, s),
+      bootstrap_size(mlt::bootstrap_size(s, ctx.tracer, arena, counters)),
+      budget(FrameBudget::plan(s, bootstrap_size.wanted)), film(s.width, s.height, error_layers(s)),
+      direct{direct_pass, s, arena, counters} {
     counters.add(m_pilot_counters);
 }
 
@@ -142,6 +196,8 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.b_bootstrap_stderr = chains.b_bootstrap.std_error;
     m.bootstrap_samples = budget.bootstrap;
     m.bootstrap_nonzero = chains.b_bootstrap.nonzero;
+    m.bootstrap_probe = bootstrap_size.probe;
+    m.bootstrap_probe_nonzero = bootstrap_size.probe_nonzero;
     m.sigma = settings.sigma;
     m.max_rejection_streak = chains.streaks.max_streak;
     m.long_streak_rejections = chains.streaks.long_streak_rejections;
@@ -168,7 +224,8 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.acceptance_large = chains.kernel[mcmc::MutationKind::large_step].acceptance_rate();
     m.imported_chains = chains.imported ? chains.chains : 0;
     m.clamped_splats = film.clamped();
-    m.path_evaluations = budget.pilot + direct_pass.evaluations() + budget.bootstrap + chains.evaluations;
+    m.path_evaluations =
+        budget.pilot + direct_pass.evaluations() + bootstrap_size.probe + budget.bootstrap + chains.evaluations;
     if (settings.partial) {
         // a part of the frame: its raw sums, which combine_parts adds up exactly
         auto part = std::make_shared<MltPart>();

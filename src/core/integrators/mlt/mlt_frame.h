@@ -14,7 +14,8 @@
 ///      in slices between the chain rounds, so with a time budget it keeps its share of
 ///      the evaluations whatever the time allows. Without chains (mlt_paths none) it is
 ///      the whole frame, run as pt's pass loop (DirectSchedule::run_alone);
-///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples;
+///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples
+///      (bootstrap_samples 0: bootstrap_size below; its probe is not counted);
 ///   4. the chains: the rest, split evenly over the chains.
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
 #include "film/splat_film.h"
@@ -54,8 +55,35 @@ inline std::pair<size_t, size_t> part_chains(const RenderSettings& s, size_t n) 
 struct FrameBudget {
     uint64_t pilot = 0, direct = 0, bootstrap = 0, chains = 0;
 
+    /// `bootstrap`: the samples wanted (bootstrap_size), at most half of what is left for
+    /// bootstrap and chains; with bootstrap_samples 0 (auto) RenderSettings::mlt_bootstrap_f,
+    /// where given, decides it (the temporal driver sized it as bootstrap_size would).
+    static FrameBudget plan(const RenderSettings& s, uint64_t bootstrap);
+    /// With the setting's size (auto: k_bootstrap_default; no probe).
     static FrameBudget plan(const RenderSettings& s);
 };
+
+/// The bootstrap's size where RenderSettings::bootstrap_samples is 0 (auto): the default,
+/// or — where fewer than 1 % of uniform samples carry light (door_ajar, caustic_glass:
+/// 0.1 %), so that the default's ~100 such samples start every chain from one of a
+/// hundred paths (tests/bench/results/door_ajar_metropolis.md) — enough samples for
+/// about one that carries light per chain: chains · P / (the probe's non-zero count),
+/// from a probe of P samples keyed (seed, bootstrap_probe, i), disjoint from the
+/// bootstrap's own (so the size is independent of the pool: the pool's b and
+/// resampled starts are exact for it as for any fixed size). At most
+/// k_bootstrap_share of the evaluations left for bootstrap and chains and, with a time
+/// budget, of the seconds (at the probe's rate); never less than the default.
+inline constexpr uint64_t k_bootstrap_default = 100000;
+inline constexpr uint64_t k_bootstrap_probe = 16384;
+inline constexpr double k_bootstrap_share = 0.25;
+
+struct BootstrapSize {
+    uint64_t wanted = 0;                       ///< samples wanted (FrameBudget::plan caps them)
+    uint64_t probe = 0, probe_nonzero = 0;     ///< the probe's samples and those with f* > 0 (0: none ran)
+};
+
+BootstrapSize bootstrap_size(const RenderSettings& s, const PssmltTracer& tracer, tbb::task_arena& arena,
+                             FrameCounters& counters);
 
 /// What a chain population hands the frame at its end, merged in chain order
 /// (ChainPopulation::finish).
@@ -171,6 +199,7 @@ private:
 public:
     const MltContext ctx;
     DirectPass direct_pass;
+    const BootstrapSize bootstrap_size;
     const FrameBudget budget;
     SplatFilm film;
     DirectSchedule direct;

@@ -5,6 +5,7 @@
 #include "test_util.h"
 
 #include "integrators/common/render.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "util/error.h"
 
 #include <gtest/gtest.h>
@@ -230,7 +231,7 @@ TEST(Pssmlt, SettingsErrorsNameTheField) {
     expect_error([](RenderSettings& st) { st.large_step_probability = -0.1; }, "large_step_probability");
     expect_error([](RenderSettings& st) { st.large_step_probability = 1.1; }, "large_step_probability");
     expect_error([](RenderSettings& st) { st.chains = 0; }, "chains");
-    expect_error([](RenderSettings& st) { st.bootstrap_samples = 0; }, "bootstrap_samples");
+    expect_error([](RenderSettings& st) { st.bootstrap_samples = -1; }, "bootstrap_samples");
     expect_error([](RenderSettings& st) { st.integrator = "mlt"; }, "integrator");
 }
 
@@ -259,4 +260,67 @@ TEST(Pssmlt, BlackSceneGivesABlackImage) {
     EXPECT_EQ(channel_mean(r, 0), 0.0);
     EXPECT_EQ(r.stats.mlt.chains, 0u);
     EXPECT_EQ(r.stats.mlt.b, 0.0);
+}
+
+// bootstrap_samples 0 (auto, mlt_frame.h bootstrap_size): the default size where most
+// uniform samples carry light or the budget leaves no room, else about one sample that
+// carries light per chain, from a probe of its own numbers; the same on any thread count.
+TEST(Pssmlt, AutoBootstrapSizeGivesAboutOneLitSamplePerChain) {
+    Scene s;
+    slit_scene(s);
+    RenderSettings st = mlt_settings(64, 64, 256, 5);
+    st.bootstrap_samples = 0;
+    st.direct_fraction = 0;
+    st.chains = 1500;  // 0.8 % of the samples pass the slit: ~190,000 samples, below the cap
+    const uint64_t left = uint64_t(st.spp) * 64 * 64 - 64 * 64;  // the pilot's 1 spp
+    RenderResult a = render(s, st);
+    const MltStats& m = a.stats.mlt;
+    ASSERT_EQ(m.bootstrap_probe, mlt::k_bootstrap_probe);
+    ASSERT_GT(m.bootstrap_probe_nonzero, 0u);
+    // the slit lets a few per cent of the samples through: fewer than the chains ask for
+    ASSERT_LT(double(m.bootstrap_probe_nonzero) / double(m.bootstrap_probe), 0.2);
+    const double want =
+        std::ceil(double(st.chains) * double(m.bootstrap_probe) / double(m.bootstrap_probe_nonzero));
+    const uint64_t expected = std::max<uint64_t>(100000, std::min<uint64_t>(uint64_t(0.25 * double(left)), uint64_t(want)));
+    EXPECT_EQ(m.bootstrap_samples, expected);
+    EXPECT_GT(m.bootstrap_samples, 100000u);
+    ASSERT_LT(want, 0.25 * double(left));  // not capped:
+    // about one lit sample per chain (the probe's share of lit samples has a relative
+    // standard error of 1/sqrt(its ~130 lit samples), 9 %: 3.3 of them either way)
+    EXPECT_GT(double(m.bootstrap_nonzero), 0.7 * double(st.chains));
+    EXPECT_LT(double(m.bootstrap_nonzero), 1.3 * double(st.chains));
+    // the probe's evaluations are reported with the frame's
+    EXPECT_GE(m.path_evaluations, m.pilot_evaluations + m.bootstrap_probe + m.bootstrap_samples + m.mutations);
+    // the same size, bootstrap and image on one thread
+    st.threads = 1;
+    RenderResult b = render(s, st);
+    EXPECT_EQ(b.stats.mlt.bootstrap_samples, m.bootstrap_samples);
+    EXPECT_EQ(b.stats.mlt.bootstrap_probe_nonzero, m.bootstrap_probe_nonzero);
+    ASSERT_EQ(a.image.size(), b.image.size());
+    EXPECT_EQ(std::memcmp(a.image.data(), b.image.data(), a.image.size() * sizeof(float)), 0);
+    // a set size is used as it is (no probe)
+    st.threads = 2;
+    st.bootstrap_samples = 4096;
+    RenderResult c = render(s, st);
+    EXPECT_EQ(c.stats.mlt.bootstrap_probe, 0u);
+    EXPECT_EQ(c.stats.mlt.bootstrap_samples, 4096u);
+    // where the budget leaves no room to grow (a quarter of it below the default): the
+    // default's size, capped at half of the budget as before, and no probe
+    st.bootstrap_samples = 0;
+    st.spp = 16;
+    RenderResult d = render(s, st);
+    EXPECT_EQ(d.stats.mlt.bootstrap_probe, 0u);
+    EXPECT_EQ(d.stats.mlt.bootstrap_samples, std::min<uint64_t>(100000, (16 - 1) * 64 * 64 / 2));
+}
+
+TEST(Pssmlt, AutoBootstrapSizeKeepsTheDefaultWhereMostSamplesCarryLight) {
+    Scene s;
+    furnace_scene(s, 0.5f, 1.f);
+    RenderSettings st = mlt_settings(64, 64, 128, 5);
+    st.bootstrap_samples = 0;
+    st.direct_fraction = 0;
+    RenderResult r = render(s, st);
+    EXPECT_EQ(r.stats.mlt.bootstrap_probe, mlt::k_bootstrap_probe);
+    EXPECT_GT(r.stats.mlt.bootstrap_probe_nonzero, r.stats.mlt.bootstrap_probe / 2);
+    EXPECT_EQ(r.stats.mlt.bootstrap_samples, 100000u);
 }
