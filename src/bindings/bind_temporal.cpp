@@ -79,18 +79,22 @@ void bind_temporal(nb::module_& m) {
             prepare(scene, settings, "temporal_bootstrap_states");
             PathCounters c;
             std::shared_ptr<mlt::ChainStates> states;
+            uint64_t probe = 0, probe_nonzero = 0;
             {
                 nb::gil_scoped_release release;
-                states = temporal::bootstrap_states(scene, settings, count, &c);
+                states = temporal::bootstrap_states(scene, settings, count, &c, &probe, &probe_nonzero);
             }
             nb::dict d;
             d["rays"] = c.rays;
             d["samples"] = c.samples;
+            d["probe"] = probe;
+            d["probe_nonzero"] = probe_nonzero;
             return nb::make_tuple(states, d);
         },
         "scene"_a, "settings"_a, "count"_a,
         "The render's bootstrap points 0..count-1 evaluated in this frame's scene: (MltStates "
-        "with f_star = f*, {'rays', 'samples'} traced; temporal/carry.h). count 0: as many as "
+        "with f_star = f*, {'rays', 'samples', 'probe', 'probe_nonzero'}: traced, and the auto "
+        "size's probe samples and those carrying light (0 when none ran); temporal/carry.h). count 0: as many as "
         "the render would evaluate (bootstrap_samples 0, auto: sized by a probe).");
     m.def(
         "temporal_couple_starts",

@@ -298,7 +298,9 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
     f_new = list(core.temporal_f_star(boot))
     # the render counts these evaluations in its budget but not their rays (as the
     # pilot's): the record says what the frame loop traced for them
-    rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0)
+    rec.update(bootstrap_rays=int(traced["rays"]), bootstrap_time_s=time.perf_counter() - t0,
+               bootstrap_probe=int(traced.get("probe", 0)),
+               bootstrap_probe_nonzero=int(traced.get("probe_nonzero", 0)))
     if float(getattr(st, "time_budget", 0.0) or 0.0) > 0.0:
         # the pilot and the bootstrap evaluated here are the render's work: a time
         # budget pays for them as the render's own pilot and bootstrap would

@@ -126,20 +126,24 @@ uint64_t chain_count(const RenderSettings& settings) {
 }
 
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
-                                                   uint64_t count, PathCounters* counters) {
+                                                   uint64_t count, PathCounters* counters, uint64_t* probe,
+                                                   uint64_t* probe_nonzero) {
     check_settings(settings, "bootstrap_states");
     const RenderSettings resolved = mlt::MltContext::resolve_paths(scene, settings);
     const Tracers tr(scene, resolved);
     if (count == 0) {
         tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::info::default_concurrency());
-        FrameCounters probe;
+        FrameCounters probe_counters;
         RenderSettings unsized = resolved;
         unsized.mlt_bootstrap_f = nullptr;
-        count = mlt::FrameBudget::plan(unsized, mlt::bootstrap_size(unsized, tr.tracer, arena, probe).wanted).bootstrap;
+        const mlt::BootstrapSize size = mlt::bootstrap_size(unsized, tr.tracer, arena, probe_counters);
+        count = mlt::FrameBudget::plan(unsized, size.wanted).bootstrap;
+        if (probe) *probe = size.probe;
+        if (probe_nonzero) *probe_nonzero = size.probe_nonzero;
         if (counters) {
-            counters->rays += probe.rays.load();
-            counters->camera_rays += probe.camera_rays.load();
-            counters->shadow_rays += probe.shadow_rays.load();
+            counters->rays += probe_counters.rays.load();
+            counters->camera_rays += probe_counters.camera_rays.load();
+            counters->shadow_rays += probe_counters.shadow_rays.load();
         }
     }
     auto out = std::make_shared<mlt::ChainStates>();

@@ -66,7 +66,8 @@ uint64_t chain_count(const RenderSettings& settings);
 /// the render would choose with settings.bootstrap_samples (auto: mlt_frame.h
 /// bootstrap_size's probe, run here with the frame's scene and pilot).
 std::shared_ptr<mlt::ChainStates> bootstrap_states(const Scene& scene, const RenderSettings& settings,
-                                                   uint64_t count, PathCounters* counters = nullptr);
+                                                   uint64_t count, PathCounters* counters = nullptr,
+                                                   uint64_t* probe = nullptr, uint64_t* probe_nonzero = nullptr);
 
 /// Chain starts of frame f+1 coupled to those of frame f (maximal coupling of the two
 /// frames' bootstrap resampling distributions).
