@@ -99,8 +99,8 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
         "pssmlt/cmlt: large-step samples estimating the normalisation b and seeding the "    \
         "chains, counted in the sample budget (at most half of it is used); 0 = auto: "      \
         "100000, or as many as give about one sample that carries light per chain where "    \
-        "fewer than 1 % do (a probe of 16384 samples counts them), up to a quarter of the "  \
-        "budget")                                                                            \
+        "fewer than one in a hundred do (a probe of 16384 samples counts them), up to a "   \
+        "quarter of the budget")                                                             \
     TOKEN(inner, "bundle", "seed mtm bundle", "cmlt:inner", "--inner",                  \
           "cmlt inner rule: bundle (multiple-proposal MH, Calderhead 2014; exact), mtm "     \
           "(multiple-try Metropolis, Liu et al. 2000; exact), seed (the seminar's 2k "       \
