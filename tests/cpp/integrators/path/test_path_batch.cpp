@@ -32,6 +32,50 @@ using namespace cmlt::test;
 
 namespace {
 
+/// A 4x4 RGB checker texture; its id.
+int32_t add_checker(Scene& s) {
+    auto texels = std::make_shared<std::vector<float>>();
+    for (int i = 0; i < 16; ++i) {
+        const float a = ((i + i / 4) % 2) ? 0.85f : 0.2f;
+        texels->insert(texels->end(), {a, 0.5f * a + 0.1f, 1.f - a});
+    }
+    TextureDesc d;
+    d.data = texels->data();
+    d.width = d.height = 4;
+    d.channels = 3;
+    d.owner = texels;
+    return int32_t(s.add_texture(d, "checker"));
+}
+
+/// box_scene's four materials (walls, red, green, the quad emitting `le`).
+std::vector<Material> box_materials(float le) {
+    return {Material{Spectrum(0.7f), Spectrum(0.f)}, Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
+            Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)}, Material{Spectrum(0.5f), Spectrum(le)}};
+}
+
+/// A rect light under the ceiling, with `side` a second one on a wall, and a small sphere light.
+void add_analytic_lights(Scene& s, bool side) {
+    LightDesc rect;
+    rect.kind = LightDesc::Kind::rect;
+    rect.transform = Mat4::translate(0, 0.95, 0) * Mat4::rotate(-90, 1, 0, 0);
+    rect.width = rect.height = 0.5f;
+    rect.radiance = Spectrum(8.f);
+    s.add_light(rect);
+    if (side) {
+        LightDesc wall = rect;
+        wall.transform = Mat4::translate(0.9, 0.2, 0) * Mat4::rotate(-90, 0, 1, 0);
+        wall.width = 0.3f;
+        wall.radiance = Spectrum(2.f, 3.f, 4.f);
+        s.add_light(wall);
+    }
+    LightDesc sph;
+    sph.kind = LightDesc::Kind::sphere;
+    sph.transform = Mat4::translate(-0.5, 0.3, -0.4);
+    sph.radius = 0.08f;
+    sph.radiance = Spectrum(20.f, 15.f, 10.f);
+    s.add_light(sph);
+}
+
 RenderSettings settings(int spp, bool packets) {
     RenderSettings st;
     st.width = 40;
@@ -155,10 +199,7 @@ TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfaces) {
     check_scene(
         [](Scene& s) {
             box_scene(s, 10.f, true);
-            std::vector<Material> m = {Material{Spectrum(0.7f), Spectrum(0.f)},
-                                       Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
-                                       Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
-                                       Material{Spectrum(0.5f), Spectrum(10.f)}};
+            std::vector<Material> m = box_materials(10.f);
             for (int i = 0; i < 3; ++i) {
                 m[size_t(i)].preview = true;
                 m[size_t(i)].roughness = 0.25f + 0.25f * float(i);
@@ -180,21 +221,8 @@ TEST(PathBatch, MatchesTheScalarReferenceOnTexturedMaterials) {
     check_scene(
         [](Scene& s) {
             box_scene(s, 10.f, true);
-            auto texels = std::make_shared<std::vector<float>>();
-            for (int i = 0; i < 16; ++i) {
-                const float a = ((i + i / 4) % 2) ? 0.85f : 0.2f;
-                texels->insert(texels->end(), {a, 0.5f * a + 0.1f, 1.f - a});
-            }
-            TextureDesc d;
-            d.data = texels->data();
-            d.width = d.height = 4;
-            d.channels = 3;
-            d.owner = texels;
-            const int32_t tex = int32_t(s.add_texture(d, "checker"));
-            std::vector<Material> m = {Material{Spectrum(0.7f), Spectrum(0.f)},
-                                       Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
-                                       Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
-                                       Material{Spectrum(0.5f), Spectrum(10.f)}};
+            const int32_t tex = add_checker(s);
+            std::vector<Material> m = box_materials(10.f);
             m[0].tex_diffuse = tex;
             m[1].preview = true;
             m[1].tex_diffuse = tex;
@@ -215,18 +243,7 @@ TEST(PathBatch, MatchesTheScalarReferenceWithAnalyticLights) {
     check_scene(
         [](Scene& s) {
             box_scene(s, 0.f, false);
-            LightDesc rect;
-            rect.kind = LightDesc::Kind::rect;
-            rect.transform = Mat4::translate(0, 0.95, 0) * Mat4::rotate(-90, 1, 0, 0);
-            rect.width = rect.height = 0.5f;
-            rect.radiance = Spectrum(8.f);
-            s.add_light(rect);
-            LightDesc sph;
-            sph.kind = LightDesc::Kind::sphere;
-            sph.transform = Mat4::translate(-0.5, 0.3, -0.4);
-            sph.radius = 0.08f;
-            sph.radiance = Spectrum(20.f, 15.f, 10.f);
-            s.add_light(sph);
+            add_analytic_lights(s, false);
             s.commit();
         },
         "analytic lights");
@@ -239,21 +256,8 @@ TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfacesUnderAnalyticLights) {
     check_scene(
         [](Scene& s) {
             box_scene(s, 0.f, false);
-            auto texels = std::make_shared<std::vector<float>>();
-            for (int i = 0; i < 16; ++i) {
-                const float a = ((i + i / 4) % 2) ? 0.85f : 0.2f;
-                texels->insert(texels->end(), {a, 0.5f * a + 0.1f, 1.f - a});
-            }
-            TextureDesc d;
-            d.data = texels->data();
-            d.width = d.height = 4;
-            d.channels = 3;
-            d.owner = texels;
-            const int32_t tex = int32_t(s.add_texture(d, "checker"));
-            std::vector<Material> m = {Material{Spectrum(0.7f), Spectrum(0.f)},
-                                       Material{Spectrum(0.7f, 0.15f, 0.1f), Spectrum(0.f)},
-                                       Material{Spectrum(0.1f, 0.6f, 0.15f), Spectrum(0.f)},
-                                       Material{Spectrum(0.5f), Spectrum(0.f)}};
+            const int32_t tex = add_checker(s);
+            std::vector<Material> m = box_materials(0.f);
             for (int i = 0; i < 4; ++i) {
                 m[size_t(i)].preview = true;
                 m[size_t(i)].roughness = 0.2f + 0.2f * float(i);
@@ -262,23 +266,7 @@ TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfacesUnderAnalyticLights) {
             m[2].clearcoat = 0.8f;
             m[3].tex_diffuse = tex;
             s.set_materials(m);
-            LightDesc rect;
-            rect.kind = LightDesc::Kind::rect;
-            rect.transform = Mat4::translate(0, 0.95, 0) * Mat4::rotate(-90, 1, 0, 0);
-            rect.width = rect.height = 0.5f;
-            rect.radiance = Spectrum(8.f);
-            s.add_light(rect);
-            LightDesc side = rect;
-            side.transform = Mat4::translate(0.9, 0.2, 0) * Mat4::rotate(-90, 0, 1, 0);
-            side.width = 0.3f;
-            side.radiance = Spectrum(2.f, 3.f, 4.f);
-            s.add_light(side);
-            LightDesc sph;
-            sph.kind = LightDesc::Kind::sphere;
-            sph.transform = Mat4::translate(-0.5, 0.3, -0.4);
-            sph.radius = 0.08f;
-            sph.radiance = Spectrum(20.f, 15.f, 10.f);
-            s.add_light(sph);
+            add_analytic_lights(s, true);
             s.commit();
             for (uint32_t i = 0; i < 3; ++i) EXPECT_NE(s.constant_preview(i), nullptr) << i;
             EXPECT_NE(s.lane_material(3), nullptr);
