@@ -8,9 +8,8 @@
 #include "scene/scene.h"
 #include "util/error.h"
 
-#include <cmath>
-
 #include <algorithm>
+#include <cmath>
 
 namespace cmlt::mlt {
 

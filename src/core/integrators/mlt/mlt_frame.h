@@ -15,7 +15,8 @@
 ///      the evaluations whatever the time allows. Without chains (mlt_paths none) it is
 ///      the whole frame, run as pt's pass loop (DirectSchedule::run_alone);
 ///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples
-///      (bootstrap_samples 0: bootstrap_size below; its probe is not counted);
+///      (bootstrap_samples 0: bootstrap_size below; its probe is reported in the
+///      statistics' path_evaluations, not taken from the budget);
 ///   4. the chains: the rest, split evenly over the chains.
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
 #include "film/splat_film.h"
