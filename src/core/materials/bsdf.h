@@ -140,6 +140,8 @@ public:
             m_model);
     }
     const Vec3& shading_normal() const { return m_frame.n; }
+    /// The UsdPreviewSurface model, or null for another model.
+    const PreviewSurfaceBsdf* preview() const { return std::get_if<PreviewSurfaceBsdf>(&m_model); }
     const Vec3& geometric_normal() const { return m_ng; }
 
 private:

@@ -120,6 +120,29 @@ public:
     /// The parameters after clamping/sanitising.
     const PreviewSurfaceParams& params() const { return m_params; }
 
+    /// The constants of the model path/diffuse_lanes.h shades in lanes: opaque, no
+    /// clearcoat, a diffuse lobe and/or a rough (non-Dirac) GGX specular lobe.
+    struct LaneConstants {
+        Spectrum diffuse;  ///< the Lambert colour
+        Spectrum f0;       ///< specular F0
+        float f90 = 1.f;
+        float alpha = 0.f;
+        bool has_diffuse = false, has_specular = false;
+    };
+    /// This BSDF's LaneConstants, or false if it is not of that model.
+    bool lane_constants(LaneConstants* c) const {
+        if (m_dielectric != DielectricKind::None || m_has_clearcoat) return false;
+        if (!m_has_diffuse && !m_has_specular) return false;
+        if (m_has_specular && m_specular_delta) return false;
+        c->diffuse = m_diffuse;
+        c->f0 = m_f0;
+        c->f90 = m_f90;
+        c->alpha = m_alpha;
+        c->has_diffuse = m_has_diffuse;
+        c->has_specular = m_has_specular;
+        return true;
+    }
+
 private:
     enum class DielectricKind { None, Smooth, Rough, PassThrough };
     struct LobeProbabilities {

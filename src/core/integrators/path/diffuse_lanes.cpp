@@ -6,10 +6,14 @@
 #include "integrators/path/diffuse_lanes.h"
 
 #include "integrators/path/path_tracer.h"
+#include "materials/fresnel.h"
+#include "materials/microfacet.h"
+#include "materials/preview_surface.h"
 #include "math/safe_math.h"
 #include "sampling/warp.h"
 #include "scene/interaction.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -141,6 +145,75 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
     }
 }
 
+namespace {
+/// The tail of next-event estimation at lane i, given the BSDF's value times |cos| at the
+/// light (f) and its density toward it: the pending shadow ray (none where there is no
+/// light sample or f is black) — toward an infinite light spawn_ray(wi), else spawn_ray_to
+/// the target offset off the light's surface toward the ray (shadow_target) — its BSDF
+/// density (0 toward a Dirac light) and contribution beta * f * li.
+inline void next_event_shadow(DiffuseLanes& L, size_t i, float f_r, float f_g, float f_b, float bsdf_pdf) {
+    const float wx = L.wix[i], wy = L.wiy[i], wz = L.wiz[i];
+    const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+    const bool sh = (L.ls_ok[i] != 0) & !((f_r == 0.f) & (f_g == 0.f) & (f_b == 0.f));
+    L.shadow[i] = sh;
+    const float px = L.px[i], py = L.py[i], pz = L.pz[i], e = L.err[i];
+    const float nlx = L.nlx[i], nly = L.nly[i], nlz = L.nlz[i];
+    const bool surf = !((nlx == 0.f) & (nly == 0.f) & (nlz == 0.f));
+    const bool lside = (-wx) * nlx + (-wy) * nly + (-wz) * nlz < 0.f;
+    const float qx = surf ? offset(L.plx[i], nlx, L.lerr[i], lside) : L.plx[i];
+    const float qy = surf ? offset(L.ply[i], nly, L.lerr[i], lside) : L.ply[i];
+    const float qz = surf ? offset(L.plz[i], nlz, L.lerr[i], lside) : L.plz[i];
+    const bool inf = L.ls_inf[i];
+    const float tx = inf ? wx : qx - px, ty = inf ? wy : qy - py, tz = inf ? wz : qz - pz;
+    const bool side = tx * gx + ty * gy + tz * gz < 0.f;
+    const float ox = offset(px, gx, e, side), oy = offset(py, gy, e, side), oz = offset(pz, gz, e, side);
+    L.sox[i] = ox;
+    L.soy[i] = oy;
+    L.soz[i] = oz;
+    L.sdx[i] = inf ? wx : qx - ox;
+    L.sdy[i] = inf ? wy : qy - oy;
+    L.sdz[i] = inf ? wz : qz - oz;
+    L.stfar[i] = inf ? std::numeric_limits<float>::infinity() : 1.f - k_shadow_epsilon;
+    L.shadow_bsdf_pdf[i] = L.ls_delta[i] ? 0.f : bsdf_pdf;
+    L.sf_r[i] = L.beta_r[i] * f_r * L.li_r[i];
+    L.sf_g[i] = L.beta_g[i] * f_g * L.li_g[i];
+    L.sf_b[i] = L.beta_b[i] * f_b * L.li_b[i];
+}
+
+/// The tail of PathTracer::scatter at lane i for a sampled world direction w with value f
+/// and density pdf (`ok`: Bsdf::sample's checks passed): beta *= f |cos| / pdf, the next
+/// ray spawn_ray(w), Russian roulette from k_rr_start_depth; done where the sample or
+/// the throughput is invalid or the roulette ends the path.
+inline void next_ray(DiffuseLanes& L, size_t i, float wx, float wy, float wz, float fr, float fg, float fb,
+                     float pdf, bool ok) {
+    const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+    const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
+    // beta *= f * (|cos| / pdf)
+    const float s = std::fabs(wx * nx + wy * ny + wz * nz) / pdf;
+    const float br = L.beta_r[i] * (fr * s), bg = L.beta_g[i] * (fg * s), bb = L.beta_b[i] * (fb * s);
+    ok = ok & !((br == 0.f) & (bg == 0.f) & (bb == 0.f)) & finite(br) & finite(bg) & finite(bb);
+    // the next ray: spawn_ray(wi)
+    const float px = L.px[i], py = L.py[i], pz = L.pz[i], e = L.err[i];
+    const bool side = wx * gx + wy * gy + wz * gz < 0.f;
+    L.rox[i] = offset(px, gx, e, side);
+    L.roy[i] = offset(py, gy, e, side);
+    L.roz[i] = offset(pz, gz, e, side);
+    L.rdx[i] = wx;
+    L.rdy[i] = wy;
+    L.rdz[i] = wz;
+    L.pdf[i] = pdf;
+    // Russian roulette from k_rr_start_depth
+    const bool roulette = L.depth[i] + 1 >= PathTracer::k_rr_start_depth;
+    const float q = fmin_std(0.95f, fmax_std(br, fmax_std(bg, bb)) * L.eta_scale[i]);
+    const bool killed = roulette & !(L.u_rr[i] < q);
+    const float iq = 1.f / q;
+    L.beta_r[i] = roulette ? br * iq : br;
+    L.beta_g[i] = roulette ? bg * iq : bg;
+    L.beta_b[i] = roulette ? bb * iq : bb;
+    L.done[i] = !ok | killed;
+}
+}  // namespace
+
 CMLT_LANES_CLONES
 void diffuse_next_event(DiffuseLanes& L, size_t n) {
     for (size_t i = 0; i < n; ++i) {
@@ -156,35 +229,8 @@ void diffuse_next_event(DiffuseLanes& L, size_t n) {
         const float c = std::fabs(iz);
         const float fr = lit ? L.rr[i] * k_inv_pi : 0.f, fg = lit ? L.rg[i] * k_inv_pi : 0.f,
                     fb = lit ? L.rb[i] * k_inv_pi : 0.f;
-        const float f_r = fr * c, f_g = fg * c, f_b = fb * c;
-        const bool sh = (L.ls_ok[i] != 0) & !((f_r == 0.f) & (f_g == 0.f) & (f_b == 0.f));
-        L.shadow[i] = sh;
-        // the shadow ray: toward an infinite light spawn_ray(wi); else spawn_ray_to the
-        // target, offset off the light's surface toward the ray (shadow_target)
-        const float px = L.px[i], py = L.py[i], pz = L.pz[i], e = L.err[i];
-        const float nlx = L.nlx[i], nly = L.nly[i], nlz = L.nlz[i];
-        const bool surf = !((nlx == 0.f) & (nly == 0.f) & (nlz == 0.f));
-        const bool lside = (-wx) * nlx + (-wy) * nly + (-wz) * nlz < 0.f;
-        const float qx = surf ? offset(L.plx[i], nlx, L.lerr[i], lside) : L.plx[i];
-        const float qy = surf ? offset(L.ply[i], nly, L.lerr[i], lside) : L.ply[i];
-        const float qz = surf ? offset(L.plz[i], nlz, L.lerr[i], lside) : L.plz[i];
-        const bool inf = L.ls_inf[i];
-        const float tx = inf ? wx : qx - px, ty = inf ? wy : qy - py, tz = inf ? wz : qz - pz;
-        const bool side = tx * gx + ty * gy + tz * gz < 0.f;
-        const float ox = offset(px, gx, e, side), oy = offset(py, gy, e, side), oz = offset(pz, gz, e, side);
-        L.sox[i] = ox;
-        L.soy[i] = oy;
-        L.soz[i] = oz;
-        L.sdx[i] = inf ? wx : qx - ox;
-        L.sdy[i] = inf ? wy : qy - oy;
-        L.sdz[i] = inf ? wz : qz - oz;
-        L.stfar[i] = inf ? std::numeric_limits<float>::infinity() : 1.f - k_shadow_epsilon;
-        // Bsdf::pdf's Lambertian branch (0 toward a Dirac light)
-        L.shadow_bsdf_pdf[i] = L.ls_delta[i] ? 0.f : (lit ? c * k_inv_pi : 0.f);
-        // shadow_f = beta * f * li
-        L.sf_r[i] = L.beta_r[i] * f_r * L.li_r[i];
-        L.sf_g[i] = L.beta_g[i] * f_g * L.li_g[i];
-        L.sf_b[i] = L.beta_b[i] * f_b * L.li_b[i];
+        // Bsdf::pdf's Lambertian branch
+        next_event_shadow(L, i, fr * c, fg * c, fb * c, lit ? c * k_inv_pi : 0.f);
     }
 }
 
@@ -224,29 +270,195 @@ void diffuse_sample(DiffuseLanes& L, size_t n) {
         const float wz = sz * ddx + tz * ddy + nz * z;
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
         ok = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
-        // beta *= f * (|cos| / pdf)
-        const float s = std::fabs(wx * nx + wy * ny + wz * nz) / pdf;
-        const float br = L.beta_r[i] * (fr * s), bg = L.beta_g[i] * (fg * s), bb = L.beta_b[i] * (fb * s);
-        ok = ok & !((br == 0.f) & (bg == 0.f) & (bb == 0.f)) & finite(br) & finite(bg) & finite(bb);
-        // the next ray: spawn_ray(wi)
-        const float px = L.px[i], py = L.py[i], pz = L.pz[i], e = L.err[i];
-        const bool side = wx * gx + wy * gy + wz * gz < 0.f;
-        L.rox[i] = offset(px, gx, e, side);
-        L.roy[i] = offset(py, gy, e, side);
-        L.roz[i] = offset(pz, gz, e, side);
-        L.rdx[i] = wx;
-        L.rdy[i] = wy;
-        L.rdz[i] = wz;
-        L.pdf[i] = pdf;
-        // Russian roulette from k_rr_start_depth
-        const bool roulette = L.depth[i] + 1 >= PathTracer::k_rr_start_depth;
-        const float q = fmin_std(0.95f, fmax_std(br, fmax_std(bg, bb)) * L.eta_scale[i]);
-        const bool killed = roulette & !(L.u_rr[i] < q);
-        const float iq = 1.f / q;
-        L.beta_r[i] = roulette ? br * iq : br;
-        L.beta_g[i] = roulette ? bg * iq : bg;
-        L.beta_b[i] = roulette ? bb * iq : bb;
-        L.done[i] = !ok | killed;
+        next_ray(L, i, wx, wy, wz, fr, fg, fb, pdf, ok);
+    }
+}
+
+
+namespace {
+/// Frame(n)'s tangents s and t (Duff et al.).
+struct Tangents {
+    float sx, sy, sz, tx, ty, tz;
+};
+inline Tangents tangents(float nx, float ny, float nz) {
+    const float sign = std::copysign(1.f, nz);
+    const float a = -1.f / (sign + nz);
+    const float b = nx * ny * a;
+    return {1.f + sign * nx * nx * a, sign * b, -sign * nx, b, sign + ny * ny * a, -ny};
+}
+
+/// std::clamp(x, 0, 1).
+inline float clamp01_std(float x) { return x < 0.f ? 0.f : (1.f < x ? 1.f : x); }
+
+/// Schlick's Fresnel of lane i's specular lobe, one channel (fresnel_schlick with its
+/// weight w = schlick_weight(cos)).
+inline float schlick(float f0, float f90, float w) { return f0 + (f90 - f0) * w; }
+inline float schlick_w(float c) {
+    const float m = clamp01_std(1.f - c);
+    const float m2 = m * m;
+    return m2 * m2 * m;
+}
+
+/// PreviewSurfaceBsdf::lobe_probabilities at |cos wo| = co for the lanes' model (no
+/// clearcoat, opacity 1: the attenuation and the opacity factors are 1).
+inline void lobe_probabilities(const DiffuseLanes& L, size_t i, float co, float* pd, float* ps) {
+    const float w = schlick_w(co);
+    const float f90 = L.f90[i];
+    const float fr = schlick(L.f0r[i], f90, w), fg = schlick(L.f0g[i], f90, w), fb = schlick(L.f0b[i], f90, w);
+    const bool hd = L.has_d[i] != 0, hs = L.has_s[i] != 0;
+    const float dr = L.cdr[i] * (1.f - fr), dg = L.cdg[i] * (1.f - fg), db = L.cdb[i] * (1.f - fb);
+    const float raw0 = hd ? (dr + dg + db) * (1.f / 3.f) : 0.f;
+    const float raw1 = hs ? (fr + fg + fb) * (1.f / 3.f) : 0.f;
+    const float total = raw0 + raw1;
+    const float n_active = float(int(hd) + int(hs));
+    const float uniform = (total > 0.f ? 0.1f : 1.f) / n_active;
+    const float scale = total > 0.f ? (1.f - 0.1f) / total : 0.f;
+    *pd = hd ? raw0 * scale + uniform : 0.f;
+    *ps = hs ? raw1 * scale + uniform : 0.f;
+}
+
+/// PreviewSurfaceBsdf::evaluate<true, true> for the lanes' model at local directions
+/// (lo, li), its lobe probabilities at |lo.z| given: the value (f) and the density.
+struct PreviewValue {
+    float r, g, b, pdf;
+};
+inline PreviewValue preview_value(const DiffuseLanes& L, size_t i, float pd, float ps, float lox, float loy,
+                                  float loz, float lix, float liy, float liz) {
+    const float co = std::fabs(loz), ci = std::fabs(liz);
+    const bool ok = !((co < k_preview_min_cos) | (ci < k_preview_min_cos)) & (loz * liz > 0.f);
+    // the two-sided opaque lobes: wo_u, wi_u (z made positive), wm = normalize(wo_u + wi_u)
+    const float hx = lox + lix, hy = loy + liy, hz = co + ci;
+    const float hl = std::sqrt(hx * hx + hy * hy + hz * hz);
+    const float hr = 1.f / hl;
+    const bool hpos = hl > 0.f;
+    const float mx = hpos ? hx * hr : 0.f, my = hpos ? hy * hr : 0.f, mz = hpos ? hz * hr : 0.f;
+    // GGX terms (ggx_terms seen from wo_u, smith_s of wi_u)
+    const float a = L.alpha[i], a2 = a * a;
+    const float t = mx * mx + my * my + a2 * mz * mz;
+    const float d = (mz <= 0.f) | !(t > 0.f) ? 0.f : a2 / (k_pi * t * t);
+    const float so = std::sqrt(a2 + (1.f - a2) * (co * co));
+    const float g1 = 2.f / (std::fabs(co) + so);
+    const float si = std::sqrt(a2 + (1.f - a2) * (ci * ci));
+    const float den = so * std::fabs(ci) + si * std::fabs(co);
+    const float no_fresnel = d * (den > 0.f ? 2.f / den : 0.f) * 0.25f;
+    const float om = lox * mx + loy * my + co * mz;  // dot(wo_u, wm)
+    // f: diffuse under the specular interface, then the specular lobe
+    const bool hd = L.has_d[i] != 0, hs = L.has_s[i] != 0;
+    const float f90 = L.f90[i], f0r = L.f0r[i], f0g = L.f0g[i], f0b = L.f0b[i];
+    const float wo_w = schlick_w(co), wi_w = schlick_w(ci), wm_w = schlick_w(om);
+    const float kr = L.cdr[i] * (1.f - schlick(f0r, f90, wo_w)) * (1.f - schlick(f0r, f90, wi_w)) * k_inv_pi;
+    const float kg = L.cdg[i] * (1.f - schlick(f0g, f90, wo_w)) * (1.f - schlick(f0g, f90, wi_w)) * k_inv_pi;
+    const float kb = L.cdb[i] * (1.f - schlick(f0b, f90, wo_w)) * (1.f - schlick(f0b, f90, wi_w)) * k_inv_pi;
+    const float sr = schlick(f0r, f90, wm_w) * no_fresnel, sg = schlick(f0g, f90, wm_w) * no_fresnel,
+                sb = schlick(f0b, f90, wm_w) * no_fresnel;
+    const float br = hd ? (hs ? kr + sr : kr) : sr, bg = hd ? (hs ? kg + sg : kg) : sg,
+                bb = hd ? (hs ? kb + sb : kb) : sb;
+    // the density: reflection_pdf
+    const float pdf_d = pd > 0.f ? pd * ci * k_inv_pi : 0.f;
+    const float pdf_s = (ps > 0.f) & (om * co > 0.f) ? ps * (g1 * d * 0.25f) : 0.f;
+    const float pdf = pd > 0.f ? ((ps > 0.f) & (om * co > 0.f) ? pdf_d + pdf_s : pdf_d) : pdf_s;
+    return {ok ? br : 0.f, ok ? bg : 0.f, ok ? bb : 0.f, ok ? pdf : 0.f};
+}
+}  // namespace
+
+CMLT_LANES_CLONES
+void preview_frame(DiffuseLanes& L, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
+        const Tangents f = tangents(nx, ny, nz);
+        const float lox = wox * f.sx + woy * f.sy + woz * f.sz;
+        const float loy = wox * f.tx + woy * f.ty + woz * f.tz;
+        const float loz = wox * nx + woy * ny + woz * nz;
+        L.lox[i] = lox;
+        L.loy[i] = loy;
+        L.loz[i] = loz;
+        lobe_probabilities(L, i, std::fabs(loz), &L.pd[i], &L.ps[i]);
+    }
+}
+
+CMLT_LANES_CLONES
+void preview_next_event(DiffuseLanes& L, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+        // Bsdf::eval_pdf: the side test (consistent_sides), then the model in the local
+        // frame; times |cos| at the light
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
+        const float wx = L.wix[i], wy = L.wiy[i], wz = L.wiz[i];
+        const Tangents f = tangents(nx, ny, nz);
+        const float lix = wx * f.sx + wy * f.sy + wz * f.sz;
+        const float liy = wx * f.tx + wy * f.ty + wz * f.tz;
+        const float liz = wx * nx + wy * ny + wz * nz;
+        const float loz = L.loz[i];
+        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
+        const bool cons = (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (loz * liz > 0.f));
+        const PreviewValue v = preview_value(L, i, L.pd[i], L.ps[i], L.lox[i], L.loy[i], loz, lix, liy, liz);
+        const float c = std::fabs(liz);
+        next_event_shadow(L, i, cons ? v.r * c : 0.f, cons ? v.g * c : 0.f, cons ? v.b * c : 0.f,
+                          cons ? v.pdf : 0.f);
+    }
+}
+
+void preview_directions(DiffuseLanes& L, size_t n) {
+    // PreviewSurfaceBsdf::sample up to its evaluation: the lobe by u_lobe, then a cosine
+    // direction (diffuse) or the reflection about a visible normal (specular), on wo's side
+    for (size_t i = 0; i < n; ++i) {
+        L.dir_ok[i] = 0;
+        L.lix[i] = L.liy[i] = L.liz[i] = 0.f;
+        const Vec3 wo(L.lox[i], L.loy[i], L.loz[i]);
+        if (std::fabs(wo.z) < k_preview_min_cos) continue;
+        const float pd = L.pd[i], ps = L.ps[i];
+        const float u_rest = std::clamp(L.u_lobe[i], 0.f, k_one_minus_eps);
+        const bool diffuse = pd > 0.f && (u_rest < pd || !(ps > 0.f));
+        if (!diffuse && !(ps > 0.f)) continue;
+        const float side = wo.z > 0.f ? 1.f : -1.f;
+        const Vec2 u(L.u_bx[i], L.u_by[i]);
+        Vec3 w;
+        if (diffuse) {
+            w = square_to_cosine_hemisphere(u);
+        } else {
+            const Vec3 wo_u(wo.x, wo.y, std::fabs(wo.z));
+            w = reflect(wo_u, GgxDistribution(L.alpha[i]).sample_visible(wo_u, u));
+            if (!(w.z > 0.f)) continue;
+        }
+        L.dir_ok[i] = 1;
+        L.lix[i] = w.x;
+        L.liy[i] = w.y;
+        L.liz[i] = side * w.z;
+    }
+}
+
+CMLT_LANES_CLONES
+void preview_sample(DiffuseLanes& L, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
+        const float lox = L.lox[i], loy = L.loy[i], loz = L.loz[i];
+        const float lix = L.lix[i], liy = L.liy[i], liz = L.liz[i];
+        // PreviewSurfaceBsdf::sample's checks and its value, then Bsdf::sample's
+        const PreviewValue v = preview_value(L, i, L.pd[i], L.ps[i], lox, loy, loz, lix, liy, liz);
+        bool ok = (L.dir_ok[i] != 0) & !(std::fabs(liz) < k_preview_min_cos) & (v.pdf > 0.f) & finite(v.pdf) &
+                  finite(v.r) & finite(v.g) & finite(v.b);
+        const bool local_reflect = loz * liz > 0.f;
+        const Tangents f = tangents(nx, ny, nz);
+        const float wx = f.sx * lix + f.tx * liy + nx * liz;
+        const float wy = f.sy * lix + f.ty * liy + ny * liz;
+        const float wz = f.sz * lix + f.tz * liy + nz * liz;
+        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
+        ok = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
+        next_ray(L, i, wx, wy, wz, v.r, v.g, v.b, v.pdf, ok);
+        // Bsdf::pdf(wi, wo): the side test with the roles swapped, wi in the local frame
+        // again (to_local of the world direction), the lobe probabilities at its cosine
+        const float rx = wx * f.sx + wy * f.sy + wz * f.sz;
+        const float ry = wx * f.tx + wy * f.ty + wz * f.tz;
+        const float rz = wx * nx + wy * ny + wz * nz;
+        const bool rcons = (gi != 0.f) & (go != 0.f) & ((gi * go > 0.f) == (rz * loz > 0.f));
+        float rpd, rps;
+        lobe_probabilities(L, i, std::fabs(rz), &rpd, &rps);
+        const PreviewValue r = preview_value(L, i, rpd, rps, rx, ry, rz, lox, loy, loz);
+        L.pdf_rev[i] = rcons ? r.pdf : 0.f;
     }
 }
 

@@ -96,6 +96,22 @@ struct DiffuseLanes {
     alignas(64) uint8_t done[N];
     alignas(64) float pdf[N];
     alignas(64) float rox[N], roy[N], roz[N], rdx[N], rdy[N], rdz[N];
+
+    // The preview lanes (a DiffuseLanes of their own, PathBatch::m_preview_lanes): stage 1
+    // adds the model's constants (PreviewSurfaceBsdf::LaneConstants), the path
+    // partition's specular flag of the material and the lobe's number; rr/rg/rb unused.
+    alignas(64) float cdr[N], cdg[N], cdb[N];        ///< Lambert colour
+    alignas(64) float f0r[N], f0g[N], f0b[N], f90[N], alpha[N];
+    alignas(64) uint8_t has_d[N], has_s[N], spec[N];
+    alignas(64) float u_lobe[N];
+    // preview_frame: wo in the shading frame, the lobe probabilities at |lo.z|
+    alignas(64) float lox[N], loy[N], loz[N], pd[N], ps[N];
+    // preview_directions: the sampled direction in the shading frame (dir_ok: sampled)
+    alignas(64) uint8_t dir_ok[N];
+    alignas(64) float lix[N], liy[N], liz[N];
+    // preview_sample: the density of sampling wo from the next direction (Bsdf::pdf(wi, wo),
+    // for the caustic light tracing's reverse densities)
+    alignas(64) float pdf_rev[N];
 };
 
 /// Stage 2 over lanes [begin, end).
@@ -110,5 +126,22 @@ void diffuse_next_event(DiffuseLanes& L, size_t n);
 /// Stage 5: the concentric disk's point (scalar), then the rest.
 void diffuse_disk(DiffuseLanes& L, size_t n);
 void diffuse_sample(DiffuseLanes& L, size_t n);
+
+/// The preview lanes: hits on an opaque UsdPreviewSurface with a diffuse and/or rough GGX
+/// specular lobe and no clearcoat (PreviewSurfaceBsdf::lane_constants), shaded as
+/// PathTracer::step(BsdfHit) shades them — the same floats — with the model's value and
+/// density (PreviewSurfaceBsdf::eval_pdf) computed in lanes. Stages 1-3 and 6 as above;
+/// then over lanes [0, n):
+///   preview_frame: wo in the shading frame and the lobe probabilities;
+///   preview_next_event: the BSDF's value and density toward the light sample, the
+///     shadow ray (as diffuse_next_event);
+///   preview_directions (scalar: the concentric map's and the visible normals' libm
+///     cos/sin): the lobe and the direction PreviewSurfaceBsdf::sample picks;
+///   preview_sample: the sample's value and density, the checks of Bsdf::sample, the
+///     throughput, the next ray, Russian roulette, and the reverse density.
+void preview_frame(DiffuseLanes& L, size_t n);
+void preview_next_event(DiffuseLanes& L, size_t n);
+void preview_directions(DiffuseLanes& L, size_t n);
+void preview_sample(DiffuseLanes& L, size_t n);
 
 }  // namespace cmlt

@@ -9,6 +9,8 @@
 #include "integrators/path/path_tracer_impl.h"
 #include "scene/scene.h"
 
+#include <optional>
+
 namespace cmlt {
 
 namespace {
@@ -75,6 +77,9 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_placed_material.reserve(n);
     m_placed_preview.reserve(n);
     m_placed_uv.reserve(n);
+    m_preview_lanes.reset(new DiffuseLanes);
+    m_preview.reserve(n);
+    m_preview_light.resize(n);
     m_rect_slot.assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
     for (size_t i = 0; i < scene.light_count() && m_rect.size() < DiffuseLanes::k_rect_slots; ++i) {
         RectLightConstants c;
@@ -160,10 +165,14 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
 void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     DiffuseLanes& L = *m_lanes;
     if (!m_placed.empty()) {
-        // the lanes from the top of the arrays down: placed here, shaded one at a time by
-        // the per-lane routine with the BSDF make_bsdf would make
+        // the lanes from the top of the arrays down: placed here; those whose BSDF is the
+        // preview lanes' model go to those lanes, the others are shaded one at a time by the
+        // per-lane routine with the BSDF make_bsdf would make
         const size_t top = DiffuseLanes::k_capacity;
         diffuse_geometry(L, top - m_placed.size(), top);
+        DiffuseLanes& P = *m_preview_lanes;
+        m_preview.clear();
+        const PathPartition* partition = m_tracer.partition();
         for (size_t j = 0; j < m_placed.size(); ++j) {
             const size_t k = top - 1 - j;
             const uint32_t l = m_placed[j];
@@ -176,23 +185,85 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
             g.ns = Vec3(L.nsx[k], L.nsy[k], L.nsz[k]);
             g.wo = Vec3(L.wox[k], L.woy[k], L.woz[k]);
             g.material_id = m_placed_material[j];
-            const Bsdf bsdf = m_placed_preview[j]
-                                  ? Bsdf(*m_placed_preview[j], g.ns, g.sp.ng)
-                                  : make_bsdf_at(m_scene.material(g.material_id), m_placed_uv[j], g.ns, g.sp.ng,
-                                                 m_scene.textures(), nullptr, 0);
+            std::optional<Bsdf> made;
+            const PreviewSurfaceBsdf* model = m_placed_preview[j];
+            if (!model) {
+                made.emplace(make_bsdf_at(m_scene.material(g.material_id), m_placed_uv[j], g.ns, g.sp.ng,
+                                          m_scene.textures(), nullptr, 0));
+                model = made->preview();
+            }
+            PreviewSurfaceBsdf::LaneConstants pc;
+            if (model && model->lane_constants(&pc)) {
+                if (st.depth == m_tracer.max_depth()) {  // PathTracer::enter_opaque_hit
+                    ++st.bounce;
+                    c.rays += 1;
+                    st.done = true;
+                    continue;
+                }
+                const size_t q = m_preview.size();
+                m_preview.push_back(l);
+                P.px[q] = L.px[k], P.py[q] = L.py[k], P.pz[q] = L.pz[k], P.err[q] = L.err[k];
+                P.wox[q] = L.wox[k], P.woy[q] = L.woy[k], P.woz[q] = L.woz[k];
+                P.ngx[q] = L.ngx[k], P.ngy[q] = L.ngy[k], P.ngz[q] = L.ngz[k];
+                P.nsx[q] = L.nsx[k], P.nsy[q] = L.nsy[k], P.nsz[q] = L.nsz[k];
+                P.cdr[q] = pc.diffuse.x, P.cdg[q] = pc.diffuse.y, P.cdb[q] = pc.diffuse.z;
+                P.f0r[q] = pc.f0.x, P.f0g[q] = pc.f0.y, P.f0b[q] = pc.f0.z;
+                P.f90[q] = pc.f90;
+                P.alpha[q] = pc.alpha;
+                P.has_d[q] = pc.has_diffuse;
+                P.has_s[q] = pc.has_specular;
+                P.spec[q] = partition && partition->specular(g.material_id);
+                P.beta_r[q] = st.beta.x, P.beta_g[q] = st.beta.y, P.beta_b[q] = st.beta.z;
+                P.eta_scale[q] = st.eta_scale;
+                P.depth[q] = st.depth;
+                // the bounce's numbers (PathTracer::scatter: light, light position, BSDF
+                // direction, lobe, roulette)
+                const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
+                P.u_bx[q] = uint_to_unit_float(w[4]);
+                P.u_by[q] = uint_to_unit_float(w[5]);
+                P.u_lobe[q] = uint_to_unit_float(w[6]);
+                P.u_rr[q] = uint_to_unit_float(w[8]);
+                continue;
+            }
+            const Bsdf bsdf = made ? *made : Bsdf(*m_placed_preview[j], g.ns, g.sp.ng);
             m_tracer.step(st, BsdfHit{&g, &bsdf}, m_sampler[l], c);
+        }
+        if (!m_preview.empty()) {
+            const size_t n = m_preview.size();
+            preview_frame(P, n);
+            const bool lights = m_scene.light_count() > 0;
+            light_samples(P, m_preview, m_preview_light, [&](size_t q, const PathState& st) {
+                return lights && (!partition || partition->wants(PathPartition::caustic(P.spec[q] != 0, st.diffuse_seen)));
+            });
+            preview_next_event(P, n);
+            preview_directions(P, n);
+            preview_sample(P, n);
+            scatter_lanes(P, m_preview, m_preview_light, true, c);
         }
     }
     const size_t n = m_diffuse.size();
     if (n == 0) return;
     diffuse_geometry(L, 0, n);
-    // Stage 3: next-event estimation's light sample, one lane at a time; with a partition
-    // only where it wants the path (PathTracer::scatter: a Lambertian vertex is never
-    // specular, so the path through it is not a caustic one)
+    // next-event estimation, with a partition only where it wants the path
+    // (PathTracer::scatter: a Lambertian vertex is never specular, so the path through it
+    // is not a caustic one)
     const PathPartition* partition = m_tracer.partition();
     const bool nee = m_scene.light_count() > 0 && (!partition || partition->wants(PathPartition::caustic(false, false)));
+    light_samples(L, m_diffuse, m_diffuse_light, [nee](size_t, const PathState&) { return nee; });
+    diffuse_next_event(L, n);
+    diffuse_disk(L, n);
+    diffuse_sample(L, n);
+    scatter_lanes(L, m_diffuse, m_diffuse_light, false, c);
+}
+
+template <class Wants>
+void PathBatch::light_samples(DiffuseLanes& L, const std::vector<uint32_t>& lanes, std::vector<uint32_t>& light,
+                              Wants&& wants) {
+    // Stage 3: next-event estimation's light sample where wants(k, state) (and from the
+    // partition's minimum depth), one lane at a time, except the rect lights' samples
+    const size_t n = lanes.size();
     for (size_t k = 0; k < n; ++k) {
-        const uint32_t l = m_diffuse[k];
+        const uint32_t l = lanes[k];
         const PathState& st = m_state[l];
         L.ls_ok[k] = 0;
         L.ls_inf[k] = 0;
@@ -203,13 +274,13 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         L.light_pdf[k] = 0.f;
         L.rect_slot[k] = DiffuseLanes::k_no_rect_slot;
         L.rect_ux[k] = L.rect_uy[k] = L.rect_pmf[k] = 0.f;
-        if (!nee || st.depth + 1 < m_tracer.min_depth()) continue;
+        if (st.depth + 1 < m_tracer.min_depth() || !wants(k, st)) continue;
         const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
         float pmf = 0.f;
         const size_t li = m_scene.sample_light(uint_to_unit_float(w[0]), &pmf);
         if (m_rect_slot[li] != DiffuseLanes::k_no_rect_slot) {
             // sampled below, in rect_light_samples
-            m_diffuse_light[k] = uint32_t(li);
+            light[k] = uint32_t(li);
             L.rect_slot[k] = m_rect_slot[li];
             L.rect_ux[k] = uint_to_unit_float(w[2]);
             L.rect_uy[k] = uint_to_unit_float(w[3]);
@@ -219,7 +290,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         const LightSample ls = m_scene.light(li).sample_li(
             Vec3(L.px[k], L.py[k], L.pz[k]), Vec2(uint_to_unit_float(w[2]), uint_to_unit_float(w[3])));
         if (!(ls.valid() && pmf > 0.f)) continue;
-        m_diffuse_light[k] = uint32_t(li);
+        light[k] = uint32_t(li);
         L.ls_ok[k] = 1;
         L.ls_inf[k] = std::isinf(ls.dist);
         L.ls_delta[k] = ls.is_delta;
@@ -231,13 +302,15 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         L.light_pdf[k] = pmf * ls.pdf;
     }
     for (size_t s = 0; s < m_rect.size(); ++s) rect_light_samples(L, n, uint8_t(s), m_rect[s]);
-    diffuse_next_event(L, n);
-    diffuse_disk(L, n);
-    diffuse_sample(L, n);
+}
+
+void PathBatch::scatter_lanes(const DiffuseLanes& L, const std::vector<uint32_t>& lanes,
+                              const std::vector<uint32_t>& light, bool preview, PathCounters& c) {
     // Stage 6: back into the lanes' paths.
     const CausticLightTracing* caustic = m_tracer.caustic_light_tracing();
+    const size_t n = lanes.size();
     for (size_t k = 0; k < n; ++k) {
-        PathState& st = m_state[m_diffuse[k]];
+        PathState& st = m_state[lanes[k]];
         const float time = st.ray.time;
         ++st.bounce;
         c.rays += 1;
@@ -247,7 +320,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
             st.has_shadow = true;
             st.shadow = Ray(Vec3(L.sox[k], L.soy[k], L.soz[k]), Vec3(L.sdx[k], L.sdy[k], L.sdz[k]), 0.f, L.stfar[k]);
             st.shadow.time = time;
-            st.shadow_light = m_diffuse_light[k];
+            st.shadow_light = light[k];
             st.shadow_delta = L.ls_delta[k] != 0;
             st.shadow_light_pdf = L.light_pdf[k];
             st.shadow_bsdf_pdf = L.shadow_bsdf_pdf[k];
@@ -258,8 +331,8 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
             continue;
         }
         if (caustic) {
-            // PathTracer::scatter's camera side of r (a Lambertian vertex: never Dirac):
-            // at the first vertex 1 / (p_cam p(z1 -> z2)), later reverse over forward density
+            // PathTracer::scatter's camera side of r (these vertices are never Dirac): at
+            // the first vertex 1 / (p_cam p(z1 -> z2)), later reverse over forward density
             const float nx = L.nsx[k], ny = L.nsy[k], nz = L.nsz[k];
             const float wx = L.rdx[k], wy = L.rdy[k], wz = L.rdz[k];
             const float cos_i = std::fabs(wx * nx + wy * ny + wz * nz);
@@ -273,14 +346,21 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
                 const Vec3 wo(L.wox[k], L.woy[k], L.woz[k]), wi(wx, wy, wz), ng(L.ngx[k], L.ngy[k], L.ngz[k]),
                     ns(nx, ny, nz);
                 const float cos_o = std::fabs(dot(wo, ns));
-                // Bsdf::pdf(wi, wo), Lambertian: consistent sides, then |cos| / pi
-                const float go = dot(wi, ng), gi = dot(wo, ng), lz = dot(wi, ns), iz = dot(wo, ns);
-                const bool cons = go != 0.f && gi != 0.f && (go * gi > 0.f) == (lz * iz > 0.f);
-                const float pdf_rev = cons && !(lz * iz <= 0.f) ? std::fabs(iz) * k_inv_pi : 0.f;
+                // Bsdf::pdf(wi, wo): preview_sample's, or the Lambertian's (consistent
+                // sides, then |cos| / pi)
+                float pdf_rev;
+                if (preview) {
+                    pdf_rev = L.pdf_rev[k];
+                } else {
+                    const float go = dot(wi, ng), gi = dot(wo, ng), lz = dot(wi, ns), iz = dot(wo, ns);
+                    const bool cons = go != 0.f && gi != 0.f && (go * gi > 0.f) == (lz * iz > 0.f);
+                    pdf_rev = cons && !(lz * iz <= 0.f) ? std::fabs(iz) * k_inv_pi : 0.f;
+                }
                 const float rev = cos_o > 0.f ? pdf_rev / cos_o : 0.f;
                 st.lt = fwd > 0.f ? st.lt * double(rev) / double(fwd) : 0.0;
             }
         }
+        const bool specular = preview && L.spec[k] != 0;
         st.beta = Spectrum(L.beta_r[k], L.beta_g[k], L.beta_b[k]);
         st.specular_bounce = false;
         st.prev_bsdf_pdf = L.pdf[k];
@@ -288,8 +368,8 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         st.ray = Ray(Vec3(L.rox[k], L.roy[k], L.roz[k]), Vec3(L.rdx[k], L.rdy[k], L.rdz[k]), 0.f, k_infinity);
         st.ray.time = time;
         st.diffuse_before_last = st.diffuse_seen;
-        st.diffuse_seen = true;
-        st.last_specular = false;
+        st.diffuse_seen = st.diffuse_seen || !specular;
+        st.last_specular = specular;
         ++st.depth;
     }
 }

@@ -101,14 +101,27 @@ private:
     std::vector<uint32_t> m_placed, m_placed_material;
     std::vector<const PreviewSurfaceBsdf*> m_placed_preview;
     std::vector<Vec2> m_placed_uv;
+    // the preview lanes of a round (diffuse_lanes.h): their batch lanes and lights
+    std::unique_ptr<DiffuseLanes> m_preview_lanes;
+    std::vector<uint32_t> m_preview, m_preview_light;
 
     /// Stage 1 of diffuse_lanes.h for lane l: false if its hit is not one the lanes take
     /// (a static instance's triangle with a constant Lambertian, a constant preview BSDF
     /// or a Scene::lane_material on a mesh without primvars).
     bool gather_diffuse(uint32_t l, PathCounters& counters);
-    /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse, stage 2 and
-    /// PathTracer::step(BsdfHit) for those in m_placed.
+    /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse; stage 2 for those in
+    /// m_placed, then the preview lanes' stages for those whose BSDF is the preview lanes'
+    /// model and PathTracer::step(BsdfHit) for the others.
     void shade_diffuse_lanes(PathCounters& counters);
+    /// Stage 3 of diffuse_lanes.h for the lanes [0, lanes.size()) of L (batch lanes
+    /// `lanes`): where wants(k, state), the light sample of next-event estimation; the
+    /// light's index into light[k].
+    template <class Wants>
+    void light_samples(DiffuseLanes& L, const std::vector<uint32_t>& lanes, std::vector<uint32_t>& light,
+                       Wants&& wants);
+    /// Stage 6: the lanes' results back into their paths (`preview`: L holds preview lanes).
+    void scatter_lanes(const DiffuseLanes& L, const std::vector<uint32_t>& lanes, const std::vector<uint32_t>& light,
+                       bool preview, PathCounters& counters);
 
     /// Hands every lane of `lanes` the numbers of dimensions [first(lane), first(lane) +
     /// count) (PixelSampler::prefetch), computed for all of them at once.

@@ -294,3 +294,22 @@ TEST(PathBatch, MatchesTheScalarReferenceThroughGlass) {
 TEST(PathBatch, MatchesTheScalarReferenceThroughGlassWithoutCausticTracing) {
     check_scene([](Scene& s) { glass_scene(s); }, "glass, no caustic tracing", false);
 }
+
+TEST(PathBatch, MatchesTheScalarReferenceOnPreviewSurfacesBesideGlass) {
+    // a glossy preview floor under the glass ball, in the preview lanes (diffuse_lanes.h):
+    // the caustic light tracing reads their reverse densities at every rough vertex after
+    // the first (floor, ball, ball, floor)
+    check_scene(
+        [](Scene& s) {
+            glass_scene_unlit(s);
+            Material floor{Spectrum(0.6f, 0.5f, 0.4f), Spectrum(0.f)};
+            floor.preview = true;
+            floor.roughness = 0.35f;
+            floor.metallic = 0.3f;
+            s.set_materials({floor, smooth_glass()});
+            s.add_light(sphere_light(Vec3(0.25f, 1.4f, -0.1f), 0.25f, Spectrum(12.f, 11.f, 9.f)));
+            s.commit();
+            EXPECT_NE(s.constant_preview(0), nullptr);
+        },
+        "preview floor, glass");
+}
