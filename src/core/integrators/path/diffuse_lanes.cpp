@@ -22,6 +22,12 @@
 #else
 #define CMLT_LANES_CLONES
 #endif
+// the loops' helpers are inlined into every loop (a call keeps the loop scalar)
+#if defined(__GNUC__)
+#define CMLT_LANES_INLINE inline __attribute__((always_inline))
+#else
+#define CMLT_LANES_INLINE inline
+#endif
 
 namespace cmlt {
 
@@ -131,7 +137,7 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
         const float pmf = L.rect_pmf[i];
         const bool ok = (L.rect_slot[i] == slot) & (dist2 > 0.f) & (cos_l > 0.f) & finite(pdf) & (pdf > 0.f) &
                         (pmf > 0.f);
-        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
+        L.ls_ok[i] = ok ? 1 : L.ls_ok[i];
         L.wix[i] = ok ? wx : L.wix[i];
         L.wiy[i] = ok ? wy : L.wiy[i];
         L.wiz[i] = ok ? wz : L.wiz[i];
@@ -151,7 +157,7 @@ namespace {
 /// light sample or f is black) — toward an infinite light spawn_ray(wi), else spawn_ray_to
 /// the target offset off the light's surface toward the ray (shadow_target) — its BSDF
 /// density (0 toward a Dirac light) and contribution beta * f * li.
-inline void next_event_shadow(DiffuseLanes& L, size_t i, float f_r, float f_g, float f_b, float bsdf_pdf) {
+CMLT_LANES_INLINE void next_event_shadow(DiffuseLanes& L, size_t i, float f_r, float f_g, float f_b, float bsdf_pdf) {
     const float wx = L.wix[i], wy = L.wiy[i], wz = L.wiz[i];
     const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
     const bool sh = (L.ls_ok[i] != 0) & !((f_r == 0.f) & (f_g == 0.f) & (f_b == 0.f));
@@ -184,7 +190,7 @@ inline void next_event_shadow(DiffuseLanes& L, size_t i, float f_r, float f_g, f
 /// and density pdf (`ok`: Bsdf::sample's checks passed): beta *= f |cos| / pdf, the next
 /// ray spawn_ray(w), Russian roulette from k_rr_start_depth; done where the sample or
 /// the throughput is invalid or the roulette ends the path.
-inline void next_ray(DiffuseLanes& L, size_t i, float wx, float wy, float wz, float fr, float fg, float fb,
+CMLT_LANES_INLINE void next_ray(DiffuseLanes& L, size_t i, float wx, float wy, float wz, float fr, float fg, float fb,
                      float pdf, bool ok) {
     const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
     const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
@@ -280,7 +286,7 @@ namespace {
 struct Tangents {
     float sx, sy, sz, tx, ty, tz;
 };
-inline Tangents tangents(float nx, float ny, float nz) {
+CMLT_LANES_INLINE Tangents tangents(float nx, float ny, float nz) {
     const float sign = std::copysign(1.f, nz);
     const float a = -1.f / (sign + nz);
     const float b = nx * ny * a;
@@ -288,25 +294,36 @@ inline Tangents tangents(float nx, float ny, float nz) {
 }
 
 /// std::clamp(x, 0, 1).
-inline float clamp01_std(float x) { return x < 0.f ? 0.f : (1.f < x ? 1.f : x); }
+CMLT_LANES_INLINE float clamp01_std(float x) { return x < 0.f ? 0.f : (1.f < x ? 1.f : x); }
 
 /// Schlick's Fresnel of lane i's specular lobe, one channel (fresnel_schlick with its
 /// weight w = schlick_weight(cos)).
-inline float schlick(float f0, float f90, float w) { return f0 + (f90 - f0) * w; }
-inline float schlick_w(float c) {
+CMLT_LANES_INLINE float schlick(float f0, float f90, float w) { return f0 + (f90 - f0) * w; }
+CMLT_LANES_INLINE float schlick_w(float c) {
     const float m = clamp01_std(1.f - c);
     const float m2 = m * m;
     return m2 * m2 * m;
 }
 
+/// Lane i's model constants (PreviewSurfaceBsdf::LaneConstants), read once per loop body
+/// and handed to the helpers by value.
+struct LaneModel {
+    float cdr, cdg, cdb, f0r, f0g, f0b, f90, alpha;
+    bool hd, hs;
+};
+CMLT_LANES_INLINE LaneModel lane_model(const DiffuseLanes& L, size_t i) {
+    return {L.cdr[i], L.cdg[i], L.cdb[i], L.f0r[i], L.f0g[i], L.f0b[i], L.f90[i], L.alpha[i],
+            L.has_d[i] != 0.f, L.has_s[i] != 0.f};
+}
+
 /// PreviewSurfaceBsdf::lobe_probabilities at |cos wo| = co for the lanes' model (no
 /// clearcoat, opacity 1: the attenuation and the opacity factors are 1).
-inline void lobe_probabilities(const DiffuseLanes& L, size_t i, float co, float* pd, float* ps) {
+CMLT_LANES_INLINE void lobe_probabilities(const LaneModel& m, float co, float* pd, float* ps) {
     const float w = schlick_w(co);
-    const float f90 = L.f90[i];
-    const float fr = schlick(L.f0r[i], f90, w), fg = schlick(L.f0g[i], f90, w), fb = schlick(L.f0b[i], f90, w);
-    const bool hd = L.has_d[i] != 0, hs = L.has_s[i] != 0;
-    const float dr = L.cdr[i] * (1.f - fr), dg = L.cdg[i] * (1.f - fg), db = L.cdb[i] * (1.f - fb);
+    const float f90 = m.f90;
+    const float fr = schlick(m.f0r, f90, w), fg = schlick(m.f0g, f90, w), fb = schlick(m.f0b, f90, w);
+    const bool hd = m.hd, hs = m.hs;
+    const float dr = m.cdr * (1.f - fr), dg = m.cdg * (1.f - fg), db = m.cdb * (1.f - fb);
     const float raw0 = hd ? (dr + dg + db) * (1.f / 3.f) : 0.f;
     const float raw1 = hs ? (fr + fg + fb) * (1.f / 3.f) : 0.f;
     const float total = raw0 + raw1;
@@ -318,12 +335,15 @@ inline void lobe_probabilities(const DiffuseLanes& L, size_t i, float co, float*
 }
 
 /// PreviewSurfaceBsdf::evaluate<true, true> for the lanes' model at local directions
-/// (lo, li), its lobe probabilities at |lo.z| given: the value (f) and the density.
+/// (lo, li), its lobe probabilities at |lo.z| given: the value (f) and the density where
+/// `ok`; where not, the model returns 0 for both (the callers select: a select of these
+/// zeros that the compiler can follow into a boolean would keep the loop scalar).
 struct PreviewValue {
     float r, g, b, pdf;
+    bool ok;
 };
-inline PreviewValue preview_value(const DiffuseLanes& L, size_t i, float pd, float ps, float lox, float loy,
-                                  float loz, float lix, float liy, float liz) {
+CMLT_LANES_INLINE PreviewValue preview_value(const LaneModel& m, float pd, float ps, float lox, float loy, float loz,
+                                             float lix, float liy, float liz) {
     const float co = std::fabs(loz), ci = std::fabs(liz);
     const bool ok = !((co < k_preview_min_cos) | (ci < k_preview_min_cos)) & (loz * liz > 0.f);
     // the two-sided opaque lobes: wo_u, wi_u (z made positive), wm = normalize(wo_u + wi_u)
@@ -333,7 +353,7 @@ inline PreviewValue preview_value(const DiffuseLanes& L, size_t i, float pd, flo
     const bool hpos = hl > 0.f;
     const float mx = hpos ? hx * hr : 0.f, my = hpos ? hy * hr : 0.f, mz = hpos ? hz * hr : 0.f;
     // GGX terms (ggx_terms seen from wo_u, smith_s of wi_u)
-    const float a = L.alpha[i], a2 = a * a;
+    const float a = m.alpha, a2 = a * a;
     const float t = mx * mx + my * my + a2 * mz * mz;
     const float d = (mz <= 0.f) | !(t > 0.f) ? 0.f : a2 / (k_pi * t * t);
     const float so = std::sqrt(a2 + (1.f - a2) * (co * co));
@@ -343,21 +363,23 @@ inline PreviewValue preview_value(const DiffuseLanes& L, size_t i, float pd, flo
     const float no_fresnel = d * (den > 0.f ? 2.f / den : 0.f) * 0.25f;
     const float om = lox * mx + loy * my + co * mz;  // dot(wo_u, wm)
     // f: diffuse under the specular interface, then the specular lobe
-    const bool hd = L.has_d[i] != 0, hs = L.has_s[i] != 0;
-    const float f90 = L.f90[i], f0r = L.f0r[i], f0g = L.f0g[i], f0b = L.f0b[i];
+    const bool hd = m.hd, hs = m.hs;
+    const float f90 = m.f90, f0r = m.f0r, f0g = m.f0g, f0b = m.f0b;
     const float wo_w = schlick_w(co), wi_w = schlick_w(ci), wm_w = schlick_w(om);
-    const float kr = L.cdr[i] * (1.f - schlick(f0r, f90, wo_w)) * (1.f - schlick(f0r, f90, wi_w)) * k_inv_pi;
-    const float kg = L.cdg[i] * (1.f - schlick(f0g, f90, wo_w)) * (1.f - schlick(f0g, f90, wi_w)) * k_inv_pi;
-    const float kb = L.cdb[i] * (1.f - schlick(f0b, f90, wo_w)) * (1.f - schlick(f0b, f90, wi_w)) * k_inv_pi;
+    const float kr = m.cdr * (1.f - schlick(f0r, f90, wo_w)) * (1.f - schlick(f0r, f90, wi_w)) * k_inv_pi;
+    const float kg = m.cdg * (1.f - schlick(f0g, f90, wo_w)) * (1.f - schlick(f0g, f90, wi_w)) * k_inv_pi;
+    const float kb = m.cdb * (1.f - schlick(f0b, f90, wo_w)) * (1.f - schlick(f0b, f90, wi_w)) * k_inv_pi;
     const float sr = schlick(f0r, f90, wm_w) * no_fresnel, sg = schlick(f0g, f90, wm_w) * no_fresnel,
                 sb = schlick(f0b, f90, wm_w) * no_fresnel;
-    const float br = hd ? (hs ? kr + sr : kr) : sr, bg = hd ? (hs ? kg + sg : kg) : sg,
-                bb = hd ? (hs ? kb + sb : kb) : sb;
+    // (each sum below is the model's 0 + a + b with an inactive term 0: the terms are
+    // never -0, so adding the 0 changes nothing)
+    const float br = (hd ? kr : 0.f) + (hs ? sr : 0.f), bg = (hd ? kg : 0.f) + (hs ? sg : 0.f),
+                bb = (hd ? kb : 0.f) + (hs ? sb : 0.f);
     // the density: reflection_pdf
     const float pdf_d = pd > 0.f ? pd * ci * k_inv_pi : 0.f;
     const float pdf_s = (ps > 0.f) & (om * co > 0.f) ? ps * (g1 * d * 0.25f) : 0.f;
-    const float pdf = pd > 0.f ? ((ps > 0.f) & (om * co > 0.f) ? pdf_d + pdf_s : pdf_d) : pdf_s;
-    return {ok ? br : 0.f, ok ? bg : 0.f, ok ? bb : 0.f, ok ? pdf : 0.f};
+    const float pdf = pdf_d + pdf_s;
+    return {br, bg, bb, pdf, ok};
 }
 }  // namespace
 
@@ -373,7 +395,7 @@ void preview_frame(DiffuseLanes& L, size_t n) {
         L.lox[i] = lox;
         L.loy[i] = loy;
         L.loz[i] = loz;
-        lobe_probabilities(L, i, std::fabs(loz), &L.pd[i], &L.ps[i]);
+        lobe_probabilities(lane_model(L, i), std::fabs(loz), &L.pd[i], &L.ps[i]);
     }
 }
 
@@ -393,10 +415,11 @@ void preview_next_event(DiffuseLanes& L, size_t n) {
         const float loz = L.loz[i];
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
         const bool cons = (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (loz * liz > 0.f));
-        const PreviewValue v = preview_value(L, i, L.pd[i], L.ps[i], L.lox[i], L.loy[i], loz, lix, liy, liz);
+        const PreviewValue v = preview_value(lane_model(L, i), L.pd[i], L.ps[i], L.lox[i], L.loy[i], loz, lix, liy, liz);
+        const bool use = cons & v.ok;
         const float c = std::fabs(liz);
-        next_event_shadow(L, i, cons ? v.r * c : 0.f, cons ? v.g * c : 0.f, cons ? v.b * c : 0.f,
-                          cons ? v.pdf : 0.f);
+        next_event_shadow(L, i, (use ? v.r : 0.f) * c, (use ? v.g : 0.f) * c, (use ? v.b : 0.f) * c,
+                          use ? v.pdf : 0.f);
     }
 }
 
@@ -431,34 +454,56 @@ void preview_directions(DiffuseLanes& L, size_t n) {
 
 CMLT_LANES_CLONES
 void preview_sample(DiffuseLanes& L, size_t n) {
+    // (three loops: in one, the compiler follows the selects into booleans of two widths
+    // and keeps the loop scalar)
     for (size_t i = 0; i < n; ++i) {
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
         const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
         const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
         const float lox = L.lox[i], loy = L.loy[i], loz = L.loz[i];
         const float lix = L.lix[i], liy = L.liy[i], liz = L.liz[i];
-        // PreviewSurfaceBsdf::sample's checks and its value, then Bsdf::sample's
-        const PreviewValue v = preview_value(L, i, L.pd[i], L.ps[i], lox, loy, loz, lix, liy, liz);
-        bool ok = (L.dir_ok[i] != 0) & !(std::fabs(liz) < k_preview_min_cos) & (v.pdf > 0.f) & finite(v.pdf) &
-                  finite(v.r) & finite(v.g) & finite(v.b);
+        // PreviewSurfaceBsdf::sample's checks and its value (where the model's value is 0
+        // its density is too, and the sample fails), then Bsdf::sample's
+        const PreviewValue v = preview_value(lane_model(L, i), L.pd[i], L.ps[i], lox, loy, loz, lix, liy, liz);
+        const bool ok = (L.dir_ok[i] != 0) & !(std::fabs(liz) < k_preview_min_cos) & v.ok & (v.pdf > 0.f) &
+                        finite(v.pdf) & finite(v.r) & finite(v.g) & finite(v.b);
         const bool local_reflect = loz * liz > 0.f;
         const Tangents f = tangents(nx, ny, nz);
         const float wx = f.sx * lix + f.tx * liy + nx * liz;
         const float wy = f.sy * lix + f.ty * liy + ny * liz;
         const float wz = f.sz * lix + f.tz * liy + nz * liz;
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
-        ok = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
-        next_ray(L, i, wx, wy, wz, v.r, v.g, v.b, v.pdf, ok);
+        L.dir_ok[i] = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
+        L.rdx[i] = wx;
+        L.rdy[i] = wy;
+        L.rdz[i] = wz;
+        L.sample_r[i] = v.r;
+        L.sample_g[i] = v.g;
+        L.sample_b[i] = v.b;
+        L.pdf[i] = v.pdf;
+    }
+    for (size_t i = 0; i < n; ++i)
+        next_ray(L, i, L.rdx[i], L.rdy[i], L.rdz[i], L.sample_r[i], L.sample_g[i], L.sample_b[i], L.pdf[i],
+                 L.dir_ok[i] != 0);
+    for (size_t i = 0; i < n; ++i) {
         // Bsdf::pdf(wi, wo): the side test with the roles swapped, wi in the local frame
         // again (to_local of the world direction), the lobe probabilities at its cosine
+        const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
+        const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
+        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
+        const float wx = L.rdx[i], wy = L.rdy[i], wz = L.rdz[i];
+        const float lox = L.lox[i], loy = L.loy[i], loz = L.loz[i];
+        const Tangents f = tangents(nx, ny, nz);
+        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
         const float rx = wx * f.sx + wy * f.sy + wz * f.sz;
         const float ry = wx * f.tx + wy * f.ty + wz * f.tz;
         const float rz = wx * nx + wy * ny + wz * nz;
         const bool rcons = (gi != 0.f) & (go != 0.f) & ((gi * go > 0.f) == (rz * loz > 0.f));
+        const LaneModel m = lane_model(L, i);
         float rpd, rps;
-        lobe_probabilities(L, i, std::fabs(rz), &rpd, &rps);
-        const PreviewValue r = preview_value(L, i, rpd, rps, rx, ry, rz, lox, loy, loz);
-        L.pdf_rev[i] = rcons ? r.pdf : 0.f;
+        lobe_probabilities(m, std::fabs(rz), &rpd, &rps);
+        const PreviewValue r = preview_value(m, rpd, rps, rx, ry, rz, lox, loy, loz);
+        L.pdf_rev[i] = rcons & r.ok ? r.pdf : 0.f;
     }
 }
 

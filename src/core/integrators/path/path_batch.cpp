@@ -210,8 +210,8 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
                 P.f0r[q] = pc.f0.x, P.f0g[q] = pc.f0.y, P.f0b[q] = pc.f0.z;
                 P.f90[q] = pc.f90;
                 P.alpha[q] = pc.alpha;
-                P.has_d[q] = pc.has_diffuse;
-                P.has_s[q] = pc.has_specular;
+                P.has_d[q] = pc.has_diffuse ? 1.f : 0.f;
+                P.has_s[q] = pc.has_specular ? 1.f : 0.f;
                 P.spec[q] = partition && partition->specular(g.material_id);
                 P.beta_r[q] = st.beta.x, P.beta_g[q] = st.beta.y, P.beta_b[q] = st.beta.z;
                 P.eta_scale[q] = st.eta_scale;
