@@ -137,7 +137,7 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
         const float pmf = L.rect_pmf[i];
         const bool ok = (L.rect_slot[i] == slot) & (dist2 > 0.f) & (cos_l > 0.f) & finite(pdf) & (pdf > 0.f) &
                         (pmf > 0.f);
-        L.ls_ok[i] = ok ? 1 : L.ls_ok[i];
+        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
         L.wix[i] = ok ? wx : L.wix[i];
         L.wiy[i] = ok ? wy : L.wiy[i];
         L.wiz[i] = ok ? wz : L.wiz[i];

@@ -53,7 +53,7 @@ struct DiffuseLanes {
     alignas(64) float dx[N], dy[N], dz[N];           ///< ray direction
     alignas(64) float b1[N], b2[N];                  ///< barycentrics of corners 1 and 2
     alignas(64) float p0x[N], p0y[N], p0z[N], p1x[N], p1y[N], p1z[N], p2x[N], p2y[N], p2z[N];
-    alignas(64) int32_t has_n[N];                    ///< the mesh has vertex normals
+    alignas(64) uint8_t has_n[N];                    ///< the mesh has vertex normals
     alignas(64) float n0x[N], n0y[N], n0z[N], n1x[N], n1y[N], n1z[N], n2x[N], n2y[N], n2z[N];
     alignas(64) double nm[9][N];                     ///< instance normal matrix, row-major 3x3
     alignas(64) float rr[N], rg[N], rb[N];           ///< reflectance
@@ -70,14 +70,14 @@ struct DiffuseLanes {
     alignas(64) float err[N];
 
     // 3. the light sample (ls_ok: sampled, valid, pmf > 0)
-    alignas(64) int32_t ls_ok[N], ls_delta[N], ls_inf[N];
+    alignas(64) uint8_t ls_ok[N], ls_delta[N], ls_inf[N];
     alignas(64) float wix[N], wiy[N], wiz[N];
     alignas(64) float li_r[N], li_g[N], li_b[N];
     alignas(64) float light_pdf[N];                  ///< pmf times the sample's pdf
     alignas(64) float plx[N], ply[N], plz[N], nlx[N], nly[N], nlz[N], lerr[N];
     /// 3b. a sample of a rect light with RectLightConstants (rect_light_samples): its slot
     /// (k_no_rect_slot: sampled one lane at a time, or none), its numbers and the light's pmf
-    alignas(64) int32_t rect_slot[N];
+    alignas(64) uint8_t rect_slot[N];
     alignas(64) float rect_ux[N], rect_uy[N], rect_pmf[N];
     static constexpr uint8_t k_no_rect_slot = 0xFF;
     /// Rect lights per frame whose samples the lanes compute (PathBatch: the first ones
@@ -85,7 +85,7 @@ struct DiffuseLanes {
     static constexpr size_t k_rect_slots = 4;
 
     // 4. the pending shadow ray
-    alignas(64) int32_t shadow[N];
+    alignas(64) uint8_t shadow[N];
     alignas(64) float sox[N], soy[N], soz[N], sdx[N], sdy[N], sdz[N], stfar[N];
     alignas(64) float sf_r[N], sf_g[N], sf_b[N];
     alignas(64) float shadow_bsdf_pdf[N];
@@ -93,7 +93,7 @@ struct DiffuseLanes {
     // 5. the point on the concentric disk
     alignas(64) float disk_x[N], disk_y[N];
     // 5. the next ray
-    alignas(64) int32_t done[N];
+    alignas(64) uint8_t done[N];
     alignas(64) float pdf[N];
     alignas(64) float rox[N], roy[N], roz[N], rdx[N], rdy[N], rdz[N];
 
