@@ -34,8 +34,19 @@
 ///
 /// Hits on a constant preview BSDF (Scene::constant_preview: UsdPreviewSurface with
 /// constant inputs) or on a material whose BSDF the uv alone makes (Scene::lane_material)
-/// take stages 1 and 2 only, from the top of the arrays down; their shading is the
-/// per-lane routine's (PathTracer::step(BsdfHit)).
+/// take stages 1 and 2 from the top of the arrays down. Where that BSDF is opaque with a
+/// diffuse and/or rough GGX specular lobe and no clearcoat (PreviewSurfaceBsdf::
+/// lane_constants: most production surfaces) the hit moves to the preview lanes (a
+/// DiffuseLanes of its own, the preview_* stages below); the others are shaded by the
+/// per-lane routine (PathTracer::step(BsdfHit)).
+///
+/// What got the preview loops vectorised (GCC 12; `-fopt-info-vec` lists the loops it
+/// took): no select whose value the compiler can follow into a boolean (a value zeroed by
+/// a select, then tested against zero: it refuses the mask conversion that makes), sums
+/// instead of nested selects, every helper inlined, the model's flags as floats.
+/// preview_sample's first and last loops (the sample's value, the reverse density) are
+/// still scalar code: GCC groups their many arrays of one struct as one interleaved
+/// access ("group is too large").
 #include "integrators/common/frame_loop.h"
 #include "lights/light.h"
 

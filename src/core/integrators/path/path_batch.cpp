@@ -148,6 +148,12 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
     L.rr[k] = r->x;
     L.rg[k] = r->y;
     L.rb[k] = r->z;
+    set_path(L, k, l);
+    return true;
+}
+
+void PathBatch::set_path(DiffuseLanes& L, size_t k, uint32_t l) const {
+    const PathState& st = m_state[l];
     L.beta_r[k] = st.beta.x;
     L.beta_g[k] = st.beta.y;
     L.beta_b[k] = st.beta.z;
@@ -158,8 +164,8 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
     const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
     L.u_bx[k] = uint_to_unit_float(w[4]);
     L.u_by[k] = uint_to_unit_float(w[5]);
+    L.u_lobe[k] = uint_to_unit_float(w[6]);
     L.u_rr[k] = uint_to_unit_float(w[8]);
-    return true;
 }
 
 void PathBatch::shade_diffuse_lanes(PathCounters& c) {
@@ -213,16 +219,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
                 P.has_d[q] = pc.has_diffuse ? 1.f : 0.f;
                 P.has_s[q] = pc.has_specular ? 1.f : 0.f;
                 P.spec[q] = partition && partition->specular(g.material_id);
-                P.beta_r[q] = st.beta.x, P.beta_g[q] = st.beta.y, P.beta_b[q] = st.beta.z;
-                P.eta_scale[q] = st.eta_scale;
-                P.depth[q] = st.depth;
-                // the bounce's numbers (PathTracer::scatter: light, light position, BSDF
-                // direction, lobe, roulette)
-                const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
-                P.u_bx[q] = uint_to_unit_float(w[4]);
-                P.u_by[q] = uint_to_unit_float(w[5]);
-                P.u_lobe[q] = uint_to_unit_float(w[6]);
-                P.u_rr[q] = uint_to_unit_float(w[8]);
+                set_path(P, q, l);
                 continue;
             }
             const Bsdf bsdf = made ? *made : Bsdf(*m_placed_preview[j], g.ns, g.sp.ng);

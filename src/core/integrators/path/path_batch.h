@@ -109,6 +109,8 @@ private:
     /// (a static instance's triangle with a constant Lambertian, a constant preview BSDF
     /// or a Scene::lane_material on a mesh without primvars).
     bool gather_diffuse(uint32_t l, PathCounters& counters);
+    /// Lane k of L takes batch lane l's throughput, depth and the bounce's numbers.
+    void set_path(DiffuseLanes& L, size_t k, uint32_t l) const;
     /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse; stage 2 for those in
     /// m_placed, then the preview lanes' stages for those whose BSDF is the preview lanes'
     /// model and PathTracer::step(BsdfHit) for the others.
