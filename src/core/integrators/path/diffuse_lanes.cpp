@@ -309,11 +309,11 @@ CMLT_LANES_INLINE float schlick_w(float c) {
 /// and handed to the helpers by value.
 struct LaneModel {
     float cdr, cdg, cdb, f0r, f0g, f0b, f90, alpha;
-    bool hd, hs;
+    float hd, hs;  ///< 1 or 0 (no bool members: see PreviewValue)
 };
 CMLT_LANES_INLINE LaneModel lane_model(const DiffuseLanes& L, size_t i) {
     return {L.cdr[i], L.cdg[i], L.cdb[i], L.f0r[i], L.f0g[i], L.f0b[i], L.f90[i], L.alpha[i],
-            L.has_d[i] != 0.f, L.has_s[i] != 0.f};
+            L.has_d[i], L.has_s[i]};
 }
 
 /// PreviewSurfaceBsdf::lobe_probabilities at |cos wo| = co for the lanes' model (no
@@ -322,7 +322,7 @@ CMLT_LANES_INLINE void lobe_probabilities(const LaneModel& m, float co, float* p
     const float w = schlick_w(co);
     const float f90 = m.f90;
     const float fr = schlick(m.f0r, f90, w), fg = schlick(m.f0g, f90, w), fb = schlick(m.f0b, f90, w);
-    const bool hd = m.hd, hs = m.hs;
+    const bool hd = m.hd != 0.f, hs = m.hs != 0.f;
     const float dr = m.cdr * (1.f - fr), dg = m.cdg * (1.f - fg), db = m.cdb * (1.f - fb);
     const float raw0 = hd ? (dr + dg + db) * (1.f / 3.f) : 0.f;
     const float raw1 = hs ? (fr + fg + fb) * (1.f / 3.f) : 0.f;
@@ -330,8 +330,13 @@ CMLT_LANES_INLINE void lobe_probabilities(const LaneModel& m, float co, float* p
     const float n_active = float(int(hd) + int(hs));
     const float uniform = (total > 0.f ? 0.1f : 1.f) / n_active;
     const float scale = total > 0.f ? (1.f - 0.1f) / total : 0.f;
-    *pd = hd ? raw0 * scale + uniform : 0.f;
-    *ps = hs ? raw1 * scale + uniform : 0.f;
+    // an inactive lobe's probability is 0: the flag (1 or 0) as a factor rather than a
+    // select, which the compiler would follow into the callers' "> 0" tests as a boolean
+    // of another width (the loop would stay scalar). The product is exact: the sum is
+    // finite, or NaN where |cos wo| is, and the callers only ask "> 0" of it, which NaN
+    // and 0 both fail.
+    *pd = (raw0 * scale + uniform) * m.hd;
+    *ps = (raw1 * scale + uniform) * m.hs;
 }
 
 /// PreviewSurfaceBsdf::evaluate<true, true> for the lanes' model at local directions
@@ -340,7 +345,7 @@ CMLT_LANES_INLINE void lobe_probabilities(const LaneModel& m, float co, float* p
 /// zeros that the compiler can follow into a boolean would keep the loop scalar).
 struct PreviewValue {
     float r, g, b, pdf;
-    bool ok;
+    int32_t ok;  ///< 1 or 0: a bool member would be an 8-bit mask beside the floats' 32-bit ones, which the vectoriser will not mix
 };
 CMLT_LANES_INLINE PreviewValue preview_value(const LaneModel& m, float pd, float ps, float lox, float loy, float loz,
                                              float lix, float liy, float liz) {
@@ -363,7 +368,7 @@ CMLT_LANES_INLINE PreviewValue preview_value(const LaneModel& m, float pd, float
     const float no_fresnel = d * (den > 0.f ? 2.f / den : 0.f) * 0.25f;
     const float om = lox * mx + loy * my + co * mz;  // dot(wo_u, wm)
     // f: diffuse under the specular interface, then the specular lobe
-    const bool hd = m.hd, hs = m.hs;
+    const bool hd = m.hd != 0.f, hs = m.hs != 0.f;
     const float f90 = m.f90, f0r = m.f0r, f0g = m.f0g, f0b = m.f0b;
     const float wo_w = schlick_w(co), wi_w = schlick_w(ci), wm_w = schlick_w(om);
     const float kr = m.cdr * (1.f - schlick(f0r, f90, wo_w)) * (1.f - schlick(f0r, f90, wi_w)) * k_inv_pi;
@@ -379,7 +384,7 @@ CMLT_LANES_INLINE PreviewValue preview_value(const LaneModel& m, float pd, float
     const float pdf_d = pd > 0.f ? pd * ci * k_inv_pi : 0.f;
     const float pdf_s = (ps > 0.f) & (om * co > 0.f) ? ps * (g1 * d * 0.25f) : 0.f;
     const float pdf = pdf_d + pdf_s;
-    return {br, bg, bb, pdf, ok};
+    return {br, bg, bb, pdf, int32_t(ok)};
 }
 }  // namespace
 
@@ -416,7 +421,7 @@ void preview_next_event(DiffuseLanes& L, size_t n) {
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
         const bool cons = (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (loz * liz > 0.f));
         const PreviewValue v = preview_value(lane_model(L, i), L.pd[i], L.ps[i], L.lox[i], L.loy[i], loz, lix, liy, liz);
-        const bool use = cons & v.ok;
+        const bool use = cons & (v.ok != 0);
         const float c = std::fabs(liz);
         next_event_shadow(L, i, (use ? v.r : 0.f) * c, (use ? v.g : 0.f) * c, (use ? v.b : 0.f) * c,
                           use ? v.pdf : 0.f);
@@ -454,20 +459,31 @@ void preview_directions(DiffuseLanes& L, size_t n) {
 
 CMLT_LANES_CLONES
 void preview_sample(DiffuseLanes& L, size_t n) {
-    // (three loops: in one, the compiler follows the selects into booleans of two widths
-    // and keeps the loop scalar)
+    // (in loops of their own: the value, then its checks — the compiler would follow the
+    // value's selects into the finiteness tests as booleans of another width and keep the
+    // loop scalar — then the throughput and next ray, then the reverse density)
     for (size_t i = 0; i < n; ++i) {
+        // PreviewSurfaceBsdf::sample's value (where the model's value is 0 its density is
+        // too, and the sample fails)
+        const float liz = L.liz[i];
+        const PreviewValue v =
+            preview_value(lane_model(L, i), L.pd[i], L.ps[i], L.lox[i], L.loy[i], L.loz[i], L.lix[i], L.liy[i], liz);
+        L.dir_ok[i] = (L.dir_ok[i] != 0) & !(std::fabs(liz) < k_preview_min_cos) & (v.ok != 0);
+        L.sample_r[i] = v.r;
+        L.sample_g[i] = v.g;
+        L.sample_b[i] = v.b;
+        L.pdf[i] = v.pdf;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        // its checks, then Bsdf::sample's
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
         const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
         const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
-        const float lox = L.lox[i], loy = L.loy[i], loz = L.loz[i];
         const float lix = L.lix[i], liy = L.liy[i], liz = L.liz[i];
-        // PreviewSurfaceBsdf::sample's checks and its value (where the model's value is 0
-        // its density is too, and the sample fails), then Bsdf::sample's
-        const PreviewValue v = preview_value(lane_model(L, i), L.pd[i], L.ps[i], lox, loy, loz, lix, liy, liz);
-        const bool ok = (L.dir_ok[i] != 0) & !(std::fabs(liz) < k_preview_min_cos) & v.ok & (v.pdf > 0.f) &
-                        finite(v.pdf) & finite(v.r) & finite(v.g) & finite(v.b);
-        const bool local_reflect = loz * liz > 0.f;
+        const float pdf = L.pdf[i];
+        const bool ok = (L.dir_ok[i] != 0) & (pdf > 0.f) & finite(pdf) & finite(L.sample_r[i]) &
+                        finite(L.sample_g[i]) & finite(L.sample_b[i]);
+        const bool local_reflect = L.loz[i] * liz > 0.f;
         const Tangents f = tangents(nx, ny, nz);
         const float wx = f.sx * lix + f.tx * liy + nx * liz;
         const float wy = f.sy * lix + f.ty * liy + ny * liz;
@@ -477,10 +493,6 @@ void preview_sample(DiffuseLanes& L, size_t n) {
         L.rdx[i] = wx;
         L.rdy[i] = wy;
         L.rdz[i] = wz;
-        L.sample_r[i] = v.r;
-        L.sample_g[i] = v.g;
-        L.sample_b[i] = v.b;
-        L.pdf[i] = v.pdf;
     }
     for (size_t i = 0; i < n; ++i)
         next_ray(L, i, L.rdx[i], L.rdy[i], L.rdz[i], L.sample_r[i], L.sample_g[i], L.sample_b[i], L.pdf[i],
@@ -503,7 +515,7 @@ void preview_sample(DiffuseLanes& L, size_t n) {
         float rpd, rps;
         lobe_probabilities(m, std::fabs(rz), &rpd, &rps);
         const PreviewValue r = preview_value(m, rpd, rps, rx, ry, rz, lox, loy, loz);
-        L.pdf_rev[i] = rcons & r.ok ? r.pdf : 0.f;
+        L.pdf_rev[i] = rcons & (r.ok != 0) ? r.pdf : 0.f;
     }
 }
 
