@@ -80,6 +80,12 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_preview_lanes.reset(new DiffuseLanes);
     m_preview.reserve(n);
     m_preview_light.resize(n);
+    m_lane_model.assign(scene.material_count(), 0);
+    m_lane_constants.resize(scene.material_count());
+    for (uint32_t i = 0; i < scene.material_count(); ++i) {
+        const PreviewSurfaceBsdf* preview = scene.constant_preview(i);
+        m_lane_model[i] = preview && preview->lane_constants(&m_lane_constants[i]);
+    }
     m_rect_slot.assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
     for (size_t i = 0; i < scene.light_count() && m_rect.size() < DiffuseLanes::k_rect_slots; ++i) {
         RectLightConstants c;
@@ -91,20 +97,22 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
 
 bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
     // Stage 1 of diffuse_lanes.h for lane l, if its hit is a static instance's triangle
-    // with a constant Lambertian (shaded in the lanes) or a material the lanes place and
-    // the per-lane routine shades (a constant preview BSDF, or one make_bsdf_at makes from
-    // the uv: no primvars). A path at its last scattering event on a Lambertian ends here
-    // (step(LambertHit)).
+    // with a constant Lambertian (the diffuse lanes), a constant preview BSDF of the
+    // preview lanes' model (those lanes), or a material the lanes place (another constant
+    // preview BSDF, or one make_bsdf_at makes from the uv: no primvars). A path at its
+    // last scattering event on one of the first two ends here (PathTracer::step).
     const Hit& h = m_hits[l];
     TriangleCorners tri;
     if (!m_scene.triangle_corners(h, &tri)) return false;
     const Spectrum* r = m_scene.constant_lambert(tri.material_id);
-    const PreviewSurfaceBsdf* preview = r ? nullptr : m_scene.constant_preview(tri.material_id);
-    const bool placed = !r && (preview || (!tri.primvars && m_scene.lane_material(tri.material_id)));
-    if (!r && !placed) return false;
+    // a constant preview BSDF of the preview lanes' model goes straight to those lanes
+    const bool model = !r && m_lane_model[tri.material_id];
+    const PreviewSurfaceBsdf* preview = r || model ? nullptr : m_scene.constant_preview(tri.material_id);
+    const bool placed = !r && !model && (preview || (!tri.primvars && m_scene.lane_material(tri.material_id)));
+    if (!r && !model && !placed) return false;
     PathState& st = m_state[l];
     ++m_lane_hits;
-    DiffuseLanes& L = *m_lanes;
+    DiffuseLanes& L = model ? *m_preview_lanes : *m_lanes;
     size_t k;
     if (placed) {
         k = DiffuseLanes::k_capacity - 1 - m_placed.size();
@@ -120,8 +128,9 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
             st.done = true;
             return true;
         }
-        k = m_diffuse.size();
-        m_diffuse.push_back(l);
+        std::vector<uint32_t>& lanes = model ? m_preview : m_diffuse;
+        k = lanes.size();
+        lanes.push_back(l);
     }
     const Ray& ray = m_rays[l];
     L.dx[k] = ray.d.x;
@@ -145,6 +154,11 @@ bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
         for (int a = 0; a < 9; ++a) L.nm[a][k] = 0.0;
     }
     if (placed) return true;
+    if (model) {
+        set_model(L, k, m_lane_constants[tri.material_id], tri.material_id);
+        set_path(L, k, l);
+        return true;
+    }
     L.rr[k] = r->x;
     L.rg[k] = r->y;
     L.rb[k] = r->z;
@@ -168,17 +182,30 @@ void PathBatch::set_path(DiffuseLanes& L, size_t k, uint32_t l) const {
     L.u_rr[k] = uint_to_unit_float(w[8]);
 }
 
+void PathBatch::set_model(DiffuseLanes& L, size_t k, const PreviewSurfaceBsdf::LaneConstants& pc,
+                          uint32_t material_id) const {
+    L.cdr[k] = pc.diffuse.x, L.cdg[k] = pc.diffuse.y, L.cdb[k] = pc.diffuse.z;
+    L.f0r[k] = pc.f0.x, L.f0g[k] = pc.f0.y, L.f0b[k] = pc.f0.z;
+    L.f90[k] = pc.f90;
+    L.alpha[k] = pc.alpha;
+    L.has_d[k] = pc.has_diffuse ? 1.f : 0.f;
+    L.has_s[k] = pc.has_specular ? 1.f : 0.f;
+    const PathPartition* partition = m_tracer.partition();
+    L.spec[k] = partition && partition->specular(material_id);
+}
+
 void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     DiffuseLanes& L = *m_lanes;
+    DiffuseLanes& P = *m_preview_lanes;
+    const PathPartition* partition = m_tracer.partition();
+    // the preview lanes gathered so far (constant BSDFs), then those the placed lanes add
+    diffuse_geometry(P, 0, m_preview.size());
     if (!m_placed.empty()) {
-        // the lanes from the top of the arrays down: placed here; those whose BSDF is the
-        // preview lanes' model go to those lanes, the others are shaded one at a time by the
-        // per-lane routine with the BSDF make_bsdf would make
+        // the lanes from the top of the arrays down: placed here; those whose BSDF (made
+        // from the uv) is the preview lanes' model go to those lanes, the others are shaded
+        // one at a time by the per-lane routine with the BSDF make_bsdf would make
         const size_t top = DiffuseLanes::k_capacity;
         diffuse_geometry(L, top - m_placed.size(), top);
-        DiffuseLanes& P = *m_preview_lanes;
-        m_preview.clear();
-        const PathPartition* partition = m_tracer.partition();
         for (size_t j = 0; j < m_placed.size(); ++j) {
             const size_t k = top - 1 - j;
             const uint32_t l = m_placed[j];
@@ -212,31 +239,25 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
                 P.wox[q] = L.wox[k], P.woy[q] = L.woy[k], P.woz[q] = L.woz[k];
                 P.ngx[q] = L.ngx[k], P.ngy[q] = L.ngy[k], P.ngz[q] = L.ngz[k];
                 P.nsx[q] = L.nsx[k], P.nsy[q] = L.nsy[k], P.nsz[q] = L.nsz[k];
-                P.cdr[q] = pc.diffuse.x, P.cdg[q] = pc.diffuse.y, P.cdb[q] = pc.diffuse.z;
-                P.f0r[q] = pc.f0.x, P.f0g[q] = pc.f0.y, P.f0b[q] = pc.f0.z;
-                P.f90[q] = pc.f90;
-                P.alpha[q] = pc.alpha;
-                P.has_d[q] = pc.has_diffuse ? 1.f : 0.f;
-                P.has_s[q] = pc.has_specular ? 1.f : 0.f;
-                P.spec[q] = partition && partition->specular(g.material_id);
+                set_model(P, q, pc, g.material_id);
                 set_path(P, q, l);
                 continue;
             }
-            const Bsdf bsdf = made ? *made : Bsdf(*m_placed_preview[j], g.ns, g.sp.ng);
-            m_tracer.step(st, BsdfHit{&g, &bsdf}, m_sampler[l], c);
+            if (!made) made.emplace(*m_placed_preview[j], g.ns, g.sp.ng);
+            m_tracer.step(st, BsdfHit{&g, &*made}, m_sampler[l], c);
         }
-        if (!m_preview.empty()) {
-            const size_t n = m_preview.size();
-            preview_frame(P, n);
-            const bool lights = m_scene.light_count() > 0;
-            light_samples(P, m_preview, m_preview_light, [&](size_t q, const PathState& st) {
-                return lights && (!partition || partition->wants(PathPartition::caustic(P.spec[q] != 0, st.diffuse_seen)));
-            });
-            preview_next_event(P, n);
-            preview_directions(P, n);
-            preview_sample(P, n);
-            scatter_lanes(P, m_preview, m_preview_light, true, c);
-        }
+    }
+    if (!m_preview.empty()) {
+        const size_t n = m_preview.size();
+        preview_frame(P, n);
+        const bool lights = m_scene.light_count() > 0;
+        light_samples(P, m_preview, m_preview_light, [&](size_t q, const PathState& st) {
+            return lights && (!partition || partition->wants(PathPartition::caustic(P.spec[q] != 0, st.diffuse_seen)));
+        });
+        preview_next_event(P, n);
+        preview_directions(P, n);
+        preview_sample(P, n);
+        scatter_lanes(P, m_preview, m_preview_light, true, c);
     }
     const size_t n = m_diffuse.size();
     if (n == 0) return;
@@ -244,7 +265,6 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     // next-event estimation, with a partition only where it wants the path
     // (PathTracer::scatter: a Lambertian vertex is never specular, so the path through it
     // is not a caustic one)
-    const PathPartition* partition = m_tracer.partition();
     const bool nee = m_scene.light_count() > 0 && (!partition || partition->wants(PathPartition::caustic(false, false)));
     light_samples(L, m_diffuse, m_diffuse_light, [nee](size_t, const PathState&) { return nee; });
     diffuse_next_event(L, n);
@@ -444,6 +464,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         m_placed_preview.clear();
         m_placed_material.clear();
         m_placed_uv.clear();
+        m_preview.clear();
         const bool lights = m_scene.has_analytic_area_lights();
         const bool lanes = m_use_lanes;
         for (uint32_t l : m_live) {
@@ -467,7 +488,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                 m_tracer.step(st, m_scene.resolve_hit(m_rays[l], h), m_sampler[l], c);
             }
         }
-        if (!m_diffuse.empty() || !m_placed.empty()) shade_diffuse_lanes(c);
+        if (!m_diffuse.empty() || !m_placed.empty() || !m_preview.empty()) shade_diffuse_lanes(c);
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
             if (!st.has_shadow) continue;

@@ -20,6 +20,7 @@
 #include "integrators/common/frame_loop.h"
 #include "integrators/path/diffuse_lanes.h"
 #include "integrators/path/path_tracer.h"
+#include "materials/preview_surface.h"
 #include "sampling/rng.h"
 
 #include <cstdint>
@@ -31,7 +32,6 @@ namespace cmlt {
 class Camera;
 class Film;
 class PixelFilter;
-class PreviewSurfaceBsdf;
 class Scene;
 struct Hit;
 
@@ -104,6 +104,9 @@ private:
     // the preview lanes of a round (diffuse_lanes.h): their batch lanes and lights
     std::unique_ptr<DiffuseLanes> m_preview_lanes;
     std::vector<uint32_t> m_preview, m_preview_light;
+    // per material: a constant preview BSDF of the preview lanes' model, and its constants
+    std::vector<uint8_t> m_lane_model;
+    std::vector<PreviewSurfaceBsdf::LaneConstants> m_lane_constants;
 
     /// Stage 1 of diffuse_lanes.h for lane l: false if its hit is not one the lanes take
     /// (a static instance's triangle with a constant Lambertian, a constant preview BSDF
@@ -111,6 +114,8 @@ private:
     bool gather_diffuse(uint32_t l, PathCounters& counters);
     /// Lane k of L takes batch lane l's throughput, depth and the bounce's numbers.
     void set_path(DiffuseLanes& L, size_t k, uint32_t l) const;
+    /// Preview lane k of L takes the model's constants and the material's partition flag.
+    void set_model(DiffuseLanes& L, size_t k, const PreviewSurfaceBsdf::LaneConstants& pc, uint32_t material_id) const;
     /// Stages 2-6 of diffuse_lanes.h for the lanes in m_diffuse; stage 2 for those in
     /// m_placed, then the preview lanes' stages for those whose BSDF is the preview lanes'
     /// model and PathTracer::step(BsdfHit) for the others.
