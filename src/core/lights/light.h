@@ -77,6 +77,14 @@ struct RectLightConstants {
     Spectrum radiance;     ///< what sample_li returns as li
 };
 
+/// What a sphere light's sample_li computes its sample from, for many shading points at
+/// once (Light::sphere_constants; integrators/path/diffuse_lanes.h, sphere_light_samples).
+struct SphereLightConstants {
+    Vec3 center;
+    float radius = 0.f;
+    Spectrum radiance;  ///< what sample_li returns as li
+};
+
 class Light {
 public:
     virtual ~Light() = default;
@@ -85,6 +93,10 @@ public:
     /// exactly: an untextured rect light without shaping, of positive area and non-black
     /// radiance (RectLight). False for every other light.
     virtual bool rect_constants(RectLightConstants* /*out*/) const { return false; }
+    /// True, with `*out`, for a light whose sample_li is SphereLightConstants' cone sample
+    /// exactly: a sphere light (not treated as a point) without shaping, of positive radius
+    /// and non-black radiance (SphereLight). False for every other light.
+    virtual bool sphere_constants(SphereLightConstants* /*out*/) const { return false; }
 
     virtual LightSample sample_li(const Vec3& p, const Vec2& u) const = 0;
     /// Solid-angle pdf of sampling direction `wi` from `p` (0 for Dirac lights).

@@ -38,6 +38,14 @@ bool SphereLight::hit_sphere(const Vec3& o, const Vec3& d, float* t) const {
     return true;
 }
 
+bool SphereLight::sphere_constants(SphereLightConstants* out) const {
+    if (m_point || m_shaping.active || !(m_radius > 0.f) || is_black(m_radiance)) return false;
+    out->center = m_center;
+    out->radius = m_radius;
+    out->radiance = m_radiance;
+    return true;
+}
+
 LightSample SphereLight::sample_li(const Vec3& p, const Vec2& u) const {
     LightSample s;
     if (!(m_radius > 0.f)) return s;

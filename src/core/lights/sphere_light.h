@@ -12,6 +12,7 @@ class SphereLight final : public Light {
 public:
     explicit SphereLight(const LightDesc& desc);
     LightSample sample_li(const Vec3& p, const Vec2& u) const override;
+    bool sphere_constants(SphereLightConstants* out) const override;
     float pdf_li(const Vec3& p, const Vec3& wi) const override;
     bool intersect(const Ray& ray, float* t, Spectrum* le) const override;
     float power() const override;

@@ -42,6 +42,16 @@ inline float offset(float p, float n, float e, bool side) {
     const float off = n * (k_offset_rel * e);
     return side ? p - off : p + off;
 }
+/// Frame(n)'s tangents s and t (Duff et al.).
+struct Tangents {
+    float sx, sy, sz, tx, ty, tz;
+};
+CMLT_LANES_INLINE Tangents tangents(float nx, float ny, float nz) {
+    const float sign = std::copysign(1.f, nz);
+    const float a = -1.f / (sign + nz);
+    const float b = nx * ny * a;
+    return {1.f + sign * nx * nx * a, sign * b, -sign * nx, b, sign + ny * ny * a, -ny};
+}
 }  // namespace
 
 CMLT_LANES_CLONES
@@ -124,7 +134,7 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
     const float nx = c.n_emit.x, ny = c.n_emit.y, nz = c.n_emit.z;
     const float lr = c.radiance.x * 1.f, lg = c.radiance.y * 1.f, lb = c.radiance.z * 1.f;
     for (size_t i = 0; i < n; ++i) {
-        const double x = double((L.rect_ux[i] - 0.5f) * w), y = double((L.rect_uy[i] - 0.5f) * h), z = 0.0;
+        const double x = double((L.slot_ux[i] - 0.5f) * w), y = double((L.slot_uy[i] - 0.5f) * h), z = 0.0;
         const float qx = float(m00 * x + m01 * y + m02 * z + m03);
         const float qy = float(m10 * x + m11 * y + m12 * z + m13);
         const float qz = float(m20 * x + m21 * y + m22 * z + m23);
@@ -134,7 +144,7 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
         const float wx = dx * r, wy = dy * r, wz = dz * r;
         const float cos_l = -(nx * wx + ny * wy + nz * wz);
         const float pdf = dist2 / (cos_l * area);
-        const float pmf = L.rect_pmf[i];
+        const float pmf = L.slot_pmf[i];
         const bool ok = (L.rect_slot[i] == slot) & (dist2 > 0.f) & (cos_l > 0.f) & finite(pdf) & (pdf > 0.f) &
                         (pmf > 0.f);
         L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
@@ -221,6 +231,108 @@ CMLT_LANES_INLINE void next_ray(DiffuseLanes& L, size_t i, float wx, float wy, f
 }  // namespace
 
 CMLT_LANES_CLONES
+static void sphere_cones(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c) {
+    // SphereLight::sample_li up to its cone: the direction to the centre, its distance
+    // (length: sqrt of the dot product), the cone's 1 - cos (sphere_cone_one_minus_cos, in
+    // double)
+    const float cx = c.center.x, cy = c.center.y, cz = c.center.z, r = c.radius;
+    for (size_t i = 0; i < n; ++i) {
+        const float tx = cx - L.px[i], ty = cy - L.py[i], tz = cz - L.pz[i];
+        const float d = std::sqrt(tx * tx + ty * ty + tz * tz);
+        const double s2 = double(r) * r / (double(d) * d);
+        const double q = std::sqrt(1.0 - s2);
+        const float omc = s2 >= 1.0 ? 1.f : float(s2 / (1.0 + q));
+        const float id = 1.f / d;
+        L.cone_slot[i] = L.sphere_slot[i] == slot;
+        L.cone_omc[i] = L.sphere_slot[i] == slot ? omc : 0.f;
+        L.cdist[i] = d;
+        L.cnx[i] = tx * id;
+        L.cny[i] = ty * id;
+        L.cnz[i] = tz * id;
+    }
+}
+
+CMLT_LANES_CLONES
+static void sphere_finish(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c) {
+    // the rest of SphereLight::sample_li: the cone direction to the world (Frame of the
+    // direction to the centre), normalised; the distance along it to the sphere
+    // (hit_sphere, in double), or at the rim the tangent point's; li, the density, the point
+    const double ccx = c.center.x, ccy = c.center.y, ccz = c.center.z, rr = double(c.radius) * c.radius;
+    const float r = c.radius, lr = c.radiance.x * 1.f, lg = c.radiance.y * 1.f, lb = c.radiance.z * 1.f;
+    for (size_t i = 0; i < n; ++i) {
+        const float nx = L.cnx[i], ny = L.cny[i], nz = L.cnz[i];
+        const Tangents f = tangents(nx, ny, nz);
+        const float vx = L.cone_x[i], vy = L.cone_y[i], vz = L.cone_z[i];
+        const float ux = f.sx * vx + f.tx * vy + nx * vz;
+        const float uy = f.sy * vx + f.ty * vy + ny * vz;
+        const float uz = f.sz * vx + f.tz * vy + nz * vz;
+        const float ul = std::sqrt(ux * ux + uy * uy + uz * uz);
+        const float ur = 1.f / ul;
+        const bool upos = ul > 0.f;
+        const float wx = upos ? ux * ur : 0.f, wy = upos ? uy * ur : 0.f, wz = upos ? uz * ur : 0.f;
+        // hit_sphere(p, wi)
+        const float px = L.px[i], py = L.py[i], pz = L.pz[i];
+        const double ox = double(px) - ccx, oy = double(py) - ccy, oz = double(pz) - ccz;
+        const double a = double(wx) * wx + double(wy) * wy + double(wz) * wz;
+        const double b = ox * wx + oy * wy + oz * wz;
+        const double cc = ox * ox + oy * oy + oz * oz - rr;
+        const double disc = b * b - a * cc;
+        const double q = -b - std::sqrt(disc);
+        // a miss as NaN (a hit's q / a is never NaN: q > 0, a > 0), so that the double
+        // comparisons' masks stay apart from the floats' (mixed, the loop stays scalar)
+        // (one select per test: a combination of the tests becomes booleans of two widths)
+        double th = q / a;
+        th = cc <= 0.0 ? double(NAN) : th;
+        th = a <= 0.0 ? double(NAN) : th;
+        th = disc < 0.0 ? double(NAN) : th;
+        th = q <= 0.0 ? double(NAN) : th;
+        const float tf = float(th);
+        const float d = L.cdist[i];
+        const float rim = d * fmax_std(0.f, wx * nx + wy * ny + wz * nz);
+        const float t = tf == tf ? tf : rim;
+        const float omc = L.cone_omc[i];
+        const float pdf = 1.f / (2.f * k_pi * omc);
+        const float pmf = L.slot_pmf[i];
+        // (into the intermediates, merged below: with the merge here the loop stays scalar)
+        L.cone_ok[i] = (L.cone_slot[i] != 0) & (d > r) & (omc > 0.f) & (pdf > 0.f) & (pmf > 0.f);
+        L.cone_x[i] = wx;
+        L.cone_y[i] = wy;
+        L.cone_z[i] = wz;
+        L.cnx[i] = px + wx * t;
+        L.cny[i] = py + wy * t;
+        L.cnz[i] = pz + wz * t;
+        L.cdist[i] = pmf * pdf;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        const bool ok = L.cone_ok[i] != 0;
+        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
+        L.wix[i] = ok ? L.cone_x[i] : L.wix[i];
+        L.wiy[i] = ok ? L.cone_y[i] : L.wiy[i];
+        L.wiz[i] = ok ? L.cone_z[i] : L.wiz[i];
+        L.li_r[i] = ok ? lr : L.li_r[i];
+        L.li_g[i] = ok ? lg : L.li_g[i];
+        L.li_b[i] = ok ? lb : L.li_b[i];
+        L.plx[i] = ok ? L.cnx[i] : L.plx[i];
+        L.ply[i] = ok ? L.cny[i] : L.ply[i];
+        L.plz[i] = ok ? L.cnz[i] : L.plz[i];
+        L.light_pdf[i] = ok ? L.cdist[i] : L.light_pdf[i];
+    }
+}
+
+void sphere_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c) {
+    sphere_cones(L, n, slot, c);
+    // the cone's direction (square_to_uniform_cone: libm's cos/sin), one lane at a time
+    for (size_t i = 0; i < n; ++i) {
+        const bool in = L.sphere_slot[i] == slot && L.cdist[i] > c.radius && L.cone_omc[i] > 0.f;
+        const Vec3 v = in ? square_to_uniform_cone(Vec2(L.slot_ux[i], L.slot_uy[i]), L.cone_omc[i]) : Vec3(0.f);
+        L.cone_x[i] = v.x;
+        L.cone_y[i] = v.y;
+        L.cone_z[i] = v.z;
+    }
+    sphere_finish(L, n, slot, c);
+}
+
+CMLT_LANES_CLONES
 void diffuse_next_event(DiffuseLanes& L, size_t n) {
     for (size_t i = 0; i < n; ++i) {
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
@@ -282,16 +394,6 @@ void diffuse_sample(DiffuseLanes& L, size_t n) {
 
 
 namespace {
-/// Frame(n)'s tangents s and t (Duff et al.).
-struct Tangents {
-    float sx, sy, sz, tx, ty, tz;
-};
-CMLT_LANES_INLINE Tangents tangents(float nx, float ny, float nz) {
-    const float sign = std::copysign(1.f, nz);
-    const float a = -1.f / (sign + nz);
-    const float b = nx * ny * a;
-    return {1.f + sign * nx * nx * a, sign * b, -sign * nx, b, sign + ny * ny * a, -ny};
-}
 
 /// std::clamp(x, 0, 1).
 CMLT_LANES_INLINE float clamp01_std(float x) { return x < 0.f ? 0.f : (1.f < x ? 1.f : x); }

@@ -86,14 +86,22 @@ struct DiffuseLanes {
     alignas(64) float li_r[N], li_g[N], li_b[N];
     alignas(64) float light_pdf[N];                  ///< pmf times the sample's pdf
     alignas(64) float plx[N], ply[N], plz[N], nlx[N], nly[N], nlz[N], lerr[N];
-    /// 3b. a sample of a rect light with RectLightConstants (rect_light_samples): its slot
-    /// (k_no_rect_slot: sampled one lane at a time, or none), its numbers and the light's pmf
-    alignas(64) uint8_t rect_slot[N];
-    alignas(64) float rect_ux[N], rect_uy[N], rect_pmf[N];
+    /// 3b. a sample of a rect light with RectLightConstants (rect_light_samples) or of a
+    /// sphere light with SphereLightConstants (sphere_light_samples): its slot among those
+    /// lights (k_no_rect_slot: sampled one lane at a time, or none), its numbers and the
+    /// light's pmf
+    alignas(64) uint8_t rect_slot[N], sphere_slot[N];
+    alignas(64) float slot_ux[N], slot_uy[N], slot_pmf[N];
     static constexpr uint8_t k_no_rect_slot = 0xFF;
-    /// Rect lights per frame whose samples the lanes compute (PathBatch: the first ones
-    /// by light index; a lane loop per slot).
+    /// Rect lights and sphere lights per frame whose samples the lanes compute (PathBatch:
+    /// the first ones of each kind by light index; a lane loop per slot).
     static constexpr size_t k_rect_slots = 4;
+    /// 3c. sphere_light_samples' intermediates: the lane's slot is the pass's (cone_slot),
+    /// the cone's 1 - cos, the unit direction to the centre and the distance to it,
+    /// the direction in the cone's frame; then the sample (direction in cone_*, point in cn*,
+    /// density in cdist) and whether it is valid (cone_ok) before they are merged
+    alignas(64) float cone_omc[N], cnx[N], cny[N], cnz[N], cdist[N], cone_x[N], cone_y[N], cone_z[N];
+    alignas(64) int32_t cone_slot[N], cone_ok[N];
 
     // 4. the pending shadow ray
     alignas(64) uint8_t shadow[N];
@@ -131,10 +139,14 @@ struct DiffuseLanes {
 /// Stage 2 over lanes [begin, end).
 void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end);
 /// Stage 3's rect light samples over lanes [0, n): for each lane with rect_slot[k] == slot,
-/// RectLight::sample_li at (px, py, pz) with (rect_ux, rect_uy), written where valid (with
+/// RectLight::sample_li at (px, py, pz) with (slot_ux, slot_uy), written where valid (with
 /// pmf > 0) as the per-lane loop writes a LightSample (ls_ok, wi, li, light_pdf, the point
 /// on the light; no normal, no error scale, finite distance, not Dirac).
 void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLightConstants& c);
+/// Stage 3's sphere light samples over lanes [0, n), as rect_light_samples for lanes with
+/// sphere_slot[k] == slot: SphereLight::sample_li (its cone direction, libm's cos/sin, one
+/// lane at a time in between; no normal, no error scale, not Dirac).
+void sphere_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c);
 /// Stage 4 over lanes [0, n) (lanes without ls_ok get no shadow ray).
 void diffuse_next_event(DiffuseLanes& L, size_t n);
 /// Stage 5: the concentric disk's point (scalar), then the rest.

@@ -93,6 +93,13 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
         m_rect_slot[i] = uint8_t(m_rect.size());
         m_rect.push_back(c);
     }
+    m_sphere_slot.assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
+    for (size_t i = 0; i < scene.light_count() && m_sphere.size() < DiffuseLanes::k_rect_slots; ++i) {
+        SphereLightConstants c;
+        if (!scene.light(i).sphere_constants(&c)) continue;
+        m_sphere_slot[i] = uint8_t(m_sphere.size());
+        m_sphere.push_back(c);
+    }
 }
 
 bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
@@ -289,19 +296,20 @@ void PathBatch::light_samples(DiffuseLanes& L, const std::vector<uint32_t>& lane
         L.li_r[k] = L.li_g[k] = L.li_b[k] = 0.f;
         L.plx[k] = L.ply[k] = L.plz[k] = L.nlx[k] = L.nly[k] = L.nlz[k] = L.lerr[k] = 0.f;
         L.light_pdf[k] = 0.f;
-        L.rect_slot[k] = DiffuseLanes::k_no_rect_slot;
-        L.rect_ux[k] = L.rect_uy[k] = L.rect_pmf[k] = 0.f;
+        L.rect_slot[k] = L.sphere_slot[k] = DiffuseLanes::k_no_rect_slot;
+        L.slot_ux[k] = L.slot_uy[k] = L.slot_pmf[k] = 0.f;
         if (st.depth + 1 < m_tracer.min_depth() || !wants(k, st)) continue;
         const uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
         float pmf = 0.f;
         const size_t li = m_scene.sample_light(uint_to_unit_float(w[0]), &pmf);
-        if (m_rect_slot[li] != DiffuseLanes::k_no_rect_slot) {
-            // sampled below, in rect_light_samples
+        if (m_rect_slot[li] != DiffuseLanes::k_no_rect_slot || m_sphere_slot[li] != DiffuseLanes::k_no_rect_slot) {
+            // sampled below, in rect_light_samples or sphere_light_samples
             light[k] = uint32_t(li);
             L.rect_slot[k] = m_rect_slot[li];
-            L.rect_ux[k] = uint_to_unit_float(w[2]);
-            L.rect_uy[k] = uint_to_unit_float(w[3]);
-            L.rect_pmf[k] = pmf;
+            L.sphere_slot[k] = m_sphere_slot[li];
+            L.slot_ux[k] = uint_to_unit_float(w[2]);
+            L.slot_uy[k] = uint_to_unit_float(w[3]);
+            L.slot_pmf[k] = pmf;
             continue;
         }
         const LightSample ls = m_scene.light(li).sample_li(
@@ -319,6 +327,7 @@ void PathBatch::light_samples(DiffuseLanes& L, const std::vector<uint32_t>& lane
         L.light_pdf[k] = pmf * ls.pdf;
     }
     for (size_t s = 0; s < m_rect.size(); ++s) rect_light_samples(L, n, uint8_t(s), m_rect[s]);
+    for (size_t s = 0; s < m_sphere.size(); ++s) sphere_light_samples(L, n, uint8_t(s), m_sphere[s]);
 }
 
 void PathBatch::scatter_lanes(const DiffuseLanes& L, const std::vector<uint32_t>& lanes,

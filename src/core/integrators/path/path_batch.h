@@ -96,6 +96,9 @@ private:
     // its slot or DiffuseLanes::k_no_rect_slot, per slot the constants
     std::vector<uint8_t> m_rect_slot;
     std::vector<RectLightConstants> m_rect;
+    // the same for the sphere lights (Light::sphere_constants)
+    std::vector<uint8_t> m_sphere_slot;
+    std::vector<SphereLightConstants> m_sphere;
     // the lanes of a round placed from the top down and shaded one at a time: batch
     // lanes, materials, constant preview BSDFs (null: make_bsdf_at), texture coordinates
     std::vector<uint32_t> m_placed, m_placed_material;
