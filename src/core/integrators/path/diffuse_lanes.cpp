@@ -123,6 +123,27 @@ void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end) {
     }
 }
 
+/// A slot's light samples (sample_ok: valid, sample_w*: direction, sample_p*: point on the
+/// light, sample_pdf: pmf times density; li the light's radiance) written where valid, as
+/// the per-lane loop writes a LightSample (no normal, no error scale, finite distance, not
+/// Dirac). (A loop of its own: with this merge in the sampling loop, that loop stays scalar.)
+static void merge_slot_samples(DiffuseLanes& L, size_t n, float lr, float lg, float lb) {
+    for (size_t i = 0; i < n; ++i) {
+        const bool ok = L.sample_ok[i] != 0;
+        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
+        L.wix[i] = ok ? L.sample_wx[i] : L.wix[i];
+        L.wiy[i] = ok ? L.sample_wy[i] : L.wiy[i];
+        L.wiz[i] = ok ? L.sample_wz[i] : L.wiz[i];
+        L.li_r[i] = ok ? lr : L.li_r[i];
+        L.li_g[i] = ok ? lg : L.li_g[i];
+        L.li_b[i] = ok ? lb : L.li_b[i];
+        L.plx[i] = ok ? L.sample_px[i] : L.plx[i];
+        L.ply[i] = ok ? L.sample_py[i] : L.ply[i];
+        L.plz[i] = ok ? L.sample_pz[i] : L.plz[i];
+        L.light_pdf[i] = ok ? L.sample_pdf[i] : L.light_pdf[i];
+    }
+}
+
 CMLT_LANES_CLONES
 void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLightConstants& c) {
     // PlanarLight::sample_li with RectLight's sample_local and no texture or shaping (li is
@@ -133,6 +154,7 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
     const float w = c.w, h = c.h, area = c.area;
     const float nx = c.n_emit.x, ny = c.n_emit.y, nz = c.n_emit.z;
     const float lr = c.radiance.x * 1.f, lg = c.radiance.y * 1.f, lb = c.radiance.z * 1.f;
+    for (size_t i = 0; i < n; ++i) L.sample_slot[i] = L.rect_slot[i] == slot;
     for (size_t i = 0; i < n; ++i) {
         const double x = double((L.slot_ux[i] - 0.5f) * w), y = double((L.slot_uy[i] - 0.5f) * h), z = 0.0;
         const float qx = float(m00 * x + m01 * y + m02 * z + m03);
@@ -145,20 +167,17 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
         const float cos_l = -(nx * wx + ny * wy + nz * wz);
         const float pdf = dist2 / (cos_l * area);
         const float pmf = L.slot_pmf[i];
-        const bool ok = (L.rect_slot[i] == slot) & (dist2 > 0.f) & (cos_l > 0.f) & finite(pdf) & (pdf > 0.f) &
-                        (pmf > 0.f);
-        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
-        L.wix[i] = ok ? wx : L.wix[i];
-        L.wiy[i] = ok ? wy : L.wiy[i];
-        L.wiz[i] = ok ? wz : L.wiz[i];
-        L.li_r[i] = ok ? lr : L.li_r[i];
-        L.li_g[i] = ok ? lg : L.li_g[i];
-        L.li_b[i] = ok ? lb : L.li_b[i];
-        L.plx[i] = ok ? qx : L.plx[i];
-        L.ply[i] = ok ? qy : L.ply[i];
-        L.plz[i] = ok ? qz : L.plz[i];
-        L.light_pdf[i] = ok ? pmf * pdf : L.light_pdf[i];
+        L.sample_ok[i] = (L.sample_slot[i] != 0) & (dist2 > 0.f) & (cos_l > 0.f) & finite(pdf) & (pdf > 0.f) &
+                         (pmf > 0.f);
+        L.sample_wx[i] = wx;
+        L.sample_wy[i] = wy;
+        L.sample_wz[i] = wz;
+        L.sample_px[i] = qx;
+        L.sample_py[i] = qy;
+        L.sample_pz[i] = qz;
+        L.sample_pdf[i] = pmf * pdf;
     }
+    merge_slot_samples(L, n, lr, lg, lb);
 }
 
 namespace {
@@ -243,7 +262,7 @@ static void sphere_cones(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLi
         const double q = std::sqrt(1.0 - s2);
         const float omc = s2 >= 1.0 ? 1.f : float(s2 / (1.0 + q));
         const float id = 1.f / d;
-        L.cone_slot[i] = L.sphere_slot[i] == slot;
+        L.sample_slot[i] = L.sphere_slot[i] == slot;
         L.cone_omc[i] = L.sphere_slot[i] == slot ? omc : 0.f;
         L.cdist[i] = d;
         L.cnx[i] = tx * id;
@@ -293,30 +312,16 @@ static void sphere_finish(DiffuseLanes& L, size_t n, uint8_t slot, const SphereL
         const float omc = L.cone_omc[i];
         const float pdf = 1.f / (2.f * k_pi * omc);
         const float pmf = L.slot_pmf[i];
-        // (into the intermediates, merged below: with the merge here the loop stays scalar)
-        L.cone_ok[i] = (L.cone_slot[i] != 0) & (d > r) & (omc > 0.f) & (pdf > 0.f) & (pmf > 0.f);
-        L.cone_x[i] = wx;
-        L.cone_y[i] = wy;
-        L.cone_z[i] = wz;
-        L.cnx[i] = px + wx * t;
-        L.cny[i] = py + wy * t;
-        L.cnz[i] = pz + wz * t;
-        L.cdist[i] = pmf * pdf;
+        L.sample_ok[i] = (L.sample_slot[i] != 0) & (d > r) & (omc > 0.f) & (pdf > 0.f) & (pmf > 0.f);
+        L.sample_wx[i] = wx;
+        L.sample_wy[i] = wy;
+        L.sample_wz[i] = wz;
+        L.sample_px[i] = px + wx * t;
+        L.sample_py[i] = py + wy * t;
+        L.sample_pz[i] = pz + wz * t;
+        L.sample_pdf[i] = pmf * pdf;
     }
-    for (size_t i = 0; i < n; ++i) {
-        const bool ok = L.cone_ok[i] != 0;
-        L.ls_ok[i] = ok ? uint8_t(1) : L.ls_ok[i];
-        L.wix[i] = ok ? L.cone_x[i] : L.wix[i];
-        L.wiy[i] = ok ? L.cone_y[i] : L.wiy[i];
-        L.wiz[i] = ok ? L.cone_z[i] : L.wiz[i];
-        L.li_r[i] = ok ? lr : L.li_r[i];
-        L.li_g[i] = ok ? lg : L.li_g[i];
-        L.li_b[i] = ok ? lb : L.li_b[i];
-        L.plx[i] = ok ? L.cnx[i] : L.plx[i];
-        L.ply[i] = ok ? L.cny[i] : L.ply[i];
-        L.plz[i] = ok ? L.cnz[i] : L.plz[i];
-        L.light_pdf[i] = ok ? L.cdist[i] : L.light_pdf[i];
-    }
+    merge_slot_samples(L, n, lr, lg, lb);
 }
 
 void sphere_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c) {

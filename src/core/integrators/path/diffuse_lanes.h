@@ -96,12 +96,15 @@ struct DiffuseLanes {
     /// Rect lights and sphere lights per frame whose samples the lanes compute (PathBatch:
     /// the first ones of each kind by light index; a lane loop per slot).
     static constexpr size_t k_rect_slots = 4;
-    /// 3c. sphere_light_samples' intermediates: the lane's slot is the pass's (cone_slot),
-    /// the cone's 1 - cos, the unit direction to the centre and the distance to it,
-    /// the direction in the cone's frame; then the sample (direction in cone_*, point in cn*,
-    /// density in cdist) and whether it is valid (cone_ok) before they are merged
+    /// 3c. a slot's samples before they are merged into the lanes' (rect_light_samples,
+    /// sphere_light_samples): the lane's slot is the pass's, the sample is valid, its
+    /// direction, point and pmf times density
+    alignas(64) int32_t sample_slot[N], sample_ok[N];
+    alignas(64) float sample_wx[N], sample_wy[N], sample_wz[N], sample_px[N], sample_py[N], sample_pz[N];
+    alignas(64) float sample_pdf[N];
+    /// sphere_light_samples' intermediates: the cone's 1 - cos, the unit direction to the
+    /// centre and the distance to it, the direction in the cone's frame
     alignas(64) float cone_omc[N], cnx[N], cny[N], cnz[N], cdist[N], cone_x[N], cone_y[N], cone_z[N];
-    alignas(64) int32_t cone_slot[N], cone_ok[N];
 
     // 4. the pending shadow ray
     alignas(64) uint8_t shadow[N];
