@@ -24,7 +24,8 @@
 ///      bounce's numbers;
 ///   2. diffuse_geometry: point, wo, geometric and shading normals, offset scale;
 ///   3. next-event sampling (PathBatch, scalar: one light by power, Light::sample_li —
-///      virtual per light type);
+///      virtual per light type — except for unshaped rect and sphere lights, whose samples
+///      rect_light_samples and sphere_light_samples compute in lanes);
 ///   4. diffuse_next_event: the Lambertian value and density toward the light sample,
 ///      the shadow ray and its pending contribution;
 ///   5. diffuse_disk (scalar: the concentric map, libm's cos/sin) and diffuse_sample:
@@ -40,13 +41,14 @@
 /// DiffuseLanes of its own, the preview_* stages below); the others are shaded by the
 /// per-lane routine (PathTracer::step(BsdfHit)).
 ///
-/// What got the preview loops vectorised (GCC 12; `-fopt-info-vec` lists the loops it
-/// took): no select whose value the compiler can follow into a boolean (a value zeroed by
-/// a select, then tested against zero: it refuses the mask conversion that makes), sums
-/// instead of nested selects, every helper inlined, the model's flags as floats.
-/// preview_sample's first and last loops (the sample's value, the reverse density) are
-/// still scalar code: GCC groups their many arrays of one struct as one interleaved
-/// access ("group is too large").
+/// What gets these loops vectorised (GCC 12; `-fopt-info-vec` lists the loops it took):
+/// no boolean the compiler can build from masks of two widths — a byte flag or a bool
+/// member beside float comparisons, double comparisons combined with float ones, a value
+/// zeroed by a select and then tested against zero — so flags are floats or 32-bit ints,
+/// tests are applied one select at a time, and a value's checks or a merge into the
+/// lanes' fields ("ok ? new : old", which stays a branch) run in loops of their own; sums
+/// instead of nested selects; every helper inlined. Scalar still: the lobe and direction
+/// choice and the cone direction (libm's cos/sin, per lane) and the merges.
 #include "integrators/common/frame_loop.h"
 #include "lights/light.h"
 
