@@ -16,6 +16,19 @@ namespace cmlt {
 namespace {
 /// Dimensions a lane prefetches per round: one bounce's (PathTracer::k_dims_per_bounce).
 constexpr uint32_t k_prefetch = PathTracer::k_dims_per_bounce;
+
+/// The first DiffuseLanes::k_rect_slots lights of a kind whose samples the lanes compute:
+/// per light its slot (or k_no_rect_slot), per slot the constants `get` gives.
+template <class Constants, class Get>
+void lane_light_slots(const Scene& scene, std::vector<uint8_t>* slot, std::vector<Constants>* slots, Get&& get) {
+    slot->assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
+    for (size_t i = 0; i < scene.light_count() && slots->size() < DiffuseLanes::k_rect_slots; ++i) {
+        Constants c;
+        if (!get(scene.light(i), &c)) continue;
+        (*slot)[i] = uint8_t(slots->size());
+        slots->push_back(c);
+    }
+}
 }  // namespace
 
 template <class First>
@@ -86,20 +99,9 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
         const PreviewSurfaceBsdf* preview = scene.constant_preview(i);
         m_lane_model[i] = preview && preview->lane_constants(&m_lane_constants[i]);
     }
-    m_rect_slot.assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
-    for (size_t i = 0; i < scene.light_count() && m_rect.size() < DiffuseLanes::k_rect_slots; ++i) {
-        RectLightConstants c;
-        if (!scene.light(i).rect_constants(&c)) continue;
-        m_rect_slot[i] = uint8_t(m_rect.size());
-        m_rect.push_back(c);
-    }
-    m_sphere_slot.assign(scene.light_count(), DiffuseLanes::k_no_rect_slot);
-    for (size_t i = 0; i < scene.light_count() && m_sphere.size() < DiffuseLanes::k_rect_slots; ++i) {
-        SphereLightConstants c;
-        if (!scene.light(i).sphere_constants(&c)) continue;
-        m_sphere_slot[i] = uint8_t(m_sphere.size());
-        m_sphere.push_back(c);
-    }
+    lane_light_slots(scene, &m_rect_slot, &m_rect, [](const Light& l, RectLightConstants* c) { return l.rect_constants(c); });
+    lane_light_slots(scene, &m_sphere_slot, &m_sphere,
+                     [](const Light& l, SphereLightConstants* c) { return l.sphere_constants(c); });
 }
 
 bool PathBatch::gather_diffuse(uint32_t l, PathCounters& c) {
