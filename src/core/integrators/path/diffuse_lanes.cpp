@@ -9,6 +9,7 @@
 #include "materials/fresnel.h"
 #include "materials/microfacet.h"
 #include "materials/preview_surface.h"
+#include "math/frame.h"
 #include "math/safe_math.h"
 #include "sampling/warp.h"
 #include "scene/interaction.h"
@@ -42,15 +43,11 @@ inline float offset(float p, float n, float e, bool side) {
     const float off = n * (k_offset_rel * e);
     return side ? p - off : p + off;
 }
-/// Frame(n)'s tangents s and t (Duff et al.).
-struct Tangents {
-    float sx, sy, sz, tx, ty, tz;
-};
-CMLT_LANES_INLINE Tangents tangents(float nx, float ny, float nz) {
-    const float sign = std::copysign(1.f, nz);
-    const float a = -1.f / (sign + nz);
-    const float b = nx * ny * a;
-    return {1.f + sign * nx * nx * a, sign * b, -sign * nx, b, sign + ny * ny * a, -ny};
+/// Bsdf's side test (consistent_sides, consistent_cosines) from the directions' dot
+/// products with the geometric normal (go, gi) and the shading normal (lz, iz): neither
+/// direction in the geometric plane, and the shading frame's sides agree with its.
+CMLT_LANES_INLINE bool consistent(float go, float gi, float lz, float iz) {
+    return (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (lz * iz > 0.f));
 }
 }  // namespace
 
@@ -279,12 +276,9 @@ static void sphere_finish(DiffuseLanes& L, size_t n, uint8_t slot, const SphereL
     const double ccx = c.center.x, ccy = c.center.y, ccz = c.center.z, rr = double(c.radius) * c.radius;
     const float r = c.radius, lr = c.radiance.x * 1.f, lg = c.radiance.y * 1.f, lb = c.radiance.z * 1.f;
     for (size_t i = 0; i < n; ++i) {
-        const float nx = L.cnx[i], ny = L.cny[i], nz = L.cnz[i];
-        const Tangents f = tangents(nx, ny, nz);
-        const float vx = L.cone_x[i], vy = L.cone_y[i], vz = L.cone_z[i];
-        const float ux = f.sx * vx + f.tx * vy + nx * vz;
-        const float uy = f.sy * vx + f.ty * vy + ny * vz;
-        const float uz = f.sz * vx + f.tz * vy + nz * vz;
+        const Vec3 n(L.cnx[i], L.cny[i], L.cnz[i]);
+        const Vec3 u = Frame(n).to_world(Vec3(L.cone_x[i], L.cone_y[i], L.cone_z[i]));
+        const float ux = u.x, uy = u.y, uz = u.z;
         const float ul = std::sqrt(ux * ux + uy * uy + uz * uz);
         const float ur = 1.f / ul;
         const bool upos = ul > 0.f;
@@ -307,7 +301,7 @@ static void sphere_finish(DiffuseLanes& L, size_t n, uint8_t slot, const SphereL
         th = q <= 0.0 ? double(NAN) : th;
         const float tf = float(th);
         const float d = L.cdist[i];
-        const float rim = d * fmax_std(0.f, wx * nx + wy * ny + wz * nz);
+        const float rim = d * fmax_std(0.f, dot(Vec3(wx, wy, wz), n));
         const float t = tf == tf ? tf : rim;
         const float omc = L.cone_omc[i];
         const float pdf = 1.f / (2.f * k_pi * omc);
@@ -347,7 +341,7 @@ void diffuse_next_event(DiffuseLanes& L, size_t n) {
         // Bsdf::eval's Lambertian branch (consistent_cosines), then |cos| at the light
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
         const float lz = wox * sx + woy * sy + woz * sz, iz = wx * sx + wy * sy + wz * sz;
-        const bool cons = (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (lz * iz > 0.f));
+        const bool cons = consistent(go, gi, lz, iz);
         const bool lit = cons & !(lz * iz <= 0.f);
         const float c = std::fabs(iz);
         const float fr = lit ? L.rr[i] * k_inv_pi : 0.f, fg = lit ? L.rg[i] * k_inv_pi : 0.f,
@@ -381,19 +375,10 @@ void diffuse_sample(DiffuseLanes& L, size_t n) {
         const float pdf = std::fabs(z) * k_inv_pi;
         const float fr = L.rr[i] * k_inv_pi, fg = L.rg[i] * k_inv_pi, fb = L.rb[i] * k_inv_pi;
         bool ok = (loz != 0.f) & (pdf > 0.f) & finite(fr) & finite(fg) & finite(fb);
-        const bool local_reflect = loz * z > 0.f;
-        // Frame(ns).to_world
-        const float sign = std::copysign(1.f, nz);
-        const float a = -1.f / (sign + nz);
-        const float b = nx * ny * a;
-        const float sx = 1.f + sign * nx * nx * a, sy = sign * b, sz = -sign * nx;
-        const float tx = b, ty = sign + ny * ny * a, tz = -ny;
-        const float wx = sx * ddx + tx * ddy + nx * z;
-        const float wy = sy * ddx + ty * ddy + ny * z;
-        const float wz = sz * ddx + tz * ddy + nz * z;
-        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
-        ok = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
-        next_ray(L, i, wx, wy, wz, fr, fg, fb, pdf, ok);
+        const Vec3 w = Frame(Vec3(nx, ny, nz)).to_world(Vec3(ddx, ddy, z));
+        const float go = wox * gx + woy * gy + woz * gz, gi = w.x * gx + w.y * gy + w.z * gz;
+        ok = ok & consistent(go, gi, loz, z);
+        next_ray(L, i, w.x, w.y, w.z, fr, fg, fb, pdf, ok);
     }
 }
 
@@ -499,15 +484,11 @@ CMLT_LANES_CLONES
 void preview_frame(DiffuseLanes& L, size_t n) {
     for (size_t i = 0; i < n; ++i) {
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
-        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
-        const Tangents f = tangents(nx, ny, nz);
-        const float lox = wox * f.sx + woy * f.sy + woz * f.sz;
-        const float loy = wox * f.tx + woy * f.ty + woz * f.tz;
-        const float loz = wox * nx + woy * ny + woz * nz;
-        L.lox[i] = lox;
-        L.loy[i] = loy;
-        L.loz[i] = loz;
-        lobe_probabilities(lane_model(L, i), std::fabs(loz), &L.pd[i], &L.ps[i]);
+        const Vec3 lo = Frame(Vec3(L.nsx[i], L.nsy[i], L.nsz[i])).to_local(Vec3(wox, woy, woz));
+        L.lox[i] = lo.x;
+        L.loy[i] = lo.y;
+        L.loz[i] = lo.z;
+        lobe_probabilities(lane_model(L, i), std::fabs(lo.z), &L.pd[i], &L.ps[i]);
     }
 }
 
@@ -518,18 +499,15 @@ void preview_next_event(DiffuseLanes& L, size_t n) {
         // frame; times |cos| at the light
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
         const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
-        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
         const float wx = L.wix[i], wy = L.wiy[i], wz = L.wiz[i];
-        const Tangents f = tangents(nx, ny, nz);
-        const float lix = wx * f.sx + wy * f.sy + wz * f.sz;
-        const float liy = wx * f.tx + wy * f.ty + wz * f.tz;
-        const float liz = wx * nx + wy * ny + wz * nz;
+        const Vec3 li = Frame(Vec3(L.nsx[i], L.nsy[i], L.nsz[i])).to_local(Vec3(wx, wy, wz));
         const float loz = L.loz[i];
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
-        const bool cons = (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == (loz * liz > 0.f));
-        const PreviewValue v = preview_value(lane_model(L, i), L.pd[i], L.ps[i], L.lox[i], L.loy[i], loz, lix, liy, liz);
+        const bool cons = consistent(go, gi, loz, li.z);
+        const PreviewValue v =
+            preview_value(lane_model(L, i), L.pd[i], L.ps[i], L.lox[i], L.loy[i], loz, li.x, li.y, li.z);
         const bool use = cons & (v.ok != 0);
-        const float c = std::fabs(liz);
+        const float c = std::fabs(li.z);
         next_event_shadow(L, i, (use ? v.r : 0.f) * c, (use ? v.g : 0.f) * c, (use ? v.b : 0.f) * c,
                           use ? v.pdf : 0.f);
     }
@@ -585,21 +563,16 @@ void preview_sample(DiffuseLanes& L, size_t n) {
         // its checks, then Bsdf::sample's
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
         const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
-        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
-        const float lix = L.lix[i], liy = L.liy[i], liz = L.liz[i];
+        const float liz = L.liz[i];
         const float pdf = L.pdf[i];
         const bool ok = (L.dir_ok[i] != 0) & (pdf > 0.f) & finite(pdf) & finite(L.sample_r[i]) &
                         finite(L.sample_g[i]) & finite(L.sample_b[i]);
-        const bool local_reflect = L.loz[i] * liz > 0.f;
-        const Tangents f = tangents(nx, ny, nz);
-        const float wx = f.sx * lix + f.tx * liy + nx * liz;
-        const float wy = f.sy * lix + f.ty * liy + ny * liz;
-        const float wz = f.sz * lix + f.tz * liy + nz * liz;
-        const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
-        L.dir_ok[i] = ok & (go != 0.f) & (gi != 0.f) & ((go * gi > 0.f) == local_reflect);
-        L.rdx[i] = wx;
-        L.rdy[i] = wy;
-        L.rdz[i] = wz;
+        const Vec3 w = Frame(Vec3(L.nsx[i], L.nsy[i], L.nsz[i])).to_world(Vec3(L.lix[i], L.liy[i], liz));
+        const float go = wox * gx + woy * gy + woz * gz, gi = w.x * gx + w.y * gy + w.z * gz;
+        L.dir_ok[i] = ok & consistent(go, gi, L.loz[i], liz);
+        L.rdx[i] = w.x;
+        L.rdy[i] = w.y;
+        L.rdz[i] = w.z;
     }
     for (size_t i = 0; i < n; ++i)
         next_ray(L, i, L.rdx[i], L.rdy[i], L.rdz[i], L.sample_r[i], L.sample_g[i], L.sample_b[i], L.pdf[i],
@@ -609,19 +582,15 @@ void preview_sample(DiffuseLanes& L, size_t n) {
         // again (to_local of the world direction), the lobe probabilities at its cosine
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
         const float gx = L.ngx[i], gy = L.ngy[i], gz = L.ngz[i];
-        const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
         const float wx = L.rdx[i], wy = L.rdy[i], wz = L.rdz[i];
         const float lox = L.lox[i], loy = L.loy[i], loz = L.loz[i];
-        const Tangents f = tangents(nx, ny, nz);
         const float go = wox * gx + woy * gy + woz * gz, gi = wx * gx + wy * gy + wz * gz;
-        const float rx = wx * f.sx + wy * f.sy + wz * f.sz;
-        const float ry = wx * f.tx + wy * f.ty + wz * f.tz;
-        const float rz = wx * nx + wy * ny + wz * nz;
-        const bool rcons = (gi != 0.f) & (go != 0.f) & ((gi * go > 0.f) == (rz * loz > 0.f));
+        const Vec3 ri = Frame(Vec3(L.nsx[i], L.nsy[i], L.nsz[i])).to_local(Vec3(wx, wy, wz));
+        const bool rcons = consistent(gi, go, ri.z, loz);
         const LaneModel m = lane_model(L, i);
         float rpd, rps;
-        lobe_probabilities(m, std::fabs(rz), &rpd, &rps);
-        const PreviewValue r = preview_value(m, rpd, rps, rx, ry, rz, lox, loy, loz);
+        lobe_probabilities(m, std::fabs(ri.z), &rpd, &rps);
+        const PreviewValue r = preview_value(m, rpd, rps, ri.x, ri.y, ri.z, lox, loy, loz);
         L.pdf_rev[i] = rcons & (r.ok != 0) ? r.pdf : 0.f;
     }
 }

@@ -68,12 +68,7 @@ void add_analytic_lights(Scene& s, bool side) {
         wall.radiance = Spectrum(2.f, 3.f, 4.f);
         s.add_light(wall);
     }
-    LightDesc sph;
-    sph.kind = LightDesc::Kind::sphere;
-    sph.transform = Mat4::translate(-0.5, 0.3, -0.4);
-    sph.radius = 0.08f;
-    sph.radiance = Spectrum(20.f, 15.f, 10.f);
-    s.add_light(sph);
+    s.add_light(sphere_light(Vec3(-0.5f, 0.3f, -0.4f), 0.08f, Spectrum(20.f, 15.f, 10.f)));
 }
 
 RenderSettings settings(int spp, bool packets) {
