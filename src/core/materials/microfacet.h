@@ -17,6 +17,7 @@
 /// All quotients that appear in BSDFs are written in forms without 1/cos so that they stay
 /// finite at grazing angles, e.g. G1(w)/|cos w| = 2 / (|cos| + sqrt(a^2 + (1 - a^2) cos^2)).
 #include "math/safe_math.h"
+#include "math/sincos.h"
 #include "math/vec.h"
 
 #include <cmath>
@@ -108,9 +109,10 @@ public:
         Vec3 t2 = cross(vh, t1);
         // Section 4.2: parameterisation of the projected area.
         float r = std::sqrt(u.x);
-        float phi = 2.f * k_pi * u.y;
-        float p1 = r * std::cos(phi);
-        float p2 = r * std::sin(phi);
+        float sp, cp;
+        sincos_turn(u.y, &sp, &cp);  // φ = 2π u.y (math/sincos.h)
+        float p1 = r * cp;
+        float p2 = r * sp;
         float s = 0.5f * (1.f + vh.z);
         p2 = (1.f - s) * safe_sqrt(1.f - p1 * p1) + s * p2;
         // Section 4.3: reprojection onto the hemisphere.

@@ -2,9 +2,12 @@
 #include "math/frame.h"
 #include "math/mat4.h"
 #include "math/safe_math.h"
+#include "math/sincos.h"
 #include "util/error.h"
 
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 using namespace cmlt;
 
@@ -61,4 +64,58 @@ TEST(SafeMath, NoNaNJustOutsideTheDomain) {
     EXPECT_EQ(safe_sqrt(-1e-7f), 0.f);
     EXPECT_EQ(safe_acos(1.0000001f), 0.f);
     EXPECT_EQ(normalize(Vec3(0.f)), Vec3(0.f));
+}
+
+// The samplers' sine and cosine (math/sincos.h) against double precision: within a few
+// float ulp everywhere on their domains, on the unit circle, with the quadrants and the
+// concentric map's two halves joined up. A wrong coefficient, quadrant or swap fails by
+// orders of magnitude more than the tolerance.
+TEST(SinCos, MatchDoublePrecisionOnTheSamplersDomains) {
+    const double two_pi = 6.283185307179586476925;
+    double worst_turn = 0.0, worst_quarter = 0.0, worst_norm = 0.0;
+    for (int i = 0; i <= 1 << 20; ++i) {
+        const float u = float(i) / float(1 << 20);
+        float s, c;
+        sincos_turn(u, &s, &c);
+        worst_turn = std::max({worst_turn, std::fabs(s - std::sin(two_pi * double(u))),
+                               std::fabs(c - std::cos(two_pi * double(u)))});
+        worst_norm = std::max(worst_norm, std::fabs(double(s) * s + double(c) * c - 1.0));
+        const float f = u - 0.5f;
+        sincos_quarter(f, &s, &c);
+        const double x = 0.25 * two_pi * double(f);
+        worst_quarter = std::max({worst_quarter, std::fabs(s - std::sin(x)), std::fabs(c - std::cos(x))});
+    }
+    EXPECT_LT(worst_turn, 3e-7);
+    EXPECT_LT(worst_quarter, 2e-7);
+    EXPECT_LT(worst_norm, 6e-7);
+    // angles beyond one turn reduce exactly (the quadrant of negative u too)
+    for (float u : {-0.75f, -0.3f, 1.25f, 7.6f}) {
+        float s, c;
+        sincos_turn(u, &s, &c);
+        EXPECT_NEAR(s, std::sin(two_pi * double(u)), 3e-7) << u;
+        EXPECT_NEAR(c, std::cos(two_pi * double(u)), 3e-7) << u;
+    }
+}
+
+TEST(SinCos, ConcentricDiskIsShirleyChiusMap) {
+    const double quarter_pi = 0.785398163397448309616;
+    double worst = 0.0;
+    for (int i = 0; i <= 512; ++i)
+        for (int j = 0; j <= 512; ++j) {
+            const float ux = float(i) / 512.f, uy = float(j) / 512.f;
+            const double x = 2.0 * ux - 1.0, y = 2.0 * uy - 1.0;
+            double r = 0.0, th = 0.0;
+            if (std::fabs(x) > std::fabs(y)) {
+                r = x;
+                th = quarter_pi * (y / x);
+            } else if (y != 0.0) {
+                r = y;
+                th = 2.0 * quarter_pi - quarter_pi * (x / y);
+            }
+            const Vec2 d = concentric_disk(ux, uy);
+            worst = std::max({worst, std::fabs(d.x - r * std::cos(th)), std::fabs(d.y - r * std::sin(th))});
+        }
+    EXPECT_LT(worst, 3e-7);
+    EXPECT_EQ(concentric_disk(0.5f, 0.5f).x, 0.f);
+    EXPECT_EQ(concentric_disk(0.5f, 0.5f).y, 0.f);
 }

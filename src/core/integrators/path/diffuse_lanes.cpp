@@ -269,6 +269,18 @@ static void sphere_cones(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLi
 }
 
 CMLT_LANES_CLONES
+static void sphere_cone_directions(DiffuseLanes& L, size_t n, uint8_t slot, float radius) {
+    // the cone's direction (square_to_uniform_cone) where the point is outside the sphere
+    for (size_t i = 0; i < n; ++i) {
+        const bool in = (L.sphere_slot[i] == slot) & (L.cdist[i] > radius) & (L.cone_omc[i] > 0.f);
+        const Vec3 v = square_to_uniform_cone(Vec2(L.slot_ux[i], L.slot_uy[i]), L.cone_omc[i]);
+        L.cone_x[i] = in ? v.x : 0.f;
+        L.cone_y[i] = in ? v.y : 0.f;
+        L.cone_z[i] = in ? v.z : 0.f;
+    }
+}
+
+CMLT_LANES_CLONES
 static void sphere_finish(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c) {
     // the rest of SphereLight::sample_li: the cone direction to the world (Frame of the
     // direction to the centre), normalised; the distance along it to the sphere
@@ -320,14 +332,7 @@ static void sphere_finish(DiffuseLanes& L, size_t n, uint8_t slot, const SphereL
 
 void sphere_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c) {
     sphere_cones(L, n, slot, c);
-    // the cone's direction (square_to_uniform_cone: libm's cos/sin), one lane at a time
-    for (size_t i = 0; i < n; ++i) {
-        const bool in = L.sphere_slot[i] == slot && L.cdist[i] > c.radius && L.cone_omc[i] > 0.f;
-        const Vec3 v = in ? square_to_uniform_cone(Vec2(L.slot_ux[i], L.slot_uy[i]), L.cone_omc[i]) : Vec3(0.f);
-        L.cone_x[i] = v.x;
-        L.cone_y[i] = v.y;
-        L.cone_z[i] = v.z;
-    }
+    sphere_cone_directions(L, n, slot, c.radius);
     sphere_finish(L, n, slot, c);
 }
 
@@ -351,11 +356,11 @@ void diffuse_next_event(DiffuseLanes& L, size_t n) {
     }
 }
 
+CMLT_LANES_CLONES
 void diffuse_disk(DiffuseLanes& L, size_t n) {
-    // The concentric map itself (its cos and sin are libm's, which no vector loop
-    // reproduces bit for bit)
+    // The concentric map itself (its sine and cosine: math/sincos.h)
     for (size_t i = 0; i < n; ++i) {
-        const Vec2 d = square_to_uniform_disk_concentric(Vec2(L.u_bx[i], L.u_by[i]));
+        const Vec2 d = concentric_disk(L.u_bx[i], L.u_by[i]);
         L.disk_x[i] = d.x;
         L.disk_y[i] = d.y;
     }
@@ -513,32 +518,27 @@ void preview_next_event(DiffuseLanes& L, size_t n) {
     }
 }
 
+CMLT_LANES_CLONES
 void preview_directions(DiffuseLanes& L, size_t n) {
     // PreviewSurfaceBsdf::sample up to its evaluation: the lobe by u_lobe, then a cosine
-    // direction (diffuse) or the reflection about a visible normal (specular), on wo's side
+    // direction (diffuse) or the reflection about a visible normal (specular), on wo's
+    // side; both directions computed, the lobe's selected
     for (size_t i = 0; i < n; ++i) {
-        L.dir_ok[i] = 0;
-        L.lix[i] = L.liy[i] = L.liz[i] = 0.f;
-        const Vec3 wo(L.lox[i], L.loy[i], L.loz[i]);
-        if (std::fabs(wo.z) < k_preview_min_cos) continue;
+        const float wox = L.lox[i], woy = L.loy[i], woz = L.loz[i];
         const float pd = L.pd[i], ps = L.ps[i];
         const float u_rest = std::clamp(L.u_lobe[i], 0.f, k_one_minus_eps);
-        const bool diffuse = pd > 0.f && (u_rest < pd || !(ps > 0.f));
-        if (!diffuse && !(ps > 0.f)) continue;
-        const float side = wo.z > 0.f ? 1.f : -1.f;
+        const bool diffuse = (pd > 0.f) & ((u_rest < pd) | !(ps > 0.f));
+        const float side = woz > 0.f ? 1.f : -1.f;
         const Vec2 u(L.u_bx[i], L.u_by[i]);
-        Vec3 w;
-        if (diffuse) {
-            w = square_to_cosine_hemisphere(u);
-        } else {
-            const Vec3 wo_u(wo.x, wo.y, std::fabs(wo.z));
-            w = reflect(wo_u, GgxDistribution(L.alpha[i]).sample_visible(wo_u, u));
-            if (!(w.z > 0.f)) continue;
-        }
-        L.dir_ok[i] = 1;
-        L.lix[i] = w.x;
-        L.liy[i] = w.y;
-        L.liz[i] = side * w.z;
+        const Vec3 wd = square_to_cosine_hemisphere(u);
+        const Vec3 wo_u(wox, woy, std::fabs(woz));
+        const Vec3 ws = reflect(wo_u, GgxDistribution(L.alpha[i]).sample_visible(wo_u, u));
+        const bool grazing = std::fabs(woz) < k_preview_min_cos;
+        const bool ok = (!grazing) & (diffuse | (ps > 0.f)) & (diffuse | (ws.z > 0.f));
+        L.dir_ok[i] = ok;
+        L.lix[i] = ok ? (diffuse ? wd.x : ws.x) : 0.f;
+        L.liy[i] = ok ? (diffuse ? wd.y : ws.y) : 0.f;
+        L.liz[i] = ok ? side * (diffuse ? wd.z : ws.z) : 0.f;
     }
 }
 

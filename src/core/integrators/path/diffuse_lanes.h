@@ -16,7 +16,9 @@
 /// so a lane's path is the per-lane routine's bit for bit (tests/cpp: PathBatch against
 /// PathTracer::li without packets). An AVX-512 clone was tried and dropped: with it the
 /// frame ran at 0.91x the per-lane routine's speed, perf putting the scalar libm calls
-/// that follow (sincosf) at ten times their cost (tests/bench/results/profile.md).
+/// that then followed (sincosf) at ten times their cost (tests/bench/results/profile.md).
+/// The sines and cosines are the project's own polynomials now (math/sincos.h), shared
+/// by the warps and the microfacet sampler, so the direction stages vectorise too.
 ///
 /// Stages, per round (PathBatch::trace_tile):
 ///   1. gather (PathBatch, scalar): ray, the triangle's corners (and corner normals with
@@ -28,7 +30,7 @@
 ///      rect_light_samples and sphere_light_samples compute in lanes);
 ///   4. diffuse_next_event: the Lambertian value and density toward the light sample,
 ///      the shadow ray and its pending contribution;
-///   5. diffuse_disk (scalar: the concentric map, libm's cos/sin) and diffuse_sample:
+///   5. diffuse_disk (the concentric map) and diffuse_sample:
 ///      the cosine-weighted direction in the shading frame, the throughput, the next
 ///      ray, Russian roulette;
 ///   6. scatter back into the lanes' PathState (PathBatch, scalar).
@@ -47,8 +49,7 @@
 /// zeroed by a select and then tested against zero — so flags are floats or 32-bit ints,
 /// tests are applied one select at a time, and a value's checks or a merge into the
 /// lanes' fields ("ok ? new : old", which stays a branch) run in loops of their own; sums
-/// instead of nested selects; every helper inlined. Scalar still: the lobe and direction
-/// choice and the cone direction (libm's cos/sin, per lane) and the merges.
+/// instead of nested selects; every helper inlined. Scalar still: the merges.
 #include "integrators/common/frame_loop.h"
 #include "lights/light.h"
 
@@ -149,12 +150,11 @@ void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end);
 /// on the light; no normal, no error scale, finite distance, not Dirac).
 void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLightConstants& c);
 /// Stage 3's sphere light samples over lanes [0, n), as rect_light_samples for lanes with
-/// sphere_slot[k] == slot: SphereLight::sample_li (its cone direction, libm's cos/sin, one
-/// lane at a time in between; no normal, no error scale, not Dirac).
+/// sphere_slot[k] == slot: SphereLight::sample_li (no normal, no error scale, not Dirac).
 void sphere_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c);
 /// Stage 4 over lanes [0, n) (lanes without ls_ok get no shadow ray).
 void diffuse_next_event(DiffuseLanes& L, size_t n);
-/// Stage 5: the concentric disk's point (scalar), then the rest.
+/// Stage 5: the concentric disk's point, then the rest.
 void diffuse_disk(DiffuseLanes& L, size_t n);
 void diffuse_sample(DiffuseLanes& L, size_t n);
 
@@ -166,8 +166,8 @@ void diffuse_sample(DiffuseLanes& L, size_t n);
 ///   preview_frame: wo in the shading frame and the lobe probabilities;
 ///   preview_next_event: the BSDF's value and density toward the light sample, the
 ///     shadow ray (as diffuse_next_event);
-///   preview_directions (scalar: the concentric map's and the visible normals' libm
-///     cos/sin): the lobe and the direction PreviewSurfaceBsdf::sample picks;
+///   preview_directions: the lobe and the direction PreviewSurfaceBsdf::sample picks
+///     (both lobes' directions, one selected; their sines and cosines: math/sincos.h);
 ///   preview_sample: the sample's value and density, the checks of Bsdf::sample, the
 ///     throughput, the next ray, Russian roulette, and the reverse density.
 void preview_frame(DiffuseLanes& L, size_t n);
