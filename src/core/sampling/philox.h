@@ -1,6 +1,7 @@
 #pragma once
 /// \file Philox-4x32-10 (Salmon et al. 2011, "Parallel random numbers: as easy as 1, 2,
-/// 3"), the counter-based generator behind every random number of the renderer.
+/// 3"), the counter-based generator behind the renderer's random numbers (the Sobol
+/// sequences' scramble seeds are a cheaper hash of the same counters: sobol.h).
 ///
 /// A value is a pure function of (key, counter): there is no sequential state, so results
 /// do not depend on thread count or scheduling. The key is the shot seed (seed_key); how

@@ -90,13 +90,14 @@ inline uint32_t variance_block(PixelSequence seq) {
 }
 
 /// The two words of dimension d of pixel sample (pixel, sample, stream): the first two
-/// of the Philox output of its counter, or its Owen-scrambled Sobol point.
+/// of the Philox output of its counter, or its Owen-scrambled Sobol point (seeded by
+/// sobol::scramble_seeds of the sequence's counter).
 inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample, uint32_t d,
                         RngStream stream, uint32_t* w) {
     if (low_discrepancy(seq)) {
-        const Philox4x32Counter s =
-            philox4x32(pixel_counter(pixel, sequence_seed_sample(seq, sample), d, stream), key);
-        sobol::scrambled_point(sequence_index(seq, sample), s[0], s[1], w);
+        uint32_t a, b;
+        sobol::scramble_seeds(key[0], key[1], pixel, sequence_seed_sample(seq, sample), d, uint32_t(stream), &a, &b);
+        sobol::scrambled_point(sequence_index(seq, sample), a, b, w);
         return;
     }
     const Philox4x32Counter r = philox4x32(pixel_counter(pixel, sample, d, stream), key);

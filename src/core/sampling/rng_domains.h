@@ -56,13 +56,14 @@ enum class RngStream : uint32_t {
 inline constexpr uint32_t k_direct_sample_base = 0xA0000000u;
 inline constexpr uint32_t k_pilot_sample_base = 0xC0000000u;
 
-/// The sample index whose counters seed the scrambles of a pixel's low-discrepancy
-/// sequence (RenderSettings::sampler "sobol", sampling/sobol.h): counter (pixel,
-/// k_sequence_seed_sample, dimension, stream) gives one dimension's seed words. With the
-/// sequence in blocks of B samples ("sobol-blocks"), block k's are counter (pixel,
-/// k_sequence_seed_sample − k, dimension, stream): for any sample below 0xE0000000 (the
-/// top of the pilot's range) that stays above 0xE0000000 too. No pass reaches those
-/// words (the bases above leave 2^29 samples and more below them).
+/// The sample word of the counters that seed the scrambles of a pixel's low-discrepancy
+/// sequence (RenderSettings::sampler "sobol", sampling/sobol.h): sobol::scramble_seeds
+/// of counter (pixel, k_sequence_seed_sample, dimension, stream) gives one dimension's
+/// seed words (a hash of the counter, not Philox: these counters never give Philox
+/// numbers). With the sequence in blocks of B samples ("sobol-blocks"), block k's are
+/// counter (pixel, k_sequence_seed_sample − k, dimension, stream): for any sample below
+/// 0xE0000000 (the top of the pilot's range) that stays above 0xE0000000 too, apart from
+/// every sample index a pass uses (the bases above leave 2^29 samples and more below them).
 inline constexpr uint32_t k_sequence_seed_sample = 0xFFFFFFFFu;
 
 /// Motion blur: the shutter time of a camera sample (Ray::time, in [0, 1) over

@@ -7,7 +7,8 @@
 /// two Sobol dimensions. Those form a (0,2)-sequence in base 2: every aligned block of
 /// 2^m consecutive points is a (0,m,2)-net, one point in each of the 2^m elementary
 /// intervals of every shape (2^a × 2^(m−a) cells). Two random scrambles, seeded per
-/// (seed, pixel, dimension, stream) by the two words of one Philox call, make it a randomised quasi-Monte Carlo sequence:
+/// (seed, pixel, sequence, dimension, stream) by scramble_seeds, make it a randomised
+/// quasi-Monte Carlo sequence:
 ///
 ///   * the sample index is shuffled, j = scramble(i): a nested uniform scramble of the
 ///     index's bits, whose top bits depend only on the top bits of i. The first 2^m
@@ -74,16 +75,50 @@ inline uint32_t superset_xor(uint32_t j) {
 /// of j's bits k ⊇ i: reverse_bits(superset_xor(j)).
 inline uint32_t sobol1(uint32_t j) { return reverse_bits(superset_xor(j)); }
 
+/// lowbias32 (Wellons' integer hash search): a bijection of 32-bit words whose output bits
+/// each flip with probability ~1/2 when one input bit does.
+inline uint32_t mix32(uint32_t x) {
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+
+/// The two seed words of one dimension's scrambles, a hash of (key, pixel, sequence,
+/// dimension, stream): each word folded into a 32-bit state and mixed in turn, the key's
+/// words last. (Philox-10, which seeded them before, cost 8 % of a path-traced frame;
+/// the seeds need no more than well-mixed bits, which this gives with fewer multiplies.)
+/// The key goes last because a word folded in by XOR ties two states that differ by
+/// that word's difference: with the key first, seed s's pixel p hashed as seed s′'s pixel
+/// p ^ s ^ s′ in every dimension — renders of different seeds were the same paths on
+/// permuted pixels. Folded in last, two keys meet only where two pseudo-random states
+/// happen to differ by the keys' difference: single words at random places, as any two
+/// 32-bit hashes meet (tests/cpp/sampling/test_sobol.cpp counts them). The arguments are
+/// a pixel-sample counter's words (rng_domains.h pixel_counter, with the sequence's seed
+/// sample) and the key's (seed_key).
+inline void scramble_seeds(uint32_t key0, uint32_t key1, uint32_t pixel, uint32_t sequence, uint32_t dimension,
+                           uint32_t stream, uint32_t* seed_a, uint32_t* seed_b) {
+    uint32_t h = mix32(pixel ^ 0x6a09e667u);
+    h = mix32(h ^ sequence);
+    h = mix32(h ^ dimension);
+    h = mix32(h ^ stream);
+    h = mix32(h ^ key0);
+    const uint32_t a = mix32(h ^ key1);
+    *seed_a = a;
+    *seed_b = mix32(a ^ 0x9e3779b9u);
+}
+
+/// scramble_seeds of n lanes: pixel c0[i], sequence c1[i], dimension c2[i], one stream
+/// and key; the seeds into w0[i], w1[i] (the loop vectorises; sobol.cpp).
+void scramble_seeds_lanes(size_t n, const uint32_t* c0, const uint32_t* c1, const uint32_t* c2, uint32_t stream,
+                          uint32_t key0, uint32_t key1, uint32_t* w0, uint32_t* w1);
+
 /// The third seed of a dimension from its two seed words (an integer hash: its bits look
 /// independent of the other two).
 inline uint32_t third_seed(uint32_t seed_a, uint32_t seed_b) {
-    uint32_t h = seed_a ^ ((seed_b << 16) | (seed_b >> 16));
-    h ^= h >> 16;
-    h *= 0x7feb352du;
-    h ^= h >> 15;
-    h *= 0x846ca68bu;
-    h ^= h >> 16;
-    return h;
+    return mix32(seed_a ^ ((seed_b << 16) | (seed_b >> 16)));
 }
 
 /// The two 32-bit words of sample `index` of one dimension, from the dimension's two

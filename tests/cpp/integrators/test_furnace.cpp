@@ -234,8 +234,11 @@ TEST(Furnace, LosslessInsideEmittingBoxPt) {
 }
 
 TEST(Furnace, LosslessInsideEmittingBoxBdpt) {
+    // 512 spp, as under the dome: half_lambert_half_smooth_glass's mean is resolved to 1 %
+    // at 128 spp in 21 and 23 of 30 seeds (the Sobol scrambles seeded by their hash and by
+    // Philox), at 512 spp in 30 of 30 (worst 0.69 %).
     for (const FurnaceMaterial& fm : lossless_materials())
-        expect_lossless(render_furnace(fm.m, Surround::emitting_box, "bdpt", 128), fm.name + " box bdpt");
+        expect_lossless(render_furnace(fm.m, Surround::emitting_box, "bdpt", 512), fm.name + " box bdpt");
 }
 
 TEST(Furnace, LossyAtMostLeAndPtBdptAgree) {

@@ -33,9 +33,9 @@ void lane_light_slots(const Scene& scene, std::vector<uint8_t>* slot, std::vecto
 
 template <class First>
 void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t count, First&& first) {
-    // Philox of every lane's dimensions at once: the numbers themselves, or with a Sobol
-    // sequence the dimensions' seeds (counter (pixel, sequence_seed_sample, d)), from
-    // which each lane's point follows (sampling/rng.h pixel_words)
+    // Every lane's dimensions at once: Philox's numbers, or with a Sobol sequence the
+    // dimensions' scramble seeds (sobol::scramble_seeds of (pixel, sequence_seed_sample,
+    // d)), from which each lane's point follows (sampling/rng.h pixel_words)
     if (lanes.empty()) return;
     const PixelSequence seq = m_tracer.sequence();
     const bool sobol = low_discrepancy(seq);
@@ -51,9 +51,15 @@ void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t
             m_c2[n] = d0 + k;
         }
     }
-    philox4x32_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path),
-                     seed_key(m_seed), m_w0.data(), m_w1.data());
-    if (sobol) sobol::scrambled_points_lanes(n, sequence_index(seq, sample), m_w0.data(), m_w1.data());
+    const Philox4x32Key key = seed_key(m_seed);
+    if (sobol) {
+        sobol::scramble_seeds_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path),
+                                    key[0], key[1], m_w0.data(), m_w1.data());
+        sobol::scrambled_points_lanes(n, sequence_index(seq, sample), m_w0.data(), m_w1.data());
+    } else {
+        philox4x32_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path), key,
+                         m_w0.data(), m_w1.data());
+    }
     n = 0;
     for (uint32_t l : lanes) {
         uint32_t* w = &m_words[size_t(l) * 2 * k_prefetch];
