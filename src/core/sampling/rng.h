@@ -89,20 +89,38 @@ inline uint32_t variance_block(PixelSequence seq) {
     return seq == PixelSequence::sobol_blocks ? k_sobol_block : 1u;
 }
 
+/// The parts of the scramble seeds that the dimensions of one pixel sample and stream
+/// share (sobol.h seed_prefix, seed_key_hash), kept by a sampler from its first draw.
+struct SequenceSeeds {
+    uint32_t prefix = 0, key_hash = 0;
+    bool ready = false;
+};
+
 /// The two words of dimension d of pixel sample (pixel, sample, stream): the first two
 /// of the Philox output of its counter, or its Owen-scrambled Sobol point (seeded by
-/// sobol::scramble_seeds of the sequence's counter).
+/// sobol::scramble_seeds of the sequence's counter; `shared` keeps the parts every
+/// dimension of the sample and stream has in common).
 inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample, uint32_t d,
-                        RngStream stream, uint32_t* w) {
+                        RngStream stream, uint32_t* w, SequenceSeeds* shared) {
     if (low_discrepancy(seq)) {
+        if (!shared->ready) {
+            shared->prefix = sobol::seed_prefix(pixel, sequence_seed_sample(seq, sample), uint32_t(stream));
+            shared->key_hash = sobol::seed_key_hash(key[0], key[1]);
+            shared->ready = true;
+        }
         uint32_t a, b;
-        sobol::scramble_seeds(key[0], key[1], pixel, sequence_seed_sample(seq, sample), d, uint32_t(stream), &a, &b);
+        sobol::dimension_seeds(shared->prefix, shared->key_hash, d, &a, &b);
         sobol::scrambled_point(sequence_index(seq, sample), a, b, w);
         return;
     }
     const Philox4x32Counter r = philox4x32(pixel_counter(pixel, sample, d, stream), key);
     w[0] = r[0];
     w[1] = r[1];
+}
+inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample, uint32_t d,
+                        RngStream stream, uint32_t* w) {
+    SequenceSeeds shared;
+    pixel_words(key, seq, pixel, sample, d, stream, w, &shared);
 }
 
 /// Random numbers of one pixel sample: dimension d of (seed, pixel, sample, stream).
@@ -156,12 +174,13 @@ private:
             w[1] = m_pre[2 * (d - m_pre_first) + 1];
             return;
         }
-        pixel_words(m_key, m_sequence, m_pixel, m_sample, d, m_stream, w);
+        pixel_words(m_key, m_sequence, m_pixel, m_sample, d, m_stream, w, &m_seeds);
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
     RngStream m_stream;
     PixelSequence m_sequence;
+    SequenceSeeds m_seeds;
     uint32_t m_dim = 0;
     uint32_t m_pre_first = 0, m_pre_n = 0;
     const uint32_t* m_pre = nullptr;

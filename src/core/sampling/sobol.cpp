@@ -15,7 +15,8 @@ CMLT_SOBOL_CLONES
 void scramble_seeds_lanes(size_t n, const uint32_t* __restrict c0, const uint32_t* __restrict c1,
                           const uint32_t* __restrict c2, uint32_t stream, uint32_t key0, uint32_t key1,
                           uint32_t* __restrict w0, uint32_t* __restrict w1) {
-    for (size_t i = 0; i < n; ++i) scramble_seeds(key0, key1, c0[i], c1[i], c2[i], stream, &w0[i], &w1[i]);
+    const uint32_t key_hash = seed_key_hash(key0, key1);
+    for (size_t i = 0; i < n; ++i) dimension_seeds(seed_prefix(c0[i], c1[i], stream), key_hash, c2[i], &w0[i], &w1[i]);
 }
 
 CMLT_SOBOL_CLONES

@@ -86,28 +86,37 @@ inline uint32_t mix32(uint32_t x) {
     return x;
 }
 
-/// The two seed words of one dimension's scrambles, a hash of (key, pixel, sequence,
-/// dimension, stream): each word folded into a 32-bit state and mixed in turn, the key's
-/// words last. (Philox-10, which seeded them before, cost 8 % of a path-traced frame;
-/// the seeds need no more than well-mixed bits, which this gives with fewer multiplies.)
-/// The key goes last because a word folded in by XOR ties two states that differ by
-/// that word's difference: with the key first, seed s's pixel p hashed as seed s′'s pixel
-/// p ^ s ^ s′ in every dimension — renders of different seeds were the same paths on
-/// permuted pixels. Folded in last, two keys meet only where two pseudo-random states
-/// happen to differ by the keys' difference: single words at random places, as any two
-/// 32-bit hashes meet (tests/cpp/sampling/test_sobol.cpp counts them). The arguments are
-/// a pixel-sample counter's words (rng_domains.h pixel_counter, with the sequence's seed
-/// sample) and the key's (seed_key).
-inline void scramble_seeds(uint32_t key0, uint32_t key1, uint32_t pixel, uint32_t sequence, uint32_t dimension,
-                           uint32_t stream, uint32_t* seed_a, uint32_t* seed_b) {
-    uint32_t h = mix32(pixel ^ 0x6a09e667u);
-    h = mix32(h ^ sequence);
-    h = mix32(h ^ dimension);
-    h = mix32(h ^ stream);
-    h = mix32(h ^ key0);
-    const uint32_t a = mix32(h ^ key1);
+/// scramble_seeds (below) in parts: the key's (one word per render), the sample's for
+/// one stream (shared by its dimensions; a sampler computes both once), then the
+/// dimension's.
+inline uint32_t seed_key_hash(uint32_t key0, uint32_t key1) { return mix32(mix32(key0 ^ 0xbb67ae85u) ^ key1); }
+inline uint32_t seed_prefix(uint32_t pixel, uint32_t sequence, uint32_t stream) {
+    return mix32(mix32(mix32(pixel ^ 0x6a09e667u) ^ sequence) ^ stream);
+}
+inline void dimension_seeds(uint32_t prefix, uint32_t key_hash, uint32_t dimension, uint32_t* seed_a,
+                            uint32_t* seed_b) {
+    const uint32_t a = mix32(mix32(prefix ^ dimension) ^ key_hash);
     *seed_a = a;
     *seed_b = mix32(a ^ 0x9e3779b9u);
+}
+
+/// The two seed words of one dimension's scrambles, a hash of (key, pixel, sequence,
+/// dimension, stream): the pixel, sequence, stream and dimension words folded into a
+/// 32-bit state and mixed in turn, then the key's hash (its two words mixed). Philox-10,
+/// which seeded them before, cost 8 % of a path-traced frame; the seeds need no more
+/// than well-mixed bits, which this gives with fewer multiplies, and a sampler reuses
+/// all but the last three mixes across its dimensions. The key goes last because a word
+/// folded in by XOR ties two states that differ by that word's difference: with the key
+/// first, seed s's pixel p hashed as seed s′'s pixel p ^ s ^ s′ in every dimension —
+/// renders of different seeds were the same paths on permuted pixels. Folded in last,
+/// two keys meet only where two pseudo-random states happen to differ by the keys'
+/// difference: single words at random places, as any two 32-bit hashes meet
+/// (tests/cpp/sampling/test_sobol.cpp counts them). The arguments are a pixel-sample
+/// counter's words (rng_domains.h pixel_counter, with the sequence's seed sample) and
+/// the key's (seed_key).
+inline void scramble_seeds(uint32_t key0, uint32_t key1, uint32_t pixel, uint32_t sequence, uint32_t dimension,
+                           uint32_t stream, uint32_t* seed_a, uint32_t* seed_b) {
+    dimension_seeds(seed_prefix(pixel, sequence, stream), seed_key_hash(key0, key1), dimension, seed_a, seed_b);
 }
 
 /// scramble_seeds of n lanes: pixel c0[i], sequence c1[i], dimension c2[i], one stream

@@ -7,6 +7,7 @@
 // hash lets every input bit reach every seed bit (avalanche).
 #include "chi2.h"
 
+#include "integrators/bdpt/path_sampler.h"
 #include "sampling/rng.h"
 #include "sampling/rng_domains.h"
 #include "sampling/sobol.h"
@@ -231,6 +232,33 @@ TEST(Sobol, PixelSamplerReadsTheSequence) {
     EXPECT_EQ(u.x, uint_to_unit_float(w[0]));
     EXPECT_EQ(u.y, uint_to_unit_float(w[1]));
     EXPECT_NE(u.x, v.x);
+}
+
+TEST(Sobol, SamplersKeepingTheSharedSeedPartsGiveTheWordsOfEachDimension) {
+    // PixelSampler and PixelStreamSampler keep the seeds' per-sample parts (SequenceSeeds)
+    // from the first draw on; every later dimension, in any stream order, is still
+    // pixel_words's
+    for (PixelSequence seq : {PixelSequence::sobol, PixelSequence::sobol_blocks}) {
+        PixelSampler ps(7, 42, 19, RngStream::camera_path, seq);
+        for (uint32_t d = 0; d < 12; ++d) {
+            uint32_t w[2];
+            pixel_words(seed_key(7), seq, 42, 19, d, RngStream::camera_path, w);
+            const Vec2 u = ps.get2d();
+            ASSERT_EQ(u.x, uint_to_unit_float(w[0])) << d;
+            ASSERT_EQ(u.y, uint_to_unit_float(w[1])) << d;
+        }
+        PixelStreamSampler bs(7, 42, 19, seq);
+        uint32_t dim[3] = {0, 0, 0};
+        for (int k = 0; k < 18; ++k) {
+            const int stream = (k * 5 + k / 3) % 3;
+            bs.start_stream(stream);
+            uint32_t w[2];
+            pixel_words(seed_key(7), seq, 42, 19, dim[stream]++, RngStream(uint32_t(RngStream::bdpt_camera) + uint32_t(stream)), w);
+            const Vec2 u = bs.next2d();
+            ASSERT_EQ(u.x, uint_to_unit_float(w[0])) << k;
+            ASSERT_EQ(u.y, uint_to_unit_float(w[1])) << k;
+        }
+    }
 }
 
 TEST(Sobol, BlocksAreNetsOfTheirOwn) {

@@ -209,9 +209,11 @@ def test08_albedo_reads_the_diffuse_texture(tmp_path):
     inside = np.array([[_inside(x, y) for x in range(W)] for y in range(H)])
     xs = np.arange(W)[None, :].repeat(H, 0)
     # 1 px = 0.156 m on the plane; a texel is 0.75 m wide, and the bilinear blend of the
-    # two colours covers x in [-0.375, 0.375] m (pixels 21..26): stay outside it
-    left = inside & (xs <= W // 2 - 4)
-    right = inside & (xs >= W // 2 + 3)
+    # two colours covers x in [-0.375, 0.375] m (raster x 21.6..26.4): stay outside it by
+    # the default gaussian's reach (radius 1.5 px: pixel 20, centre 20.5, takes samples
+    # up to x = 22.0, pixel 27 from x = 26.0)
+    left = inside & (xs <= W // 2 - 5)
+    right = inside & (xs >= W // 2 + 4)
     assert left.sum() > 20 and right.sum() > 20
     np.testing.assert_allclose(a["albedo"][left], np.broadcast_to(red, (left.sum(), 3)), rtol=1e-5)
     np.testing.assert_allclose(a["albedo"][right], np.broadcast_to(blue, (right.sum(), 3)),

@@ -34,13 +34,14 @@ public:
 private:
     void draw(uint32_t* w) {
         const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + m_stream);
-        pixel_words(m_key, m_sequence, m_pixel, m_sample, m_dim[m_stream]++, stream, w);
+        pixel_words(m_key, m_sequence, m_pixel, m_sample, m_dim[m_stream]++, stream, w, &m_seeds[m_stream]);
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
     PixelSequence m_sequence;
     uint32_t m_stream = 0;
     uint32_t m_dim[3] = {0, 0, 0};
+    SequenceSeeds m_seeds[3];
 };
 
 }  // namespace cmlt
