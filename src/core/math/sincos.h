@@ -16,6 +16,7 @@
 /// are the Taylor series through x⁹ (sin) and x¹⁰ (cos), whose truncation (≤ 2·10⁻⁹) is
 /// below float rounding: within 1·10⁻⁷ (2 ulp) of the exact values over a turn
 /// (tests/cpp/math/test_math.cpp holds them to 3·10⁻⁷ against double precision).
+#include "math/safe_math.h"
 #include "math/vec.h"
 
 #include <cmath>
@@ -30,7 +31,7 @@ namespace cmlt {
 
 /// sin(π/2 · f) and cos(π/2 · f) for f ∈ [−1/2, 1/2].
 CMLT_SINCOS_INLINE void sincos_quarter(float f, float* s, float* c) {
-    const float x = f * 1.57079632679489662f;
+    const float x = f * k_pi_over_2;
     const float x2 = x * x;
     // (−1)^k / (2k+1)! and (−1)^k / (2k)!
     const float sp = -1.66666666666666667e-1f +
