@@ -357,16 +357,6 @@ void diffuse_next_event(DiffuseLanes& L, size_t n) {
 }
 
 CMLT_LANES_CLONES
-void diffuse_disk(DiffuseLanes& L, size_t n) {
-    // The concentric map itself (its sine and cosine: math/sincos.h)
-    for (size_t i = 0; i < n; ++i) {
-        const Vec2 d = concentric_disk(L.u_bx[i], L.u_by[i]);
-        L.disk_x[i] = d.x;
-        L.disk_y[i] = d.y;
-    }
-}
-
-CMLT_LANES_CLONES
 void diffuse_sample(DiffuseLanes& L, size_t n) {
     for (size_t i = 0; i < n; ++i) {
         const float wox = L.wox[i], woy = L.woy[i], woz = L.woz[i];
@@ -374,7 +364,8 @@ void diffuse_sample(DiffuseLanes& L, size_t n) {
         const float nx = L.nsx[i], ny = L.nsy[i], nz = L.nsz[i];
         // LambertianBsdf::sample in the frame of ns (only lo.z enters)
         const float loz = wox * nx + woy * ny + woz * nz;
-        const float ddx = L.disk_x[i], ddy = L.disk_y[i];
+        const Vec2 disk = concentric_disk(L.u_bx[i], L.u_by[i]);  // sine and cosine: math/sincos.h
+        const float ddx = disk.x, ddy = disk.y;
         float z = safe_sqrt(1.f - ddx * ddx - ddy * ddy);
         z = loz < 0.f ? -z : z;
         const float pdf = std::fabs(z) * k_inv_pi;

@@ -30,9 +30,8 @@
 ///      rect_light_samples and sphere_light_samples compute in lanes);
 ///   4. diffuse_next_event: the Lambertian value and density toward the light sample,
 ///      the shadow ray and its pending contribution;
-///   5. diffuse_disk (the concentric map) and diffuse_sample:
-///      the cosine-weighted direction in the shading frame, the throughput, the next
-///      ray, Russian roulette;
+///   5. diffuse_sample: the cosine-weighted direction in the shading frame (the
+///      concentric map), the throughput, the next ray, Russian roulette;
 ///   6. scatter back into the lanes' PathState (PathBatch, scalar).
 ///
 /// Hits on a constant preview BSDF (Scene::constant_preview: UsdPreviewSurface with
@@ -115,8 +114,6 @@ struct DiffuseLanes {
     alignas(64) float sf_r[N], sf_g[N], sf_b[N];
     alignas(64) float shadow_bsdf_pdf[N];
 
-    // 5. the point on the concentric disk
-    alignas(64) float disk_x[N], disk_y[N];
     // 5. the next ray
     alignas(64) uint8_t done[N];
     alignas(64) float pdf[N];
@@ -154,8 +151,7 @@ void rect_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const RectLight
 void sphere_light_samples(DiffuseLanes& L, size_t n, uint8_t slot, const SphereLightConstants& c);
 /// Stage 4 over lanes [0, n) (lanes without ls_ok get no shadow ray).
 void diffuse_next_event(DiffuseLanes& L, size_t n);
-/// Stage 5: the concentric disk's point, then the rest.
-void diffuse_disk(DiffuseLanes& L, size_t n);
+/// Stage 5 over lanes [0, n).
 void diffuse_sample(DiffuseLanes& L, size_t n);
 
 /// The preview lanes: hits on an opaque UsdPreviewSurface with a diffuse and/or rough GGX

@@ -283,7 +283,6 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     const bool nee = m_scene.light_count() > 0 && (!partition || partition->wants(PathPartition::caustic(false, false)));
     light_samples(L, m_diffuse, m_diffuse_light, [nee](size_t, const PathState&) { return nee; });
     diffuse_next_event(L, n);
-    diffuse_disk(L, n);
     diffuse_sample(L, n);
     scatter_lanes(L, m_diffuse, m_diffuse_light, false, c);
 }
