@@ -36,6 +36,7 @@ void CameraDesc::validate() const {
 Camera::Camera(const CameraDesc& desc, int width, int height)
     : m_desc(desc), m_xf(desc.transform, "camera"), m_width(width), m_height(height) {
     desc.validate();
+    m_origin = m_xf.m.transform_point(Vec3(0.f));
     m_win_w = desc.horizontal_aperture;
     m_win_h = desc.horizontal_aperture * float(height) / float(width);
     if (desc.projection == CameraDesc::Projection::perspective && desc.f_stop > 0.f &&
@@ -75,13 +76,12 @@ Ray Camera::generate_ray(const Vec2& p_raster) const {
     }
     Vec3 dc(w.x / m_desc.focal_length, w.y / m_desc.focal_length, -1.f);
     float len = length(dc);  // depth 1 along -Z is distance len along the ray
-    Vec3 o = m_xf.m.transform_point(Vec3(0.f));
     Vec3 d = normalize(m_xf.m.transform_vector(dc));
-    return Ray(o, d, m_desc.near * len, m_desc.far * len);
+    return Ray(m_origin, d, m_desc.near * len, m_desc.far * len);
 }
 
 Vec3 Camera::lens_point(const Vec2& u_lens) const {
-    if (!has_lens()) return m_xf.m.transform_point(Vec3(0.f));
+    if (!has_lens()) return m_origin;
     // As generate_ray: concentric disk of radius r in the camera's z = 0 plane.
     Vec2 d = square_to_uniform_disk_concentric(u_lens);
     return m_xf.m.transform_point(Vec3(d.x * m_lens_radius, d.y * m_lens_radius, 0.f));

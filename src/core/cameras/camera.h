@@ -79,7 +79,7 @@ public:
     bool lens_ray_to_raster(const Vec3& p_lens, const Vec3& d, Vec2* p_raster) const;
 
     const CameraDesc& desc() const { return m_desc; }
-    Vec3 position() const { return m_xf.m.transform_point(Vec3(0.f)); }
+    Vec3 position() const { return m_origin; }
 
 private:
     /// Image-plane window position (aperture units) of a raster position.
@@ -89,6 +89,7 @@ private:
 
     CameraDesc m_desc;
     Transform m_xf;
+    Vec3 m_origin;  ///< m_xf.m.transform_point(0): the pinhole, computed once
     int m_width, m_height;
     float m_win_w, m_win_h;  ///< window size in aperture units
     float m_lens_radius = 0.f;

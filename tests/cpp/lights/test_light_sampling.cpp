@@ -493,3 +493,59 @@ TEST(LightSampling, NextEventShadowRaysAreNotBlockedByTheirOwnPlanarLight) {
     std::printf("shadow rays %zu, blocked by the other light %zu, reported by their own light's intersect %zu\n",
                 tested, blocked_by_b, own);
 }
+
+TEST(LightSampling, TheBoundingSphereCullNeverLosesALightHit) {
+    // Scene::nearest_light and blocked_by_light skip a light when the ray's segment stays
+    // clear of a sphere around it (may_reach_light, a division-free float test). Here
+    // every analytic area light kind, small and large, near the origin and hundreds of
+    // units from it, against rays aimed at and just past the sphere's rim (unnormalised
+    // directions, segments ending before, at and beyond the light): the culled query
+    // finds exactly the hits of the lights' own intersects, tried one by one.
+    const std::vector<Mat4> xfs = {Mat4::translate(0.3, -0.2, 1.2) * Mat4::rotate(25, 1, 0.5, 0),
+                                   Mat4::translate(400, 70, -300) * Mat4::rotate(70, 0.2, 1, 0.3) * Mat4::scale(3, 0.2, 1),
+                                   Mat4::translate(-1e-3, 2e-3, 1e-3) * Mat4::scale(1e-3, 1e-3, 1e-3)};
+    const LightDesc::Kind kinds[] = {LightDesc::Kind::rect, LightDesc::Kind::disk, LightDesc::Kind::sphere,
+                                     LightDesc::Kind::cylinder};
+    size_t hits = 0, tested = 0;
+    for (const Mat4& xf : xfs)
+        for (LightDesc::Kind kind : kinds) {
+            LightDesc d = desc(kind, xf);
+            d.width = 1.5f;
+            d.height = 0.8f;
+            d.radius = 0.6f;
+            d.length = 2.f;
+            Scene s;
+            s.set_materials({Material{Spectrum(0.5f), Spectrum(0.f)}});
+            s.add_instance(s.add_mesh("/far", quad_mesh(Vec3(1e4f), Vec3(1, 0, 0), Vec3(0, 0, -1), 0)), Mat4());
+            const uint32_t id = s.add_light(d);
+            s.commit();
+            const Light& l = s.light(id);
+            Vec3 c;
+            float r = 0.f;
+            ASSERT_TRUE(l.bounding_sphere(&c, &r));
+            for (uint32_t i = 0; i < 40000; ++i) {
+                // an origin 1.5 to 300 radii away, aimed at a point on a sphere of 0.9 to
+                // 1.1 radii around the centre (the rim, where the cull decides)
+                const Vec3 o = c + square_to_uniform_sphere(uniform2(910, i)) *
+                                       (r * std::pow(10.f, 0.18f + 2.3f * uniform2(911, i).x));
+                const Vec3 aim = c + square_to_uniform_sphere(uniform2(912, i)) * (r * (0.9f + 0.2f * uniform2(913, i).x));
+                const float scale = std::pow(10.f, -2.f + 4.f * uniform2(914, i).y);
+                const float dist = length(aim - o);
+                Ray ray(o, (aim - o) * (scale / dist), 0.f, k_infinity);
+                const float u = uniform2(915, i).y;
+                const float tmax = u < 0.25f ? k_infinity : dist / scale * (0.5f + 1.5f * u);
+                float t_ref = k_infinity, t = 0.f;
+                Spectrum le;
+                if (l.intersect(Ray(ray.o, ray.d, ray.tnear, tmax), &t, &le) && t < tmax) t_ref = t;
+                uint32_t index = 0;
+                const float t_scene = s.nearest_light(ray, tmax, &index, &le);
+                ASSERT_EQ(t_scene, t_ref) << "light kind " << int(kind) << ", ray " << i;
+                ray.tfar = tmax;
+                ASSERT_EQ(s.blocked_by_light(ray), t_ref < k_infinity) << "light kind " << int(kind) << ", ray " << i;
+                hits += t_ref < k_infinity;
+                ++tested;
+            }
+        }
+    EXPECT_GT(hits, tested / 10);
+    std::printf("rays %zu, light hits %zu\n", tested, hits);
+}
