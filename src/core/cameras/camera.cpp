@@ -80,6 +80,23 @@ Ray Camera::generate_ray(const Vec2& p_raster) const {
     return Ray(m_origin, d, m_desc.near * len, m_desc.far * len);
 }
 
+bool Camera::pinhole_constants(PinholeConstants* c) const {
+    if (m_desc.projection != CameraDesc::Projection::perspective || has_lens()) return false;
+    c->width = float(m_width);
+    c->height = float(m_height);
+    c->win_w = m_win_w;
+    c->win_h = m_win_h;
+    c->offset_x = m_desc.horizontal_aperture_offset;
+    c->offset_y = m_desc.vertical_aperture_offset;
+    c->focal_length = m_desc.focal_length;
+    c->near = m_desc.near;
+    c->far = m_desc.far;
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) c->m[a][b] = m_xf.m.m[a][b];
+    c->origin = m_origin;
+    return true;
+}
+
 Vec3 Camera::lens_point(const Vec2& u_lens) const {
     if (!has_lens()) return m_origin;
     // As generate_ray: concentric disk of radius r in the camera's z = 0 plane.

@@ -52,6 +52,16 @@ struct CameraDesc {
     void validate() const;
 };
 
+/// What a perspective pinhole camera's rays are made of (Camera::pinhole_constants), for
+/// the camera rays computed in lanes (integrators/path/diffuse_lanes.h, camera_directions).
+struct PinholeConstants {
+    float width = 0.f, height = 0.f;  ///< the raster size, as floats
+    float win_w = 0.f, win_h = 0.f, offset_x = 0.f, offset_y = 0.f, focal_length = 1.f;
+    float near = 0.f, far = 0.f;
+    double m[3][3] = {};  ///< camera -> world, the linear part
+    Vec3 origin;
+};
+
 class Camera {
 public:
     Camera(const CameraDesc& desc, int width, int height);
@@ -61,6 +71,9 @@ public:
     /// Primary ray through `p_raster` and lens position `u_lens` in [0,1)^2 (thin lens);
     /// the pinhole ray when the camera has no lens.
     Ray generate_ray(const Vec2& p_raster, const Vec2& u_lens) const;
+    /// A perspective camera without a lens: its constants (generate_ray(p_raster) is then
+    /// camera_directions' lane for every p_raster, the same floats).
+    bool pinhole_constants(PinholeConstants* c) const;
     /// Thin lens in use (perspective, f_stop > 0, focus_distance > 0).
     bool has_lens() const { return m_lens_radius > 0.f; }
     /// Lens radius in metres (0 for a pinhole).

@@ -49,6 +49,7 @@
 /// tests are applied one select at a time, and a value's checks or a merge into the
 /// lanes' fields ("ok ? new : old", which stays a branch) run in loops of their own; sums
 /// instead of nested selects; every helper inlined. Scalar still: the merges.
+#include "cameras/camera.h"
 #include "integrators/common/frame_loop.h"
 #include "lights/light.h"
 
@@ -61,6 +62,10 @@ struct DiffuseLanes {
     /// Lanes per call: a tile's pixels (PathBatch's lanes).
     static constexpr size_t k_capacity = size_t(k_tile_size) * size_t(k_tile_size);
     static constexpr size_t N = k_capacity;
+
+    // 0. camera rays (camera_directions): the film positions in, the ray's direction
+    // (dx, dy, dz) and its interval out
+    alignas(64) float film_x[N], film_y[N], ray_tnear[N], ray_tfar[N];
 
     // 1. inputs
     alignas(64) float dx[N], dy[N], dz[N];           ///< ray direction
@@ -139,6 +144,10 @@ struct DiffuseLanes {
     alignas(64) float pdf_rev[N];
 };
 
+/// The camera rays of a round's first lanes [0, n), before stage 1: Camera::generate_ray
+/// of a pinhole (c) through (film_x, film_y), the same floats, its direction written to
+/// dx, dy, dz and its interval to ray_tnear, ray_tfar (the origin is c.origin).
+void camera_directions(DiffuseLanes& L, size_t n, const PinholeConstants& c);
 /// Stage 2 over lanes [begin, end).
 void diffuse_geometry(DiffuseLanes& L, size_t begin, size_t end);
 /// Stage 3's rect light samples over lanes [0, n): for each lane with rect_slot[k] == slot,

@@ -78,6 +78,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
       m_seed(seed), m_width(width), m_height(height), m_reach(reach), m_shift(shift),
       m_packet_width(packet_width) {
     const size_t n = size_t(k_tile_size) * size_t(k_tile_size);
+    m_pinhole_lanes = !motion_blur && camera.pinhole_constants(&m_pinhole);
     m_state.resize(n);
     m_sampler.assign(n, PixelSampler(0, 0, 0));
     m_pixel.resize(n);
@@ -450,14 +451,31 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                 }
     // Camera rays (film position: dimension 0).
     prefetch_dimensions(m_live, 1, [](uint32_t) { return 0u; });
-    for (uint32_t l : m_live) {
-        const uint32_t i = m_pixel[l];
-        const int px = tile.x0 + int(i) % tw, py = tile.y0 + int(i) / tw;
-        float& weight = w[i];
-        weight = 1.f;
-        const Ray ray = m_tracer.camera_ray(m_camera, m_filter, m_motion_blur, m_sampler[l], m_seed, px, py,
-                                            m_sampler[l].pixel(), s, &weight, p ? &p[i] : nullptr);
-        m_tracer.begin(m_state[l], ray, c);
+    if (m_use_lanes && m_pinhole_lanes) {
+        // PathTracer::camera_ray: the film positions one lane at a time, the rays in lanes
+        DiffuseLanes& L = *m_lanes;
+        for (size_t k = 0; k < m_live.size(); ++k) {
+            const uint32_t l = m_live[k], i = m_pixel[l];
+            const int px = tile.x0 + int(i) % tw, py = tile.y0 + int(i) / tw;
+            const Vec2 film = m_filter.film_position(px, py, m_sampler[l].get2d(), &w[i]);
+            if (p) p[i] = film;
+            L.film_x[k] = film.x;
+            L.film_y[k] = film.y;
+        }
+        camera_directions(L, m_live.size(), m_pinhole);
+        for (size_t k = 0; k < m_live.size(); ++k)
+            m_tracer.begin(m_state[m_live[k]],
+                           Ray(m_pinhole.origin, Vec3(L.dx[k], L.dy[k], L.dz[k]), L.ray_tnear[k], L.ray_tfar[k]), c);
+    } else {
+        for (uint32_t l : m_live) {
+            const uint32_t i = m_pixel[l];
+            const int px = tile.x0 + int(i) % tw, py = tile.y0 + int(i) / tw;
+            float& weight = w[i];
+            weight = 1.f;
+            const Ray ray = m_tracer.camera_ray(m_camera, m_filter, m_motion_blur, m_sampler[l], m_seed, px, py,
+                                                m_sampler[l].pixel(), s, &weight, p ? &p[i] : nullptr);
+            m_tracer.begin(m_state[l], ray, c);
+        }
     }
 
     const Accel& accel = m_scene.accel();

@@ -70,6 +70,9 @@ private:
     const Camera& m_camera;
     const PixelFilter& m_filter;
     bool m_motion_blur;
+    // a perspective camera without lens or shutter time: its rays in lanes (camera_directions)
+    bool m_pinhole_lanes = false;
+    PinholeConstants m_pinhole;
     uint64_t m_seed;
     int m_width, m_height, m_reach;
     KeyShift m_shift;
