@@ -237,12 +237,16 @@ TEST(Sobol, PixelSamplerReadsTheSequence) {
 TEST(Sobol, SamplersKeepingTheSharedSeedPartsGiveTheWordsOfEachDimension) {
     // PixelSampler and PixelStreamSampler keep the seeds' per-sample parts (SequenceSeeds)
     // from the first draw on; every later dimension, in any stream order, is still
-    // pixel_words's
-    for (PixelSequence seq : {PixelSequence::sobol, PixelSequence::sobol_blocks}) {
+    // pixel_words's (a one-dimensional draw, get1d or next1d, its first word)
+    for (PixelSequence seq : {PixelSequence::sobol, PixelSequence::sobol_blocks, PixelSequence::independent}) {
         PixelSampler ps(7, 42, 19, RngStream::camera_path, seq);
         for (uint32_t d = 0; d < 12; ++d) {
             uint32_t w[2];
             pixel_words(seed_key(7), seq, 42, 19, d, RngStream::camera_path, w);
+            if (d % 3 == 1) {
+                ASSERT_EQ(ps.get1d(), uint_to_unit_float(w[0])) << d;
+                continue;
+            }
             const Vec2 u = ps.get2d();
             ASSERT_EQ(u.x, uint_to_unit_float(w[0])) << d;
             ASSERT_EQ(u.y, uint_to_unit_float(w[1])) << d;
@@ -254,6 +258,10 @@ TEST(Sobol, SamplersKeepingTheSharedSeedPartsGiveTheWordsOfEachDimension) {
             bs.start_stream(stream);
             uint32_t w[2];
             pixel_words(seed_key(7), seq, 42, 19, dim[stream]++, RngStream(uint32_t(RngStream::bdpt_camera) + uint32_t(stream)), w);
+            if (k % 2) {
+                ASSERT_EQ(bs.next1d(), uint_to_unit_float(w[0])) << k;
+                continue;
+            }
             const Vec2 u = bs.next2d();
             ASSERT_EQ(u.x, uint_to_unit_float(w[0])) << k;
             ASSERT_EQ(u.y, uint_to_unit_float(w[1])) << k;
