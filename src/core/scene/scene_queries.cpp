@@ -183,8 +183,8 @@ bool Scene::intersect_surface(const Ray& ray, SurfaceInteraction* si) const {
 bool Scene::may_reach_light(const Ray& ray, float tmax, size_t k) const {
     const AreaBound& b = m_area_bounds[k];
     if (!(b.r2 < k_infinity)) return true;
-    // The distance from the centre to the segment, without a division (its latency was
-    // most of this test, run for every ray): the nearest point of the line is at
+    // The distance from the centre to the segment, without a division (this test runs
+    // for every camera and bounce ray): the nearest point of the line is at
     // t = s / dd (s = oc . d, dd = d . d); inside [tnear, tmax] the squared distance times
     // dd is cc dd - s^2 (cc = oc . oc), whose cancellation stays within ~1e-6 cc dd, so
     // the radius gets 4e-6 cc; outside, the nearer end's own distance, with a margin of

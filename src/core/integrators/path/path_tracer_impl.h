@@ -12,8 +12,8 @@
 #include "scene/scene.h"
 
 #include <algorithm>
-#include <new>
 #include <cmath>
+#include <new>
 
 namespace cmlt {
 
