@@ -46,6 +46,13 @@ namespace {
 constexpr int k_num_chi2 = 19;
 constexpr double k_alpha = 1e-3 / k_num_chi2;
 
+/// A grey material and one quad far from everything: the scene the tests below add their
+/// lights to.
+void add_far_quad(Scene& s) {
+    s.set_materials({Material{Spectrum(0.5f), Spectrum(0.f)}});
+    s.add_instance(s.add_mesh("/far", quad_mesh(Vec3(1e4f), Vec3(1, 0, 0), Vec3(0, 0, -1), 0)), Mat4());
+}
+
 LightDesc desc(LightDesc::Kind kind, const Mat4& xf) {
     LightDesc d;
     d.kind = kind;
@@ -457,8 +464,7 @@ TEST(LightSampling, NextEventShadowRaysAreNotBlockedByTheirOwnPlanarLight) {
         b.width = 2.f;
         b.height = 2.f;
         Scene s;
-        s.set_materials({Material{Spectrum(0.5f), Spectrum(0.f)}});
-        s.add_instance(s.add_mesh("/far", quad_mesh(Vec3(1e4f), Vec3(1, 0, 0), Vec3(0, 0, -1), 0)), Mat4());
+        add_far_quad(s);
         const uint32_t target = s.add_light(d);
         const uint32_t other = s.add_light(b);
         s.commit();
@@ -515,8 +521,7 @@ TEST(LightSampling, TheBoundingSphereCullNeverLosesALightHit) {
             d.radius = 0.6f;
             d.length = 2.f;
             Scene s;
-            s.set_materials({Material{Spectrum(0.5f), Spectrum(0.f)}});
-            s.add_instance(s.add_mesh("/far", quad_mesh(Vec3(1e4f), Vec3(1, 0, 0), Vec3(0, 0, -1), 0)), Mat4());
+            add_far_quad(s);
             const uint32_t id = s.add_light(d);
             s.commit();
             const Light& l = s.light(id);
