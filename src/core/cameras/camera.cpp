@@ -44,6 +44,18 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
         float r = desc.focal_length * desc.lens_unit / (2.f * desc.f_stop);
         m_lens_radius = (r > 0.f && std::isfinite(r)) ? r : 0.f;
     }
+    m_pinhole.width = float(m_width);
+    m_pinhole.height = float(m_height);
+    m_pinhole.win_w = m_win_w;
+    m_pinhole.win_h = m_win_h;
+    m_pinhole.offset_x = desc.horizontal_aperture_offset;
+    m_pinhole.offset_y = desc.vertical_aperture_offset;
+    m_pinhole.focal_length = desc.focal_length;
+    m_pinhole.near = desc.near;
+    m_pinhole.far = desc.far;
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) m_pinhole.m[a][b] = m_xf.m.m[a][b];
+    m_pinhole.origin = m_origin;
 }
 
 Ray Camera::generate_ray(const Vec2& p_raster, const Vec2& u_lens) const {
@@ -68,32 +80,21 @@ Vec2 Camera::raster_to_window(const Vec2& p) const {
 }
 
 Ray Camera::generate_ray(const Vec2& p_raster) const {
-    Vec2 w = raster_to_window(p_raster);
     if (m_desc.projection == CameraDesc::Projection::orthographic) {
+        Vec2 w = raster_to_window(p_raster);
         Vec3 o = m_xf.m.transform_point(Vec3(0.1f * w.x, 0.1f * w.y, 0.f));
         Vec3 d = normalize(m_xf.m.transform_vector(Vec3(0.f, 0.f, -1.f)));
         return Ray(o, d, m_desc.near, m_desc.far);
     }
-    Vec3 dc(w.x / m_desc.focal_length, w.y / m_desc.focal_length, -1.f);
-    float len = length(dc);  // depth 1 along -Z is distance len along the ray
-    Vec3 d = normalize(m_xf.m.transform_vector(dc));
-    return Ray(m_origin, d, m_desc.near * len, m_desc.far * len);
+    Vec3 d;
+    float tnear, tfar;
+    pinhole_ray(m_pinhole, p_raster.x, p_raster.y, &d, &tnear, &tfar);
+    return Ray(m_origin, d, tnear, tfar);
 }
 
 bool Camera::pinhole_constants(PinholeConstants* c) const {
     if (m_desc.projection != CameraDesc::Projection::perspective || has_lens()) return false;
-    c->width = float(m_width);
-    c->height = float(m_height);
-    c->win_w = m_win_w;
-    c->win_h = m_win_h;
-    c->offset_x = m_desc.horizontal_aperture_offset;
-    c->offset_y = m_desc.vertical_aperture_offset;
-    c->focal_length = m_desc.focal_length;
-    c->near = m_desc.near;
-    c->far = m_desc.far;
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) c->m[a][b] = m_xf.m.m[a][b];
-    c->origin = m_origin;
+    *c = m_pinhole;
     return true;
 }
 

@@ -29,6 +29,7 @@
 #include "math/mat4.h"
 #include "math/ray.h"
 
+#include <cmath>
 #include <cstdint>
 
 namespace cmlt {
@@ -61,6 +62,40 @@ struct PinholeConstants {
     double m[3][3] = {};  ///< camera -> world, the linear part
     Vec3 origin;
 };
+
+#if defined(__GNUC__)
+#define CMLT_CAMERA_INLINE inline __attribute__((always_inline))
+#else
+#define CMLT_CAMERA_INLINE inline
+#endif
+
+/// The pinhole ray of raster position (fx, fy): its direction (unit length; 0 if it has
+/// none) and its interval (the near and far depths along -Z as distances along the
+/// ray). Camera::generate_ray's perspective rays and pt's camera lanes
+/// (camera_directions) are both this function, so they agree bit for bit; always inlined,
+/// so that the lanes' loop vectorises.
+CMLT_CAMERA_INLINE void pinhole_ray(const PinholeConstants& c, float fx, float fy, Vec3* d, float* tnear,
+                                    float* tfar) {
+    // the window position (aperture units), the direction at depth 1 and its length, the
+    // camera's linear part in doubles, the normalisation (Vec3::operator/ multiplies by
+    // the reciprocal)
+    const float wx = c.offset_x + (fx / c.width - 0.5f) * c.win_w;
+    const float wy = c.offset_y + (0.5f - fy / c.height) * c.win_h;
+    const float cx = wx / c.focal_length, cy = wy / c.focal_length, cz = -1.f;
+    const float len = std::sqrt(cx * cx + cy * cy + cz * cz);
+    const double x = cx, y = cy, z = cz;
+    const float vx = float(c.m[0][0] * x + c.m[0][1] * y + c.m[0][2] * z);
+    const float vy = float(c.m[1][0] * x + c.m[1][1] * y + c.m[1][2] * z);
+    const float vz = float(c.m[2][0] * x + c.m[2][1] * y + c.m[2][2] * z);
+    const float l = std::sqrt(vx * vx + vy * vy + vz * vz);
+    const float r = 1.f / l;
+    const bool ok = l > 0.f;
+    d->x = ok ? vx * r : 0.f;
+    d->y = ok ? vy * r : 0.f;
+    d->z = ok ? vz * r : 0.f;
+    *tnear = c.near * len;
+    *tfar = c.far * len;
+}
 
 class Camera {
 public:
@@ -103,6 +138,7 @@ private:
     CameraDesc m_desc;
     Transform m_xf;
     Vec3 m_origin;  ///< m_xf.m.transform_point(0): the pinhole, computed once
+    PinholeConstants m_pinhole;  ///< a perspective camera's (generate_ray(p_raster): pinhole_ray)
     int m_width, m_height;
     float m_win_w, m_win_h;  ///< window size in aperture units
     float m_lens_radius = 0.f;

@@ -53,28 +53,12 @@ CMLT_LANES_INLINE bool consistent(float go, float gi, float lz, float iz) {
 
 CMLT_LANES_CLONES
 void camera_directions(DiffuseLanes& L, size_t n, const PinholeConstants& c) {
-    // Camera::generate_ray(p_raster): raster_to_window, the direction at depth 1, its
-    // length (the interval's scale), transform_vector in doubles, normalize
-    const double m00 = c.m[0][0], m01 = c.m[0][1], m02 = c.m[0][2];
-    const double m10 = c.m[1][0], m11 = c.m[1][1], m12 = c.m[1][2];
-    const double m20 = c.m[2][0], m21 = c.m[2][1], m22 = c.m[2][2];
     for (size_t k = 0; k < n; ++k) {
-        const float wx = c.offset_x + (L.film_x[k] / c.width - 0.5f) * c.win_w;
-        const float wy = c.offset_y + (0.5f - L.film_y[k] / c.height) * c.win_h;
-        const float cx = wx / c.focal_length, cy = wy / c.focal_length, cz = -1.f;
-        const float len = std::sqrt(cx * cx + cy * cy + cz * cz);
-        const double x = cx, y = cy, z = cz;
-        const float vx = float(m00 * x + m01 * y + m02 * z);
-        const float vy = float(m10 * x + m11 * y + m12 * z);
-        const float vz = float(m20 * x + m21 * y + m22 * z);
-        const float l = std::sqrt(vx * vx + vy * vy + vz * vz);
-        const float r = 1.f / l;
-        const bool ok = l > 0.f;
-        L.dx[k] = ok ? vx * r : 0.f;
-        L.dy[k] = ok ? vy * r : 0.f;
-        L.dz[k] = ok ? vz * r : 0.f;
-        L.ray_tnear[k] = c.near * len;
-        L.ray_tfar[k] = c.far * len;
+        Vec3 d;
+        pinhole_ray(c, L.film_x[k], L.film_y[k], &d, &L.ray_tnear[k], &L.ray_tfar[k]);
+        L.dx[k] = d.x;
+        L.dy[k] = d.y;
+        L.dz[k] = d.z;
     }
 }
 
