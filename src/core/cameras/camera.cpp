@@ -36,7 +36,6 @@ void CameraDesc::validate() const {
 Camera::Camera(const CameraDesc& desc, int width, int height)
     : m_desc(desc), m_xf(desc.transform, "camera"), m_width(width), m_height(height) {
     desc.validate();
-    m_origin = m_xf.m.transform_point(Vec3(0.f));
     m_win_w = desc.horizontal_aperture;
     m_win_h = desc.horizontal_aperture * float(height) / float(width);
     if (desc.projection == CameraDesc::Projection::perspective && desc.f_stop > 0.f &&
@@ -55,7 +54,7 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
     m_pinhole.far = desc.far;
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) m_pinhole.m[a][b] = m_xf.m.m[a][b];
-    m_pinhole.origin = m_origin;
+    m_pinhole.origin = m_xf.m.transform_point(Vec3(0.f));
 }
 
 Ray Camera::generate_ray(const Vec2& p_raster, const Vec2& u_lens) const {
@@ -89,7 +88,7 @@ Ray Camera::generate_ray(const Vec2& p_raster) const {
     Vec3 d;
     float tnear, tfar;
     pinhole_ray(m_pinhole, p_raster.x, p_raster.y, &d, &tnear, &tfar);
-    return Ray(m_origin, d, tnear, tfar);
+    return Ray(m_pinhole.origin, d, tnear, tfar);
 }
 
 bool Camera::pinhole_constants(PinholeConstants* c) const {
@@ -99,7 +98,7 @@ bool Camera::pinhole_constants(PinholeConstants* c) const {
 }
 
 Vec3 Camera::lens_point(const Vec2& u_lens) const {
-    if (!has_lens()) return m_origin;
+    if (!has_lens()) return m_pinhole.origin;
     // As generate_ray: concentric disk of radius r in the camera's z = 0 plane.
     Vec2 d = square_to_uniform_disk_concentric(u_lens);
     return m_xf.m.transform_point(Vec3(d.x * m_lens_radius, d.y * m_lens_radius, 0.f));

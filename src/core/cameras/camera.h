@@ -127,7 +127,7 @@ public:
     bool lens_ray_to_raster(const Vec3& p_lens, const Vec3& d, Vec2* p_raster) const;
 
     const CameraDesc& desc() const { return m_desc; }
-    Vec3 position() const { return m_origin; }
+    Vec3 position() const { return m_pinhole.origin; }
 
 private:
     /// Image-plane window position (aperture units) of a raster position.
@@ -137,8 +137,9 @@ private:
 
     CameraDesc m_desc;
     Transform m_xf;
-    Vec3 m_origin;  ///< m_xf.m.transform_point(0): the pinhole, computed once
-    PinholeConstants m_pinhole;  ///< a perspective camera's (generate_ray(p_raster): pinhole_ray)
+    /// generate_ray(p_raster)'s constants for a perspective camera (pinhole_ray); their
+    /// origin, m_xf.m.transform_point(0), is every camera's position, computed once
+    PinholeConstants m_pinhole;
     int m_width, m_height;
     float m_win_w, m_win_h;  ///< window size in aperture units
     float m_lens_radius = 0.f;
