@@ -107,6 +107,8 @@ NB_MODULE(_core, m) {
     using namespace cmlt::bindings;
     m.doc() = "cmlt C++ core: scene, Embree BVH, integrators (pt, bdpt, pssmlt, cmlt), temporal carry-over";
     m.attr("__version__") = CMLT_VERSION;  // pyproject.toml's version (CMakeLists.txt)
+    // the x86-64 level this build of the module was compiled for (src/bindings/CMakeLists.txt)
+    m.attr("isa") = CMLT_CORE_ISA;
     nb::exception<cmlt::SceneError>(m, "SceneError", PyExc_ValueError);
     nb::exception<cmlt::SettingsError>(m, "SettingsError", PyExc_ValueError);
     m.def("max_packet_width", &cmlt::Accel::max_packet_width,

@@ -21,6 +21,12 @@ from ._version import __version__
 
 _plugins.register()
 
+# cmlt._core: the build of the core for the best instruction set this CPU runs, found
+# when first imported (_core_select.py; CMLT_CORE_ISA=baseline forces the portable one).
+from . import _core_select
+
+_core_select.install()
+
 __all__ = ["__version__", "render_sequence", "RenderOptions"]
 
 

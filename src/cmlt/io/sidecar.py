@@ -13,6 +13,8 @@ extension, and it sorts next to its image). The file is one JSON object:
                   rates and normalisation), plus ``wall_time_s`` of the frame
 ``warnings``      loader warnings for this frame
 ``cmlt_version``
+``core_isa``      the build of the core that rendered it (``cmlt._core.isa``: ``x86-64``,
+                  the portable one, or an x86-64 level such as ``x86-64-v4``)
 
 A number that does not exist for the frame (NaN, e.g. ``temporal.b_ratio``
 of a frame without carried chain states) or is infinite is written as

@@ -449,7 +449,8 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         "resolution": [int(width), int(height)],
         "settings": job.settings_record, "settings_sources": dict(job.sources),
         "stats": stats, "scene_update": job.bridge.last_update.as_dict(),
-        "warnings": list(fs.warnings), "cmlt_version": __version__, "temporal": trec,
+        "warnings": list(fs.warnings), "cmlt_version": __version__,
+        "core_isa": getattr(core, "isa", None), "temporal": trec,
         "effects": effects,
         "memory": memory,
     }
