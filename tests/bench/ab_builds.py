@@ -10,6 +10,11 @@ interleaved (A B A B ...), medians of ``--repeats``.
     .venv/bin/python tests/bench/ab_builds.py --modules ../before/build/src/bindings/_core*.so,build/py/src/bindings/_core*.so \\
         --repeats 3 -- sequences/cornell/shot.usda --integrator pt --spp 64 --res 256x256 --threads 2
 
+The module swapped is the one the package loads (``cmlt._core.__file__``): on a CPU
+that runs the x86-64-v4 build, ``cmlt/x86-64-v4/_core*.so`` (``src/cmlt/_core_select.py``),
+so compare like with like — ``build/py/src/bindings/x86-64-v4/_core*.so`` of both trees,
+or both portable modules with ``CMLT_CORE_ISA=baseline`` set.
+
 Per module: the render time (``stats.time_s`` of the sidecar), samples/s, the process's
 wall time (start-up included), the trace share (``trace_s / busy_s``) and the speed-up
 against the first module. The installed module is restored afterwards.
