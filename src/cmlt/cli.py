@@ -40,12 +40,23 @@ import shlex
 import sys
 from typing import List, Optional, Sequence
 
+from ._core_select import CoreSelectError
 from ._version import __version__
 from .cli_args import (EXIT_INTERRUPTED, EXIT_OK, EXIT_RENDER, EXIT_USAGE, _error, _int_at_least, _Parser,
                        parse_aovs, parse_crop, parse_purposes, parse_resolution, parse_variant_flag)
 from .cli_images import _cmd_contact_sheet, _cmd_inspect_image
 
 __all__ = ["main", "build_parser", "parse_resolution"]
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: the package's version and the build of the core loaded here
+    (``cmlt._core.isa``: the portable ``x86-64`` or a newer level; _core_select.py)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from . import _core
+        sys.stdout.write(f"cmlt {__version__} (core {_core.isa})\n")
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = _Parser(prog="cmlt", description="Render animated USD shots with coherent "
                 "Metropolis light transport.")
-    p.add_argument("--version", action="version", version=f"cmlt {__version__}")
+    p.add_argument("--version", action=_VersionAction, nargs=0,
+                   help="print the version and the build of the core this CPU loads, and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
@@ -438,7 +450,10 @@ def _screen_flow(shot: str, times, res):
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of the ``cmlt`` console script; returns the exit code."""
     argv = _husk_argv(sys.argv[1:] if argv is None else argv)
-    parser = build_parser()
+    try:
+        parser = build_parser()         # imports the core (the settings table)
+    except CoreSelectError as exc:      # CMLT_CORE_ISA names a build that cannot load
+        return _error(str(exc), EXIT_USAGE)
     try:
         args, extra = parser.parse_known_args(argv)
         if extra:                       # point at the subcommand's own help

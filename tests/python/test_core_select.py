@@ -119,3 +119,15 @@ def test_05_every_build_renders_the_same_images(tmp_path):
         assert all(h[1] == isa for h in got)
         diff = [i for i, (a, b) in enumerate(zip(ref, got)) if a[0] != b[0] or a[2] != b[2]]
         assert not diff, f"{isa} differs from the portable build in renders {diff}"
+
+
+def test_06_the_command_line_names_the_variable():
+    env = dict(os.environ, **{cs.ENV: "avx9"})
+    proc = subprocess.run([sys.executable, "-m", "cmlt", "--version"], env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "cmlt: error: CMLT_CORE_ISA='avx9': expected auto, baseline or one of x86-64-v4, x86-64-v3"]
+    proc = subprocess.run([sys.executable, "-m", "cmlt", "--version"], env=dict(env, **{cs.ENV: "baseline"}),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and proc.stdout.strip() == f"cmlt {cmlt.__version__} (core x86-64)"

@@ -203,7 +203,8 @@ def test_10_inspect_and_version(tiny_shot, capsys):
     assert "/World/Cam" in out and "1 .. 3" in out
     assert "settings in force:" in out and "spp" in out
     assert main(["--version"]) == 0
-    assert capsys.readouterr().out.strip() == f"cmlt {__version__}"
+    import cmlt._core
+    assert capsys.readouterr().out.strip() == f"cmlt {__version__} (core {cmlt._core.isa})"
 
 
 def test_11_ctrl_c_keeps_finished_frames(make_shot, tmp_path):
