@@ -24,9 +24,10 @@ import os
 import platform
 import sys
 from pathlib import Path
-from typing import FrozenSet, Iterable, Optional, Sequence
+from typing import FrozenSet, Iterable, List, Optional, Sequence
 
-__all__ = ["ENV", "BASELINE", "VARIANTS", "CoreSelectError", "cpu_flags", "supports", "choose", "install"]
+__all__ = ["ENV", "BASELINE", "VARIANTS", "CoreSelectError", "cpu_flags", "supports", "choose", "variants_beside",
+           "install"]
 
 ENV = "CMLT_CORE_ISA"
 BASELINE = "baseline"
@@ -89,6 +90,13 @@ def choose(available: Sequence[str], request: Optional[str], flags: Iterable[str
     return req
 
 
+def variants_beside(portable: str) -> List[str]:
+    """The levels built beside the portable module file `portable` (best first): their
+    modules are ``<its folder>/<level>/<its file name>``."""
+    origin = Path(portable)
+    return [isa for isa in VARIANTS if (origin.parent / isa / origin.name).is_file()]
+
+
 class _CoreFinder(importlib.abc.MetaPathFinder):
     """Finds ``cmlt._core`` where the other finders do, then swaps in the chosen build."""
 
@@ -106,11 +114,10 @@ class _CoreFinder(importlib.abc.MetaPathFinder):
                 break
         if base is None or not base.origin or not os.path.isfile(base.origin):
             return base
-        origin = Path(base.origin)
-        available = [isa for isa in VARIANTS if (origin.parent / isa / origin.name).is_file()]
-        isa = choose(available, os.environ.get(ENV), cpu_flags())
+        isa = choose(variants_beside(base.origin), os.environ.get(ENV), cpu_flags())
         if isa == BASELINE:
             return base
+        origin = Path(base.origin)
         file = str(origin.parent / isa / origin.name)
         return importlib.util.spec_from_file_location(
             fullname, file, loader=importlib.machinery.ExtensionFileLoader(fullname, file))
