@@ -30,7 +30,9 @@
 Exit codes: 0 done; 1 the shot or the render failed; 2 a bad flag or path;
 130 interrupted (Ctrl-C; finished frames stay, ``--resume`` continues).
 Errors are one line on stderr (``cmlt: error: ...``), never a traceback,
-unless ``CMLT_DEBUG=1`` is set in the environment.
+unless ``CMLT_DEBUG=1`` is set in the environment. ``CMLT_CORE_ISA`` (``auto``,
+``baseline``, ``x86-64-v4``) picks the build of the core (_core_select.py); ``--version``
+names the one loaded.
 """
 from __future__ import annotations
 
