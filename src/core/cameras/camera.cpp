@@ -36,8 +36,6 @@ void CameraDesc::validate() const {
 Camera::Camera(const CameraDesc& desc, int width, int height)
     : m_desc(desc), m_xf(desc.transform, "camera"), m_width(width), m_height(height) {
     desc.validate();
-    m_win_w = desc.horizontal_aperture;
-    m_win_h = desc.horizontal_aperture * float(height) / float(width);
     if (desc.projection == CameraDesc::Projection::perspective && desc.f_stop > 0.f &&
         desc.focus_distance > 0.f) {
         float r = desc.focal_length * desc.lens_unit / (2.f * desc.f_stop);
@@ -45,8 +43,8 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
     }
     m_pinhole.width = float(m_width);
     m_pinhole.height = float(m_height);
-    m_pinhole.win_w = m_win_w;
-    m_pinhole.win_h = m_win_h;
+    m_pinhole.win_w = desc.horizontal_aperture;  // the window, in aperture units
+    m_pinhole.win_h = desc.horizontal_aperture * float(height) / float(width);
     m_pinhole.offset_x = desc.horizontal_aperture_offset;
     m_pinhole.offset_y = desc.vertical_aperture_offset;
     m_pinhole.focal_length = desc.focal_length;
@@ -74,8 +72,9 @@ Ray Camera::generate_ray(const Vec2& p_raster, const Vec2& u_lens) const {
 }
 
 Vec2 Camera::raster_to_window(const Vec2& p) const {
-    return {m_desc.horizontal_aperture_offset + (p.x / float(m_width) - 0.5f) * m_win_w,
-            m_desc.vertical_aperture_offset + (0.5f - p.y / float(m_height)) * m_win_h};
+    Vec2 w;
+    raster_window(m_pinhole, p.x, p.y, &w.x, &w.y);
+    return w;
 }
 
 Ray Camera::generate_ray(const Vec2& p_raster) const {
@@ -120,8 +119,8 @@ bool Camera::lens_ray_to_raster(const Vec3& p_lens, const Vec3& d, Vec2* p_raste
 }
 
 Vec2 Camera::window_to_raster(const Vec2& w) const {
-    return {((w.x - m_desc.horizontal_aperture_offset) / m_win_w + 0.5f) * float(m_width),
-            (0.5f - (w.y - m_desc.vertical_aperture_offset) / m_win_h) * float(m_height)};
+    return {((w.x - m_pinhole.offset_x) / m_pinhole.win_w + 0.5f) * m_pinhole.width,
+            (0.5f - (w.y - m_pinhole.offset_y) / m_pinhole.win_h) * m_pinhole.height};
 }
 
 bool Camera::world_to_raster(const Vec3& p_world, Vec2* p_raster) const {
@@ -134,8 +133,7 @@ bool Camera::world_to_raster(const Vec3& p_world, Vec2* p_raster) const {
         if (!(pc.z < 0.f)) return false;
         w = {m_desc.focal_length * pc.x / -pc.z, m_desc.focal_length * pc.y / -pc.z};
     }
-    p_raster->x = ((w.x - m_desc.horizontal_aperture_offset) / m_win_w + 0.5f) * float(m_width);
-    p_raster->y = (0.5f - (w.y - m_desc.vertical_aperture_offset) / m_win_h) * float(m_height);
+    *p_raster = window_to_raster(w);
     return true;
 }
 

@@ -69,6 +69,13 @@ struct PinholeConstants {
 #define CMLT_CAMERA_INLINE inline
 #endif
 
+/// The image-plane window position (aperture units) of raster position (fx, fy): every
+/// camera's (Camera::raster_to_window), and the start of pinhole_ray.
+CMLT_CAMERA_INLINE void raster_window(const PinholeConstants& c, float fx, float fy, float* wx, float* wy) {
+    *wx = c.offset_x + (fx / c.width - 0.5f) * c.win_w;
+    *wy = c.offset_y + (0.5f - fy / c.height) * c.win_h;
+}
+
 /// The pinhole ray of raster position (fx, fy): its direction (unit length; 0 if it has
 /// none) and its interval (the near and far depths along -Z as distances along the
 /// ray). Camera::generate_ray's perspective rays and pt's camera lanes
@@ -79,8 +86,8 @@ CMLT_CAMERA_INLINE void pinhole_ray(const PinholeConstants& c, float fx, float f
     // the window position (aperture units), the direction at depth 1 and its length, the
     // camera's linear part in doubles, the normalisation (Vec3::operator/ multiplies by
     // the reciprocal)
-    const float wx = c.offset_x + (fx / c.width - 0.5f) * c.win_w;
-    const float wy = c.offset_y + (0.5f - fy / c.height) * c.win_h;
+    float wx, wy;
+    raster_window(c, fx, fy, &wx, &wy);
     const float cx = wx / c.focal_length, cy = wy / c.focal_length, cz = -1.f;
     const float len = std::sqrt(cx * cx + cy * cy + cz * cz);
     const double x = cx, y = cy, z = cz;
@@ -137,11 +144,11 @@ private:
 
     CameraDesc m_desc;
     Transform m_xf;
-    /// generate_ray(p_raster)'s constants for a perspective camera (pinhole_ray); their
-    /// origin, m_xf.m.transform_point(0), is every camera's position, computed once
+    /// generate_ray(p_raster)'s constants for a perspective camera (pinhole_ray); for
+    /// every camera, its raster and window (raster_window) and its position, the origin
+    /// m_xf.m.transform_point(0), computed once
     PinholeConstants m_pinhole;
     int m_width, m_height;
-    float m_win_w, m_win_h;  ///< window size in aperture units
     float m_lens_radius = 0.f;
 };
 
