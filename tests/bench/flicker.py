@@ -14,7 +14,10 @@ mean over seeds and its standard error: one seed's relMSE is mostly that seed's 
 their difference on one seed is noise). Per sequence the budget defaults to the
 table below (door_ajar needs 128 mutations per pixel to converge at all); ``--spp``
 and ``--ref-spp`` override it for every sequence. References are cached in
-OUT/SEQ/ref (reused when shot, size, frames, integrator and spp match).
+OUT/SEQ/ref (reused when shot, size, frames, integrator and spp match). Each is the mean
+of two halves rendered with other seeds, and the table's "reference floor" row is the TF
+and GF the reference's own noise puts under every value (``reference``): a stored-seeds
+TF near it measures the reference, not the render.
 
 Writes OUT/flicker.md (markdown table), OUT/flicker.json (per-frame values: ratio of
 mean brightness to the reference, relMSE, TF terms, per seed) and OUT/flicker.png (TF
@@ -39,7 +42,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 #: well enough for flicker to mean something: door_ajar and camera_pan need more)
 SEQUENCES = {
     "static_flicker": (16, 512, "1:8"),
-    "moving_light": (16, 512, "1:8"),
+    # 8192: with 512 the reference's own noise was most of the stored seeds' TF
+    "moving_light": (16, 8192, "1:8"),
     "door_ajar": (128, 4096, "1:8"),
     "camera_pan": (64, 1024, "1:8"),
     "fading_light": (16, 512, "1:24"),
@@ -78,28 +82,51 @@ def config_dir(name: str) -> str:
     return name.replace(" + ", "_").replace(" ", "_")
 
 
+#: the two halves of every reference are rendered with these shot seeds (never one of the
+#: renders' seeds 1..N, whose random numbers they would share)
+REFERENCE_SEEDS = (1001, 1002)
+
+
 def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int,
               pixel_filter=None):
-    """Per-frame references (F, H, W, 3), rendered once and cached in ``out``, with the
-    renders' pixel filter (None: the stage's)."""
+    """Per-frame references (F, H, W, 3) with the renders' pixel filter (None: the
+    stage's), rendered once and cached in ``out``, and the reference's own noise floor.
+
+    A reference is the mean of two halves of ``spp // 2`` paths per pixel each, rendered
+    with different seeds. Its own error enters every measured TF and GF (E = I - R), and
+    with stored seeds the renders' frame-to-frame error can be smaller than a reference's:
+    on moving_light a 512-path reference alone accounted for most of the stored seeds'
+    TF. The halves measure it: TF and GF of one half against the other, halved (the
+    difference of two halves has twice the variance of one half, the mean half of it), is
+    the floor the reference puts under the table's values -- a value near it says the
+    reference is not converged enough to measure it. Returns (references, floor) with
+    floor = {"tf": .., "gf": ..}."""
     key = {"shot": os.path.abspath(shot), "frames": frames, "integrator": integrator,
-           "res": list(res), "spp": int(spp)}
+           "res": list(res), "spp": int(spp), "halves": list(REFERENCE_SEEDS)}
     if pixel_filter:
         key["pixel_filter"] = pixel_filter
     meta = os.path.join(out, "ref.json")
     if os.path.exists(meta):
         with open(meta) as fh:
             old = json.load(fh)
-        if old.get("key") == key and all(os.path.exists(p) for p in old["written"]):
-            return np.stack([load_image(p) for p in old["written"]])
-    r = render_sequence(shot, frames, os.path.join(out, "r.####.exr"),
-                        RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
-                                      pixel_filter=pixel_filter),
-                        progress=False, quiet=True)
+        if old.get("key") == key and all(os.path.exists(p) for h in old["written"] for p in h):
+            halves = [np.stack([load_image(p) for p in h]) for h in old["written"]]
+            return 0.5 * (halves[0] + halves[1]), old["floor"]
+    written = []
+    for k, seed in enumerate(REFERENCE_SEEDS):
+        r = render_sequence(shot, frames, os.path.join(out, f"half{k}", "r.####.exr"),
+                            RenderOptions(integrator=integrator, resolution=tuple(res),
+                                          spp=max(1, spp // 2), seed=seed,
+                                          pixel_filter=pixel_filter),
+                            progress=False, quiet=True)
+        written.append(list(r.written))
+    halves = [np.stack([load_image(p) for p in h]) for h in written]
+    pair = flicker(halves[0], halves[1])
+    floor = {"tf": 0.5 * pair.tf if pair.tf is not None else None, "gf": 0.5 * pair.gf}
     os.makedirs(out, exist_ok=True)
     with open(meta, "w") as fh:
-        json.dump({"key": key, "written": list(r.written)}, fh)
-    return np.stack([load_image(p) for p in r.written])
+        json.dump({"key": key, "written": written, "floor": floor}, fh)
+    return 0.5 * (halves[0] + halves[1]), floor
 
 
 def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: int, chains: int,
@@ -220,12 +247,18 @@ def main(argv=None):
         ref_spp = a.ref_spp or ref_spp
         frames = a.frames or frames
         shot = os.path.join(ROOT, "sequences", seq, "shot.usda")
-        refs = reference(shot, frames, os.path.join(a.out, seq, "ref"), a.ref_integrator,
-                         res, ref_spp, a.pixel_filter)
+        refs, floor = reference(shot, frames, os.path.join(a.out, seq, "ref"), a.ref_integrator,
+                                res, ref_spp, a.pixel_filter)
+        print(f"{seq:15s} reference ({a.ref_integrator}, {ref_spp} per pixel) floor: "
+              f"TF {floor['tf']:.4f} GF {floor['gf']:.5f}", file=sys.stderr)
         flow = screen_flow(shot, frames, res)
         dseq = dump["sequences"].setdefault(seq, {"spp": spp, "ref_spp": ref_spp, "frames": frames,
                                                   "reference_mean": refs.mean(axis=(1, 2, 3)).tolist(),
+                                                  "reference_floor": floor,
                                                   "configs": {}})
+        rows.append((seq, f"reference floor ({ref_spp}/px)", ref_spp, frames,
+                     (floor["tf"], math.nan), (math.nan, math.nan), (floor["gf"], math.nan),
+                     (math.nan, math.nan), (math.nan, math.nan), (math.nan, math.nan)))
         for name in configs:
             per_seed = []
             for seed in range(1, a.seeds + 1):
@@ -269,7 +302,7 @@ def main(argv=None):
                 f"| {_fmt(*mse, 4)} |")
         if a.cvvdp:
             line += f" {_fmt(*j, 3)} |"
-        lines.append(line + f" {dt[0]:.2f} |")
+        lines.append(line + (f" {dt[0]:.2f} |" if math.isfinite(dt[0]) else " - |"))
     table = "\n".join(lines)
     os.makedirs(a.out, exist_ok=True)
     cmd = " ".join(["tests/bench/flicker.py"] + list(dump["argv"]))
