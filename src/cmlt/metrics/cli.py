@@ -2,12 +2,15 @@
 
 ::
 
-    cmlt flicker SEQUENCE [--reference REF] [--json OUT.json] [--plot OUT.png] [--cvvdp] [--shot SHOT]
+    cmlt flicker SEQUENCE [--reference REF [--reference-check REF2]] [--json OUT.json]
+                 [--plot OUT.png] [--cvvdp] [--shot SHOT]
     cmlt compare A B [--json [OUT.json]]
 
 SEQUENCE is a frame pattern (``renders/shot.####.exr``, ``$F4``, ``%04d``)
 or a glob (quote it). REF is one image (a static shot's reference, used for
-every frame) or a pattern/glob with the same frames as SEQUENCE. ``--json -``
+every frame) or a pattern/glob with the same frames as SEQUENCE. REF2 is a second
+reference like REF, rendered the same way with another seed: the pair measures the
+flicker REF's own noise puts under TF and GF (``reference_floor``). ``--json -``
 writes the JSON to stdout instead of the table. Exit codes: 0 done, 2 a bad
 flag or a missing/mismatched input (one line, ``cmlt: error: ...``).
 """
@@ -42,6 +45,11 @@ def add_parsers(sub) -> None:
     f.add_argument("--reference", "-r", metavar="REF",
                    help="one reference image for every frame (static shot) or a pattern/glob "
                    "with one reference per frame")
+    f.add_argument("--reference-check", metavar="REF2",
+                   help="a second reference like REF, rendered the same way with another "
+                   "seed: reports the TF and GF REF's own noise accounts for (its floor) and "
+                   "warns when TF is less than 3x it (the reference is then a large part "
+                   "of what TF measures)")
     f.add_argument("--json", metavar="PATH", dest="json_out",
                    help="write the report as JSON (- for stdout, instead of the table)")
     f.add_argument("--plot", metavar="PNG", help="plot the per-frame values (needs matplotlib: the extra cmlt[plot])")
@@ -208,34 +216,29 @@ def _cmd_flicker(args, screen_flow=None) -> int:
         _pyplot()                       # before the work: a missing matplotlib fails fast
     frames, images = load_sequence(args.sequence)
     reference = None
+    if getattr(args, "reference_check", None) and not args.reference:
+        raise MetricsError("--reference-check needs --reference (it measures that "
+                           "reference's own noise)")
     if args.reference:
-        if _is_sequence(args.reference):
-            rframes, refs = load_sequence(args.reference)
-            if rframes != frames:
-                have, want = set(rframes), set(frames)
-                missing = sorted(want - have)
-                extra = sorted(have - want)
-                parts = []
-                if missing:
-                    parts.append(f"no reference for frame(s) "
-                                 f"{', '.join(_frame(f) for f in missing[:8])}")
-                if extra:
-                    parts.append(f"reference frame(s) {', '.join(_frame(f) for f in extra[:8])} "
-                                 f"not in the sequence")
-                raise MetricsError(f"{args.sequence} and {args.reference} have different "
-                                   f"frames: {'; '.join(parts)}")
-            reference = refs
-        else:
-            reference = load_image(args.reference)
-        ref_shape = (reference if not isinstance(reference, list) else reference[0]).shape
-        if ref_shape != images[0].shape:
-            raise MetricsError(f"{args.sequence} frames are {images[0].shape[1]}x"
-                               f"{images[0].shape[0]} but {args.reference} is "
-                               f"{ref_shape[1]}x{ref_shape[0]}")
+        reference = _load_reference(args.reference, args.sequence, frames, images)
     report = flicker(images, reference, frames=frames)
     data = report.to_dict()
     data["sequence"] = args.sequence
     data["reference"] = args.reference
+    floor_line = None
+    if getattr(args, "reference_check", None):
+        second = _load_reference(args.reference_check, args.sequence, frames, images)
+        floor = reference_floor(reference, second, frames)
+        data["reference_floor"] = dict(floor, check=args.reference_check)
+        floor_line = (f"reference floor (the TF and GF {args.reference}'s own noise accounts "
+                      f"for, from {args.reference_check}): TF {_fmt(floor['tf'])}   "
+                      f"GF {_fmt(floor['gf'])}")
+        if report.tf is not None and floor["tf"] is not None and report.tf < 3.0 * floor["tf"]:
+            report.warnings.append(
+                f"TF {_fmt(report.tf)} is less than 3x the reference's own floor "
+                f"{_fmt(floor['tf'])}: the reference's noise is a large part of it "
+                "(render the reference with more samples per pixel)")
+            data["warnings"] = list(report.warnings)
     mc_line = None
     if getattr(args, "shot", None):
         refs = None if reference is None else (
@@ -265,6 +268,8 @@ def _cmd_flicker(args, screen_flow=None) -> int:
             jod_line = f"ColorVideoVDP: {jod:.3f} JOD (10 = no visible difference), {args.fps:g} fps"
     if args.json_out != "-":
         print_report(report, args.sequence, args.reference)
+        if floor_line:
+            _console().print(floor_line, soft_wrap=True, markup=False)
         if mc_line:
             _console().print(mc_line, soft_wrap=True, markup=False)
         if jod_line:
@@ -277,6 +282,50 @@ def _cmd_flicker(args, screen_flow=None) -> int:
         plot_report(report, args.plot, title=args.sequence
                     + (f" vs {args.reference}" if args.reference else ""))
     return EXIT_OK
+
+
+def _load_reference(path: str, sequence: str, frames, images):
+    """One reference image, or a list with one per frame of the sequence (a pattern or
+    glob with exactly its frames); MetricsError naming both when they do not match."""
+    if _is_sequence(path):
+        rframes, refs = load_sequence(path)
+        if rframes != frames:
+            have, want = set(rframes), set(frames)
+            missing = sorted(want - have)
+            extra = sorted(have - want)
+            parts = []
+            if missing:
+                parts.append(f"no reference for frame(s) "
+                             f"{', '.join(_frame(f) for f in missing[:8])}")
+            if extra:
+                parts.append(f"reference frame(s) {', '.join(_frame(f) for f in extra[:8])} "
+                             f"not in the sequence")
+            raise MetricsError(f"{sequence} and {path} have different "
+                               f"frames: {'; '.join(parts)}")
+        reference = refs
+    else:
+        reference = load_image(path)
+    ref_shape = (reference if not isinstance(reference, list) else reference[0]).shape
+    if ref_shape != images[0].shape:
+        raise MetricsError(f"{sequence} frames are {images[0].shape[1]}x"
+                           f"{images[0].shape[0]} but {path} is "
+                           f"{ref_shape[1]}x{ref_shape[0]}")
+    return reference
+
+
+def reference_floor(reference, second, frames) -> dict:
+    """The TF and GF a reference's own noise puts under every measurement against it,
+    from a second reference rendered the same way with another seed: E = I - R carries
+    R's error, and the two references' difference has twice the variance of one
+    reference's error, so the pair's TF and GF divided by sqrt(2). One image for every
+    frame (a static reference) has no frame-to-frame error: floor 0."""
+    n = len(frames)
+    a = reference if isinstance(reference, list) else [reference] * n
+    b = second if isinstance(second, list) else [second] * n
+    pair = flicker(a, b, frames=frames)
+    scale = 1.0 / math.sqrt(2.0)
+    return {"tf": None if pair.tf is None else pair.tf * scale,
+            "gf": None if pair.gf is None else pair.gf * scale}
 
 
 def _motion_terms(shot: str, frames, images, refs, screen_flow):

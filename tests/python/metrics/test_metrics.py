@@ -335,3 +335,63 @@ def test_cli_flicker_shot_adds_the_motion_compensated_tf(tmp_path, capsys):
     code = main(["flicker", str(tmp_path / "r" / "f.####.exr"), "--shot", str(bad)])
     err = capsys.readouterr().err
     assert code == 2 and f"--shot {bad}" in err and err.count("\n") == 1, err
+
+
+# --- the reference's own flicker -----------------------------------------------------------
+
+def _floor_case(tmp, render_noise, seed=3, n=6, h=48, w=64, sigma_ref=0.02):
+    """A moving truth T_f; two references T_f + independent noise of sigma_ref (per frame,
+    per reference); renders T_f + e_f with e_f = the same error every frame (stored
+    seeds: no frame-to-frame error of their own) plus `render_noise` of fresh noise."""
+    rng = np.random.default_rng(seed)
+    base = 0.3 + rng.random((h, w, 3))
+    truth = [base * (1.0 + 0.05 * k) for k in range(n)]
+    fixed = 0.05 * rng.standard_normal((h, w, 3))
+    renders = [t + fixed + render_noise * rng.standard_normal((h, w, 3)) for t in truth]
+    ref_a = [t + sigma_ref * rng.standard_normal((h, w, 3)) for t in truth]
+    ref_b = [t + sigma_ref * rng.standard_normal((h, w, 3)) for t in truth]
+    f32 = lambda xs: [x.astype(np.float32) for x in xs]
+    _write_seq(tmp / "renders", "shot", f32(renders))
+    _write_seq(tmp / "refa", "shot", f32(ref_a))
+    _write_seq(tmp / "refb", "shot", f32(ref_b))
+    return [str(tmp / d / "shot.####.exr") for d in ("renders", "refa", "refb")]
+
+
+def test_cli_reference_floor_measures_the_references_noise(tmp_path, capsys):
+    """Renders whose error never changes (TF 0 against the truth) measured against a noisy
+    reference: all of the TF is the reference's, the floor from a second reference says so
+    (within 3 %: 48x64x3 values per frame pair) and the command warns. With renders whose
+    own error changes 10x more than the reference's, the floor is the same and no warning."""
+    seq, ref_a, ref_b = _floor_case(tmp_path / "still", render_noise=0.0)
+    js = tmp_path / "still.json"
+    code = main(["flicker", seq, "--reference", ref_a, "--reference-check", ref_b, "--json", str(js)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    data = json.loads(js.read_text())
+    floor = data["reference_floor"]
+    # E(|N(0, 2 s^2)|) / mean R: the TF a reference of per-value noise s adds on its own
+    norm = float(np.mean([load_sequence(ref_a)[1][k].mean() for k in range(6)]))
+    expected = 0.02 * math.sqrt(2.0) * math.sqrt(2.0 / math.pi) / norm
+    assert floor["tf"] == pytest.approx(expected, rel=0.03)
+    assert data["tf"] == pytest.approx(floor["tf"], rel=0.03)
+    assert floor["check"] == ref_b
+    assert "reference floor" in out and "less than 3x the reference's own floor" in err
+
+    seq, ref_a, ref_b = _floor_case(tmp_path / "noisy", render_noise=0.2)
+    code = main(["flicker", seq, "--reference", ref_a, "--reference-check", ref_b, "--json", "-"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["reference_floor"]["tf"] == pytest.approx(expected, rel=0.03)
+    assert data["tf"] > 5 * data["reference_floor"]["tf"]
+    assert not any("floor" in w for w in data["warnings"])
+
+
+def test_cli_reference_check_errors_name_the_flag_and_files(tmp_path, capsys):
+    seq, ref_a, ref_b = _floor_case(tmp_path, render_noise=0.0, n=3)
+    assert main(["flicker", seq, "--reference-check", ref_b]) == 2
+    assert "--reference-check needs --reference" in capsys.readouterr().err
+    os.remove(str(tmp_path / "refb" / "shot.0002.exr"))
+    assert main(["flicker", seq, "--reference", ref_a, "--reference-check", ref_b]) == 2
+    err = capsys.readouterr().err
+    assert "refb" in err and "no reference for frame(s) 2" in err
