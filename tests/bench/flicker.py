@@ -130,7 +130,7 @@ def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int,
 
 
 def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: int, chains: int,
-                  seed: int, **kw):
+                  seed: int, bootstrap_samples: int = -1, **kw):
     """Render one configuration; returns (images (F, H, W, 3), temporal records,
     seconds per frame)."""
     from cmlt.temporal import driver
@@ -139,7 +139,9 @@ def render_config(shot: str, frames: str, out: str, integrator: str, res, spp: i
     t0 = time.perf_counter()
     r = render_sequence(shot, frames, os.path.join(out, "f.####.exr"),
                         RenderOptions(integrator=integrator, resolution=tuple(res), spp=spp,
-                                      chains=chains, bootstrap_samples=16 * chains, seed=seed,
+                                      chains=chains, seed=seed,
+                                      bootstrap_samples=(16 * chains if bootstrap_samples < 0
+                                                         else bootstrap_samples),
                                       # the chains' temporal machinery on every path (the
                                       # default, auto, leaves diffuse shots to the direct pass)
                                       mlt_paths=kw.pop("mlt_paths", "all"),
@@ -210,6 +212,10 @@ def main(argv=None):
     ap.add_argument("--spp", type=int, default=None, help="every sequence (default: its own)")
     ap.add_argument("--ref-spp", type=int, default=None, help="every sequence (default: its own)")
     ap.add_argument("--chains", type=int, default=256)
+    ap.add_argument("--bootstrap-samples", type=int, default=-1,
+                    help="the chains' bootstrap per frame (default 16 per chain; 0: the "
+                    "renderer's own choice per frame, which grows it where few samples "
+                    "carry light)")
     ap.add_argument("--seeds", type=int, default=4, help="shot seeds 1..N per configuration")
     ap.add_argument("--out", default=os.path.join("bench_out", "flicker"))
     ap.add_argument("--sequences", default=",".join(SEQUENCES))
@@ -268,7 +274,7 @@ def main(argv=None):
                     kw["pixel_filter"] = a.pixel_filter
                 kw["mlt_paths"] = a.mlt_paths
                 imgs, recs, dt = render_config(shot, frames, out, a.integrator, res, spp,
-                                               a.chains, seed, **kw)
+                                               a.chains, seed, a.bootstrap_samples, **kw)
                 rep = flicker(imgs, refs)
                 tf_mc = motion_compensated_tf(imgs, refs, flow)
                 j = None
