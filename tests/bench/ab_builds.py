@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import statistics
 import subprocess
@@ -32,6 +33,16 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+
+
+def _install(src: Path, installed: Path) -> None:
+    """Put `src` in place of the installed module by a copy beside it and a rename: a
+    process that has the module mapped (a render running meanwhile) keeps the file it
+    loaded. Copying over the file in place changed the pages under such a process (it
+    died of SIGBUS)."""
+    tmp = installed.with_name(installed.name + ".swap")
+    shutil.copy(src, tmp)
+    os.replace(tmp, installed)
 
 
 def main(argv=None) -> int:
@@ -52,7 +63,7 @@ def main(argv=None) -> int:
         try:
             for _ in range(a.repeats):
                 for m in mods:
-                    shutil.copy(m, installed)
+                    _install(m, installed)
                     out = Path(tempfile.mkdtemp(dir=td))
                     t0 = time.perf_counter()
                     p = subprocess.run([cli, "render", *args, "--out", str(out / "f.####.exr"), "--quiet"],
@@ -65,7 +76,7 @@ def main(argv=None) -> int:
                     res[m].append((st["time_s"], wall, st.get("trace_s", 0.0) / st["busy_s"], st["samples"]))
                     print(f"  {m.name}: render {st['time_s']:.3f} s, wall {wall:.2f} s", file=sys.stderr, flush=True)
         finally:
-            shutil.copy(backup, installed)
+            _install(backup, installed)
     base = statistics.median(r[0] for r in res[mods[0]])
     for m in mods:
         t = statistics.median(r[0] for r in res[m])
