@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from cmlt.metrics import flicker, load_image
+from cmlt.metrics import flicker, load_image, reference_floor
 from cmlt.metrics.flicker import motion_compensated_tf
 from cmlt.shot.motion import screen_flow
 from cmlt.shot import RenderOptions, render_sequence
@@ -97,9 +97,10 @@ def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int,
     with stored seeds the renders' frame-to-frame error can be smaller than a reference's:
     on moving_light a 512-path reference alone accounted for most of the stored seeds'
     TF. The halves measure it: TF and GF of one half against the other, halved (the
-    difference of two halves has twice the variance of one half, the mean half of it), is
-    the floor the reference puts under the table's values -- a value near it says the
-    reference is not converged enough to measure it. Returns (references, floor) with
+    difference of two halves has twice the variance of one half, their mean half of it;
+    `cmlt flicker --reference-check` reports the same for one reference), is the floor
+    the reference puts under the table's values -- a value near it says the reference is
+    not converged enough to measure it. Returns (references, floor) with
     floor = {"tf": .., "gf": ..}."""
     key = {"shot": os.path.abspath(shot), "frames": frames, "integrator": integrator,
            "res": list(res), "spp": int(spp), "halves": list(REFERENCE_SEEDS)}
@@ -121,8 +122,10 @@ def reference(shot: str, frames: str, out: str, integrator: str, res, spp: int,
                             progress=False, quiet=True)
         written.append(list(r.written))
     halves = [np.stack([load_image(p) for p in h]) for h in written]
-    pair = flicker(halves[0], halves[1])
-    floor = {"tf": 0.5 * pair.tf if pair.tf is not None else None, "gf": 0.5 * pair.gf}
+    # one half's floor (cmlt.metrics.reference_floor), and the mean of two halves has
+    # 1/sqrt(2) of a half's noise
+    floor = {k: None if v is None else v / math.sqrt(2.0)
+             for k, v in reference_floor(halves[0], halves[1]).items()}
     os.makedirs(out, exist_ok=True)
     with open(meta, "w") as fh:
         json.dump({"key": key, "written": written, "floor": floor}, fh)

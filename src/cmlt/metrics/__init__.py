@@ -10,9 +10,9 @@
 See :mod:`cmlt.metrics.flicker` for the exact definitions.
 """
 from .flicker import (REL_MSE_EPS, FlickerReport, FrameDifferenceFlicker, compare, flicker,
-                      rel_mse)
+                      reference_floor, rel_mse)
 from .sequence import MetricsError, find_frames, load_image, load_sequence
 
 __all__ = ["MetricsError", "FlickerReport", "FrameDifferenceFlicker", "load_sequence",
            "load_image", "find_frames",
-           "flicker", "compare", "rel_mse", "REL_MSE_EPS"]
+           "flicker", "compare", "rel_mse", "REL_MSE_EPS", "reference_floor"]

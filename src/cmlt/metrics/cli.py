@@ -22,7 +22,7 @@ import os
 import sys
 from typing import Optional
 
-from .flicker import FlickerReport, _finite_or_none, compare, flicker
+from .flicker import FlickerReport, _finite_or_none, compare, flicker, reference_floor
 from ..io.frame_pattern import has_frame_token, is_glob
 from .sequence import MetricsError, load_image, load_sequence
 
@@ -311,21 +311,6 @@ def _load_reference(path: str, sequence: str, frames, images):
                            f"{images[0].shape[0]} but {path} is "
                            f"{ref_shape[1]}x{ref_shape[0]}")
     return reference
-
-
-def reference_floor(reference, second, frames) -> dict:
-    """The TF and GF a reference's own noise puts under every measurement against it,
-    from a second reference rendered the same way with another seed: E = I - R carries
-    R's error, and the two references' difference has twice the variance of one
-    reference's error, so the pair's TF and GF divided by sqrt(2). One image for every
-    frame (a static reference) has no frame-to-frame error: floor 0."""
-    n = len(frames)
-    a = reference if isinstance(reference, list) else [reference] * n
-    b = second if isinstance(second, list) else [second] * n
-    pair = flicker(a, b, frames=frames)
-    scale = 1.0 / math.sqrt(2.0)
-    return {"tf": None if pair.tf is None else pair.tf * scale,
-            "gf": None if pair.gf is None else pair.gf * scale}
 
 
 def _motion_terms(shot: str, frames, images, refs, screen_flow):

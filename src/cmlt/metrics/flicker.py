@@ -34,7 +34,8 @@ import numpy as np
 from .sequence import MetricsError
 
 __all__ = ["FlickerReport", "FrameDifferenceFlicker", "flicker", "compare", "rel_mse",
-           "REL_MSE_EPS", "motion_compensated_tf", "motion_compensated_terms"]
+           "REL_MSE_EPS", "motion_compensated_tf", "motion_compensated_terms",
+           "reference_floor"]
 
 #: the ε of relMSE's denominator, R² + ε
 REL_MSE_EPS = 1e-2
@@ -199,6 +200,25 @@ def flicker(images, reference=None, frames: Optional[Sequence[float]] = None) ->
                          reference_mean=ref_means.tolist(), rel_mse=rel,
                          mean_rel_mse=float(np.mean(rel)), static_reference=static,
                          size=size, warnings=warnings)
+
+
+def reference_floor(reference, second,
+                    frames: Optional[Sequence[float]] = None) -> Dict[str, Optional[float]]:
+    """The TF and GF a reference's own noise puts under every measurement against it,
+    from a second reference rendered the same way with another seed: E = I - R carries
+    R's error, and the two references' difference has twice the variance of one
+    reference's error, so the pair's TF and GF divided by sqrt(2). One image for every
+    frame (a static reference) has no frame-to-frame error: floor 0."""
+    n = len(frames) if frames is not None else max(
+        len(x) if isinstance(x, (list, tuple)) or getattr(x, "ndim", 0) == 4 else 1
+        for x in (reference, second))
+    one = lambda x: not isinstance(x, (list, tuple)) and getattr(x, "ndim", 0) != 4
+    a = [reference] * n if one(reference) else reference
+    b = [second] * n if one(second) else second
+    pair = flicker(a, b, frames=frames)
+    scale = 1.0 / math.sqrt(2.0)
+    return {"tf": None if pair.tf is None else pair.tf * scale,
+            "gf": None if pair.gf is None else pair.gf * scale}
 
 
 class FrameDifferenceFlicker:
