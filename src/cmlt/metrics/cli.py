@@ -222,14 +222,10 @@ def _cmd_flicker(args, screen_flow=None) -> int:
     if args.reference:
         reference = _load_reference(args.reference, args.sequence, frames, images)
     report = flicker(images, reference, frames=frames)
-    data = report.to_dict()
-    data["sequence"] = args.sequence
-    data["reference"] = args.reference
-    floor_line = None
+    floor, floor_line = None, None
     if getattr(args, "reference_check", None):
         second = _load_reference(args.reference_check, args.sequence, frames, images)
         floor = reference_floor(reference, second, frames)
-        data["reference_floor"] = dict(floor, check=args.reference_check)
         floor_line = (f"reference floor (the TF and GF {args.reference}'s own noise accounts "
                       f"for, from {args.reference_check}): TF {_fmt(floor['tf'])}   "
                       f"GF {_fmt(floor['gf'])}")
@@ -238,7 +234,11 @@ def _cmd_flicker(args, screen_flow=None) -> int:
                 f"TF {_fmt(report.tf)} is less than 3x the reference's own floor "
                 f"{_fmt(floor['tf'])}: the reference's noise is a large part of it "
                 "(render the reference with more samples per pixel)")
-            data["warnings"] = list(report.warnings)
+    data = report.to_dict()
+    data["sequence"] = args.sequence
+    data["reference"] = args.reference
+    if floor is not None:
+        data["reference_floor"] = dict(_finite_or_none(floor), check=args.reference_check)
     mc_line = None
     if getattr(args, "shot", None):
         refs = None if reference is None else (

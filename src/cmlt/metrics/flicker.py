@@ -209,12 +209,13 @@ def reference_floor(reference, second,
     R's error, and the two references' difference has twice the variance of one
     reference's error, so the pair's TF and GF divided by sqrt(2). One image for every
     frame (a static reference) has no frame-to-frame error: floor 0."""
+    def single(x) -> bool:          # one image, not a list or an (F, H, W, C) stack
+        return not isinstance(x, (list, tuple)) and np.ndim(x) != 4
+
     n = len(frames) if frames is not None else max(
-        len(x) if isinstance(x, (list, tuple)) or getattr(x, "ndim", 0) == 4 else 1
-        for x in (reference, second))
-    one = lambda x: not isinstance(x, (list, tuple)) and getattr(x, "ndim", 0) != 4
-    a = [reference] * n if one(reference) else reference
-    b = [second] * n if one(second) else second
+        1 if single(x) else len(x) for x in (reference, second))
+    a = [reference] * n if single(reference) else reference
+    b = [second] * n if single(second) else second
     pair = flicker(a, b, frames=frames)
     scale = 1.0 / math.sqrt(2.0)
     return {"tf": None if pair.tf is None else pair.tf * scale,
