@@ -131,20 +131,21 @@ inline void move_to(Chain<State>& chain, State& to, double fy, std::size_t index
 
 }  // namespace detail
 
-/// One Metropolis–Hastings step with a single proposal y ~ T(x→·) and expected-value
-/// splatting (Veach 1997 §11.5; Kelemen et al. 2002): y gets weight a, x gets 1−a, with
-/// a = min(1, f*(y) T(y→x) / (f*(x) T(x→y))) — for a symmetric T simply f*(y)/f*(x).
-/// A proposal with f*(y) = 0 has a = 0 (no 0/0 is ever formed).
+/// The two halves of metropolis_step (below), for a caller that evaluates many chains' proposals
+/// together between them (coherent MLT's chains in lockstep): draw y into ws.y[0] ...
+template <class State, class Proposal, class Rng>
+void metropolis_draw(const Chain<State>& chain, const Proposal& proposal, Rng& rng, Workspace<State>& ws) {
+  proposal.sample(chain.x, ws.y[0], rng);
+}
+
+/// ... then evaluate it (the target's cached value, if the caller evaluated it) and
+/// finish the step. The same numbers in the same order as metropolis_step.
 template <class State, class Target, class Proposal, class Splat, class Rng>
-StepResult metropolis_step(Chain<State>& chain, const Target& f, const Proposal& proposal, Splat&& splat,
-                           Rng& rng, Workspace<State>& ws,
-                           MutationKind kind = MutationKind::small_step) {
+StepResult metropolis_finish(Chain<State>& chain, const Target& f, const Proposal& proposal, Splat&& splat,
+                             Rng& rng, Workspace<State>& ws, MutationKind kind = MutationKind::small_step) {
   StepResult r;
   r.kind = kind;
   State& y = ws.y[0];
-
-  // propose and evaluate
-  proposal.sample(chain.x, y, rng);
   const double fy = detail::evaluate(f, y, r);
 
   // acceptance probability, without 0/0
@@ -168,6 +169,18 @@ StepResult metropolis_step(Chain<State>& chain, const Target& f, const Proposal&
   // accept or reject; on reject chain.x is untouched (bit-exact)
   if (rng.uniform() < a) detail::move_to(chain, y, fy, 0, r);
   return r;
+}
+
+/// One Metropolis–Hastings step with a single proposal y ~ T(x→·) and expected-value
+/// splatting (Veach 1997 §11.5; Kelemen et al. 2002): y gets weight a, x gets 1−a, with
+/// a = min(1, f*(y) T(y→x) / (f*(x) T(x→y))) — for a symmetric T simply f*(y)/f*(x).
+/// A proposal with f*(y) = 0 has a = 0 (no 0/0 is ever formed).
+template <class State, class Target, class Proposal, class Splat, class Rng>
+StepResult metropolis_step(Chain<State>& chain, const Target& f, const Proposal& proposal, Splat&& splat,
+                           Rng& rng, Workspace<State>& ws,
+                           MutationKind kind = MutationKind::small_step) {
+  metropolis_draw(chain, proposal, rng, ws);
+  return metropolis_finish(chain, f, proposal, splat, rng, ws, kind);
 }
 
 /// Large step: metropolis_step with the independent uniform proposal (T ≡ 1), so the
@@ -231,6 +244,49 @@ StepResult mtm_step(Chain<State>& chain, const Target& f, const Proposal& propos
   return r;
 }
 
+/// The two halves of bundle_step (below), for a caller that evaluates many chains' bundles together
+/// between them (coherent MLT's chains in lockstep): draw the centre around x and the k
+/// candidates around it into ws ...
+template <class State, class Proposal, class Rng>
+void bundle_draw(const Chain<State>& chain, const Proposal& proposal, Rng& rng, Workspace<State>& ws) {
+  static_assert(Proposal::k_symmetric, "bundle_step needs a symmetric kernel for exchangeability");
+  proposal.sample(chain.x, ws.centre, rng);
+  for (std::size_t l = 0; l < ws.tries(); ++l) proposal.sample(ws.centre, ws.y[l], rng);
+}
+
+/// ... then evaluate the candidates (the target's cached values, if the caller evaluated
+/// them), splat and draw the next state. The same numbers in the same order as
+/// bundle_step.
+template <class State, class Target, class Splat, class Rng>
+StepResult bundle_finish(Chain<State>& chain, const Target& f, Splat&& splat, Rng& rng, Workspace<State>& ws) {
+  StepResult r;
+  r.kind = MutationKind::bundle;
+  const std::size_t k = ws.tries();
+  double fy_sum = 0.0;
+  for (std::size_t l = 0; l < k; ++l) {
+    ws.fy[l] = detail::evaluate(f, ws.y[l], r);
+    fy_sum += ws.fy[l];
+  }
+  const double total = chain.fx + fy_sum;
+  if (!(total > 0.0)) {
+    r.acceptance = 0.0;
+    detail::emit(splat, chain.x, 1.0, r);
+    return r;
+  }
+  r.acceptance = fy_sum / total;
+
+  // splat all k+1 points by their share of S
+  detail::emit(splat, chain.x, chain.fx / total, r);
+  for (std::size_t l = 0; l < k; ++l) detail::emit(splat, ws.y[l], ws.fy[l] / total, r);
+
+  // draw the next state from {x, y_1..y_k} ∝ f*
+  const double t = rng.uniform() * total;
+  if (t < chain.fx || !(fy_sum > 0.0)) return r;  // stay at x
+  const std::size_t j = detail::select_by_target(ws.fy.data(), k, t - chain.fx);
+  detail::move_to(chain, ws.y[j], ws.fy[j], j, r);
+  return r;
+}
+
 /// One multiple-proposal Metropolis–Hastings step on a coherent bundle (Tjelmeland 2004,
 /// "Using all Metropolis–Hastings proposals to estimate mean values", §2; Calderhead 2014,
 /// PNAS 111(49)): draw a centre c ~ T(x→·), then k = ws.tries() candidates
@@ -252,31 +308,9 @@ template <class State, class Target, class Proposal, class Splat, class Rng>
 StepResult bundle_step(Chain<State>& chain, const Target& f, const Proposal& proposal, Splat&& splat, Rng& rng,
                        Workspace<State>& ws) {
   static_assert(Proposal::k_symmetric, "bundle_step needs a symmetric kernel for exchangeability");
-  StepResult r;
-  r.kind = MutationKind::bundle;
-  const std::size_t k = ws.tries();
-
-  // draw the bundle: centre around x, candidates around the centre
-  proposal.sample(chain.x, ws.centre, rng);
-  const double fy_sum = detail::draw_bundle(f, proposal, ws.centre, ws.y.data(), ws.fy.data(), k, rng, 0.0, r);
-  const double total = chain.fx + fy_sum;
-  if (!(total > 0.0)) {
-    r.acceptance = 0.0;
-    detail::emit(splat, chain.x, 1.0, r);
-    return r;
-  }
-  r.acceptance = fy_sum / total;
-
-  // splat all k+1 points by their share of S
-  detail::emit(splat, chain.x, chain.fx / total, r);
-  for (std::size_t l = 0; l < k; ++l) detail::emit(splat, ws.y[l], ws.fy[l] / total, r);
-
-  // draw the next state from {x, y_1..y_k} ∝ f*
-  const double t = rng.uniform() * total;
-  if (t < chain.fx || !(fy_sum > 0.0)) return r;  // stay at x
-  const std::size_t j = detail::select_by_target(ws.fy.data(), k, t - chain.fx);
-  detail::move_to(chain, ws.y[j], ws.fy[j], j, r);
-  return r;
+  bundle_draw(chain, proposal, rng, ws);
+  detail::prepare(f, ws.y.data(), ws.tries());
+  return bundle_finish(chain, f, splat, rng, ws);
 }
 
 }  // namespace cmlt::mcmc

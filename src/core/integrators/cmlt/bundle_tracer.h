@@ -222,14 +222,16 @@ inline mlt::PathSample finish_lane(const mlt::PssmltTracer& tracer, const BdptLa
 template <class State, class Sampler>
 class BundleEvaluator {
 public:
-    void evaluate(const mlt::PssmltTracer& tracer, const Scene& scene, uint64_t seed, const State* states,
+    /// states[0..n): the points (pointers: a round of coherent MLT's chains in lockstep
+    /// evaluates the bundles of many chains' workspaces together).
+    void evaluate(const mlt::PssmltTracer& tracer, const Scene& scene, uint64_t seed, const State* const* states,
                   size_t n, const RayQueries& queries, PathCounters& counters) {
         reserve(n);
         const BdptTracer& bdpt = *tracer.bdpt_tracer();
         // begin every lane: technique, film position, camera vertex, up to its first query
         for (size_t i = 0; i < n; ++i) {
-            states[i].extent.fill(0);
-            m_samplers[i].emplace(states[i], seed);
+            states[i]->extent.fill(0);
+            m_samplers[i].emplace(*states[i], seed);
             m_adapters[i].emplace(*m_samplers[i], tracer.film_map());
             m_query[i] = begin_lane(tracer, *m_samplers[i], *m_adapters[i], m_ws[i], m_lanes[i]);
         }
@@ -274,7 +276,7 @@ public:
             for (size_t i = 0; i < n; ++i) waiting += m_query[i] != BdptQuery::none ? 1 : 0;
             if (waiting == 0) break;
         }
-        for (size_t i = 0; i < n; ++i) states[i].sample = finish_lane(tracer, m_lanes[i], counters);
+        for (size_t i = 0; i < n; ++i) states[i]->sample = finish_lane(tracer, m_lanes[i], counters);
     }
 
 private:

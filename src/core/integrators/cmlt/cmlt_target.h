@@ -43,13 +43,23 @@ struct Target {
     /// f* of one point: its cached value after prepare(), else evaluated alone (scalar
     /// queries; the same code and refined hits as a bundle's lanes).
     double operator()(const State& s) const {
-        if (!s.evaluated) evaluate(&s, 1, false);
+        if (!s.evaluated) {
+            const State* one = &s;
+            evaluate(&one, 1, false);
+        }
         return s.sample.f;
     }
 
     /// The kernels' batch hook: evaluate a bundle's n points together (see the file
     /// comment), timed for the stats.
     void prepare(State* states, size_t n) const {
+        thread_local std::vector<const State*> points;
+        points.resize(n);
+        for (size_t i = 0; i < n; ++i) points[i] = &states[i];
+        prepare(points.data(), n);
+    }
+    /// The same for points anywhere (the bundles of many chains in lockstep, cmlt_chain.h).
+    void prepare(const State* const* states, size_t n) const {
         BundleCounters local;
         BundleCounters& bc = bundle ? *bundle : local;
         const uint64_t t0 = cycle_now(), trace0 = Accel::trace_ticks(), rays0 = counters->rays;
@@ -59,8 +69,8 @@ struct Target {
         bc.bundle_rays += counters->rays - rays0;
     }
 
-    /// Evaluate states[0..n), their rays in packets if `use_packets`.
-    void evaluate(const State* states, size_t n, bool use_packets) const {
+    /// Evaluate *states[0..n), their rays in packets if `use_packets`.
+    void evaluate(const State* const* states, size_t n, bool use_packets) const {
         BundleCounters local;
         const RayQueries queries(scene->accel(), use_packets, max_width, bundle ? *bundle : local);
         if (tracer->bdpt()) {
@@ -69,13 +79,13 @@ struct Target {
         } else {
             evaluate_pt(states, n, queries);
         }
-        for (size_t i = 0; i < n; ++i) states[i].evaluated = true;
+        for (size_t i = 0; i < n; ++i) states[i]->evaluated = true;
     }
 
 private:
     /// The pt path sampler: the camera rays traced together (refined first hits), the
     /// rest of each path by the path tracer alone.
-    void evaluate_pt(const State* states, size_t n, const RayQueries& queries) const {
+    void evaluate_pt(const State* const* states, size_t n, const RayQueries& queries) const {
         thread_local std::vector<Ray> rays;
         thread_local std::vector<Hit> hits;
         if (rays.size() < n) {
@@ -83,7 +93,7 @@ private:
             hits.resize(n);
         }
         for (size_t i = 0; i < n; ++i) {
-            PointSampler smp(states[i], seed);
+            PointSampler smp(*states[i], seed);
             uint32_t pixel;
             rays[i] = tracer->camera_ray(smp, &pixel);
         }
@@ -91,7 +101,7 @@ private:
         for (size_t i = 0; i < n; ++i) {
             refine_hit(*scene, rays[i], hits[i]);
             const SceneHit hit = scene->resolve_hit(rays[i], hits[i]);
-            const State& s = states[i];
+            const State& s = *states[i];
             s.extent.fill(0);
             PointSampler smp(s, seed);
             s.sample = tracer->evaluate(smp, *counters, &hit);

@@ -35,6 +35,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <memory>
+#include <type_traits>
 #include <vector>
 
 namespace cmlt::mlt {
@@ -80,6 +81,13 @@ inline const ChainStates* initial_states(const RenderSettings& s) {
                                       << s.mlt_path_sampler << "' chains");
     return initial;
 }
+
+/// Does a chain tracer run groups of chains in lockstep (a member `run_group(Chain* const*,
+/// const uint64_t* ends, size_t n)` and its group size `k_lockstep_chains`; coherent MLT)?
+template <class Tracer, class = void>
+struct has_run_group : std::false_type {};
+template <class Tracer>
+struct has_run_group<Tracer, std::void_t<decltype(Tracer::k_lockstep_chains)>> : std::true_type {};
 
 /// The chains of one frame (see the file comment). `Chain` derives from ChainTally and
 /// has a member `chain` (mcmc::Chain) whose `fx` is f* of its state.
@@ -201,14 +209,47 @@ public:
         if (schedule.targeted()) schedule.set_fraction(target_first_fraction(pixels, fr.budget.chains));
         while (!m_chains.empty() && schedule.begin_round(evaluations)) {
             fr.direct.before_round(schedule, evaluations);
-            parallel_tasks(fr.arena, fr.counters, run.second - run.first, size_t(1), [&](const tbb::blocked_range<size_t>& r) {
-                auto tracer = make_tracer();
-                for (size_t k = run.first + r.begin(); k != run.first + r.end(); ++k) {
-                    Chain& chain = *m_chains[k];
-                    tracer.run(chain, schedule.round_end(chain.budget, chain.evaluations));
+            using Tracer = decltype(make_tracer());
+            if constexpr (has_run_group<Tracer>::value) {
+                // groups of chains in lockstep (cmlt_chain.h run_group), neighbours on the
+                // film at the round's start (Tracer::region: their camera rays coherent);
+                // the grouping decides only which queries share packets, never a chain's
+                // steps, so the image does not depend on it
+                const size_t g = Tracer::k_lockstep_chains, count = run.second - run.first;
+                m_order.resize(count);
+                m_region.resize(count);
+                for (size_t i = 0; i < count; ++i) {
+                    m_order[i] = uint32_t(run.first + i);
+                    m_region[i] = Tracer::region(*m_chains[run.first + i]);
                 }
-                tracer.flush(fr.counters);
-            });
+                std::sort(m_order.begin(), m_order.end(), [&](uint32_t a, uint32_t b) {
+                    const uint64_t ra = m_region[a - run.first], rb = m_region[b - run.first];
+                    return ra != rb ? ra < rb : a < b;
+                });
+                parallel_tasks(fr.arena, fr.counters, (count + g - 1) / g, size_t(1), [&](const tbb::blocked_range<size_t>& r) {
+                    auto tracer = make_tracer();
+                    Chain* group[Tracer::k_lockstep_chains];
+                    uint64_t ends[Tracer::k_lockstep_chains];
+                    for (size_t q = r.begin(); q != r.end(); ++q) {
+                        const size_t k0 = q * g, n = std::min(g, count - k0);
+                        for (size_t i = 0; i < n; ++i) {
+                            group[i] = m_chains[m_order[k0 + i]].get();
+                            ends[i] = schedule.round_end(group[i]->budget, group[i]->evaluations);
+                        }
+                        tracer.run_group(group, ends, n);
+                    }
+                    tracer.flush(fr.counters);
+                });
+            } else {
+                parallel_tasks(fr.arena, fr.counters, run.second - run.first, size_t(1), [&](const tbb::blocked_range<size_t>& r) {
+                    auto tracer = make_tracer();
+                    for (size_t k = run.first + r.begin(); k != run.first + r.end(); ++k) {
+                        Chain& chain = *m_chains[k];
+                        tracer.run(chain, schedule.round_end(chain.budget, chain.evaluations));
+                    }
+                    tracer.flush(fr.counters);
+                });
+            }
             if (schedule.targeted()) {  // the estimate from the chain groups (error_target.h)
                 uint64_t chain_evals = 0;
                 for (const auto& c : m_chains) chain_evals += c->evaluations;
@@ -292,6 +333,8 @@ private:
     const ChainStates* m_initial;
     uint64_t m_count;  ///< chains to start
     std::vector<std::unique_ptr<Chain>> m_chains;
+    std::vector<uint32_t> m_order;   ///< run: the chains in lockstep groups' order
+    std::vector<uint64_t> m_region;  ///< run: each chain's film region at the round's start
     std::vector<double> m_boot_f;
     mcmc::NormalisationAccumulator m_boot_acc;
     mcmc::NormalisationEstimate m_b_boot;
