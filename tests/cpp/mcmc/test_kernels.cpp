@@ -17,6 +17,7 @@
 #include <array>
 #include <cstring>
 #include <sstream>
+#include <vector>
 
 #include "integrators/cmlt/inner_rule.h"
 #include "kernel_cases.h"
@@ -407,6 +408,73 @@ TEST(Stats, EvaluationsPerStep) {
       EXPECT_GT(st.moved, 0u);
     }
   }
+}
+
+// ---------------------------------------------------------------------------------------
+// 6. The two halves of a step (coherent MLT's chains in lockstep, cmlt_chain.h): several
+//    chains drawing their points first, the points evaluated together, then each chain
+//    finishing, take the same steps and splats as whole steps one chain at a time.
+// ---------------------------------------------------------------------------------------
+TEST(Halves, InterleavedChainsMatchWholeStepsBitForBit) {
+  using State = std::array<double, 2>;
+  const CheckerBump f{0.25};
+  const WrappedGaussianProposal T{0.1};
+  constexpr int kChains = 5, kBlocks = 400, kInner = 3;
+  struct Run {
+    std::vector<double> splats;  // per chain: (u0, u1, w) of every splat, in order
+    std::vector<State> final_states;
+  };
+  const auto start = [](int c) { return State{0.05 + 0.17 * c, 0.9 - 0.13 * c}; };
+  // whole steps, one chain after another
+  std::vector<Run> whole(kChains);
+  for (int c = 0; c < kChains; ++c) {
+    TestRng rng(77, c);
+    auto chain = make_chain(start(c), f);
+    Workspace<State> ws(3, chain.x);
+    auto splat = [&](const State& u, double w) { whole[c].splats.insert(whole[c].splats.end(), {u[0], u[1], w}); };
+    for (int b = 0; b < kBlocks; ++b) {
+      large_step(chain, f, splat, rng, ws);
+      for (int i = 0; i < kInner; ++i) bundle_step(chain, f, T, splat, rng, ws);
+    }
+    whole[c].final_states.push_back(chain.x);
+  }
+  // halves, the chains in lockstep
+  std::vector<Run> halves(kChains);
+  std::vector<TestRng> rngs;
+  std::vector<Chain<State>> chains;
+  std::vector<Workspace<State>> wss;
+  for (int c = 0; c < kChains; ++c) {
+    rngs.emplace_back(77, c);
+    chains.push_back(make_chain(start(c), f));
+    wss.emplace_back(3, chains.back().x);
+  }
+  int evaluated = 0;  // evaluations between the halves, counted by a target that must not be called after
+  for (int b = 0; b < kBlocks; ++b)
+    for (int phase = 0; phase <= kInner; ++phase) {
+      for (int c = 0; c < kChains; ++c) {
+        if (phase == 0) metropolis_draw(chains[c], UniformProposal{}, rngs[c], wss[c]);
+        else bundle_draw(chains[c], T, rngs[c], wss[c]);
+      }
+      for (int c = 0; c < kChains; ++c) {
+        auto splat = [&](const State& u, double w) {
+          halves[c].splats.insert(halves[c].splats.end(), {u[0], u[1], w});
+        };
+        const StepResult r = phase == 0 ? metropolis_finish(chains[c], f, UniformProposal{}, splat, rngs[c], wss[c],
+                                                            MutationKind::large_step)
+                                        : bundle_finish(chains[c], f, splat, rngs[c], wss[c]);
+        evaluated += int(r.evaluations);
+      }
+    }
+  for (int c = 0; c < kChains; ++c) {
+    halves[c].final_states.push_back(chains[c].x);
+    ASSERT_EQ(whole[c].splats.size(), halves[c].splats.size()) << "chain " << c;
+    EXPECT_EQ(std::memcmp(whole[c].splats.data(), halves[c].splats.data(), whole[c].splats.size() * sizeof(double)), 0)
+        << "chain " << c;
+    EXPECT_EQ(whole[c].final_states[0], halves[c].final_states[0]) << "chain " << c;
+  }
+  EXPECT_EQ(evaluated, kChains * kBlocks * (1 + 3 * kInner));
+  // the chains moved (the comparison is not between two frozen chains)
+  for (int c = 0; c < kChains; ++c) EXPECT_NE(halves[c].final_states[0], start(c)) << "chain " << c;
 }
 
 TEST(Workspace, RejectsZeroTries) {

@@ -279,6 +279,14 @@ public:
         for (size_t i = 0; i < n; ++i) states[i]->sample = finish_lane(tracer, m_lanes[i], counters);
     }
 
+    /// The points states[0..n) of one array.
+    void evaluate(const mlt::PssmltTracer& tracer, const Scene& scene, uint64_t seed, const State* states,
+                  size_t n, const RayQueries& queries, PathCounters& counters) {
+        m_points.resize(n);
+        for (size_t i = 0; i < n; ++i) m_points[i] = &states[i];
+        evaluate(tracer, scene, seed, m_points.data(), n, queries, counters);
+    }
+
 private:
     void reserve(size_t n) {
         if (m_lanes.size() >= n) return;
@@ -302,6 +310,7 @@ private:
     std::vector<Ray> m_rays;
     std::vector<Hit> m_hits;
     std::unique_ptr<bool[]> m_occluded;
+    std::vector<const State*> m_points;
 };
 
 }  // namespace cmlt::coherent

@@ -69,6 +69,13 @@ struct Target {
         bc.bundle_rays += counters->rays - rays0;
     }
 
+    /// Evaluate states[0..n) of one array, their rays in packets if `use_packets`.
+    void evaluate(const State* states, size_t n, bool use_packets) const {
+        thread_local std::vector<const State*> points;
+        points.resize(n);
+        for (size_t i = 0; i < n; ++i) points[i] = &states[i];
+        evaluate(points.data(), n, use_packets);
+    }
     /// Evaluate *states[0..n), their rays in packets if `use_packets`.
     void evaluate(const State* const* states, size_t n, bool use_packets) const {
         BundleCounters local;
