@@ -114,7 +114,7 @@ public:
     }
 
     /// Run chains[0..n) in lockstep until chain i has spent ends[i] evaluations (README,
-    /// "Chains in lockstep"): each round every chain draws its next step's points (a
+    /// "Packets and chains in lockstep"): each round every chain draws its next step's points (a
     /// large step's one, or an inner step's bundle of k), the target evaluates all of
     /// them together (one BundleEvaluator: their ray queries in common packets), then
     /// each chain finishes its step. A chain's numbers come from its own generator in the
