@@ -56,12 +56,19 @@ def main(argv=None) -> int:
             evals[spec].append(r.samples)
     print(f"\n{sf.name}, {w}x{h}, {args.seconds:g} s per render, {args.seeds} seeds, "
           f"{args.threads} threads; relMSE vs BDPT {args.reference_spp} spp\n")
-    print("| configuration | evaluations / px | relMSE | ± (se) |")
-    print("|---|---:|---:|---:|")
+    # the seeds are the same for every configuration: the per-seed ratio to the first
+    # configuration removes what a seed's renders share (geometric mean, and the share of
+    # seeds where the configuration is better)
+    base = np.asarray(errs[configs[0]])
+    print(f"| configuration | evaluations / px | relMSE | ± (se) | × {configs[0]}, paired | better in |")
+    print("|---|---:|---:|---:|---:|---:|")
     for spec in configs:
         e = np.asarray(errs[spec])
         se = e.std(ddof=1) / np.sqrt(len(e)) if len(e) > 1 else float("nan")
-        print(f"| {spec} | {np.mean(evals[spec]):.0f} | {e.mean():.5f} | {se:.5f} |", flush=True)
+        ratio = float(np.exp(np.mean(np.log(e / base))))
+        better = int(np.sum(e < base))
+        print(f"| {spec} | {np.mean(evals[spec]):.0f} | {e.mean():.5f} | {se:.5f} | {ratio:.2f} | "
+              f"{better}/{len(e)} |", flush=True)
     return 0
 
 
