@@ -332,7 +332,7 @@ struct MltStats {
     uint64_t packet_queries = 0;                     ///< packet calls (rtcIntersectN + rtcOccludedN)
     uint64_t packet_rays = 0;                        ///< rays answered by packets (active lanes)
     uint64_t packet_shadow_rays = 0;                 ///< of them, visibility rays (rtcOccludedN)
-    uint64_t bundle_rays = 0;                        ///< rays of the inner chains' bundles
+    uint64_t bundle_rays = 0;                        ///< rays of the points evaluated in lockstep (bundles, large steps)
     double bundle_busy_s = 0;                        ///< CPU time evaluating bundles
     double bundle_trace_s = 0;                       ///< of it, inside BVH queries
     uint64_t path_evaluations = 0;                   ///< paths traced, bootstrap included
