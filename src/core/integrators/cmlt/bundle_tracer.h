@@ -215,6 +215,15 @@ inline mlt::PathSample finish_lane(const mlt::PssmltTracer& tracer, const BdptLa
     return s;
 }
 
+/// The addresses of states[0..n) in `out` (resized): the point lists of BundleEvaluator
+/// and Target for the points of one array.
+template <class State>
+const State* const* point_list(const State* states, size_t n, std::vector<const State*>& out) {
+    out.resize(n);
+    for (size_t i = 0; i < n; ++i) out[i] = &states[i];
+    return out.data();
+}
+
 /// Evaluates points with the bdpt path sampler in lockstep (see the file comment).
 /// `State`: a point with mutable `extent` (reset here) and `sample` (the result);
 /// `Sampler`: the point's sampler, constructible from (const State&, seed). Scratch is
@@ -282,9 +291,7 @@ public:
     /// The points states[0..n) of one array.
     void evaluate(const mlt::PssmltTracer& tracer, const Scene& scene, uint64_t seed, const State* states,
                   size_t n, const RayQueries& queries, PathCounters& counters) {
-        m_points.resize(n);
-        for (size_t i = 0; i < n; ++i) m_points[i] = &states[i];
-        evaluate(tracer, scene, seed, m_points.data(), n, queries, counters);
+        evaluate(tracer, scene, seed, point_list(states, n, m_points), n, queries, counters);
     }
 
 private:

@@ -54,9 +54,7 @@ struct Target {
     /// comment), timed for the stats.
     void prepare(State* states, size_t n) const {
         thread_local std::vector<const State*> points;
-        points.resize(n);
-        for (size_t i = 0; i < n; ++i) points[i] = &states[i];
-        prepare(points.data(), n);
+        prepare(point_list<State>(states, n, points), n);
     }
     /// The same for points anywhere (the bundles of many chains in lockstep, cmlt_chain.h).
     void prepare(const State* const* states, size_t n) const {
@@ -72,9 +70,7 @@ struct Target {
     /// Evaluate states[0..n) of one array, their rays in packets if `use_packets`.
     void evaluate(const State* states, size_t n, bool use_packets) const {
         thread_local std::vector<const State*> points;
-        points.resize(n);
-        for (size_t i = 0; i < n; ++i) points[i] = &states[i];
-        evaluate(points.data(), n, use_packets);
+        evaluate(point_list(states, n, points), n, use_packets);
     }
     /// Evaluate *states[0..n), their rays in packets if `use_packets`.
     void evaluate(const State* const* states, size_t n, bool use_packets) const {
