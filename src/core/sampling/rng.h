@@ -123,6 +123,32 @@ inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pi
     pixel_words(key, seq, pixel, sample, d, stream, w, &shared);
 }
 
+/// pixel_words of dimensions [d0, d0 + n) of one pixel sample and stream at once
+/// (n <= k_pixel_words_lanes): dimension d0 + i's words into w0[i], w1[i], computed in
+/// vectorised loops (sobol::dimension_points_lanes, or philox4x32_lanes) — the same
+/// numbers as pixel_words one dimension at a time.
+inline constexpr uint32_t k_pixel_words_lanes = 16;
+inline void pixel_words_lanes(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample,
+                              uint32_t d0, uint32_t n, RngStream stream, uint32_t* w0, uint32_t* w1,
+                              SequenceSeeds* shared) {
+    if (low_discrepancy(seq)) {
+        if (!shared->ready) {
+            shared->prefix = sobol::seed_prefix(pixel, sequence_seed_sample(seq, sample), uint32_t(stream));
+            shared->key_hash = sobol::seed_key_hash(key[0], key[1]);
+            shared->ready = true;
+        }
+        sobol::dimension_points_lanes(n, shared->prefix, shared->key_hash, d0, sequence_index(seq, sample), w0, w1);
+        return;
+    }
+    uint32_t c0[k_pixel_words_lanes], c1[k_pixel_words_lanes], c2[k_pixel_words_lanes];
+    for (uint32_t i = 0; i < n; ++i) {
+        c0[i] = pixel;
+        c1[i] = sample;
+        c2[i] = d0 + i;
+    }
+    philox4x32_lanes(n, c0, c1, c2, uint32_t(stream), key, w0, w1);
+}
+
 /// Random numbers of one pixel sample: dimension d of (seed, pixel, sample, stream).
 /// `get1d`/`get2d` consume dimensions in order; `set_dimension` jumps to a fixed
 /// dimension so that e.g. each bounce owns a fixed dimension range. A dimension's

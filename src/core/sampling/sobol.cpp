@@ -29,4 +29,16 @@ void scrambled_points_lanes(size_t n, uint32_t index, uint32_t* __restrict w0, u
     }
 }
 
+CMLT_SOBOL_CLONES
+void dimension_points_lanes(size_t n, uint32_t prefix, uint32_t key_hash, uint32_t d0, uint32_t index,
+                            uint32_t* __restrict w0, uint32_t* __restrict w1) {
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t a, b, w[2];
+        dimension_seeds(prefix, key_hash, d0 + uint32_t(i), &a, &b);
+        scrambled_point(index, a, b, w);
+        w0[i] = w[0];
+        w1[i] = w[1];
+    }
+}
+
 }  // namespace cmlt::sobol

@@ -146,4 +146,10 @@ inline void scrambled_point(uint32_t index, uint32_t seed_a, uint32_t seed_b, ui
 /// seeds in w0[i], w1[i], which receive the point (the loop vectorises; sobol.cpp).
 void scrambled_points_lanes(size_t n, uint32_t index, uint32_t* w0, uint32_t* w1);
 
+/// The points of sample `index` of dimensions d0 .. d0 + n - 1 of one pixel sample and
+/// stream (its seed_prefix and the key's seed_key_hash) into w0[i], w1[i]: dimension_seeds
+/// then scrambled_point, the dimensions in lanes (sobol.cpp).
+void dimension_points_lanes(size_t n, uint32_t prefix, uint32_t key_hash, uint32_t d0, uint32_t index,
+                            uint32_t* w0, uint32_t* w1);
+
 }  // namespace cmlt::sobol

@@ -3,8 +3,8 @@
 // numbers; the scrambles are bijections that keep every power-of-two prefix (and the
 // block at the direct pass's sample base) a (0,m,2)-net; the points are uniform and the
 // dimensions uncorrelated across pixels (chi-square at alpha = 1e-3, Bonferroni over
-// the two tests); the vectorised lanes give the scalar words; the scramble seeds'
-// hash lets every input bit reach every seed bit (avalanche).
+// the two tests); the vectorised lanes (pixel_words_lanes among them) give the scalar
+// words; the scramble seeds' hash lets every input bit reach every seed bit (avalanche).
 #include "chi2.h"
 
 #include "integrators/bdpt/path_sampler.h"
@@ -236,8 +236,10 @@ TEST(Sobol, PixelSamplerReadsTheSequence) {
 
 TEST(Sobol, SamplersKeepingTheSharedSeedPartsGiveTheWordsOfEachDimension) {
     // PixelSampler and PixelStreamSampler keep the seeds' per-sample parts (SequenceSeeds)
-    // from the first draw on; every later dimension, in any stream order, is still
-    // pixel_words's (a one-dimensional draw, get1d or next1d, its first word)
+    // from the first draw on, and PixelStreamSampler computes each stream's dimensions in
+    // blocks ahead (30 draws per stream here: across several blocks); every later
+    // dimension, in any stream order, is still pixel_words's (a one-dimensional draw,
+    // get1d or next1d, its first word)
     for (PixelSequence seq : {PixelSequence::sobol, PixelSequence::sobol_blocks, PixelSequence::independent}) {
         PixelSampler ps(7, 42, 19, RngStream::camera_path, seq);
         for (uint32_t d = 0; d < 12; ++d) {
@@ -253,7 +255,7 @@ TEST(Sobol, SamplersKeepingTheSharedSeedPartsGiveTheWordsOfEachDimension) {
         }
         PixelStreamSampler bs(7, 42, 19, seq);
         uint32_t dim[3] = {0, 0, 0};
-        for (int k = 0; k < 18; ++k) {
+        for (int k = 0; k < 90; ++k) {
             const int stream = (k * 5 + k / 3) % 3;
             bs.start_stream(stream);
             uint32_t w[2];
@@ -265,6 +267,34 @@ TEST(Sobol, SamplersKeepingTheSharedSeedPartsGiveTheWordsOfEachDimension) {
             const Vec2 u = bs.next2d();
             ASSERT_EQ(u.x, uint_to_unit_float(w[0])) << k;
             ASSERT_EQ(u.y, uint_to_unit_float(w[1])) << k;
+        }
+    }
+}
+
+TEST(Sobol, PixelWordsLanesGiveTheWordsOfEachDimension) {
+    // pixel_words_lanes: n dimensions from d0 at once, for every sequence and n, equal to
+    // pixel_words of each (with fresh SequenceSeeds, then with those the first call kept)
+    for (PixelSequence seq : {PixelSequence::sobol, PixelSequence::sobol_blocks, PixelSequence::independent}) {
+        for (uint32_t n = 1; n <= k_pixel_words_lanes; ++n) {
+            const uint32_t d0 = 3 * n + 1, pixel = 1000 + 17 * n, sample = 5 * n;
+            const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + n % 3);
+            uint32_t w0[k_pixel_words_lanes], w1[k_pixel_words_lanes];
+            SequenceSeeds fresh;
+            pixel_words_lanes(seed_key(9), seq, pixel, sample, d0, n, stream, w0, w1, &fresh);
+            for (uint32_t i = 0; i < n; ++i) {
+                uint32_t w[2];
+                pixel_words(seed_key(9), seq, pixel, sample, d0 + i, stream, w);
+                ASSERT_EQ(w0[i], w[0]) << n << " " << i;
+                ASSERT_EQ(w1[i], w[1]) << n << " " << i;
+            }
+            // a second block of the same sample and stream with the parts kept
+            pixel_words_lanes(seed_key(9), seq, pixel, sample, d0 + n, n, stream, w0, w1, &fresh);
+            for (uint32_t i = 0; i < n; ++i) {
+                uint32_t w[2];
+                pixel_words(seed_key(9), seq, pixel, sample, d0 + n + i, stream, w);
+                ASSERT_EQ(w0[i], w[0]) << n << " " << i;
+                ASSERT_EQ(w1[i], w[1]) << n << " " << i;
+            }
         }
     }
 }

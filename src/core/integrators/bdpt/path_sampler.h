@@ -32,15 +32,31 @@ public:
     }
 
 private:
+    /// Dimensions are computed k_ahead at a time per stream (pixel_words_lanes: one
+    /// vectorised loop instead of a hash chain per draw); a draw reads its dimension's
+    /// words from the stream's block, so the numbers are pixel_words' whatever the order
+    /// of the streams' draws.
+    static constexpr uint32_t k_ahead = 8;
     void draw(uint32_t* w) {
-        const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + m_stream);
-        pixel_words(m_key, m_sequence, m_pixel, m_sample, m_dim[m_stream]++, stream, w, &m_seeds[m_stream]);
+        const uint32_t s = m_stream, d = m_dim[s]++;
+        uint32_t k = d - m_first[s];
+        if (k >= m_have[s]) {  // unsigned: also d < m_first[s], which never happens
+            const RngStream stream = RngStream(uint32_t(RngStream::bdpt_camera) + s);
+            pixel_words_lanes(m_key, m_sequence, m_pixel, m_sample, d, k_ahead, stream, m_w0[s], m_w1[s], &m_seeds[s]);
+            m_first[s] = d;
+            m_have[s] = k_ahead;
+            k = 0;
+        }
+        w[0] = m_w0[s][k];
+        w[1] = m_w1[s][k];
     }
     Philox4x32Key m_key;
     uint32_t m_pixel, m_sample;
     PixelSequence m_sequence;
     uint32_t m_stream = 0;
     uint32_t m_dim[3] = {0, 0, 0};
+    uint32_t m_first[3] = {0, 0, 0}, m_have[3] = {0, 0, 0};
+    uint32_t m_w0[3][k_ahead], m_w1[3][k_ahead];
     SequenceSeeds m_seeds[3];
 };
 
