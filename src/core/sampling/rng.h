@@ -96,6 +96,15 @@ struct SequenceSeeds {
     bool ready = false;
 };
 
+/// `shared` made ready for (key, seq, pixel, sample, stream) if it is not yet.
+inline void prepare_seeds(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample,
+                          RngStream stream, SequenceSeeds* shared) {
+    if (shared->ready) return;
+    shared->prefix = sobol::seed_prefix(pixel, sequence_seed_sample(seq, sample), uint32_t(stream));
+    shared->key_hash = sobol::seed_key_hash(key[0], key[1]);
+    shared->ready = true;
+}
+
 /// The two words of dimension d of pixel sample (pixel, sample, stream): the first two
 /// of the Philox output of its counter, or its Owen-scrambled Sobol point (seeded by
 /// sobol::scramble_seeds of the sequence's counter; `shared` keeps the parts every
@@ -103,11 +112,7 @@ struct SequenceSeeds {
 inline void pixel_words(const Philox4x32Key& key, PixelSequence seq, uint32_t pixel, uint32_t sample, uint32_t d,
                         RngStream stream, uint32_t* w, SequenceSeeds* shared) {
     if (low_discrepancy(seq)) {
-        if (!shared->ready) {
-            shared->prefix = sobol::seed_prefix(pixel, sequence_seed_sample(seq, sample), uint32_t(stream));
-            shared->key_hash = sobol::seed_key_hash(key[0], key[1]);
-            shared->ready = true;
-        }
+        prepare_seeds(key, seq, pixel, sample, stream, shared);
         uint32_t a, b;
         sobol::dimension_seeds(shared->prefix, shared->key_hash, d, &a, &b);
         sobol::scrambled_point(sequence_index(seq, sample), a, b, w);
@@ -132,11 +137,7 @@ inline void pixel_words_lanes(const Philox4x32Key& key, PixelSequence seq, uint3
                               uint32_t d0, uint32_t n, RngStream stream, uint32_t* w0, uint32_t* w1,
                               SequenceSeeds* shared) {
     if (low_discrepancy(seq)) {
-        if (!shared->ready) {
-            shared->prefix = sobol::seed_prefix(pixel, sequence_seed_sample(seq, sample), uint32_t(stream));
-            shared->key_hash = sobol::seed_key_hash(key[0], key[1]);
-            shared->ready = true;
-        }
+        prepare_seeds(key, seq, pixel, sample, stream, shared);
         sobol::dimension_points_lanes(n, shared->prefix, shared->key_hash, d0, sequence_index(seq, sample), w0, w1);
         return;
     }

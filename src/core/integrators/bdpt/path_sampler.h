@@ -37,6 +37,7 @@ private:
     /// words from the stream's block, so the numbers are pixel_words' whatever the order
     /// of the streams' draws.
     static constexpr uint32_t k_ahead = 8;
+    static_assert(k_ahead <= k_pixel_words_lanes, "pixel_words_lanes computes at most k_pixel_words_lanes");
     void draw(uint32_t* w) {
         const uint32_t s = m_stream, d = m_dim[s]++;
         uint32_t k = d - m_first[s];
