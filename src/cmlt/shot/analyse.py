@@ -15,6 +15,7 @@ from .bridge import BridgeError, SceneBridge
 from .errors import RenderError
 
 __all__ = ["analyse_frames", "resolve_auto", "auto_frames", "resolve_auto_setting",
+           "resolve_chainless_setting",
            "frame_effects", "inspect_effects"]
 
 
@@ -102,6 +103,32 @@ def resolve_auto_setting(stage, info, core, frame_list: Sequence[float], opts, r
                         skip_bad=True)
     sources["integrator"] = f"auto ({sources.get('integrator', 'default')}): {auto.reason}"
     resolved.integrator = auto.name
+    return auto
+
+
+def resolve_chainless_setting(stage, info, core, frame_list: Sequence[float], opts, resolved,
+                              sources, cache: Dict[float, FrameEffects]) -> Optional[AutoChoice]:
+    """``--chainless-integrator auto`` for pssmlt/cmlt: what renders the shot's frames
+    that have no chains (``--mlt-paths auto`` on a frame without near-specular materials,
+    or ``none``) — ``bdpt`` where the shot's auto integrator (:mod:`cmlt.analysis.auto`,
+    the same analysed frames and rule as ``--integrator auto``) picks BDPT, ``pt`` (the
+    path-traced direct pass) otherwise — written into ``resolved`` and ``sources``
+    (``auto: <reason>``). Returns the AutoChoice, or None when nothing was resolved (not
+    a Metropolis integrator, the setting not auto, or chains on every frame: mlt_paths
+    all or caustics, or direct_fraction 0)."""
+    if str(resolved.integrator) not in ("pssmlt", "cmlt") or \
+            str(getattr(resolved, "chainless_integrator", "pt")) != "auto":
+        return None
+    paths = str(getattr(resolved, "mlt_paths", "auto"))
+    if paths in ("all", "caustics") or (paths == "auto" and
+                                        float(getattr(resolved, "direct_fraction", -1.0)) == 0.0):
+        resolved.chainless_integrator = "pt"    # every frame has chains: never used
+        return None
+    auto = resolve_auto(stage, info, core, frame_list, opts.camera, opts.resolution, cache,
+                        skip_bad=True)
+    resolved.chainless_integrator = auto.name
+    sources["chainless_integrator"] = f"auto ({sources.get('chainless_integrator', 'default')}): " \
+                                      f"{auto.reason}"
     return auto
 
 

@@ -229,9 +229,12 @@ class DaskRenderer:
         W, H = int(settings["width"]), int(settings["height"])
         addresses = self.worker_addresses()
         n_workers = max(1, len(addresses))
-        n_parts = 1 if integ == "bdpt" else (self.parts or self.auto_parts(frame, n_workers))
-        n_parts = max(1, min(n_parts, H))
         mlt = integ in ("pssmlt", "cmlt")
+        # bdpt frames do not split, nor do Metropolis frames that bdpt renders where they
+        # have no chains (chainless_integrator bdpt: whole frames, chains or not)
+        whole = integ == "bdpt" or (mlt and str(settings.get("chainless_integrator", "pt")) == "bdpt")
+        n_parts = 1 if whole else (self.parts or self.auto_parts(frame, n_workers))
+        n_parts = max(1, min(n_parts, H))
         config = temporal.config()
         settings = dict(settings)
         base = {"shot": self.shot, "frame": float(frame), "camera": self.camera,
@@ -250,7 +253,7 @@ class DaskRenderer:
         chains = part_ranges(int(settings["chains"]), n_parts) if mlt else [None] * n_parts
         futures, spec_bytes = [], 0
         for k in range(n_parts):
-            spec = dict(base, rows=None if integ == "bdpt" else rows[k], chains=chains[k],
+            spec = dict(base, rows=None if whole else rows[k], chains=chains[k],
                         want_bootstrap_f=mlt and k == 0 and not config["carry"])
             spec_bytes += _nbytes(spec)
             # Spread the parts over the workers, rotating from frame to frame: left to
@@ -393,7 +396,8 @@ class DaskRenderer:
                     direct = np.zeros((H, W, 3), np.float32)
                 direct[y0:y1] = r["direct"]
         bootstrap_f = None
-        if integ in ("pssmlt", "cmlt"):
+        if integ in ("pssmlt", "cmlt") and all(r["part"] is not None for r in results):
+            # (a whole Metropolis frame, chainless_integrator bdpt, is its task's image)
             parts = [r["part"] for r in results]       # in chain order: part k has chains k
             image, mst = core.combine_mlt_parts(W, H, parts, direct)
             image = np.asarray(image)

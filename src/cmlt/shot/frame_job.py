@@ -197,9 +197,13 @@ def _check_chains(job: ShotJob, scene) -> None:
             # a path-traced frame)
             if not getattr(job, "_chainless_warned", False):
                 job._chainless_warned = True
+                how = ("rendered by bdpt (--chainless-integrator: "
+                       f"{job.sources.get('chainless_integrator', 'given')})"
+                       if str(getattr(resolved, "chainless_integrator", "pt")) == "bdpt"
+                       else "path traced")
                 job.warn([f"{resolved.integrator}: no material of the frame can be near-specular, so "
                           f"there are no caustic paths for the chains (--mlt-paths auto): the frame "
-                          f"is path traced; --mlt-paths all runs the chains on every path"])
+                          f"is {how}; --mlt-paths all runs the chains on every path"])
             return
     n = int(core.temporal_chain_count(job.st))
     asked = int(resolved.chains)

@@ -27,7 +27,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Union
 
-from .analyse import resolve_auto_setting
+from .analyse import resolve_auto_setting, resolve_chainless_setting
 from .core_settings import core_settings, resolve
 from .errors import RenderCancelled, RenderError, UsageError
 from .frame_job import ShotJob, render_frame
@@ -235,6 +235,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
     effects_cache: dict = {}                # time -> FrameEffects (cmlt.analysis)
     auto = resolve_auto_setting(stage, info, core, frame_list, opts, resolved, sources,
                                 effects_cache)
+    chainless = resolve_chainless_setting(stage, info, core, frame_list, opts, resolved, sources,
+                                          effects_cache)
     st = core_settings(core, resolved, opts, sources)
     color_attrs, colorspace_name, display, view = color_setup(opts, stage)
     product = stage_product(stage, opts, out)
@@ -269,6 +271,8 @@ def render_sequence(shot: str, frames: Union[None, str, Sequence[float]] = None,
         result.settings["error_groups"] = int(st.error_groups)
     if auto is not None:
         result.settings["integrator_auto"] = auto.as_dict()
+    if chainless is not None:
+        result.settings["chainless_integrator_auto"] = chainless.as_dict()
     todo, redo = [], []
     if product is not None and product.path:
         result.settings["render_product"] = product.as_dict()

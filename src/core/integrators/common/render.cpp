@@ -4,6 +4,7 @@
 #include "film/filter.h"
 #include "integrators/bdpt/bdpt_integrator.h"
 #include "integrators/cmlt/cmlt_integrator.h"
+#include "integrators/mlt/mlt_context.h"
 #include "integrators/mlt/mlt_frame.h"
 #include "integrators/path/path_integrator.h"
 #include "integrators/pssmlt/pssmlt_integrator.h"
@@ -58,6 +59,20 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
         as_pt = settings;
         as_pt.integrator = "pt";
         use = &as_pt;
+    }
+    // a pssmlt/cmlt frame without chains (mlt_paths none, or auto on a scene without
+    // near-specular materials) rendered by BDPT where chainless_integrator asks for it:
+    // the frame is then `--integrator bdpt`'s, bit for bit (the frame loop resolves
+    // chainless_integrator auto from the shot's effects; here auto is pt)
+    RenderSettings as_bdpt;
+    if ((use->integrator == "pssmlt" || use->integrator == "cmlt") && use->chainless_integrator == "bdpt" &&
+        mlt::MltContext::resolve_paths(scene, *use).mlt_paths == "none") {
+        if (use->partial)
+            throw SettingsError("RenderSettings.chainless_integrator: bdpt renders this frame (it has "
+                                "no chains) and bdpt frames do not split; render it whole or use pt");
+        as_bdpt = *use;
+        as_bdpt.integrator = "bdpt";
+        use = &as_bdpt;
     }
     const PixelFilter filter = PixelFilter::from_settings(settings.pixel_filter, settings.filter_radius);
     for (const IntegratorEntry& e : k_integrators)
