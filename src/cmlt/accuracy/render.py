@@ -149,6 +149,8 @@ class ShotFrame:
         self.setup_s = time.perf_counter() - t0
         self.resolution = (int(self.fs.resolution[0]), int(self.fs.resolution[1]))
         self.threads = int(threads)
+        self.camera = camera
+        self._chainless: Optional[str] = None    # chainless_integrator auto, resolved once
         self.warnings = list(self.fs.warnings)
 
     @property
@@ -194,7 +196,22 @@ class ShotFrame:
         st.time_budget = float(seconds) if seconds else 0.0
         for key, value in spec.overrides:
             setattr(st, key, value)
+        if spec.name in ("pssmlt", "cmlt") and str(st.chainless_integrator) == "auto":
+            st.chainless_integrator = self.chainless_integrator()
         return st
+
+    def chainless_integrator(self) -> str:
+        """``chainless_integrator`` auto as ``cmlt render`` resolves it for this shot
+        (cmlt.shot.analyse.resolve_chainless_setting: the shot's auto integrator, from
+        its first, middle and last frames), so that a Metropolis integrator is measured
+        as it renders."""
+        if self._chainless is None:
+            from ..shot.analyse import chainless_choice, resolve_auto
+            from ..usd import stage_info
+            auto = resolve_auto(self.stage, stage_info(self.stage), self.core, [self.frame],
+                                self.camera, self.resolution, skip_bad=True)
+            self._chainless = chainless_choice(auto)[0]
+        return self._chainless
 
     def render(self, spec: IntegratorSpec, seconds: Optional[float] = None,
                spp: Optional[int] = None, seed: int = 0,

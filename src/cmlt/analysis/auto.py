@@ -69,9 +69,12 @@ class AutoChoice:
     name: str                       # pt | bdpt
     reason: str
     frames: List[float] = field(default_factory=list)    # the frames analysed
+    #: the rule that decided: caustics, hard_visibility, hot_spots, or "" (pt: none did)
+    rule: str = ""
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "reason": self.reason, "frames": list(self.frames)}
+        return {"name": self.name, "reason": self.reason, "frames": list(self.frames),
+                "rule": self.rule}
 
 
 def sample_frames(frames: Sequence[float], start: Optional[float] = None,
@@ -106,7 +109,7 @@ def choose_integrator(effects: Sequence) -> AutoChoice:
         return AutoChoice("bdpt", (
             f"caustics: at frame {best.time:g}, {best.caustic_share * 100:.3g}% of the flux "
             f"onto camera-visible diffuse surfaces comes through specular chains "
-            f"(>= {CAUSTIC_SHARE * 100:g}%)"), frames)
+            f"(>= {CAUSTIC_SHARE * 100:g}%)"), frames, "caustics")
     probed = [fe for fe in effects if fe.probes is not None and
               fe.visibility()["camera_diffuse_hits"] > 0]
     hard = [fe for fe in probed
@@ -119,7 +122,7 @@ def choose_integrator(effects: Sequence) -> AutoChoice:
             f"hard visibility: at frame {fe.time:g} only {v['direct_visible'] * 100:.3g}% "
             f"of light samples at the camera's first diffuse hits reach a light and "
             f"{v['bounce_visible'] * 100:.3g}% one bounce further (< {HARD_DIRECT * 100:g}% "
-            f"and < {HARD_BOUNCE * 100:g}%)"), frames)
+            f"and < {HARD_BOUNCE * 100:g}%)"), frames, "hard_visibility")
     if not probed:
         return AutoChoice("pt", "no caustics found and no camera hits to probe visibility",
                           frames)
@@ -130,7 +133,7 @@ def choose_integrator(effects: Sequence) -> AutoChoice:
             f"indirect hot spots: at frame {noisy.time:g}, {ind['share'] * 100:.3g}% of the "
             f"light at the camera's first hits is one bounce indirect and its cosine-sampled "
             f"estimate has relative variance {ind['rel_var']:.3g} (share² × that = "
-            f"{ind['noise']:.2g} >= {INDIRECT_NOISE:g})"), frames)
+            f"{ind['noise']:.2g} >= {INDIRECT_NOISE:g})"), frames, "hot_spots")
     easiest = min(probed, key=lambda e: e.visibility()["direct_visible"])
     v = easiest.visibility()
     caus = (f"caustics carry at most {best.caustic_share * 100:.3g}% of the visible diffuse "

@@ -8,14 +8,14 @@ scene in place as a render does.
 """
 from __future__ import annotations
 
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from ..analysis import AutoChoice, FrameEffects, analyse_frame, choose_integrator, sample_frames
 from .bridge import BridgeError, SceneBridge
 from .errors import RenderError
 
 __all__ = ["analyse_frames", "resolve_auto", "auto_frames", "resolve_auto_setting",
-           "resolve_chainless_setting",
+           "resolve_chainless_setting", "chainless_choice", "CHAINLESS_BDPT_RULES",
            "frame_effects", "inspect_effects"]
 
 
@@ -106,16 +106,35 @@ def resolve_auto_setting(stage, info, core, frame_list: Sequence[float], opts, r
     return auto
 
 
+#: the auto integrator's rules under which a Metropolis frame without chains is rendered
+#: by BDPT (chainless_integrator auto). Indirect hot spots only: at equal time (64x64,
+#: 2 s, 2 threads, 3 seeds; tests/bench/results/chainless_integrator.md) BDPT had 2.3x
+#: less error than the path-traced direct pass on camera_pan and 3.4x on
+#: hard/tiny_sphere_light; under hard visibility it had 1.3x less on hard/slit but 1.0x
+#: and 1.6x more on door_ajar's frames 1 and 12, so those frames stay path traced.
+CHAINLESS_BDPT_RULES = ("hot_spots",)
+
+
+def chainless_choice(auto: AutoChoice) -> Tuple[str, str]:
+    """(integrator, reason) of chainless_integrator auto from the shot's auto choice."""
+    if auto.name == "bdpt" and auto.rule in CHAINLESS_BDPT_RULES:
+        return "bdpt", auto.reason
+    if auto.name == "bdpt":
+        return "pt", f"the path-traced direct pass (the auto integrator's rule '{auto.rule}' " \
+                     f"does not move frames without chains to bdpt: {auto.reason})"
+    return "pt", auto.reason
+
+
 def resolve_chainless_setting(stage, info, core, frame_list: Sequence[float], opts, resolved,
                               sources, cache: Dict[float, FrameEffects]) -> Optional[AutoChoice]:
     """``--chainless-integrator auto`` for pssmlt/cmlt: what renders the shot's frames
     that have no chains (``--mlt-paths auto`` on a frame without near-specular materials,
     or ``none``) — ``bdpt`` where the shot's auto integrator (:mod:`cmlt.analysis.auto`,
-    the same analysed frames and rule as ``--integrator auto``) picks BDPT, ``pt`` (the
-    path-traced direct pass) otherwise — written into ``resolved`` and ``sources``
-    (``auto: <reason>``). Returns the AutoChoice, or None when nothing was resolved (not
-    a Metropolis integrator, the setting not auto, or chains on every frame: mlt_paths
-    all or caustics, or direct_fraction 0)."""
+    the same analysed frames as ``--integrator auto``) picks BDPT for indirect hot spots
+    (CHAINLESS_BDPT_RULES), ``pt`` (the path-traced direct pass) otherwise — written into
+    ``resolved`` and ``sources`` (``auto: <reason>``). Returns the AutoChoice, or None
+    when nothing was resolved (not a Metropolis integrator, the setting not auto, or
+    chains on every frame: mlt_paths all or caustics, or direct_fraction 0)."""
     if str(resolved.integrator) not in ("pssmlt", "cmlt") or \
             str(getattr(resolved, "chainless_integrator", "pt")) != "auto":
         return None
@@ -126,9 +145,10 @@ def resolve_chainless_setting(stage, info, core, frame_list: Sequence[float], op
         return None
     auto = resolve_auto(stage, info, core, frame_list, opts.camera, opts.resolution, cache,
                         skip_bad=True)
-    resolved.chainless_integrator = auto.name
+    name, reason = chainless_choice(auto)
+    resolved.chainless_integrator = name
     sources["chainless_integrator"] = f"auto ({sources.get('chainless_integrator', 'default')}): " \
-                                      f"{auto.reason}"
+                                      f"{reason}"
     return auto
 
 

@@ -2,14 +2,16 @@
 render.cpp): with ``--mlt-paths auto`` a frame whose materials cannot be near-specular has
 no caustic paths, so pssmlt and cmlt render it without chains — by the path-traced direct
 pass (``pt``), or by BDPT (``bdpt``), which the frame loop picks (``auto``) where the
-shot's auto integrator does: light through narrow openings (door_ajar), indirect hot
-spots (camera_pan).
+shot's auto integrator picks it for indirect hot spots (camera_pan); where it picks BDPT
+for hard visibility (door_ajar) the frames stay path traced (cmlt.shot.analyse,
+CHAINLESS_BDPT_RULES: measured at equal time).
 
 Checked here: a chainless frame with ``bdpt`` is ``--integrator bdpt``'s frame bit for
 bit (the same estimator, already tested against pt and the furnaces), and with ``pt``
 the direct pass as before; a frame with chains ignores the setting; a part of a frame
 (Dask) cannot be rendered by BDPT and says so; the frame loop resolves ``auto`` per shot
-(door_ajar: bdpt, the Cornell box: pt), records it in the sidecar and warns once.
+(camera_pan: bdpt; door_ajar and the Cornell box: pt), records it in the sidecar and
+warns once.
 """
 import json
 
@@ -96,19 +98,27 @@ def _sequence(tmp_path, name, shot, **kw):
 
 
 def test_04_the_frame_loop_resolves_auto_per_shot(tmp_path):
-    # door_ajar: light reaches the room through the door's slit (the auto integrator's
-    # hard visibility): bdpt renders its chainless frames, bit for bit as --integrator bdpt
-    r, side = _sequence(tmp_path, "door", "door_ajar")
+    # camera_pan: a small light under the ceiling lights the room from a hot spot (the
+    # auto integrator's indirect hot spots): bdpt renders its chainless frames, bit for
+    # bit as --integrator bdpt
+    r, side = _sequence(tmp_path, "pan", "camera_pan")
     for s in side:
         assert s["settings"]["chainless_integrator"] == "bdpt"
         assert s["settings_sources"]["chainless_integrator"].startswith("auto")
+        assert "hot spots" in s["settings_sources"]["chainless_integrator"]
         assert s["stats"]["integrator"] == "bdpt"
-    rb, _ = _sequence(tmp_path, "door_bdpt", "door_ajar", integrator="bdpt")
+    rb, _ = _sequence(tmp_path, "pan_bdpt", "camera_pan", integrator="bdpt")
     for pa, pb in zip(r.written, rb.written):
         assert np.array_equal(load_image(pa), load_image(pb))
     # the flag (or the stage) decides over auto
-    _, side = _sequence(tmp_path, "door_pt", "door_ajar", chainless_integrator="pt")
+    _, side = _sequence(tmp_path, "pan_pt", "camera_pan", chainless_integrator="pt")
     assert all(s["stats"]["integrator"] == "cmlt" and s["stats"]["paths"] == "none" for s in side)
+    # door_ajar: auto picks bdpt for hard visibility, which leaves chainless frames to pt
+    _, side = _sequence(tmp_path, "door", "door_ajar")
+    for s in side:
+        assert s["settings"]["chainless_integrator"] == "pt"
+        assert "hard_visibility" in s["settings_sources"]["chainless_integrator"]
+        assert s["stats"]["integrator"] == "cmlt" and s["stats"]["paths"] == "none"
     # the Cornell box: light is easy to reach, the direct pass renders it
     _, side = _sequence(tmp_path, "box", "cornell")
     for s in side:
@@ -118,8 +128,19 @@ def test_04_the_frame_loop_resolves_auto_per_shot(tmp_path):
 
 def test_05_cli_says_bdpt_renders_the_frames(tmp_path, capsys):
     from cmlt.cli import main
-    shot = str(support.SEQUENCES / "door_ajar" / "shot.usda")
+    shot = str(support.SEQUENCES / "camera_pan" / "shot.usda")
     assert main(["render", shot, "--frames", "1:2", "--res", "16x12", "--spp", "4", "--threads",
                  "2", "--integrator", "cmlt", "--out", str(tmp_path / "a.####.exr")]) == 0
     err = capsys.readouterr().err
     assert err.count("no caustic paths") == 1 and "rendered by bdpt" in err, err
+
+
+def test_06_accuracy_measures_what_render_renders():
+    """`cmlt accuracy` renders through the core directly: it resolves chainless_integrator
+    auto as `cmlt render` does, so a Metropolis integrator is measured as it renders."""
+    from cmlt.accuracy.render import IntegratorSpec, ShotFrame
+    for shot, want in (("camera_pan", "bdpt"), ("door_ajar", "pt"), ("cornell", "pt")):
+        f = ShotFrame(str(support.SEQUENCES / shot / "shot.usda"), resolution=(16, 12), threads=2)
+        assert f.settings(IntegratorSpec("cmlt", "cmlt"), spp=4).chainless_integrator == want
+        assert f.settings(IntegratorSpec("cmlt", "cmlt", (("chainless_integrator", "pt"),)),
+                          spp=4).chainless_integrator == "pt"

@@ -126,9 +126,9 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
           "--chainless-integrator",                                                          \
           "pssmlt/cmlt: what renders a frame that has no chains (mlt_paths none, or auto on " \
           "a frame without near-specular materials): pt (the direct pass: path tracing), "   \
-          "bdpt (bidirectional, as --integrator bdpt), or auto (the shot's auto integrator "  \
-          "where it picks bdpt for hard visibility or indirect hot spots, else pt; resolved " \
-          "by the frame loop, cmlt.analysis.auto; the core alone renders it as pt)")         \
+          "bdpt (bidirectional, as --integrator bdpt), or auto (bdpt where the shot's auto "  \
+          "integrator picks it for indirect hot spots, else pt; resolved by the frame loop, " \
+          "cmlt.shot.analyse; the core alone renders it as pt)")                             \
     INT(pilot_spp, 1, 1, 64, "cmlt:pilotSpp", "--pilot-spp N",                               \
         "pssmlt/cmlt: path-traced samples per pixel of the pixel importance's pilot image "  \
         "(at most spp/8; counted in the budget)")                                            \
