@@ -23,20 +23,14 @@ import support
 from cmlt.metrics import load_image
 from cmlt.shot import RenderOptions, render_sequence
 from cmlt.shot.bridge import SceneBridge
-from support.scenes import MAX_DEPTH, caustic_scene, cornell_scene
+from support.scenes import caustic_scene, cornell_scene, render_settings
 
 RES = 24
 
 
 def _settings(integrator, **kw):
-    st = core.RenderSettings()
-    st.width = st.height = RES
-    st.spp, st.seed, st.threads, st.max_depth = 8, 3, 2, MAX_DEPTH
-    st.integrator = integrator
-    st.chains, st.bootstrap_samples = 64, 4096
-    for k, v in kw.items():
-        setattr(st, k, v)
-    return st
+    kw.setdefault("spp", 8)
+    return render_settings(integrator, seed=3, res=RES, chains=64, bootstrap_samples=4096, **kw)
 
 
 @pytest.fixture(scope="module")

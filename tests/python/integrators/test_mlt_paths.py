@@ -45,7 +45,7 @@ import cmlt._core as core
 from cmlt.scene import Instance, Material
 from cmlt.shot.bridge import SceneBridge
 
-from support.scenes import MAX_DEPTH, RES, caustic_scene, cornell_scene, quad
+from support.scenes import RES, caustic_scene, cornell_scene, quad, render_settings
 from support.stats import ACESCG_Y, lum_se, t_critical
 
 pytestmark = pytest.mark.statistical
@@ -75,14 +75,7 @@ def mirror_caustic_scene(light_radius=0.1):
 
 
 def _settings(integrator, spp, seed, **kw):
-    st = core.RenderSettings()
-    st.width = st.height = RES
-    st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, MAX_DEPTH
-    st.integrator = integrator
-    st.chains, st.bootstrap_samples = 256, 16384
-    for k, v in kw.items():
-        setattr(st, k, v)
-    return st
+    return render_settings(integrator, spp, seed, **kw)
 
 
 @pytest.fixture(scope="module")

@@ -131,3 +131,17 @@ def tent_frame(time, tent_height, tent_x):
         lights=[Light("/sun", "distant", rot_x(-60), radiance=(3.0, 3.0, 3.0), angle=5.0),
                 Light("/sky", "dome", np.eye(4), radiance=(0.2, 0.25, 0.3))],
         camera=look_down_camera(), resolution=(32, 24), meters_per_unit=1.0)
+
+
+def render_settings(integrator, spp, seed, res=RES, chains=256, bootstrap_samples=16384, **kw):
+    """core.RenderSettings of a small test render: res x res, 2 threads, MAX_DEPTH, the
+    Metropolis integrators' chains and bootstrap as given, then any other field."""
+    import cmlt._core as core
+    st = core.RenderSettings()
+    st.width = st.height = res
+    st.spp, st.seed, st.threads, st.max_depth = spp, seed, 2, MAX_DEPTH
+    st.integrator = integrator
+    st.chains, st.bootstrap_samples = chains, bootstrap_samples
+    for k, v in kw.items():
+        setattr(st, k, v)
+    return st
