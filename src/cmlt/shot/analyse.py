@@ -141,8 +141,7 @@ def resolve_chainless_setting(stage, info, core, frame_list: Sequence[float], op
     paths = str(getattr(resolved, "mlt_paths", "auto"))
     if paths in ("all", "caustics") or (paths == "auto" and
                                         float(getattr(resolved, "direct_fraction", -1.0)) == 0.0):
-        resolved.chainless_integrator = "pt"    # every frame has chains: never used
-        return None
+        return None                             # every frame has chains: never read
     auto = resolve_auto(stage, info, core, frame_list, opts.camera, opts.resolution, cache,
                         skip_bad=True)
     name, reason = chainless_choice(auto)

@@ -134,6 +134,19 @@ def test03_bad_parts_are_refused():
 
 # ---- sequences on a LocalCluster --------------------------------------------------------
 
+def test04b_chainless_bdpt_frames_run_whole_and_bit_identical(tmp_path, client):
+    """cmlt at --mlt-paths auto on camera_pan: its frames have no chains and BDPT renders
+    them (chainless_integrator auto: the shot's indirect hot spots), which does not split,
+    so each frame is one task — the single process's frames bit for bit."""
+    one = _render(tmp_path, "one", PAN, "1:3", mlt_paths="auto")
+    dask = _render(tmp_path, "dask", PAN, "1:3", client=client, mlt_paths="auto")
+    _same_images(one, dask)
+    for p in dask.written:
+        s = json.load(open(p + ".json"))
+        assert s["settings"]["chainless_integrator"] == "bdpt"
+        assert s["stats"]["integrator"] == "bdpt" and s["stats"]["dask"]["parts"] == 1
+
+
 def test04_cmlt_sequence_on_two_workers_is_bit_identical(tmp_path, client):
     one = _render(tmp_path, "one", PAN, "1:3")
     dask = _render(tmp_path, "dask", PAN, "1:3", client=client)
