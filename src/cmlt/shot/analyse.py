@@ -107,9 +107,12 @@ def resolve_auto_setting(stage, info, core, frame_list: Sequence[float], opts, r
 
 
 #: the auto integrator's rules under which a Metropolis frame without chains is rendered
-#: by BDPT (chainless_integrator auto). Indirect hot spots only: at equal time (64x64,
-#: 2 s, 2 threads, 3 seeds; tests/bench/results/chainless_integrator.md) BDPT had 2.3x
-#: less error than the path-traced direct pass on camera_pan and 3.4x on
+#: by BDPT (chainless_integrator auto). Indirect hot spots only — the rule that decides
+#: only where visibility is not hard (the auto rule checks hard visibility first: door_ajar
+#: has hot spots by the same measure, 269 at its slit frame, but hard visibility decides
+#: it), i.e. light that is easy to reach but lights the frame through bright patches. At
+#: equal time (64x64, 2 s, 2 threads, 3 seeds; tests/bench/results/chainless_integrator.md)
+#: BDPT had 2.3x less error than the path-traced direct pass on camera_pan and 3.4x on
 #: hard/tiny_sphere_light; under hard visibility it had 1.3x less on hard/slit but 1.0x
 #: and 1.6x more on door_ajar's frames 1 and 12, so those frames stay path traced.
 CHAINLESS_BDPT_RULES = ("hot_spots",)
