@@ -163,6 +163,16 @@ PreviewSurfaceBsdf::PreviewSurfaceBsdf(const PreviewSurfaceParams& in) {
         m_dielectric = DielectricKind::Smooth;
     else
         m_dielectric = DielectricKind::Rough;
+    // lobe_probabilities' constants: which lobes it selects among, and their uniform share
+    m_lobe_active[0] = m_has_diffuse;
+    m_lobe_active[1] = m_has_specular;
+    m_lobe_active[2] = m_has_clearcoat;
+    m_lobe_active[3] = m_dielectric != DielectricKind::None;
+    m_active_lobes = int(m_lobe_active[0]) + int(m_lobe_active[1]) + int(m_lobe_active[2]) + int(m_lobe_active[3]);
+    if (m_active_lobes > 0) {
+        m_uniform_defensive = k_defensive_fraction / float(m_active_lobes);
+        m_uniform_all = 1.f / float(m_active_lobes);
+    }
 }
 
 Spectrum PreviewSurfaceBsdf::specular_fresnel(float cos_theta) const {
@@ -179,37 +189,35 @@ float PreviewSurfaceBsdf::clearcoat_attenuation(float abs_cos) const {
 
 PreviewSurfaceBsdf::LobeProbabilities PreviewSurfaceBsdf::lobe_probabilities(
     float abs_cos_o) const {
-    if (abs_cos_o == m_lobes_cos) return m_lobes;
-    m_lobes_cos = abs_cos_o;
+    for (uint8_t k = 0; k < 2; ++k)
+        if (abs_cos_o == m_lobes_cos[k]) {
+            m_lobes_newer = k;  // least recently used goes first
+            return m_lobes[k];
+        }
     const float opacity = m_params.opacity;
     const float att = clearcoat_attenuation(abs_cos_o);
-    std::array<bool, 4> active{m_has_diffuse, m_has_specular, m_has_clearcoat,
-                               m_dielectric != DielectricKind::None};
-    std::array<float, 4> raw{0.f, 0.f, 0.f, 0.f};
-    if (active[0] || active[1]) {
+    // inactive lobes keep raw 0: adding +0 to the non-negative total changes no bit
+    float raw[4] = {0.f, 0.f, 0.f, 0.f};
+    if (m_has_diffuse || m_has_specular) {
         Spectrum fs = specular_fresnel(abs_cos_o);
-        if (active[0]) raw[0] = opacity * att * mean(m_diffuse * (Spectrum(1.f) - fs));
-        if (active[1]) raw[1] = opacity * att * mean(fs);
+        if (m_has_diffuse) raw[0] = opacity * att * mean(m_diffuse * (Spectrum(1.f) - fs));
+        if (m_has_specular) raw[1] = opacity * att * mean(fs);
     }
-    if (active[2]) raw[2] = m_params.clearcoat * clearcoat_fresnel(abs_cos_o);
-    if (active[3]) raw[3] = (1.f - opacity) * att;
-
-    int n_active = 0;
-    float total = 0.f;
-    for (int i = 0; i < 4; ++i) {
-        if (!active[i]) continue;
-        ++n_active;
-        total += raw[i];
-    }
-    std::array<float, 4> prob{0.f, 0.f, 0.f, 0.f};
-    if (n_active > 0) {
-        float uniform = (total > 0.f ? k_defensive_fraction : 1.f) / float(n_active);
-        float scale = total > 0.f ? (1.f - k_defensive_fraction) / total : 0.f;
+    if (m_has_clearcoat) raw[2] = m_params.clearcoat * clearcoat_fresnel(abs_cos_o);
+    if (m_dielectric != DielectricKind::None) raw[3] = (1.f - opacity) * att;
+    const float total = ((raw[0] + raw[1]) + raw[2]) + raw[3];
+    float prob[4] = {0.f, 0.f, 0.f, 0.f};
+    if (m_active_lobes > 0) {
+        const float uniform = total > 0.f ? m_uniform_defensive : m_uniform_all;
+        const float scale = total > 0.f ? (1.f - k_defensive_fraction) / total : 0.f;
         for (int i = 0; i < 4; ++i)
-            if (active[i]) prob[i] = raw[i] * scale + uniform;
+            if (m_lobe_active[i]) prob[i] = raw[i] * scale + uniform;
     }
-    m_lobes = {prob[0], prob[1], prob[2], prob[3]};
-    return m_lobes;
+    const uint8_t slot = uint8_t(1 - m_lobes_newer);  // the older one
+    m_lobes_newer = slot;
+    m_lobes_cos[slot] = abs_cos_o;
+    m_lobes[slot] = {prob[0], prob[1], prob[2], prob[3]};
+    return m_lobes[slot];
 }
 
 PreviewSurfaceBsdf::GgxTerms PreviewSurfaceBsdf::ggx_terms(float alpha, const Vec3& w, const Vec3& wm) {
