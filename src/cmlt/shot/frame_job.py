@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import signal
 import threading
 import time
 from dataclasses import dataclass
@@ -97,6 +98,30 @@ def target_error_caveat(resolved, effects: dict) -> Optional[str]:
             "it; --integrator auto picks bdpt here)")
 
 
+class _SigintFlag:
+    """SIGINT handled by ``on_interrupt()`` instead of KeyboardInterrupt, until
+    restore() puts the previous handler back."""
+
+    def __init__(self, on_interrupt):
+        self._previous = signal.signal(signal.SIGINT, lambda signum, frame: on_interrupt())
+
+    def restore(self) -> None:
+        signal.signal(signal.SIGINT, self._previous)
+
+
+def _interrupt_handler(on_interrupt) -> Optional[_SigintFlag]:
+    """A _SigintFlag where Ctrl-C would raise KeyboardInterrupt on this thread (the main
+    thread, Python's default handler installed), else None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    try:
+        if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+            return None
+        return _SigintFlag(on_interrupt)
+    except (ValueError, OSError):       # no signals here (an embedding interpreter)
+        return None
+
+
 def render_interruptible(core, scene, st, reporter: Reporter, on_estimate=None):
     """Run core.render on a worker thread so that Ctrl-C reaches the main
     thread promptly; the progress callback then asks the core to stop.
@@ -131,27 +156,43 @@ def render_interruptible(core, scene, st, reporter: Reporter, on_estimate=None):
             finished.set()
 
     worker = threading.Thread(target=work, name="cmlt-render", daemon=True)
-    interrupted = False
-    try:
-        worker.start()
-    except KeyboardInterrupt:
-        # Ctrl-C inside start(): the thread may be running already. It must never be
-        # left rendering while the process exits (the core's threads would meet its
-        # static destructors: "terminate called"), so cancel it and wait below.
-        interrupted = True
+    flags = {"interrupted": False}
+
+    def interrupt():
+        if flags["interrupted"]:
+            reporter.warn("still cancelling; waiting for the render threads to stop")
+        flags["interrupted"] = True
         cancel.set()
-        if worker.ident is None:        # it never started
-            raise
-    # Wait on an Event, not Thread.join: an interrupted join can leave the
-    # thread looking finished while it still runs.
-    while not finished.is_set():
+
+    # While the render runs, Ctrl-C only asks it to stop: Python's own handler raises
+    # KeyboardInterrupt wherever the main thread happens to be, and between the waits
+    # below that can be outside any try, so the process would exit with the core still
+    # rendering on the worker (its threads then meet the interpreter's finalisation:
+    # "terminate called without an active exception", SIGABRT). The handler is Python's default one only when Ctrl-C
+    # is to raise at all (not ignored, as in a background job), and can be replaced only
+    # on the main thread (a Dask worker's frames keep the checks below).
+    handler = _interrupt_handler(interrupt)
+    try:
         try:
-            finished.wait(0.05)
+            worker.start()
         except KeyboardInterrupt:
-            if interrupted:
-                reporter.warn("still cancelling; waiting for the render threads to stop")
-            interrupted = True
-            cancel.set()
+            # Ctrl-C inside start() (before the handler): the thread may be running
+            # already. It must never be left rendering while the process exits, so
+            # cancel it and wait below.
+            interrupt()
+            if worker.ident is None:        # it never started
+                raise
+        # Wait on an Event, not Thread.join: an interrupted join can leave the
+        # thread looking finished while it still runs.
+        while not finished.is_set():
+            try:
+                finished.wait(0.05)
+            except KeyboardInterrupt:
+                interrupt()
+    finally:
+        if handler is not None:
+            handler.restore()
+    interrupted = flags["interrupted"]
     if "error" in box:
         raise box["error"]
     return box["result"], interrupted, last_total[0]
