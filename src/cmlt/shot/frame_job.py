@@ -156,29 +156,30 @@ def render_interruptible(core, scene, st, reporter: Reporter, on_estimate=None):
             finished.set()
 
     worker = threading.Thread(target=work, name="cmlt-render", daemon=True)
-    flags = {"interrupted": False}
+    interrupted = False
 
     def interrupt():
-        if flags["interrupted"]:
+        nonlocal interrupted
+        if interrupted:
             reporter.warn("still cancelling; waiting for the render threads to stop")
-        flags["interrupted"] = True
+        interrupted = True
         cancel.set()
 
-    # While the render runs, Ctrl-C only asks it to stop: Python's own handler raises
-    # KeyboardInterrupt wherever the main thread happens to be, and between the waits
-    # below that can be outside any try, so the process would exit with the core still
-    # rendering on the worker (its threads then meet the interpreter's finalisation:
-    # "terminate called without an active exception", SIGABRT). The handler is Python's default one only when Ctrl-C
-    # is to raise at all (not ignored, as in a background job), and can be replaced only
-    # on the main thread (a Dask worker's frames keep the checks below).
+    # While the render runs, Ctrl-C only asks it to stop. Python's own handler raises
+    # KeyboardInterrupt wherever the main thread happens to be — between the waits below
+    # that can be outside any try — and the process would exit with the core still
+    # rendering on the worker, whose threads then meet the interpreter's finalisation
+    # ("terminate called without an active exception", SIGABRT). Only where Ctrl-C is to
+    # raise at all (Python's default handler; not where it is ignored, as in a background
+    # job) and only on the main thread (a Dask worker's frames keep the checks below).
     handler = _interrupt_handler(interrupt)
     try:
         try:
             worker.start()
         except KeyboardInterrupt:
-            # Ctrl-C inside start() (before the handler): the thread may be running
-            # already. It must never be left rendering while the process exits, so
-            # cancel it and wait below.
+            # Ctrl-C inside start(), where no handler was installed: the thread may be
+            # running already. It must never be left rendering while the process exits,
+            # so cancel it and wait below.
             interrupt()
             if worker.ident is None:        # it never started
                 raise
@@ -192,7 +193,6 @@ def render_interruptible(core, scene, st, reporter: Reporter, on_estimate=None):
     finally:
         if handler is not None:
             handler.restore()
-    interrupted = flags["interrupted"]
     if "error" in box:
         raise box["error"]
     return box["result"], interrupted, last_total[0]

@@ -163,15 +163,12 @@ PreviewSurfaceBsdf::PreviewSurfaceBsdf(const PreviewSurfaceParams& in) {
         m_dielectric = DielectricKind::Smooth;
     else
         m_dielectric = DielectricKind::Rough;
-    // lobe_probabilities' constants: which lobes it selects among, and their uniform share
-    m_lobe_active[0] = m_has_diffuse;
-    m_lobe_active[1] = m_has_specular;
-    m_lobe_active[2] = m_has_clearcoat;
-    m_lobe_active[3] = m_dielectric != DielectricKind::None;
-    m_active_lobes = int(m_lobe_active[0]) + int(m_lobe_active[1]) + int(m_lobe_active[2]) + int(m_lobe_active[3]);
-    if (m_active_lobes > 0) {
-        m_uniform_defensive = k_defensive_fraction / float(m_active_lobes);
-        m_uniform_all = 1.f / float(m_active_lobes);
+    // lobe_probabilities' uniform share of each active lobe (0: no lobe is active)
+    const int active = int(m_has_diffuse) + int(m_has_specular) + int(m_has_clearcoat) +
+                       int(m_dielectric != DielectricKind::None);
+    if (active > 0) {
+        m_uniform_defensive = k_defensive_fraction / float(active);
+        m_uniform_all = 1.f / float(active);
     }
 }
 
@@ -207,11 +204,13 @@ PreviewSurfaceBsdf::LobeProbabilities PreviewSurfaceBsdf::lobe_probabilities(
     if (m_dielectric != DielectricKind::None) raw[3] = (1.f - opacity) * att;
     const float total = ((raw[0] + raw[1]) + raw[2]) + raw[3];
     float prob[4] = {0.f, 0.f, 0.f, 0.f};
-    if (m_active_lobes > 0) {
+    if (m_uniform_all > 0.f) {
         const float uniform = total > 0.f ? m_uniform_defensive : m_uniform_all;
         const float scale = total > 0.f ? (1.f - k_defensive_fraction) / total : 0.f;
-        for (int i = 0; i < 4; ++i)
-            if (m_lobe_active[i]) prob[i] = raw[i] * scale + uniform;
+        if (m_has_diffuse) prob[0] = raw[0] * scale + uniform;
+        if (m_has_specular) prob[1] = raw[1] * scale + uniform;
+        if (m_has_clearcoat) prob[2] = raw[2] * scale + uniform;
+        if (m_dielectric != DielectricKind::None) prob[3] = raw[3] * scale + uniform;
     }
     const uint8_t slot = uint8_t(1 - m_lobes_newer);  // the older one
     m_lobes_newer = slot;

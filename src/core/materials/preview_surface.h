@@ -180,9 +180,8 @@ private:
     bool m_has_diffuse = false, m_has_specular = false, m_has_clearcoat = false;
     bool m_specular_delta = false, m_clearcoat_delta = false;
     DielectricKind m_dielectric = DielectricKind::None;
-    bool m_lobe_active[4] = {false, false, false, false};  ///< diffuse, specular, clearcoat, dielectric
-    int m_active_lobes = 0;
-    float m_uniform_defensive = 0.f, m_uniform_all = 0.f;  ///< k_defensive_fraction / n, 1 / n
+    /// k_defensive_fraction / n and 1 / n, n the active lobes (lobe_probabilities; 0: none)
+    float m_uniform_defensive = 0.f, m_uniform_all = 0.f;
     /// lobe_probabilities of the last two |cos θ| asked for, the older one replaced: sample,
     /// eval and pdf of one vertex ask for the same wo, and pdf_pair also for each wi (a
     /// BDPT vertex's connections alternate between its wo and a new wi; one slot lost wo
