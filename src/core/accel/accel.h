@@ -25,13 +25,34 @@ constexpr uint32_t k_invalid_id = 0xFFFFFFFFu;
 /// slower queries); smaller ones the default, faster leaves.
 constexpr size_t k_compact_bvh_triangles = size_t(1) << 16;
 
+/// Hit::light of a query that did not test the light proxies.
+constexpr uint32_t k_lights_untested = 0xFFFFFFFFu;
+/// Hit::light of a query that tested them and found none nearer than the mesh hit (if any).
+constexpr uint32_t k_no_light_hit = 0xFFFFFFFEu;
+
 /// Result of a closest-hit query. Barycentrics (u, v) weight vertices 1 and 2.
+/// `valid()` means a mesh triangle is the nearest hit; a query with the light proxies
+/// (Accel::set_light_proxies) sets `light`: the proxy nearer than every triangle (t is
+/// its distance, valid() false), or k_no_light_hit.
 struct Hit {
     float t = k_infinity;
     float u = 0.f, v = 0.f;
     uint32_t prim_id = k_invalid_id;
     uint32_t instance_id = k_invalid_id;
+    uint32_t light = k_lights_untested;
     bool valid() const { return instance_id != k_invalid_id; }
+    bool light_hit() const { return light < k_no_light_hit; }
+};
+
+/// Shapes the BVH holds beside the meshes (analytic area lights, Scene::build_lights):
+/// primitive k has a world bounding box given to Accel::set_light_proxies, and Embree
+/// calls `intersect(k, ...)` for rays that enter that box, so the one traversal of a
+/// query finds the nearest of the triangles and the proxies.
+class LightProxies {
+public:
+    virtual ~LightProxies() = default;
+    /// Does `ray` hit proxy k within (ray.tnear, ray.tfar)? Then its distance in *t.
+    virtual bool intersect(uint32_t k, const Ray& ray, float* t) const = 0;
 };
 
 class Accel {
@@ -67,10 +88,19 @@ public:
     /// The same for the top-level scene (instance geometries and their BVH).
     size_t top_level_bytes() const;
 
-    /// Closest hit in (tnear, tfar).
-    Hit intersect(const Ray& ray) const;
-    /// Any hit in (tnear, tfar).
-    bool occluded(const Ray& ray) const;
+    /// The light proxies: `n` primitives, boxes[6k .. 6k+6) proxy k's world box (lower
+    /// x, y, z, upper x, y, z), `proxies` (kept by the caller, alive while queries run)
+    /// their test. n = 0 removes them. Takes effect at the next commit(); a call with the
+    /// same boxes and object changes nothing. The proxies are seen only by queries that
+    /// ask for them (`lights`); every other query answers for the meshes alone.
+    void set_light_proxies(const LightProxies* proxies, const float* boxes, size_t n);
+    size_t light_proxy_count() const;
+
+    /// Closest hit in (tnear, tfar); with `lights`, of the meshes and light proxies.
+    Hit intersect(const Ray& ray, bool lights = false) const;
+    /// Any hit in (tnear, tfar); with `lights`, light proxies block too, except proxy
+    /// `skip_light` (k_invalid_id: none).
+    bool occluded(const Ray& ray, bool lights = false, uint32_t skip_light = k_invalid_id) const;
 
     /// Packet queries (rtcIntersect4/8/16, rtcOccluded4/8/16). `width` is 4, 8 or 16;
     /// `valid[i]` != 0 marks active lanes; inactive lanes get an invalid Hit / false.
@@ -90,10 +120,12 @@ public:
     /// than `min_lanes` left go one by one), written to hits[lanes[i]] /
     /// occluded[lanes[i]]. Returns the number of packet queries made. Hits may differ
     /// from intersect()'s in the last ulp (Embree's packet and single-ray kernels).
+    /// With `lights`, the light proxies too (as intersect(ray, true)); `skip_lights`
+    /// (indexed like rays, null: none skipped) the proxy each occlusion ray does not test.
     size_t intersect_lanes(const Ray* rays, const uint32_t* lanes, size_t n, Hit* hits, int max_width,
-                           size_t min_lanes = 4) const;
+                           size_t min_lanes = 4, bool lights = false) const;
     size_t occluded_lanes(const Ray* rays, const uint32_t* lanes, size_t n, uint8_t* occluded, int max_width,
-                          size_t min_lanes = 4) const;
+                          size_t min_lanes = 4, bool lights = false, const uint32_t* skip_lights = nullptr) const;
 
     /// Ticks (util/cycle_clock.h) the calling thread spent in the queries above since
     /// the previous call; resets the thread's count. For the trace / shade split of

@@ -65,6 +65,19 @@ bool PlanarLight::bounding_sphere(Vec3* center, float* radius) const {
     return std::isfinite(r);
 }
 
+bool PlanarLight::bounding_box(Vec3* lo, Vec3* hi) const {
+    const Vec2 e = local_half_extent();
+    *lo = Vec3(k_infinity);
+    *hi = Vec3(-k_infinity);
+    for (float sx : {-1.f, 1.f})
+        for (float sy : {-1.f, 1.f}) {
+            const Vec3 q = m_xf.m.transform_point(Vec3(sx * e.x, sy * e.y, 0.f));
+            *lo = vmin(*lo, q);
+            *hi = vmax(*hi, q);
+        }
+    return is_finite(*lo) && is_finite(*hi);
+}
+
 float PlanarLight::pdf_li(const Vec3& p, const Vec3& wi) const {
     float t;
     Spectrum le;

@@ -23,6 +23,8 @@ public:
     Vec3 emitter_normal(const Vec3& p) const override;
     bool le_toward(const Vec3& p, const Vec3& d, Spectrum* le) const override;
     bool bounding_sphere(Vec3* center, float* radius) const override;
+    /// The box of the shape's local rectangle's four corners.
+    bool bounding_box(Vec3* lo, Vec3* hi) const override;
     /// Radiance emitted at local point (x, y) (textured rect lights vary).
     Spectrum radiance_at(float x, float y) const;
 

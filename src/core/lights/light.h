@@ -107,6 +107,16 @@ public:
     /// lights): the scene skips `intersect` for rays that cannot come near it
     /// (Scene::resolve_hit). False: no bound, always test.
     virtual bool bounding_sphere(Vec3* /*center*/, float* /*radius*/) const { return false; }
+    /// A world-space box containing everything `intersect` can hit (lower, upper); by
+    /// default the bounding sphere's. False: no bound.
+    virtual bool bounding_box(Vec3* lo, Vec3* hi) const {
+        Vec3 c;
+        float r;
+        if (!bounding_sphere(&c, &r)) return false;
+        *lo = c - Vec3(r);
+        *hi = c + Vec3(r);
+        return true;
+    }
     /// Radiance reaching an escaped ray travelling in direction `d` (infinite lights).
     virtual Spectrum le_escape(const Vec3& /*d*/) const { return Spectrum(0.f); }
     /// le_escape(d) and, where `pdf` is not null, pdf_li(p, d) into it: a light whose two

@@ -471,7 +471,37 @@ void Scene::commit() {
     place_static_instances();
     compute_bounds();
     build_lights();
+    build_light_proxies();
+    m_accel->commit();  // the light proxies' geometry, if it changed
     m_dirty = false;
+}
+
+void Scene::build_light_proxies() {
+    m_light_proxies = false;
+    m_shadow_skip_proxy.assign(m_lights.size(), k_invalid_id);
+    std::vector<float> boxes;
+    bool bounded = m_light_proxies_enabled && !m_analytic_area.empty();
+    for (size_t k = 0; bounded && k < m_analytic_area.size(); ++k) {
+        Vec3 lo, hi;
+        if (!m_lights[m_analytic_area[k]]->bounding_box(&lo, &hi) || !is_finite(lo) || !is_finite(hi)) {
+            bounded = false;
+            break;
+        }
+        // A margin for the lights' float tests (their hit points can lie a few ulps
+        // outside the exact box; a flat light's box has no thickness): 10^-4 of the
+        // box's size and 10^-5 of its distance from the origin, plus a floor.
+        const float pad = 1e-4f * max_component(hi - lo) + 1e-5f * std::max(max_component(vabs(lo)),
+                                                                           max_component(vabs(hi))) + 1e-7f;
+        for (float v : {lo.x - pad, lo.y - pad, lo.z - pad, hi.x + pad, hi.y + pad, hi.z + pad}) boxes.push_back(v);
+        if (m_area_bounds[k].planar) m_shadow_skip_proxy[m_analytic_area[k]] = uint32_t(k);
+    }
+    if (!bounded) {
+        m_shadow_skip_proxy.assign(m_lights.size(), k_invalid_id);
+        m_accel->set_light_proxies(nullptr, nullptr, 0);
+        return;
+    }
+    m_accel->set_light_proxies(&m_proxies, boxes.data(), m_analytic_area.size());
+    m_light_proxies = true;
 }
 
 void Scene::place_static_instances() {

@@ -155,7 +155,8 @@ public:
     // ---- queries (after commit) ----------------------------------------------------
     SceneHit intersect(const Ray& ray) const;
     /// Scene::intersect for a mesh hit `h` of `ray` found elsewhere (e.g. a packet
-    /// query): tests the analytic emitters up to h and fills the interaction.
+    /// query): tests the analytic emitters up to h (unless the query tested the light
+    /// proxies: Hit::light) and fills the interaction.
     SceneHit resolve_hit(const Ray& ray, const Hit& h) const;
     bool intersect_surface(const Ray& ray, SurfaceInteraction* si) const;
     bool occluded(const Ray& ray) const { return m_accel->occluded(ray); }
@@ -212,6 +213,29 @@ public:
     float nearest_light(const Ray& ray, float tmax, uint32_t* light_index, Spectrum* le) const;
     /// Some analytic area light (not in the BVH: nearest_light tests them) exists.
     bool has_analytic_area_lights() const { return !m_analytic_area.empty(); }
+    /// The analytic area lights are light proxies of the BVH (after commit): queries with
+    /// `lights` (Accel::intersect, intersect_lanes) find them, their hits carry
+    /// Hit::light, and resolve_hit takes such hits without testing the lights again.
+    bool light_proxies() const { return m_light_proxies; }
+    /// Off: the lights stay out of the BVH (the scalar test after every query); takes
+    /// effect at the next commit(). For tests comparing the two.
+    void set_light_proxies_enabled(bool on) {
+        m_light_proxies_enabled = on;
+        m_dirty = true;
+    }
+    /// The light proxy a shadow ray toward light `target` skips (Accel::occluded's
+    /// skip_light; blocked_by_light(ray, target)): a planar light's own, else none.
+    uint32_t shadow_skip_proxy(size_t target) const {
+        return target < m_shadow_skip_proxy.size() ? m_shadow_skip_proxy[target] : k_invalid_id;
+    }
+    /// transmittance(ray, target, pass_pdf) for a ray whose BVH occlusion query tested
+    /// the light proxies (skipping shadow_skip_proxy(target)): `occluded` is its answer.
+    float transmittance_given_lights(const Ray& ray, size_t target, bool occluded, float* pass_pdf) const {
+        *pass_pdf = 1.f;
+        if (!occluded) return 1.f;
+        if (!m_pass_through || blocked_by_light(ray, target)) return 0.f;
+        return transmittance_through(ray, pass_pdf);
+    }
     /// The constant Lambertian reflectance a hit on `material_id` shades with, if the
     /// material is one the path tracer's diffuse fast path takes: a Lambertian (legacy
     /// Lambert, or a preview material the diffuse-only kernel renders) without textures,
@@ -283,6 +307,26 @@ private:
         bool planar = false;  ///< a PlanarLight (blocked_by_light(ray, target))
     };
     std::vector<AreaBound> m_area_bounds;
+    /// The analytic area lights as the BVH's light proxies (Accel::set_light_proxies),
+    /// so a camera or BSDF ray's one traversal finds the nearest of meshes and lights:
+    /// proxy k is m_analytic_area[k], tested by its Light::intersect. Used when every
+    /// analytic light has a bounding box (m_light_proxies); otherwise nearest_light
+    /// tests them after the BVH query, as without proxies.
+    class AnalyticLightProxies final : public LightProxies {
+    public:
+        explicit AnalyticLightProxies(const Scene& s) : m_scene(s) {}
+        bool intersect(uint32_t k, const Ray& ray, float* t) const override;
+
+    private:
+        const Scene& m_scene;
+    };
+    AnalyticLightProxies m_proxies{*this};
+    bool m_light_proxies = false;
+    bool m_light_proxies_enabled = true;
+    /// Per light: the proxy a shadow ray toward it skips (a planar light's own:
+    /// blocked_by_light(ray, target)), k_invalid_id if none.
+    std::vector<uint32_t> m_shadow_skip_proxy;
+    void build_light_proxies();
     /// Can `ray` (within (tnear, tmax)) reach analytic light k (m_analytic_area[k])?
     /// Conservative: false only when the segment stays clear of the light's sphere.
     bool may_reach_light(const Ray& ray, float tmax, size_t k) const;

@@ -221,6 +221,9 @@ float Scene::transmittance(const Ray& shadow, size_t target, float* pass_pdf) co
     // An analytic emitter stops camera and BSDF rays (resolve_hit), so it stops shadow
     // rays and BDPT connections too: otherwise light tracing sees surfaces behind a lamp
     // that the camera cannot, and PT and BDPT disagree where a lamp is in view.
+    if (m_light_proxies)
+        return transmittance_given_lights(shadow, target, m_accel->occluded(shadow, true, shadow_skip_proxy(target)),
+                                          pass_pdf);
     if (!m_analytic_area.empty() && blocked_by_light(shadow, target)) return 0.f;
     if (!m_accel->occluded(shadow)) return 1.f;
     return transmittance_through(shadow, pass_pdf);
@@ -261,14 +264,28 @@ float Scene::transmittance_through(const Ray& shadow, float* pass_pdf) const {
     return 0.f;
 }
 
-SceneHit Scene::intersect(const Ray& ray) const { return resolve_hit(ray, m_accel->intersect(ray)); }
+bool Scene::AnalyticLightProxies::intersect(uint32_t k, const Ray& ray, float* t) const {
+    Spectrum le;
+    return m_scene.m_lights[m_scene.m_analytic_area[k]]->intersect(ray, t, &le);
+}
+
+SceneHit Scene::intersect(const Ray& ray) const { return resolve_hit(ray, m_accel->intersect(ray, m_light_proxies)); }
 
 SceneHit Scene::resolve_hit(const Ray& ray, const Hit& h) const {
     SceneHit out;
-    // Analytic emitters are not in the BVH: test them and keep the nearest.
     uint32_t li = 0;
     Spectrum le;
-    const float tl = m_analytic_area.empty() ? k_infinity : nearest_light(ray, h.valid() ? h.t : ray.tfar, &li, &le);
+    float tl = k_infinity;
+    if (h.light_hit()) {
+        // The BVH's light proxy k was nearest: its radiance from the same test.
+        li = m_analytic_area[h.light];
+        float t;
+        if (m_lights[li]->intersect(ray, &t, &le)) tl = t;
+        CMLT_DCHECK(tl == h.t);
+    } else if (h.light == k_lights_untested && !m_analytic_area.empty()) {
+        // Analytic emitters the query did not test: test them and keep the nearest.
+        tl = nearest_light(ray, h.valid() ? h.t : ray.tfar, &li, &le);
+    }
     if (tl < k_infinity) {
         out.kind = SceneHit::Kind::light;
         out.light_index = li;

@@ -85,6 +85,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_rays.resize(n);
     m_hits.resize(n);
     m_occluded.resize(n);
+    m_skip_light.assign(n, k_invalid_id);
     m_live.reserve(n);
     m_shadowed.reserve(n);
     m_scattering.reserve(n);
@@ -481,9 +482,11 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
     const Accel& accel = m_scene.accel();
     while (!m_live.empty()) {
         // Closest hits of every live path.
+        // With light proxies the one traversal also finds the analytic lights (Hit::light).
+        const bool proxies = m_scene.light_proxies();
         for (uint32_t l : m_live) m_rays[l] = m_state[l].ray;
         m_packets += accel.intersect_lanes(m_rays.data(), m_live.data(), m_live.size(), m_hits.data(),
-                                           m_packet_width);
+                                           m_packet_width, 4, proxies);
         // Shade: emission, the next ray, a pending shadow ray. A lane that scatters reads
         // the dimensions of its bounce (PathTracer::scatter): computed here, for every
         // lane that hit a mesh, at once (a miss or an analytic light ends the path).
@@ -499,7 +502,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         m_placed_material.clear();
         m_placed_uv.clear();
         m_preview.clear();
-        const bool lights = m_scene.has_analytic_area_lights();
+        const bool lights = !proxies && m_scene.has_analytic_area_lights();
         const bool lanes = m_use_lanes;
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
@@ -526,8 +529,11 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
             if (!st.has_shadow) continue;
-            // Scene::transmittance, split around the BVH query: analytic lights first.
-            if (m_scene.blocked_by_light(st.shadow, st.shadow_light)) {
+            // Scene::transmittance, split around the BVH query: analytic lights first
+            // (or in the query, as light proxies, each skipping its target's own).
+            if (proxies) {
+                m_skip_light[l] = m_scene.shadow_skip_proxy(st.shadow_light);
+            } else if (m_scene.blocked_by_light(st.shadow, st.shadow_light)) {
                 PathTracer::finish_shadow(st, 0.f, 1.f);
                 continue;
             }
@@ -535,11 +541,14 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             m_shadowed.push_back(l);
         }
         // Visibility of the shadow rays.
-        m_packets += accel.occluded_lanes(m_rays.data(), m_shadowed.data(), m_shadowed.size(),
-                                          m_occluded.data(), m_packet_width);
+        m_packets += accel.occluded_lanes(m_rays.data(), m_shadowed.data(), m_shadowed.size(), m_occluded.data(),
+                                          m_packet_width, 4, proxies, proxies ? m_skip_light.data() : nullptr);
         for (uint32_t l : m_shadowed) {
             float pass_pdf = 1.f;
-            const float tr = m_scene.transmittance_given(m_rays[l], m_occluded[l] != 0, &pass_pdf);
+            const PathState& st = m_state[l];
+            const float tr = proxies ? m_scene.transmittance_given_lights(m_rays[l], st.shadow_light,
+                                                                          m_occluded[l] != 0, &pass_pdf)
+                                     : m_scene.transmittance_given(m_rays[l], m_occluded[l] != 0, &pass_pdf);
             PathTracer::finish_shadow(m_state[l], tr, pass_pdf);
         }
         // Live lanes keep their order.

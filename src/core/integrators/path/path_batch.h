@@ -87,6 +87,7 @@ private:
     std::vector<Ray> m_rays;
     std::vector<Hit> m_hits;
     std::vector<uint8_t> m_occluded;
+    std::vector<uint32_t> m_skip_light;  ///< per lane: the light proxy its shadow ray skips
     std::vector<uint32_t> m_live, m_shadowed, m_scattering;
     // random numbers computed ahead for every live lane (prefetch_dimensions)
     std::vector<uint32_t> m_c0, m_c1, m_c2, m_w0, m_w1;
