@@ -65,12 +65,15 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
         }
     // ws.occluded: 0 clear, 1 the BVH reports a hit, k_lamp stopped by an analytic light
     constexpr uint8_t k_lamp = 2;
+    // With light proxies the BVH query tests the analytic lights too (no target skipped:
+    // a connection ends at a vertex, not on a light).
+    const bool proxies = m_scene.light_proxies();
     ws.queries.clear();
     for (size_t i = 0; i < n; ++i) {
         ws.occluded[i] = 0;
         if (!ws.pending[i]) continue;
         const Ray& shadow = ws.conns[i].shadow;
-        if (m_scene.has_analytic_area_lights() && m_scene.blocked_by_light(shadow)) {
+        if (!proxies && m_scene.has_analytic_area_lights() && m_scene.blocked_by_light(shadow)) {
             ws.occluded[i] = k_lamp;  // transmittance 0
             continue;
         }
@@ -79,9 +82,9 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
     }
     if (m_packet_width > 1) {
         m_scene.accel().occluded_lanes(ws.rays.data(), ws.queries.data(), ws.queries.size(), ws.occluded.data(),
-                                       m_packet_width);
+                                       m_packet_width, 4, proxies);
     } else {
-        for (uint32_t i : ws.queries) ws.occluded[i] = m_scene.accel().occluded(ws.rays[i]) ? 1 : 0;
+        for (uint32_t i : ws.queries) ws.occluded[i] = m_scene.accel().occluded(ws.rays[i], proxies) ? 1 : 0;
     }
     Spectrum L(0.f);
     for (size_t i = 0; i < n; ++i) {
@@ -90,9 +93,12 @@ Spectrum BdptTracer::li(const Vec2& p_raster, BdptSampler& sampler, BdptWorkspac
         Spectrum lp = k.result;
         if (ws.pending[i]) {
             float pass_pdf = 1.f;
+            const bool occ = ws.occluded[i] != 0;
             const float tr =
-                ws.occluded[i] == k_lamp ? 0.f
-                                         : m_scene.transmittance_given(ws.rays[i], ws.occluded[i] != 0, &pass_pdf);
+                ws.occluded[i] == k_lamp
+                    ? 0.f
+                    : (proxies ? m_scene.transmittance_given_lights(ws.rays[i], Scene::k_no_light, occ, &pass_pdf)
+                               : m_scene.transmittance_given(ws.rays[i], occ, &pass_pdf));
             lp = finish_connect(k, tr, pass_pdf, &pr);
         }
         if (is_black(lp)) continue;
