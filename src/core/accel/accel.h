@@ -7,6 +7,10 @@
 /// top-level scene, so a rigid motion only rewrites an instance transform and a
 /// deformation refits one mesh BVH.
 ///
+/// Beside the instances, the top level can hold light proxies (set_light_proxies): one
+/// user geometry whose primitives are the scene's analytic area lights, tested by the
+/// caller's callbacks, seen only by queries that ask for them.
+///
 /// Vertex and index buffers are shared with the caller (rtcSetSharedGeometryBuffer,
 /// zero copy). The vertex buffer must be readable for 4 bytes past the last vertex
 /// (the Python side pads one spare row, see cmlt/scene.py `padded_points`).
