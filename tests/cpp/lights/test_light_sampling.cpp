@@ -53,11 +53,45 @@ void add_far_quad(Scene& s) {
     s.add_instance(s.add_mesh("/far", quad_mesh(Vec3(1e4f), Vec3(1, 0, 0), Vec3(0, 0, -1), 0)), Mat4());
 }
 
+/// Where the culling tests below place their lights: near the origin, hundreds of units
+/// from it (rotated, non-uniformly scaled) and a thousandth of the size.
+const Mat4 k_light_places[] = {Mat4::translate(0.3, -0.2, 1.2) * Mat4::rotate(25, 1, 0.5, 0),
+                               Mat4::translate(400, 70, -300) * Mat4::rotate(70, 0.2, 1, 0.3) * Mat4::scale(3, 0.2, 1),
+                               Mat4::translate(-1e-3, 2e-3, 1e-3) * Mat4::scale(1e-3, 1e-3, 1e-3)};
+const LightDesc::Kind k_area_kinds[] = {LightDesc::Kind::rect, LightDesc::Kind::disk, LightDesc::Kind::sphere,
+                                        LightDesc::Kind::cylinder};
+
+/// A light of `kind` at xf with the culling tests' sizes (1.5 x 0.8 rect, radius 0.6,
+/// length 2).
+LightDesc sized_light(LightDesc::Kind kind, const Mat4& xf);
+
+/// Ray i of streams s .. s + 5: from 1.5 to 300 radii r away from c, aimed at a point
+/// 0.9 to 1.1 radii from it (a light's bounding sphere's rim, where culling decides), its
+/// direction of length 0.01 to 100, its segment (tfar) unbounded for a quarter of the
+/// rays and otherwise ending before, at or beyond the aimed point.
+Ray rim_ray(const Vec3& c, float r, uint32_t s, uint32_t i) {
+    const Vec3 o = c + square_to_uniform_sphere(uniform2(s, i)) * (r * std::pow(10.f, 0.18f + 2.3f * uniform2(s + 1, i).x));
+    const Vec3 aim = c + square_to_uniform_sphere(uniform2(s + 2, i)) * (r * (0.9f + 0.2f * uniform2(s + 3, i).x));
+    const float scale = std::pow(10.f, -2.f + 4.f * uniform2(s + 4, i).y);
+    const float dist = length(aim - o);
+    const float u = uniform2(s + 5, i).y;
+    return Ray(o, (aim - o) * (scale / dist), 0.f, u < 0.25f ? k_infinity : dist / scale * (0.5f + 1.5f * u));
+}
+
 LightDesc desc(LightDesc::Kind kind, const Mat4& xf) {
     LightDesc d;
     d.kind = kind;
     d.transform = xf;
     d.radiance = Spectrum(2.f, 3.f, 4.f);
+    return d;
+}
+
+LightDesc sized_light(LightDesc::Kind kind, const Mat4& xf) {
+    LightDesc d = desc(kind, xf);
+    d.width = 1.5f;
+    d.height = 0.8f;
+    d.radius = 0.6f;
+    d.length = 2.f;
     return d;
 }
 
@@ -507,19 +541,10 @@ TEST(LightSampling, TheBoundingSphereCullNeverLosesALightHit) {
     // units from it, against rays aimed at and just past the sphere's rim (unnormalised
     // directions, segments ending before, at and beyond the light): the culled query
     // finds exactly the hits of the lights' own intersects, tried one by one.
-    const std::vector<Mat4> xfs = {Mat4::translate(0.3, -0.2, 1.2) * Mat4::rotate(25, 1, 0.5, 0),
-                                   Mat4::translate(400, 70, -300) * Mat4::rotate(70, 0.2, 1, 0.3) * Mat4::scale(3, 0.2, 1),
-                                   Mat4::translate(-1e-3, 2e-3, 1e-3) * Mat4::scale(1e-3, 1e-3, 1e-3)};
-    const LightDesc::Kind kinds[] = {LightDesc::Kind::rect, LightDesc::Kind::disk, LightDesc::Kind::sphere,
-                                     LightDesc::Kind::cylinder};
     size_t hits = 0, tested = 0;
-    for (const Mat4& xf : xfs)
-        for (LightDesc::Kind kind : kinds) {
-            LightDesc d = desc(kind, xf);
-            d.width = 1.5f;
-            d.height = 0.8f;
-            d.radius = 0.6f;
-            d.length = 2.f;
+    for (const Mat4& xf : k_light_places)
+        for (LightDesc::Kind kind : k_area_kinds) {
+            const LightDesc d = sized_light(kind, xf);
             Scene s;
             add_far_quad(s);
             const uint32_t id = s.add_light(d);
@@ -529,16 +554,9 @@ TEST(LightSampling, TheBoundingSphereCullNeverLosesALightHit) {
             float r = 0.f;
             ASSERT_TRUE(l.bounding_sphere(&c, &r));
             for (uint32_t i = 0; i < 40000; ++i) {
-                // an origin 1.5 to 300 radii away, aimed at a point on a sphere of 0.9 to
-                // 1.1 radii around the centre (the rim, where the cull decides)
-                const Vec3 o = c + square_to_uniform_sphere(uniform2(910, i)) *
-                                       (r * std::pow(10.f, 0.18f + 2.3f * uniform2(911, i).x));
-                const Vec3 aim = c + square_to_uniform_sphere(uniform2(912, i)) * (r * (0.9f + 0.2f * uniform2(913, i).x));
-                const float scale = std::pow(10.f, -2.f + 4.f * uniform2(914, i).y);
-                const float dist = length(aim - o);
-                Ray ray(o, (aim - o) * (scale / dist), 0.f, k_infinity);
-                const float u = uniform2(915, i).y;
-                const float tmax = u < 0.25f ? k_infinity : dist / scale * (0.5f + 1.5f * u);
+                Ray ray = rim_ray(c, r, 910, i);
+                const float tmax = ray.tfar;
+                ray.tfar = k_infinity;
                 float t_ref = k_infinity, t = 0.f;
                 Spectrum le;
                 if (l.intersect(Ray(ray.o, ray.d, ray.tnear, tmax), &t, &le) && t < tmax) t_ref = t;
@@ -567,19 +585,10 @@ TEST(LightSampling, TheBvhsLightProxiesFindWhatTheLightsOwnTestsFind) {
     // intersect says what it says with the lights out of the BVH (the scalar test after
     // the query); the occlusion queries are blocked exactly by a light hit or the
     // mesh, and not by a skipped proxy.
-    const std::vector<Mat4> xfs = {Mat4::translate(0.3, -0.2, 1.2) * Mat4::rotate(25, 1, 0.5, 0),
-                                   Mat4::translate(400, 70, -300) * Mat4::rotate(70, 0.2, 1, 0.3) * Mat4::scale(3, 0.2, 1),
-                                   Mat4::translate(-1e-3, 2e-3, 1e-3) * Mat4::scale(1e-3, 1e-3, 1e-3)};
-    const LightDesc::Kind kinds[] = {LightDesc::Kind::rect, LightDesc::Kind::disk, LightDesc::Kind::sphere,
-                                     LightDesc::Kind::cylinder};
     size_t light_hits = 0, mesh_nearer = 0, tested = 0;
-    for (const Mat4& xf : xfs)
-        for (LightDesc::Kind kind : kinds) {
-            LightDesc d = desc(kind, xf);
-            d.width = 1.5f;
-            d.height = 0.8f;
-            d.radius = 0.6f;
-            d.length = 2.f;
+    for (const Mat4& xf : k_light_places)
+        for (LightDesc::Kind kind : k_area_kinds) {
+            const LightDesc d = sized_light(kind, xf);
             Scene with, without;
             without.set_light_proxies_enabled(false);
             Vec3 c;
@@ -603,13 +612,7 @@ TEST(LightSampling, TheBvhsLightProxiesFindWhatTheLightsOwnTestsFind) {
             std::vector<Ray> rays(n);
             std::vector<float> t_light(n);
             for (uint32_t i = 0; i < n; ++i) {
-                const Vec3 o = c + square_to_uniform_sphere(uniform2(920, i)) *
-                                       (r * std::pow(10.f, 0.18f + 2.3f * uniform2(921, i).x));
-                const Vec3 aim = c + square_to_uniform_sphere(uniform2(922, i)) * (r * (0.9f + 0.2f * uniform2(923, i).x));
-                const float scale = std::pow(10.f, -2.f + 4.f * uniform2(924, i).y);
-                const float dist = length(aim - o);
-                const float u = uniform2(925, i).y;
-                rays[i] = Ray(o, (aim - o) * (scale / dist), 0.f, u < 0.25f ? k_infinity : dist / scale * (0.5f + 1.5f * u));
+                rays[i] = rim_ray(c, r, 920, i);
                 float t;
                 Spectrum le;
                 t_light[i] = l.intersect(rays[i], &t, &le) ? t : k_infinity;
