@@ -216,7 +216,6 @@ void Accel::set_light_proxies(const LightProxies* proxies, const float* boxes, s
     I.top_dirty = true;
 }
 
-size_t Accel::light_proxy_count() const { return m_impl->light_data.boxes.size() / 6; }
 Accel::~Accel() = default;
 
 size_t Accel::mesh_count() const { return m_impl->meshes.size(); }

@@ -98,7 +98,6 @@ public:
     /// same boxes and object changes nothing. The proxies are seen only by queries that
     /// ask for them (`lights`); every other query answers for the meshes alone.
     void set_light_proxies(const LightProxies* proxies, const float* boxes, size_t n);
-    size_t light_proxy_count() const;
 
     /// Closest hit in (tnear, tfar); with `lights`, of the meshes and light proxies.
     Hit intersect(const Ray& ray, bool lights = false) const;
