@@ -182,11 +182,7 @@ PixelFilter::Sample PixelFilter::sample(const Vec2& u) const {
     return s;
 }
 
-Vec2 PixelFilter::film_position(int x, int y, const Vec2& u, float* weight) const {
-    if (m_unit_box) {
-        *weight = 1.f;
-        return Vec2(float(x) + u.x, float(y) + u.y);
-    }
+Vec2 PixelFilter::sampled_position(int x, int y, const Vec2& u, float* weight) const {
     const Sample s = sample(u);
     *weight = s.weight;
     return Vec2(float(x) + 0.5f + s.offset.x, float(y) + 0.5f + s.offset.y);

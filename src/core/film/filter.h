@@ -115,7 +115,11 @@ public:
     /// The film position of a pixel sample of pixel (x, y) for u ∈ [0, 1)^2 and its
     /// weight: pixel (x, y) + u for the unit box (bit for bit the unfiltered position,
     /// weight 1), else the pixel's centre + sample(u).offset.
-    Vec2 film_position(int x, int y, const Vec2& u, float* weight) const;
+    Vec2 film_position(int x, int y, const Vec2& u, float* weight) const {
+        if (!m_unit_box) return sampled_position(x, y, u, weight);
+        *weight = 1.f;
+        return Vec2(float(x) + u.x, float(y) + u.y);
+    }
 
     /// The pixels of a W x H image whose centres lie within the radius of film position
     /// p, with their weights f(c - p): calls emit(pixel = y·W + x, weight) for each
@@ -156,6 +160,7 @@ public:
 
 private:
     double profile(double x) const;  ///< unnormalised g(x), |x| <= r
+    Vec2 sampled_position(int x, int y, const Vec2& u, float* weight) const;  ///< film_position's filters but the box
     /// Pixels [*first, *first + *n) of an axis of `size` pixels around coordinate p, with
     /// weights weight_1d(centre - p) (the separable part of footprint()).
     void axis_weights(float p, int size, int* first, int* n, double* w) const;

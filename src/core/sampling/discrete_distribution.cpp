@@ -28,7 +28,7 @@ DiscreteDistribution::DiscreteDistribution(const std::vector<double>& weights) {
     m_cdf[n] = 1.0;
 }
 
-size_t DiscreteDistribution::sample(float u, float* pmf_out, float* u_remapped) const {
+size_t DiscreteDistribution::search(float u, float* pmf_out, float* u_remapped) const {
     CMLT_DCHECK(!m_pmf.empty());
     // First index i with cdf[i+1] > u, skipping zero-probability bins.
     auto it = std::upper_bound(m_cdf.begin() + 1, m_cdf.end(), double(u));
