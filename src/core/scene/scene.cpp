@@ -469,6 +469,7 @@ void Scene::commit() {
     classify_constant_lambert();
     m_accel->commit();
     place_static_instances();
+    make_corner_sources();
     compute_bounds();
     build_lights();
     build_light_proxies();
@@ -528,6 +529,26 @@ void Scene::place_static_instances() {
             placed[3 * k + 2] = q.z;
         }
         m_placed_stale[i] = 0;
+    }
+}
+
+void Scene::make_corner_sources() {
+    m_corner_sources.assign(m_instances.size(), CornerSource());
+    for (size_t i = 0; i < m_instances.size(); ++i) {
+        const Instance& inst = m_instances[i];
+        const MeshData& d = m_meshes[inst.mesh_id].data;
+        CornerSource& c = m_corner_sources[i];
+        c.indices = d.indices;
+        c.placed = m_placed[i].empty() ? nullptr : m_placed[i].data();
+        c.points = d.points;
+        c.normals = d.normals;
+        c.uvs = d.uvs;
+        c.material_ids = d.material_ids;
+        c.xf = &inst.xf.m;
+        c.normal = &inst.xf.normal;
+        c.material_id_all = d.material_id_all;
+        c.moving = inst.motion.size() > 1;
+        c.primvars = d.n_primvar_columns > 0;
     }
 }
 

@@ -284,6 +284,24 @@ private:
     static constexpr uint32_t k_place_max_points = 1u << 16;
     std::vector<uint8_t> m_placed_stale;  ///< per instance: transform or points changed
     void place_static_instances();
+    /// Per instance, made at commit: what triangle_corners reads, in one record instead
+    /// of the instance, its mesh and its placed points (a hit's corners are gathered for
+    /// every diffuse lane).
+    struct CornerSource {
+        const uint32_t* indices = nullptr;
+        const float* placed = nullptr;   ///< m_placed's world-space points, or null
+        const float* points = nullptr;   ///< the mesh's object-space points
+        const float* normals = nullptr;  ///< the mesh's, or null
+        const float* uvs = nullptr;      ///< the mesh's, or null
+        const uint32_t* material_ids = nullptr;
+        const Mat4* xf = nullptr;        ///< object to world
+        const Mat4* normal = nullptr;    ///< the normal matrix
+        uint32_t material_id_all = 0;
+        bool moving = false;
+        bool primvars = false;
+    };
+    std::vector<CornerSource> m_corner_sources;
+    void make_corner_sources();
     std::vector<Material> m_materials;
     std::vector<uint8_t> m_material_passes;  ///< per material: may_pass_rays (at commit)
     std::vector<uint8_t> m_constant_lambert;  ///< per material: constant_lambert applies

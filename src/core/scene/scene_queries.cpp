@@ -134,25 +134,23 @@ void Scene::hit_geometry(const Ray& ray, const Hit& hit, HitGeometry* g) const {
 }
 
 bool Scene::triangle_corners(const Hit& hit, TriangleCorners* c) const {
-    const Instance& inst = m_instances[hit.instance_id];
-    if (inst.motion.size() > 1) return false;
-    const Mesh& mesh = m_meshes[inst.mesh_id];
-    uint32_t v[3];
-    mesh.triangle(hit.prim_id, v);
-    const std::vector<float>& placed = m_placed[hit.instance_id];
+    const CornerSource& s = m_corner_sources[hit.instance_id];
+    if (s.moving) return false;
+    const uint32_t* v = s.indices + 3 * size_t(hit.prim_id);
     for (int k = 0; k < 3; ++k) {
-        if (!placed.empty()) {
-            const float* w = placed.data() + 3 * size_t(v[k]);
+        if (s.placed) {
+            const float* w = s.placed + 3 * size_t(v[k]);
             c->p[k] = Vec3(w[0], w[1], w[2]);
         } else {
-            c->p[k] = inst.xf.m.transform_affine_point(mesh.point(v[k]));
+            const float* q = s.points + 3 * size_t(v[k]);
+            c->p[k] = s.xf->transform_affine_point(Vec3(q[0], q[1], q[2]));
         }
-        c->n[k] = mesh.data.normals ? mesh.data.normals + 3 * size_t(v[k]) : nullptr;
-        c->uv[k] = mesh.data.uvs ? mesh.data.uvs + 2 * size_t(v[k]) : nullptr;
+        c->n[k] = s.normals ? s.normals + 3 * size_t(v[k]) : nullptr;
+        c->uv[k] = s.uvs ? s.uvs + 2 * size_t(v[k]) : nullptr;
     }
-    c->primvars = mesh.data.n_primvar_columns > 0;
-    c->normal = mesh.data.normals ? &inst.xf.normal : nullptr;
-    c->material_id = mesh.material_id(hit.prim_id);
+    c->primvars = s.primvars;
+    c->normal = s.normals ? s.normal : nullptr;
+    c->material_id = s.material_ids ? s.material_ids[hit.prim_id] : s.material_id_all;
     return true;
 }
 

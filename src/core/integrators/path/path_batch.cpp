@@ -526,8 +526,13 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             }
         }
         if (!m_diffuse.empty() || !m_placed.empty() || !m_preview.empty()) shade_diffuse_lanes(c);
+        // The pending shadow rays; and the lanes whose paths go on stay live, in their
+        // order (decided here, while each lane's state is at hand: finishing a shadow
+        // ray never ends a path).
+        size_t live = 0;
         for (uint32_t l : m_live) {
             PathState& st = m_state[l];
+            if (!st.done) m_live[live++] = l;
             if (!st.has_shadow) continue;
             // Scene::transmittance, split around the BVH query: analytic lights first
             // (or in the query, as light proxies, each skipping its target's own).
@@ -551,11 +556,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                                      : m_scene.transmittance_given(m_rays[l], m_occluded[l] != 0, &pass_pdf);
             PathTracer::finish_shadow(m_state[l], tr, pass_pdf);
         }
-        // Live lanes keep their order.
-        size_t k = 0;
-        for (uint32_t l : m_live)
-            if (!m_state[l].done) m_live[k++] = l;
-        m_live.resize(k);
+        m_live.resize(live);
     }
     for (uint32_t l = 0; l < lane; ++l) L[m_pixel[l]] = m_state[l].L;
 }
