@@ -13,7 +13,8 @@ materials with specularColor 0 (exact Lambertians, cmlt's diffuse-only kernel), 
 area-lit rectangle a UsdLux RectLight of the same size, place, facing and radiance
 (Mitsuba's emitter is one-sided too), the perspective sensor a USD camera with the same
 field of view on the smaller axis; colours are linear Rec.709 and the render uses that
-rendering space. ``mi.cornell_box()`` is read when Mitsuba is installed; without it the
+rendering space. Both films reconstruct with the one-pixel box (Mitsuba's ``rfilter`` box,
+the stage's ``cmlt:pixelFilter`` box): the same estimator per pixel, the same work. ``mi.cornell_box()`` is read when Mitsuba is installed; without it the
 same values written below are used (they are Mitsuba 3.x's).
 
 Every render is a separate process (start-up included, as a user runs it), interleaved
@@ -198,6 +199,10 @@ def write_mitsuba_cornell(path: Path, res: int = 256) -> dict:
     rs = UsdRender.Settings.Define(stage, "/Render/Settings")
     rs.CreateResolutionAttr(Gf.Vec2i(res, res))
     rs.CreateCameraRel().SetTargets([cam.GetPath()])
+    # The reconstruction Mitsuba's film gets below (_MITSUBA_CHILD): the one-pixel box,
+    # each sample to its own pixel (cmlt's default is a gaussian splat over 3x3 pixels).
+    rs.GetPrim().CreateAttribute("cmlt:pixelFilter", Sdf.ValueTypeNames.Token, False,
+                                 Sdf.VariabilityUniform).Set("box")
     stage.SetMetadata("renderSettingsPrimPath", "/Render/Settings")
     stage.GetRootLayer().Save()
     return dict(source=d["source"], max_depth=cam_d["max_depth"])
