@@ -12,11 +12,15 @@
 namespace cmlt::sobol {
 
 CMLT_SOBOL_CLONES
-void scramble_seeds_lanes(size_t n, const uint32_t* __restrict c0, const uint32_t* __restrict c1,
-                          const uint32_t* __restrict c2, uint32_t stream, uint32_t key0, uint32_t key1,
-                          uint32_t* __restrict w0, uint32_t* __restrict w1) {
-    const uint32_t key_hash = seed_key_hash(key0, key1);
-    for (size_t i = 0; i < n; ++i) dimension_seeds(seed_prefix(c0[i], c1[i], stream), key_hash, c2[i], &w0[i], &w1[i]);
+void seed_prefix_lanes(size_t n, const uint32_t* __restrict pixel, uint32_t sequence, uint32_t stream,
+                       uint32_t* __restrict prefix) {
+    for (size_t i = 0; i < n; ++i) prefix[i] = seed_prefix(pixel[i], sequence, stream);
+}
+
+CMLT_SOBOL_CLONES
+void dimension_seeds_lanes(size_t n, const uint32_t* __restrict prefix, const uint32_t* __restrict dimension,
+                           uint32_t key_hash, uint32_t* __restrict w0, uint32_t* __restrict w1) {
+    for (size_t i = 0; i < n; ++i) dimension_seeds(prefix[i], key_hash, dimension[i], &w0[i], &w1[i]);
 }
 
 CMLT_SOBOL_CLONES

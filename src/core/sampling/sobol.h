@@ -119,10 +119,14 @@ inline void scramble_seeds(uint32_t key0, uint32_t key1, uint32_t pixel, uint32_
     dimension_seeds(seed_prefix(pixel, sequence, stream), seed_key_hash(key0, key1), dimension, seed_a, seed_b);
 }
 
-/// scramble_seeds of n lanes: pixel c0[i], sequence c1[i], dimension c2[i], one stream
-/// and key; the seeds into w0[i], w1[i] (the loop vectorises; sobol.cpp).
-void scramble_seeds_lanes(size_t n, const uint32_t* c0, const uint32_t* c1, const uint32_t* c2, uint32_t stream,
-                          uint32_t key0, uint32_t key1, uint32_t* w0, uint32_t* w1);
+/// seed_prefix of n lanes: pixel[i], one sequence and stream, into prefix[i] (the loop
+/// vectorises; sobol.cpp).
+void seed_prefix_lanes(size_t n, const uint32_t* pixel, uint32_t sequence, uint32_t stream, uint32_t* prefix);
+/// dimension_seeds of n lanes: prefix[i] (seed_prefix), dimension[i], one key_hash
+/// (seed_key_hash); the seeds into w0[i], w1[i] — scramble_seeds of each lane, with the
+/// parts every dimension of a pixel sample shares computed once per sample.
+void dimension_seeds_lanes(size_t n, const uint32_t* prefix, const uint32_t* dimension, uint32_t key_hash,
+                           uint32_t* w0, uint32_t* w1);
 
 /// The third seed of a dimension from its two seed words (an integer hash: its bits look
 /// independent of the other two).

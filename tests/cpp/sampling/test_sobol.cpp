@@ -205,18 +205,23 @@ TEST(Sobol, ScrambleSeedsOfDifferentKeysMeetOnlyByChance) {
 }
 
 TEST(Sobol, SeedLanesGiveTheScalarSeeds) {
+    // prefixes of pixels of one sequence, then dimensions of lanes of several prefixes
     CounterRng rng(9, RngDomain::test, 3);
-    std::vector<uint32_t> c0(1000), c1(1000), c2(1000), w0(1000), w1(1000);
-    for (size_t i = 0; i < c0.size(); ++i) {
-        c0[i] = uint32_t(rng.uniform() * 4294967296.0);
-        c1[i] = k_sequence_seed_sample - uint32_t(i % 7);
-        c2[i] = uint32_t(i);
+    const uint32_t sequence = k_sequence_seed_sample - 5u;
+    std::vector<uint32_t> pixel(1000), prefix(1000), dim(1000), w0(1000), w1(1000);
+    for (size_t i = 0; i < pixel.size(); ++i) pixel[i] = uint32_t(rng.uniform() * 4294967296.0);
+    sobol::seed_prefix_lanes(pixel.size(), pixel.data(), sequence, 17u, prefix.data());
+    std::vector<uint32_t> lane_prefix(1000);
+    for (size_t i = 0; i < dim.size(); ++i) {
+        lane_prefix[i] = prefix[i / 5];  // five dimensions of each of the first 200 pixels
+        dim[i] = uint32_t(i % 5) + uint32_t(i / 5) * 3u;
     }
-    sobol::scramble_seeds_lanes(c0.size(), c0.data(), c1.data(), c2.data(), 17u, 0x1234u, 0xabcdu, w0.data(),
-                                w1.data());
-    for (size_t i = 0; i < c0.size(); ++i) {
+    const uint32_t key_hash = sobol::seed_key_hash(0x1234u, 0xabcdu);
+    sobol::dimension_seeds_lanes(dim.size(), lane_prefix.data(), dim.data(), key_hash, w0.data(), w1.data());
+    for (size_t i = 0; i < dim.size(); ++i) {
+        ASSERT_EQ(prefix[i], sobol::seed_prefix(pixel[i], sequence, 17u)) << i;
         uint32_t a, b;
-        sobol::scramble_seeds(0x1234u, 0xabcdu, c0[i], c1[i], c2[i], 17u, &a, &b);
+        sobol::scramble_seeds(0x1234u, 0xabcdu, pixel[i / 5], sequence, dim[i], 17u, &a, &b);
         ASSERT_EQ(w0[i], a) << i;
         ASSERT_EQ(w1[i], b) << i;
     }

@@ -18,7 +18,9 @@
 #include <cmath>
 #include <limits>
 
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#if defined(__AVX512F__)
+#define CMLT_LANES_CLONES
+#elif defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #define CMLT_LANES_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define CMLT_LANES_CLONES

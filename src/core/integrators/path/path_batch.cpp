@@ -39,22 +39,23 @@ void PathBatch::prefetch_dimensions(const std::vector<uint32_t>& lanes, uint32_t
     if (lanes.empty()) return;
     const PixelSequence seq = m_tracer.sequence();
     const bool sobol = low_discrepancy(seq);
-    // a batch's lanes are samples of one index (trace_tile's s): one counter word for all
+    // a batch's lanes are samples of one index (trace_tile's s): one counter word for all;
+    // with Sobol points, each lane's seed prefix (m_prefix, made by trace_tile) in place
+    // of its pixel and that word
     const uint32_t sample = m_sampler[lanes[0]].sample();
-    const uint32_t c1 = sobol ? sequence_seed_sample(seq, sample) : sample;
     size_t n = 0;
     for (uint32_t l : lanes) {
         const uint32_t d0 = first(l);
         for (uint32_t k = 0; k < count; ++k, ++n) {
-            m_c0[n] = m_sampler[l].pixel();
-            m_c1[n] = c1;
+            m_c0[n] = sobol ? m_prefix[l] : m_sampler[l].pixel();
+            m_c1[n] = sample;
             m_c2[n] = d0 + k;
         }
     }
     const Philox4x32Key key = seed_key(m_seed);
     if (sobol) {
-        sobol::scramble_seeds_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path),
-                                    key[0], key[1], m_w0.data(), m_w1.data());
+        sobol::dimension_seeds_lanes(n, m_c0.data(), m_c2.data(), sobol::seed_key_hash(key[0], key[1]), m_w0.data(),
+                                     m_w1.data());
         sobol::scrambled_points_lanes(n, sequence_index(seq, sample), m_w0.data(), m_w1.data());
     } else {
         philox4x32_lanes(n, m_c0.data(), m_c1.data(), m_c2.data(), uint32_t(RngStream::camera_path), key,
@@ -86,6 +87,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_hits.resize(n);
     m_occluded.resize(n);
     m_skip_light.assign(n, k_invalid_id);
+    m_prefix.resize(n);
     m_live.reserve(n);
     m_shadowed.reserve(n);
     m_scattering.reserve(n);
@@ -450,6 +452,12 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                     m_live.push_back(lane);
                     ++lane;
                 }
+    if (low_discrepancy(m_tracer.sequence())) {
+        // the scramble seeds' part every dimension of a lane's sample shares (sobol.h)
+        for (uint32_t l = 0; l < lane; ++l) m_c0[l] = m_sampler[l].pixel();
+        sobol::seed_prefix_lanes(lane, m_c0.data(), sequence_seed_sample(m_tracer.sequence(), s),
+                                 uint32_t(RngStream::camera_path), m_prefix.data());
+    }
     // Camera rays (film position: dimension 0).
     prefetch_dimensions(m_live, 1, [](uint32_t) { return 0u; });
     if (m_use_lanes && m_pinhole_lanes) {

@@ -92,6 +92,7 @@ private:
     // random numbers computed ahead for every live lane (prefetch_dimensions)
     std::vector<uint32_t> m_c0, m_c1, m_c2, m_w0, m_w1;
     std::vector<uint32_t> m_words;  ///< per lane: k_prefetch dimensions x 2 words
+    std::vector<uint32_t> m_prefix;  ///< per lane, with Sobol points: sobol::seed_prefix of its sample
     // the diffuse lanes of a round: their batch lanes, the lights their shadow rays aim at
     bool m_use_lanes = true;
     std::unique_ptr<DiffuseLanes> m_lanes;
