@@ -64,7 +64,7 @@ public:
                 v = v > 0 ? k_max_splat : -k_max_splat;
                 m_clamped.fetch_add(1, std::memory_order_relaxed);
             }
-            const int64_t q = std::llround(v * k_scale);
+            const int64_t q = round_half_away(v * k_scale);
             if (q == 0) continue;
             const size_t i = (size_t(layer) * size_t(m_width) * size_t(m_height) + pixel) * 3 + k;
             const uint64_t uq = uint64_t(q);
@@ -118,6 +118,16 @@ public:
             return;
         }
         filter.footprint(p, m_width, m_height, [&](uint32_t j, double w) { add(j, colour, weight * w, layer); });
+    }
+
+    /// std::llround of x for |x| < 2^63 (here at most 2^62), inline instead of a libm
+    /// call: the truncation and the remainder are exact, so is the rounding (half away
+    /// from zero).
+    static int64_t round_half_away(double x) {
+        int64_t q = int64_t(x);
+        const double r = x - double(q);
+        q += int64_t(r >= 0.5) - int64_t(r <= -0.5);
+        return q;
     }
 
 private:

@@ -5,6 +5,7 @@
 // luminance target's L/Y of a saturated colour over 10^8 splats) passes it, and a plain
 // int64 sum wrapped around silently (1e9 added 8 times read back as -5.9e8).
 #include "film/splat_film.h"
+#include "sampling/rng.h"
 
 #include <gtest/gtest.h>
 
@@ -99,4 +100,19 @@ TEST(SplatFilm, FilmsOfDisjointSplatsAddToTheFilmOfAll) {
             differs_from_a_part = differs_from_a_part || parts[0].sum(px, k) != all.sum(px, k);
         }
     EXPECT_TRUE(differs_from_a_part);
+}
+
+TEST(SplatFilm, InlineRoundingIsLlround) {
+    // halves (both signs), values next to them, large and tiny magnitudes, and random ones
+    std::vector<double> xs = {0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 0.49999999999999994, -0.49999999999999994,
+                              4503599627370495.5, -4503599627370495.5, 4503599627370497.0, 0x1p62, -0x1p62,
+                              0x1p62 - 1024.0, 1e-300, -1e-300, 123456789.5, -123456789.5};
+    CounterRng rng(4, RngDomain::test, 1);
+    for (int i = 0; i < 100000; ++i) {
+        const double m = std::ldexp(rng.uniform() * 2.0 - 1.0, int(rng.uniform() * 62.0));
+        xs.push_back(m);
+        xs.push_back(std::floor(m) + 0.5);
+        xs.push_back(std::nextafter(std::floor(m) + 0.5, 0.0));
+    }
+    for (double x : xs) ASSERT_EQ(SplatFilm::round_half_away(x), std::llround(x)) << x;
 }
