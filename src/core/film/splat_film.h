@@ -58,21 +58,38 @@ public:
     void add(uint32_t pixel, const Spectrum& colour, double weight, int layer = 0) {
         const float c[3] = {colour.x, colour.y, colour.z};
         for (int k = 0; k < 3; ++k) {
-            double v = double(c[k]) * weight;
-            if (!(v == v)) continue;  // NaN never reaches the film (callers check)
-            if (std::fabs(v) > k_max_splat) {
-                v = v > 0 ? k_max_splat : -k_max_splat;
-                m_clamped.fetch_add(1, std::memory_order_relaxed);
-            }
-            const int64_t q = round_half_away(v * k_scale);
+            const int64_t q = quantize(double(c[k]) * weight);
             if (q == 0) continue;
-            const size_t i = (size_t(layer) * size_t(m_width) * size_t(m_height) + pixel) * 3 + k;
+            const size_t i = word_index(layer, pixel, k);
             const uint64_t uq = uint64_t(q);
             const uint64_t old = m_lo[i].fetch_add(uq, std::memory_order_relaxed);
             // 128-bit add of sign-extended q: hi gets the carry out of lo, minus 1 for q < 0
             const int64_t dh = int64_t(old + uq < old) - int64_t(q < 0);
             if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
         }
+    }
+
+    /// One channel's splat value v in units of the sum: 0 for NaN (which never reaches
+    /// the film: callers check), beyond ±2^30 clamped there and counted.
+    int64_t quantize(double v) {
+        if (!(v == v)) return 0;
+        if (std::fabs(v) > k_max_splat) {
+            v = v > 0 ? k_max_splat : -k_max_splat;
+            m_clamped.fetch_add(1, std::memory_order_relaxed);
+        }
+        return round_half_away(v * k_scale);
+    }
+    /// The word of pixel `pixel`, channel k in `layer`.
+    size_t word_index(int layer, uint32_t pixel, int k) const {
+        return (size_t(layer) * size_t(m_width) * size_t(m_height) + pixel) * 3 + size_t(k);
+    }
+    /// Add a 128-bit sum of quantised splats to word i (thread-safe, exact).
+    void add_sum(size_t i, __int128 v) {
+        const uint64_t lo = uint64_t((unsigned __int128)v);
+        const int64_t hi = int64_t(uint64_t((unsigned __int128)v >> 64));
+        const uint64_t old = m_lo[i].fetch_add(lo, std::memory_order_relaxed);
+        const int64_t dh = hi + int64_t(old + lo < old);
+        if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
     }
 
     /// Sum of pixel i, channel k over every layer, as a double.
@@ -141,6 +158,73 @@ private:
     std::unique_ptr<std::atomic<uint64_t>[]> m_lo;  ///< fixed-point sums mod 2^64
     std::unique_ptr<std::atomic<int64_t>[]> m_hi;   ///< their high words (carries, signs)
     std::atomic<uint64_t> m_clamped{0};
+};
+
+/// A write-combining front of a SplatFilm for one thread's task: a Metropolis chain's
+/// splats land on the same few pixels over and over (a rejected proposal splats its
+/// current state's pixel again; a small step moves a pixel or two; the gaussian's
+/// footprint is 3x3 pixels), and each was three atomic adds per pixel. The buffer sums
+/// the quantised splats of recent pixels in 128-bit integers (a direct-mapped table of
+/// k_entries pixels) and adds each pixel's sums to the film once, when another pixel takes
+/// its entry or at flush(). Integer sums do not depend on order or grouping, so the film
+/// holds the same words as with SplatFilm::add (the same image bit for bit) once every
+/// buffer is flushed: read the film only after that (the chains' tasks flush at their end).
+class SplatBuffer {
+public:
+    static constexpr size_t k_entries = 256;
+
+    explicit SplatBuffer(SplatFilm& film) : m_film(film), m_entries(new Entry[k_entries]) {}
+    SplatBuffer(SplatBuffer&&) = default;
+    ~SplatBuffer() { flush(); }
+
+    /// SplatFilm::add through the buffer.
+    void add(uint32_t pixel, const Spectrum& colour, double weight, int layer = 0) {
+        const float c[3] = {colour.x, colour.y, colour.z};
+        int64_t q[3];
+        for (int k = 0; k < 3; ++k) q[k] = m_film.quantize(double(c[k]) * weight);
+        if ((q[0] | q[1] | q[2]) == 0) return;
+        const uint64_t key = uint64_t(layer) * uint64_t(m_film.width()) * uint64_t(m_film.height()) + pixel;
+        Entry& e = m_entries[size_t((key * 0x9E3779B97F4A7C15ull) >> 56) & (k_entries - 1)];
+        if (e.key != key) {
+            write(e);
+            e.key = key;
+        }
+        for (int k = 0; k < 3; ++k) e.sum[k] += q[k];
+    }
+    /// SplatFilm::add_filtered through the buffer.
+    void add_filtered(const PixelFilter& filter, const Vec2& p, uint32_t pixel, const Spectrum& colour, double weight,
+                      int layer = 0) {
+        if (filter.unit_box()) {
+            add(pixel, colour, weight, layer);
+            return;
+        }
+        filter.footprint(p, m_film.width(), m_film.height(),
+                         [&](uint32_t j, double w) { add(j, colour, weight * w, layer); });
+    }
+    /// Every pending sum into the film.
+    void flush() {
+        if (!m_entries) return;  // moved from
+        for (size_t i = 0; i < k_entries; ++i) write(m_entries[i]);
+    }
+
+private:
+    static constexpr uint64_t k_free = ~uint64_t(0);
+    struct Entry {
+        uint64_t key = k_free;  ///< layer · W·H + pixel
+        __int128 sum[3] = {0, 0, 0};
+    };
+    void write(Entry& e) {
+        if (e.key == k_free) return;
+        const size_t pixels = size_t(m_film.width()) * size_t(m_film.height());
+        const int layer = int(e.key / pixels);
+        const uint32_t pixel = uint32_t(e.key % pixels);
+        for (int k = 0; k < 3; ++k)
+            if (e.sum[k] != 0) m_film.add_sum(m_film.word_index(layer, pixel, k), e.sum[k]);
+        e = Entry();
+    }
+
+    SplatFilm& m_film;
+    std::unique_ptr<Entry[]> m_entries;
 };
 
 }  // namespace cmlt

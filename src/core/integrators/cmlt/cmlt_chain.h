@@ -74,7 +74,7 @@ class ChainTracer {
 public:
     ChainTracer(const mlt::PssmltTracer& tracer, const Scene& scene, const CmltSettings& s, SplatFilm& film,
                 BundleTotals& totals)
-        : m_settings(s), m_filter(tracer.filter()), m_film(film), m_totals(totals), m_f(make_target(tracer, scene, s, &m_counters, &m_bundle)) {}
+        : m_settings(s), m_filter(tracer.filter()), m_splats(film), m_totals(totals), m_f(make_target(tracer, scene, s, &m_counters, &m_bundle)) {}
     ChainTracer(const ChainTracer&) = delete;
     ChainTracer& operator=(const ChainTracer&) = delete;
 
@@ -172,6 +172,7 @@ public:
     }
 
     void flush(FrameCounters& counters) {
+        m_splats.flush();
         counters.add(m_counters, 0, m_bundle.packets);
         const std::lock_guard<std::mutex> lock(m_totals.mutex);
         m_totals.sum.merge(m_bundle);
@@ -181,7 +182,7 @@ private:
     /// The splat of chain `st`'s points: into its film layer, L / f* times the weight.
     struct Splatter {
         const PixelFilter& filter;
-        SplatFilm& film;
+        SplatBuffer& film;
         Chain& st;
         void operator()(const State& s, double w) const {
             if (s.sample.f > 0.0) {
@@ -190,7 +191,7 @@ private:
             }
         }
     };
-    Splatter splatter(Chain& st) { return Splatter{m_filter, m_film, st}; }
+    Splatter splatter(Chain& st) { return Splatter{m_filter, m_splats, st}; }
     static void record_large(Chain& st, const mcmc::StepResult& res) {
         const State& proposed = res.moved ? st.chain.x : st.ws.y[0];
         st.large.add(proposed.sample.f);
@@ -205,7 +206,7 @@ private:
 
     const CmltSettings& m_settings;
     const PixelFilter& m_filter;
-    SplatFilm& m_film;
+    SplatBuffer m_splats;  ///< the frame's film, written through a buffer
     BundleTotals& m_totals;
     PathCounters m_counters;
     BundleCounters m_bundle;

@@ -81,7 +81,7 @@ struct SamplerProposal {
 /// The chain steps of one parallel task (ChainPopulation::run).
 class ChainTracer {
 public:
-    ChainTracer(const mlt::PssmltTracer& tracer, SplatFilm& film) : m_tracer(tracer), m_film(film) {}
+    ChainTracer(const mlt::PssmltTracer& tracer, SplatFilm& film) : m_tracer(tracer), m_splats(film) {}
 
     /// Step `st` until it has spent `end` evaluations.
     void run(Chain& st, uint64_t end) {
@@ -90,7 +90,7 @@ public:
         const auto target = [](const PathSample& s) { return s.f; };
         auto splat = [&](const PathSample& s, double w) {
             if (s.f > 0.0) {
-                m_film.add_filtered(m_tracer.filter(), s.p_film, s.pixel, s.L, w / s.f, st.layer);
+                m_splats.add_filtered(m_tracer.filter(), s.p_film, s.pixel, s.L, w / s.f, st.layer);
                 st.record_splat(s.L, s.f, w, &s == &st.chain.x);
             }
         };
@@ -106,11 +106,15 @@ public:
             st.record(res);
         }
     }
-    void flush(FrameCounters& counters) const { counters.add(m_counters); }
+    /// The task's counters and its splats (into the frame's film).
+    void flush(FrameCounters& counters) {
+        counters.add(m_counters);
+        m_splats.flush();
+    }
 
 private:
     const mlt::PssmltTracer& m_tracer;
-    SplatFilm& m_film;
+    SplatBuffer m_splats;  ///< the frame's film, written through a buffer
     PathCounters m_counters;
 };
 
