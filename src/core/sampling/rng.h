@@ -10,6 +10,7 @@
 /// everywhere): 24 bits → float, 64 bits → double, Box–Muller, the torus wrap, and a
 /// primary sample as the float a path routine reads.
 #include "math/safe_math.h"
+#include "math/sincos.h"
 #include "math/vec.h"
 #include "sampling/philox.h"
 #include "sampling/rng_domains.h"
@@ -30,19 +31,25 @@ inline double bits_to_unit(uint32_t hi, uint32_t lo) { return double(((uint64_t(
 /// up to 1, which becomes the largest float below 1 (math/safe_math.h's clamp_below_one).
 inline float unit_float(double u) { return clamp_below_one(float(u)); }
 
-/// Box–Muller's radius sqrt(-2 ln(1 - u1)) and angle 2 pi u2 (u1 ∈ [0, 1)).
+/// Box–Muller's radius sqrt(-2 ln(1 - u1)) (u1 ∈ [0, 1)); its angle is 2 pi u2.
 inline double box_muller_radius(double u1) { return std::sqrt(-2.0 * std::log(1.0 - u1)); }
-inline double box_muller_angle(double u2) { return 6.283185307179586476925 * u2; }
 
-/// Standard normal from two uniforms (Box–Muller, cosine branch).
-inline double box_muller(double u1, double u2) { return box_muller_radius(u1) * std::cos(box_muller_angle(u2)); }
+/// Standard normal from two uniforms (Box–Muller, cosine branch; the angle's sine and
+/// cosine from math/sincos.h's double-precision polynomials, not libm).
+inline double box_muller(double u1, double u2) {
+    double s, c;
+    sincos_turn_double(u2, &s, &c);
+    return box_muller_radius(u1) * c;
+}
 
 /// Both standard normals of one Box–Muller pair (independent): the cosine branch (the
 /// value box_muller gives) and the sine branch.
 inline void box_muller_pair(double u1, double u2, double* z_cos, double* z_sin) {
-    const double r = box_muller_radius(u1), a = box_muller_angle(u2);
-    *z_cos = r * std::cos(a);
-    *z_sin = r * std::sin(a);
+    const double r = box_muller_radius(u1);
+    double s, c;
+    sincos_turn_double(u2, &s, &c);
+    *z_cos = r * c;
+    *z_sin = r * s;
 }
 
 /// Map a real number onto [0, 1) (the unit torus of primary sample space). `v - floor(v)`

@@ -97,6 +97,32 @@ TEST(SinCos, MatchDoublePrecisionOnTheSamplersDomains) {
     }
 }
 
+// The double-precision turn (the Box–Muller angles of the Metropolis kernels): within a
+// few double ulps of libm's sin and cos of 2π u over a turn — long double's as the
+// reference, so libm's own rounding does not count against it.
+TEST(SinCos, DoubleTurnMatchesLibmToAFewUlps) {
+    const long double two_pi = 6.283185307179586476925286766559L;
+    double worst = 0.0;
+    for (int i = 0; i <= 1 << 20; ++i) {
+        for (double u : {double(i) / double(1 << 20), (double(i) + 0.3183098861837907) / double(1 << 20)}) {
+            if (u > 1.0) continue;
+            double s, c;
+            sincos_turn_double(u, &s, &c);
+            const long double a = two_pi * (long double)u;
+            worst = std::max({worst, double(std::fabs((long double)s - std::sin(a))),
+                              double(std::fabs((long double)c - std::cos(a)))});
+        }
+    }
+    EXPECT_LT(worst, 1e-15);
+    EXPECT_GT(worst, 0.0);  // not libm itself
+    double s, c;
+    sincos_turn_double(0.25, &s, &c);  // exact quadrants
+    EXPECT_EQ(s, 1.0);
+    EXPECT_EQ(c, 0.0);
+    sincos_turn_double(0.5, &s, &c);
+    EXPECT_EQ(c, -1.0);
+}
+
 TEST(SinCos, ConcentricDiskIsShirleyChiusMap) {
     const double quarter_pi = 0.785398163397448309616;
     double worst = 0.0;
