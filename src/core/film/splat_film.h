@@ -59,13 +59,7 @@ public:
         const float c[3] = {colour.x, colour.y, colour.z};
         for (int k = 0; k < 3; ++k) {
             const int64_t q = quantize(double(c[k]) * weight);
-            if (q == 0) continue;
-            const size_t i = word_index(layer, pixel, k);
-            const uint64_t uq = uint64_t(q);
-            const uint64_t old = m_lo[i].fetch_add(uq, std::memory_order_relaxed);
-            // 128-bit add of sign-extended q: hi gets the carry out of lo, minus 1 for q < 0
-            const int64_t dh = int64_t(old + uq < old) - int64_t(q < 0);
-            if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
+            if (q != 0) add_sum(word_index(layer, pixel, k), q);
         }
     }
 
@@ -83,7 +77,9 @@ public:
     size_t word_index(int layer, uint32_t pixel, int k) const {
         return (size_t(layer) * size_t(m_width) * size_t(m_height) + pixel) * 3 + size_t(k);
     }
-    /// Add a 128-bit sum of quantised splats to word i (thread-safe, exact).
+    /// Add a 128-bit sum of quantised splats to word i (thread-safe, exact): its low
+    /// word to lo, and to hi its high word plus the carry out of lo (known exactly from
+    /// the value fetch_add returns); hi is touched only when that is not 0.
     void add_sum(size_t i, __int128 v) {
         const uint64_t lo = uint64_t((unsigned __int128)v);
         const int64_t hi = int64_t(uint64_t((unsigned __int128)v >> 64));
@@ -119,11 +115,8 @@ public:
     /// films of disjoint sets of splats sum to the film that received them all.
     /// They go into layer 0 (a combined film keeps no groups).
     void add_words(const uint64_t* lo, const int64_t* hi) {
-        for (size_t i = 0, n = size_t(m_width) * m_height * 3; i < n; ++i) {
-            const uint64_t old = m_lo[i].fetch_add(lo[i], std::memory_order_relaxed);
-            const int64_t dh = hi[i] + int64_t(old + lo[i] < old);
-            if (dh != 0) m_hi[i].fetch_add(dh, std::memory_order_relaxed);
-        }
+        for (size_t i = 0, n = size_t(m_width) * m_height * 3; i < n; ++i)
+            add_sum(i, __int128((unsigned __int128)uint64_t(hi[i]) << 64 | lo[i]));
     }
 
     /// Add `weight · colour` over `filter`'s footprint around film position p (weights
