@@ -28,8 +28,12 @@ round-robin over the renderers, ``--repeats`` times; medians. Columns:
   compilation, cached on disk by Dr.Jit after the first run, for Mitsuba);
 * ``Mrays/s/thread`` and ``trace share`` (``stats.trace_s / stats.busy_s``) for cmlt.
 
-Mitsuba's path tracer has ``max_depth`` 8 (7 scattering events, its Russian roulette
-from depth 5); cmlt runs ``--max-depth 7`` (pbrt's count: 1 = direct light only).
+Mitsuba's path tracer has ``max_depth`` 8 (7 scattering events); cmlt runs ``--max-depth
+7`` (pbrt's count: 1 = direct light only). Both use Russian roulette with the same rule
+(continue with min(0.95, max(throughput) eta^2)); cmlt's starts at the third scattering
+event, Mitsuba's by default at the fifth, so Mitsuba gets ``rr_depth`` 3: the same paths'
+lengths, the same work per sample (``--mitsuba-rr-depth 5`` for Mitsuba's default, which
+traces about a quarter more per sample on its box).
 """
 from __future__ import annotations
 
@@ -223,6 +227,10 @@ dr.set_thread_count(threads)
 d = mi.cornell_box()
 d["sensor"]["film"]["width"] = d["sensor"]["film"]["height"] = res
 d["sensor"]["film"]["rfilter"] = {{"type": "box"}}
+# Russian roulette from the third scattering event, as cmlt's path tracer
+# (PathTracer::k_rr_start_depth; the same rule, min(0.95, max(beta) eta^2)): the same
+# work per sample. Mitsuba's default starts at the fifth (--mitsuba-rr-depth 5).
+d["integrator"]["rr_depth"] = {rr_depth}
 d["sensor"]["sampler"]["sample_count"] = spp
 scene = mi.load_dict(d)
 def render(seed):
@@ -238,8 +246,9 @@ print(json.dumps(dict(first_s=t2 - t1, render_s=t3 - t2, process_to_first_s=t2 -
 """
 
 
-def run_mitsuba(variant: str, spp: int, res: int, threads: int) -> dict:
-    code = _MITSUBA_CHILD.format(root=str(ROOT / "src"), variant=variant, spp=spp, res=res, threads=threads)
+def run_mitsuba(variant: str, spp: int, res: int, threads: int, rr_depth: int = 3) -> dict:
+    code = _MITSUBA_CHILD.format(root=str(ROOT / "src"), variant=variant, spp=spp, res=res, threads=threads,
+                                 rr_depth=rr_depth)
     t0 = time.perf_counter()
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     if p.returncode != 0:
@@ -285,6 +294,9 @@ def main(argv=None) -> int:
     ap.add_argument("--integrators", default="pt,bdpt")
     ap.add_argument("--mitsuba", default="scalar_rgb,llvm_ad_rgb", help="Mitsuba variants ('' for none)")
     ap.add_argument("--cmlt-args", default="", help="extra cmlt render flags, e.g. '--kernel general'")
+    ap.add_argument("--mitsuba-rr-depth", type=int, default=3,
+                    help="Mitsuba's rr_depth: 3 starts its Russian roulette where cmlt's does (the same "
+                         "work per sample); 5 is Mitsuba's default")
     ap.add_argument("--out", default="renders/bench/speed")
     args = ap.parse_args(argv)
 
@@ -325,7 +337,7 @@ def main(argv=None) -> int:
                             r = run_cmlt(stage, what, spp, args.res, args.threads,
                                          max_depth if shot == "mitsuba_cornell" else 0, tmp / shot, extra_shot)
                         else:
-                            r = run_mitsuba(what, args.spp, args.res, args.threads)
+                            r = run_mitsuba(what, args.spp, args.res, args.threads, args.mitsuba_rr_depth)
                     except Exception as e:  # a peer that does not run is reported, not fatal
                         print(f"  {shot} {who} {what}: failed: {e}", file=sys.stderr)
                         continue
@@ -335,7 +347,8 @@ def main(argv=None) -> int:
 
     med = {k: {f: statistics.median([r[f] for r in v]) for f in v[0]} for k, v in results.items()}
     lines = [f"Speed, {args.res}x{args.res}, {args.threads} threads, pt {args.spp} spp, bdpt {max(1, args.spp // 4)} spp,"
-             f" median of {args.repeats} (interleaved); {desc.get('source', '')}", "",
+             f" median of {args.repeats} (interleaved); {desc.get('source', '')}, Mitsuba's rr_depth"
+             f" {args.mitsuba_rr_depth}", "",
              "| shot | renderer | samples/s | samples/s incl. start-up | × Mitsuba scalar | × Mitsuba llvm |"
              " Mrays/s/thread | trace share | rays/sample |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
