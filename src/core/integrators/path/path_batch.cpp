@@ -91,6 +91,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_live.reserve(n);
     m_shadowed.reserve(n);
     m_scattering.reserve(n);
+    m_pending.reserve(n);
     for (auto* v : {&m_c0, &m_c1, &m_c2, &m_w0, &m_w1}) v->resize(n * k_prefetch);
     m_words.resize(n * 2 * k_prefetch);
     m_lanes.reset(new DiffuseLanes);  // not value-initialised: every lane is written before it is read
@@ -498,9 +499,15 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         // Shade: emission, the next ray, a pending shadow ray. A lane that scatters reads
         // the dimensions of its bounce (PathTracer::scatter): computed here, for every
         // lane that hit a mesh, at once (a miss or an analytic light ends the path).
-        m_scattering.clear();
-        for (uint32_t l : m_live)
-            if (m_hits[l].valid()) m_scattering.push_back(l);
+        // (compacted without a branch: whether a path's ray hits is no pattern a
+        // predictor learns)
+        m_scattering.resize(m_live.size());
+        size_t scattering = 0;
+        for (uint32_t l : m_live) {
+            m_scattering[scattering] = l;
+            scattering += m_hits[l].valid();
+        }
+        m_scattering.resize(scattering);
         prefetch_dimensions(m_scattering, k_prefetch,
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();
@@ -534,14 +541,21 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             }
         }
         if (!m_diffuse.empty() || !m_placed.empty() || !m_preview.empty()) shade_diffuse_lanes(c);
-        // The pending shadow rays; and the lanes whose paths go on stay live, in their
-        // order (decided here, while each lane's state is at hand: finishing a shadow
-        // ray never ends a path).
-        size_t live = 0;
+        // The lanes whose paths go on stay live, in their order, and those with a
+        // pending shadow ray are listed (finishing a shadow ray never ends a path);
+        // both compacted without a branch, as the hits above.
+        size_t live = 0, pending = 0;
+        m_pending.resize(m_live.size());
         for (uint32_t l : m_live) {
+            const PathState& st = m_state[l];
+            m_live[live] = l;
+            live += !st.done;
+            m_pending[pending] = l;
+            pending += st.has_shadow;
+        }
+        for (size_t j = 0; j < pending; ++j) {
+            const uint32_t l = m_pending[j];
             PathState& st = m_state[l];
-            if (!st.done) m_live[live++] = l;
-            if (!st.has_shadow) continue;
             // Scene::transmittance, split around the BVH query: analytic lights first
             // (or in the query, as light proxies, each skipping its target's own).
             if (proxies) {
