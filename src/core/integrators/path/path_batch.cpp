@@ -92,6 +92,7 @@ PathBatch::PathBatch(const PathTracer& tracer, const Scene& scene, const Camera&
     m_shadowed.reserve(n);
     m_scattering.reserve(n);
     m_pending.reserve(n);
+    m_ended.reserve(n);
     for (auto* v : {&m_c0, &m_c1, &m_c2, &m_w0, &m_w1}) v->resize(n * k_prefetch);
     m_words.resize(n * 2 * k_prefetch);
     m_lanes.reset(new DiffuseLanes);  // not value-initialised: every lane is written before it is read
@@ -352,23 +353,23 @@ void PathBatch::scatter_lanes(const DiffuseLanes& L, const std::vector<uint32_t>
         const float time = st.ray.time;
         ++st.bounce;
         c.rays += 1;
-        if (L.shadow[k]) {
-            c.shadow_rays += 1;
-            c.rays += 1;
-            st.has_shadow = true;
-            st.shadow = Ray(Vec3(L.sox[k], L.soy[k], L.soz[k]), Vec3(L.sdx[k], L.sdy[k], L.sdz[k]), 0.f, L.stfar[k]);
-            st.shadow.time = time;
-            st.shadow_light = light[k];
-            st.shadow_delta = L.ls_delta[k] != 0;
-            st.shadow_light_pdf = L.light_pdf[k];
-            st.shadow_bsdf_pdf = L.shadow_bsdf_pdf[k];
-            st.shadow_f = Spectrum(L.sf_r[k], L.sf_g[k], L.sf_b[k]);
-        }
-        if (L.done[k]) {
-            st.done = true;
-            continue;
-        }
-        if (caustic) {
+        // The pending shadow ray's fields are written whether or not the lane has one
+        // (only has_shadow says it is there), and a path that ends here takes the
+        // next ray's fields too (nothing reads them after `done`): no branch on either,
+        // which no predictor learns.
+        const bool shadow = L.shadow[k] != 0;
+        c.shadow_rays += shadow;
+        c.rays += shadow;
+        st.has_shadow = shadow;
+        st.shadow = Ray(Vec3(L.sox[k], L.soy[k], L.soz[k]), Vec3(L.sdx[k], L.sdy[k], L.sdz[k]), 0.f, L.stfar[k]);
+        st.shadow.time = time;
+        st.shadow_light = light[k];
+        st.shadow_delta = L.ls_delta[k] != 0;
+        st.shadow_light_pdf = L.light_pdf[k];
+        st.shadow_bsdf_pdf = L.shadow_bsdf_pdf[k];
+        st.shadow_f = Spectrum(L.sf_r[k], L.sf_g[k], L.sf_b[k]);
+        st.done = L.done[k] != 0;
+        if (caustic && !st.done) {
             // PathTracer::scatter's camera side of r (these vertices are never Dirac): at
             // the first vertex 1 / (p_cam p(z1 -> z2)), later reverse over forward density
             const float nx = L.nsx[k], ny = L.nsy[k], nz = L.nsz[k];
@@ -502,12 +503,17 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         // (compacted without a branch: whether a path's ray hits is no pattern a
         // predictor learns)
         m_scattering.resize(m_live.size());
-        size_t scattering = 0;
+        m_ended.resize(m_live.size());
+        size_t scattering = 0, ended = 0;
         for (uint32_t l : m_live) {
+            const bool valid = m_hits[l].valid();
             m_scattering[scattering] = l;
-            scattering += m_hits[l].valid();
+            m_ended[ended] = l;
+            scattering += valid;
+            ended += !valid;
         }
         m_scattering.resize(scattering);
+        m_ended.resize(ended);
         prefetch_dimensions(m_scattering, k_prefetch,
                             [&](uint32_t l) { return 1 + m_state[l].bounce * PathTracer::k_dims_per_bounce; });
         m_shadowed.clear();
@@ -519,7 +525,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         m_preview.clear();
         const bool lights = !proxies && m_scene.has_analytic_area_lights();
         const bool lanes = m_use_lanes;
-        for (uint32_t l : m_live) {
+        for (uint32_t l : m_scattering) {
             PathState& st = m_state[l];
             const Hit& h = m_hits[l];
             // The diffuse fast path: a mesh hit (no analytic light in front of it) on a
@@ -527,7 +533,7 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             // geometry; everything else through the full hit.
             uint32_t light;
             Spectrum le;
-            if (h.valid() && !(lights && m_scene.nearest_light(m_rays[l], h.t, &light, &le) < k_infinity)) {
+            if (!(lights && m_scene.nearest_light(m_rays[l], h.t, &light, &le) < k_infinity)) {
                 if (lanes && gather_diffuse(l, c)) continue;
                 HitGeometry g;
                 m_scene.hit_geometry(m_rays[l], h, &g);
@@ -540,6 +546,8 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
                 m_tracer.step(st, m_scene.resolve_hit(m_rays[l], h), m_sampler[l], c);
             }
         }
+        // the misses and the light proxies' hits
+        for (uint32_t l : m_ended) m_tracer.step(m_state[l], m_scene.resolve_hit(m_rays[l], m_hits[l]), m_sampler[l], c);
         if (!m_diffuse.empty() || !m_placed.empty() || !m_preview.empty()) shade_diffuse_lanes(c);
         // The lanes whose paths go on stay live, in their order, and those with a
         // pending shadow ray are listed (finishing a shadow ray never ends a path);
@@ -570,13 +578,18 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
         // Visibility of the shadow rays.
         m_packets += accel.occluded_lanes(m_rays.data(), m_shadowed.data(), m_shadowed.size(), m_occluded.data(),
                                           m_packet_width, 4, proxies, proxies ? m_skip_light.data() : nullptr);
-        for (uint32_t l : m_shadowed) {
+        if (!m_scene.has_pass_through()) {
+            // nothing lets a ray through: unoccluded or not, without a branch
+            for (uint32_t l : m_shadowed) PathTracer::finish_shadow_visible(m_state[l], m_occluded[l] == 0);
+        } else {
+            for (uint32_t l : m_shadowed) {
             float pass_pdf = 1.f;
             const PathState& st = m_state[l];
             const float tr = proxies ? m_scene.transmittance_given_lights(m_rays[l], st.shadow_light,
                                                                           m_occluded[l] != 0, &pass_pdf)
                                      : m_scene.transmittance_given(m_rays[l], m_occluded[l] != 0, &pass_pdf);
             PathTracer::finish_shadow(m_state[l], tr, pass_pdf);
+            }
         }
         m_live.resize(live);
     }

@@ -88,7 +88,7 @@ private:
     std::vector<Hit> m_hits;
     std::vector<uint8_t> m_occluded;
     std::vector<uint32_t> m_skip_light;  ///< per lane: the light proxy its shadow ray skips
-    std::vector<uint32_t> m_live, m_shadowed, m_scattering, m_pending;
+    std::vector<uint32_t> m_live, m_shadowed, m_scattering, m_pending, m_ended;
     // random numbers computed ahead for every live lane (prefetch_dimensions)
     std::vector<uint32_t> m_c0, m_c1, m_c2, m_w0, m_w1;
     std::vector<uint32_t> m_words;  ///< per lane: k_prefetch dimensions x 2 words

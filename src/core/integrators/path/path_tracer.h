@@ -168,6 +168,16 @@ public:
         const float w = st.shadow_delta ? 1.f : power_heuristic(st.shadow_light_pdf, st.shadow_bsdf_pdf * pass_pdf);
         st.L += st.shadow_f * (tr * w / st.shadow_light_pdf);
     }
+    /// finish_shadow(st, visible ? 1 : 0, 1) without a branch on `visible` (whether a
+    /// shadow ray is blocked is no pattern a predictor learns): the same floats.
+    static void finish_shadow_visible(PathState& st, bool visible) {
+        st.has_shadow = false;
+        const float w = st.shadow_delta ? 1.f : power_heuristic(st.shadow_light_pdf, st.shadow_bsdf_pdf);
+        const Spectrum add = st.shadow_f * (1.f * w / st.shadow_light_pdf);
+        st.L.x = visible ? st.L.x + add.x : st.L.x;
+        st.L.y = visible ? st.L.y + add.y : st.L.y;
+        st.L.z = visible ? st.L.z + add.z : st.L.z;
+    }
 
     /// The camera ray of pixel (x, y), sample `s`, its numbers keyed by `pixel` (y W + x
     /// in the image; PassSplatter::window_key beyond it): film position (dimension 0,
