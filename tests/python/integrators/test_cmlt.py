@@ -287,3 +287,38 @@ def test_caustic_packets_bit_identical_to_scalar(caustic, inner):
     assert a.stats["kernel_stats"]["caustic"]["moved"] > 0
     assert np.array_equal(np.asarray(a.image), np.asarray(b.image))
     assert a.stats["rays"] == b.stats["rays"]
+
+
+# ---- the path-traced passes in packets, the frame the same without them ---------------
+
+def test_metropolis_frames_identical_without_packets_where_embree_packets_differ():
+    """The direct pass and the pilot of pssmlt and cmlt trace their queries in Embree
+    packets whether `packets` is on or off (direct_pass.h, pt_pass_packet_width); `packets`
+    switches the chains' bundles, whose scalar reference is bit-exact. On
+    tests/data/usd/polygons.usda Embree's packet and single-ray kernels disagree on some
+    hits — pt's images with and without packets differ, asserted first — and the
+    Metropolis frames are still the same bit for bit, with and without chains on every
+    path."""
+    from cmlt.accuracy import ShotFrame
+    from support.usd_checks import data
+    sf = ShotFrame(data("polygons.usda"), None, (48, 48), 2)
+
+    def frame(integrator, packets, **kw):
+        st = core.RenderSettings()
+        st.width = st.height = 48
+        st.spp, st.seed, st.threads = 16, 3, 2
+        st.integrator, st.packets = integrator, packets
+        for k, v in kw.items():
+            setattr(st, k, v)
+        r = core.render(sf.scene, st)
+        return np.asarray(r.image), r.stats
+
+    a, _ = frame("pt", True)
+    b, _ = frame("pt", False)
+    assert not np.array_equal(a, b)  # the scene shows the kernels' difference
+    kw = dict(chains=64, bootstrap_samples=2000)
+    for integrator, extra in (("cmlt", {}), ("cmlt", dict(mlt_paths="all", tries=8)), ("pssmlt", {})):
+        on, son = frame(integrator, True, **kw, **extra)
+        off, soff = frame(integrator, False, **kw, **extra)
+        assert np.array_equal(on, off), (integrator, extra)
+        assert son["rays"] == soff["rays"]

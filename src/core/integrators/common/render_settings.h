@@ -152,8 +152,9 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
          "without such objects")                                                            \
     BOOL(packets, true, "", "--no-packets",                                                  \
          "pt and cmlt: trace a batch's or bundle's rays (camera rays, bounces, shadow rays) "  \
-         "as Embree packets; off: one by one (cmlt: the same image bit for bit; pt: the "     \
-         "scalar reference, the same estimator) (for timing comparisons)")                                                                   \
+         "as Embree packets; off: one by one (cmlt: the same image bit for bit — its and "  \
+         "pssmlt's path-traced direct pass and pilot trace in packets either way; pt: the "  \
+         "scalar reference, the same estimator) (for timing comparisons)")                  \
     TOKEN(kernel, "auto", "auto general", "", "--kernel",                                   \
           "material kernels: auto (materials that are exact Lambertians on the frame take "  \
           "the diffuse-only kernel; the same image to float rounding, fewer instructions) "  \

@@ -1,6 +1,7 @@
 // Keyed path-tracing passes of the Metropolis frames; see direct_pass.h.
 #include "integrators/mlt/direct_pass.h"
 
+#include "accel/accel.h"
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/mlt_context.h"
 #include "integrators/path/path_batch.h"
@@ -12,6 +13,8 @@
 #include <tbb/enumerable_thread_specific.h>
 
 namespace cmlt::mlt {
+
+int pt_pass_packet_width() { return Accel::max_packet_width(); }
 
 PtPass::PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth)
     : m_settings(s), m_scene(scene), m_camera(scene.camera_desc(), s.width, s.height),
@@ -45,13 +48,13 @@ void PtPass::render_passes_indexed(tbb::task_arena& arena, int s0, int s1, Frame
     }
     // camera samples, each uniform in its pixel: this part's rows (and, with a wide
     // filter, the source rows around them and the window's columns: film/pass_splatter.h),
-    // tile by tile in PathBatch's lanes (one query at a time: the same floats as
-    // pixel_sample, so cmlt's image does not depend on its packets)
+    // tile by tile in PathBatch's lanes, queries in packets (pt_pass_packet_width)
     const PixelFilter unit_box;
     const std::vector<Tile>& src_tiles = m_splatter->source_tiles();
+    const int width = pt_pass_packet_width();
     tbb::enumerable_thread_specific<PathBatch> batches([&] {
         return PathBatch(m_tracer, m_scene, m_camera, unit_box, m_motion_blur, m_settings.seed, W, H,
-                         m_splatter->reach(), 1, KeyShift::of(m_settings));
+                         m_splatter->reach(), width, KeyShift::of(m_settings));
     });
     for (int k = s0; k < s1; ++k) {
         const uint32_t index = m_sample_base + uint32_t(k);
@@ -77,8 +80,8 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
     }
     const int s0 = m_passes, s1 = total, W = m_settings.width, H = m_settings.height;
     const int y0 = m_row0, y1 = m_row1 < 0 ? H : m_row1;
-    // this part's rows, tile by tile, each tile's samples in PathBatch's lanes (one query
-    // at a time: pixel_sample's floats); the keys follow the film offset
+    // this part's rows, tile by tile, each tile's samples in PathBatch's lanes (queries in
+    // packets: pt_pass_packet_width); the keys follow the film offset
     std::vector<Tile> tiles;
     for (Tile t : image_tiles(W, H)) {
         t.y0 = std::max(t.y0, y0);
@@ -87,8 +90,8 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
     }
     parallel_tasks(arena, counters, tiles.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
         PathCounters c;
-        PathBatch batch(m_tracer, m_scene, m_camera, m_filter, m_motion_blur, m_settings.seed, W, H, 0, 1,
-                        KeyShift::of(m_settings));
+        PathBatch batch(m_tracer, m_scene, m_camera, m_filter, m_motion_blur, m_settings.seed, W, H, 0,
+                        pt_pass_packet_width(), KeyShift::of(m_settings));
         // a pixel's samples arrive in sample order (film.h)
         for (size_t ti = r.begin(); ti != r.end(); ++ti)
             for (int k = s0; k < s1; ++k) batch.trace_tile_to(tiles[ti], m_sample_base + uint32_t(k), c, m_film);

@@ -97,6 +97,15 @@ private:
     int m_row0 = 0, m_row1 = -1;  ///< rows rendered (-1: the image's height)
 };
 
+/// The packet width of the Metropolis integrators' path-traced passes (the pilot and the
+/// direct pass): Embree's widest, whatever RenderSettings::packets says. `packets` turns
+/// the chains' packets on and off — their scalar reference, bit for bit — and these
+/// passes are the same in both, so the frame is too. (Embree's packet and single-ray
+/// kernels give the same hits on every sequence of the repository, but not on every
+/// scene: on tests/data/usd/polygons.usda a few rays differ.) Tracing these passes one
+/// query at a time made cmlt and pssmlt 1.16-1.41x slower per frame.
+int pt_pass_packet_width();
+
 /// The pilot image: `spp` samples per pixel at full depth, keyed from
 /// k_pilot_sample_base (H, W, 3). Adds its rays to `counters`.
 std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settings, int spp,
