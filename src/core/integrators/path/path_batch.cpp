@@ -583,12 +583,12 @@ void PathBatch::trace_tile(const Tile& tile, uint32_t s, PathCounters& c, Spectr
             for (uint32_t l : m_shadowed) PathTracer::finish_shadow_visible(m_state[l], m_occluded[l] == 0);
         } else {
             for (uint32_t l : m_shadowed) {
-            float pass_pdf = 1.f;
-            const PathState& st = m_state[l];
-            const float tr = proxies ? m_scene.transmittance_given_lights(m_rays[l], st.shadow_light,
-                                                                          m_occluded[l] != 0, &pass_pdf)
-                                     : m_scene.transmittance_given(m_rays[l], m_occluded[l] != 0, &pass_pdf);
-            PathTracer::finish_shadow(m_state[l], tr, pass_pdf);
+                float pass_pdf = 1.f;
+                const PathState& st = m_state[l];
+                const float tr = proxies ? m_scene.transmittance_given_lights(m_rays[l], st.shadow_light,
+                                                                              m_occluded[l] != 0, &pass_pdf)
+                                         : m_scene.transmittance_given(m_rays[l], m_occluded[l] != 0, &pass_pdf);
+                PathTracer::finish_shadow(m_state[l], tr, pass_pdf);
             }
         }
         m_live.resize(live);
