@@ -165,15 +165,18 @@ public:
     static void finish_shadow(PathState& st, float tr, float pass_pdf) {
         st.has_shadow = false;
         if (!(tr > 0.f)) return;
-        const float w = st.shadow_delta ? 1.f : power_heuristic(st.shadow_light_pdf, st.shadow_bsdf_pdf * pass_pdf);
-        st.L += st.shadow_f * (tr * w / st.shadow_light_pdf);
+        st.L += st.shadow_f * (tr * shadow_weight(st, pass_pdf) / st.shadow_light_pdf);
+    }
+    /// The MIS weight of a pending shadow ray's light sample: 1 toward a Dirac light, else
+    /// the power heuristic against the BSDF's density times the crossings' `pass_pdf`.
+    static float shadow_weight(const PathState& st, float pass_pdf) {
+        return st.shadow_delta ? 1.f : power_heuristic(st.shadow_light_pdf, st.shadow_bsdf_pdf * pass_pdf);
     }
     /// finish_shadow(st, visible ? 1 : 0, 1) without a branch on `visible` (whether a
     /// shadow ray is blocked is no pattern a predictor learns): the same floats.
     static void finish_shadow_visible(PathState& st, bool visible) {
         st.has_shadow = false;
-        const float w = st.shadow_delta ? 1.f : power_heuristic(st.shadow_light_pdf, st.shadow_bsdf_pdf);
-        const Spectrum add = st.shadow_f * (1.f * w / st.shadow_light_pdf);
+        const Spectrum add = st.shadow_f * (1.f * shadow_weight(st, 1.f) / st.shadow_light_pdf);
         st.L.x = visible ? st.L.x + add.x : st.L.x;
         st.L.y = visible ? st.L.y + add.y : st.L.y;
         st.L.z = visible ? st.L.z + add.z : st.L.z;
