@@ -88,10 +88,11 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
         t.y1 = std::min(t.y1, y1);
         if (t.y0 < t.y1) tiles.push_back(t);
     }
+    const int width = pt_pass_packet_width();
     parallel_tasks(arena, counters, tiles.size(), size_t(1), [&](const tbb::blocked_range<size_t>& r) {
         PathCounters c;
-        PathBatch batch(m_tracer, m_scene, m_camera, m_filter, m_motion_blur, m_settings.seed, W, H, 0,
-                        pt_pass_packet_width(), KeyShift::of(m_settings));
+        PathBatch batch(m_tracer, m_scene, m_camera, m_filter, m_motion_blur, m_settings.seed, W, H, 0, width,
+                        KeyShift::of(m_settings));
         // a pixel's samples arrive in sample order (film.h)
         for (size_t ti = r.begin(); ti != r.end(); ++ti)
             for (int k = s0; k < s1; ++k) batch.trace_tile_to(tiles[ti], m_sample_base + uint32_t(k), c, m_film);
