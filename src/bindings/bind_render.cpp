@@ -34,7 +34,7 @@ nb::object rgb_to_numpy(std::vector<float>&& v, int h, int w) {
 namespace {
 
 struct PyRenderResult {
-    nb::object image, variance;
+    nb::object image, variance, robust;
     nb::object direct;  ///< None unless an MLT render had a direct pass
     nb::object bootstrap_f;  ///< float32 (N,) for pssmlt / cmlt, else None
     bool cancelled = false;
@@ -146,6 +146,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     PyRenderResult out;
     out.image = rgb_to_numpy(std::move(res.image), res.height, res.width);
     out.variance = rgb_to_numpy(std::move(res.variance), res.height, res.width);
+    out.robust = res.robust.empty() ? nb::none() : rgb_to_numpy(std::move(res.robust), res.height, res.width);
     out.direct = res.direct.empty() ? nb::none() : rgb_to_numpy(std::move(res.direct), res.height, res.width);
     if (res.bootstrap_f.empty()) {
         out.bootstrap_f = nb::none();
@@ -322,6 +323,9 @@ void bind_render(nb::module_& m) {
         .def_ro("image", &PyRenderResult::image, "float32 (H, W, 3), row 0 at the top")
         .def_ro("variance", &PyRenderResult::variance,
                 "float32 (H, W, 3), sample variance of each pixel's mean")
+        .def_ro("robust", &PyRenderResult::robust,
+                "float32 (H, W, 3), each pixel's mean without its largest and smallest pass or block (pssmlt/"
+                "cmlt: the direct pass's), the relMSE estimate's denominator; None without one")
         .def_ro("direct", &PyRenderResult::direct,
                 "pssmlt/cmlt with a direct pass: its float32 (H, W, 3) image, already part of "
                 "`image`; None otherwise")

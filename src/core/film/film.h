@@ -18,6 +18,12 @@
 /// number of complete blocks (the same weighted Welford update, one block at a time);
 /// the mean is the samples' either way, bit for bit. A block is complete once it has B
 /// samples; an unfinished one counts in the mean, not in the variance.
+///
+/// Each pixel also keeps its largest and its smallest pass value (or, with blocks, block
+/// mean; by the sum of the channels; two different passes from the second on) with their
+/// weights, so develop() can give the mean without them (a trimmed mean, which one
+/// firefly does not inflate and symmetric noise does not bias): the denominator of the
+/// relMSE estimate (integrators/common/error_target.h) takes it instead of the mean.
 #include "math/vec.h"
 
 #include <atomic>
@@ -41,8 +47,11 @@ public:
     /// (a splatted source sample: film/pass_splatter.h).
     void count_bad_sample(int x, int y, uint32_t sample_index);
 
-    /// Write mean (H, W, 3) and variance of the mean (H, W, 3) as float32, row 0 on top.
-    void develop(float* image, float* variance) const;
+    /// Write mean (H, W, 3) and variance of the mean (H, W, 3) as float32, row 0 on top;
+    /// with `robust`, also each pixel's mean without its largest and its smallest pass
+    /// (with blocks: the finished blocks' mean without the largest and smallest block), or
+    /// its mean where it has fewer than three.
+    void develop(float* image, float* variance, float* robust = nullptr) const;
 
     /// Variance from blocks of `block` consecutive sample indices (file comment); 1 (the
     /// default): from the samples. Call before the first sample.
@@ -59,6 +68,8 @@ private:
         double w = 0;  ///< sum of the weights
         double mean[3] = {0, 0, 0};
         double m2[3] = {0, 0, 0};
+        float top[3] = {0, 0, 0}, bot[3] = {0, 0, 0};  ///< the largest and smallest pass value
+        float top_w = 0, bot_w = 0;                     ///< their weights (file comment)
     };
     /// A pixel's blocks (set_variance_block): the unfinished one's weighted sums, and the
     /// weighted Welford state over the finished ones' means.
@@ -68,8 +79,13 @@ private:
         uint32_t n = 0;          ///< blocks before it (finished)
         double w_cur = 0, sum_cur[3] = {0, 0, 0};
         double w = 0, mean[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
+        /// the largest and smallest finished block's mean, their weights
+        double top[3] = {0, 0, 0}, top_w = 0, bot[3] = {0, 0, 0}, bot_w = 0;
     };
     static void finish_block(Blocks& b);
+    /// Track the largest and smallest value of a pixel (or its blocks) after its n-th.
+    template <class T, class V>
+    static void track_extremes(uint32_t n, const V* v, double w, T* top, T& top_w, T* bot, T& bot_w);
     int m_width, m_height;
     uint32_t m_block = 1;
     std::vector<Pixel> m_pixels;

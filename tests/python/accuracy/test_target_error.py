@@ -129,7 +129,7 @@ def test_render_flag_records_why_it_stopped(tiny_shot, tmp_path, capsys):
     assert rec["error_group_images"] == [f"t.0001.group{g}.exr" for g in range(8)]
     for g in range(8):
         assert os.path.exists(tmp_path / f"t.0001.group{g}.exr")
-    assert read_header(path)["cmlt"]["relMSEEstimateMethod"] == "groups/geometric"
+    assert read_header(path)["cmlt"]["relMSEEstimateMethod"] == "groups/guarded"
 
 
 def test_error_groups_flag_is_checked(tiny_shot, tmp_path, capsys):

@@ -3,9 +3,13 @@
 /// target error (RenderSettings.target_error).
 ///
 /// The estimators are those of src/cmlt/metrics/error_estimate.py (its docstring derives
-/// them; tests/python/metrics checks that both sides agree): per pixel and channel
-/// e = v / D with v the variance of the pixel's mean and D the geometric denominator
-/// sqrt((I² + ε)(max(I² − v, 0) + ε)), ε = 10⁻²; the image's estimate is the mean of e.
+/// them; tests/python/accuracy/test_target_error.py checks that both sides agree): per
+/// pixel and channel e = v / D with v the variance of the pixel's mean and D the guarded
+/// trimmed denominator max(R', I / 4)² + ε, ε = 10⁻²: R' the pixel's mean without its
+/// largest and its smallest pass, block or chain group (Film::develop's `robust`), which
+/// one firefly does not inflate and symmetric noise does not bias, kept from falling
+/// below a quarter of the mean I where one pass holds all of the pixel's light; the
+/// image's estimate is the mean of e.
 ///
 /// * passes (pt, bdpt): v is the film's variance of the mean over independent passes,
 ///   or over independent blocks of passes (Sobol points in blocks, the sampler of a
@@ -52,14 +56,19 @@ struct ErrorValue {
     bool valid() const { return std::isfinite(relmse); }
 };
 
-/// e = v / D, geometric denominator (file comment).
-inline double rel_mse_term(double image, double var) {
-    const double v = std::max(var, 0.0), i2 = image * image;
-    return v / std::sqrt((i2 + k_rel_mse_eps) * (std::max(i2 - v, 0.0) + k_rel_mse_eps));
+/// The share of the mean below which the trimmed mean is not taken (file comment).
+constexpr double k_robust_floor = 0.25;
+
+/// e = v / D, the guarded trimmed denominator (file comment): `robust` the pixel's mean
+/// without its largest and smallest pass, block or group.
+inline double rel_mse_term(double image, double var, double robust) {
+    const double v = std::max(var, 0.0), r = std::max(robust, k_robust_floor * image);
+    return v / (r * r + k_rel_mse_eps);
 }
 
-/// From a (H, W, 3) mean and variance of the mean.
-inline ErrorValue estimate_from_variance(const float* mean, const float* var, int W, int H) {
+/// From a (H, W, 3) mean, variance of the mean and trimmed mean (Film::develop's
+/// `robust`; null: the mean).
+inline ErrorValue estimate_from_variance(const float* mean, const float* var, const float* robust, int W, int H) {
     constexpr int k = 4;
     const int kx = std::max(1, std::min(k, W)), ky = std::max(1, std::min(k, H));
     const int kk = std::min(kx, ky);  // the Python side splits k = min(4, H, W) both ways
@@ -70,7 +79,10 @@ inline ErrorValue estimate_from_variance(const float* mean, const float* var, in
         for (int x = 0; x < W; ++x) {
             const size_t p = size_t(y) * size_t(W) + size_t(x);
             double e = 0.0;
-            for (int c = 0; c < 3; ++c) e += rel_mse_term(double(mean[3 * p + c]), double(var[3 * p + c]));
+            for (int c = 0; c < 3; ++c) {
+                const double m = double(mean[3 * p + c]);
+                e += rel_mse_term(m, double(var[3 * p + c]), robust ? double(robust[3 * p + c]) : m);
+            }
             total += e;
             const size_t cell = size_t(y % kk) * kk + size_t(x % kk);
             sum[cell] += e / 3.0;
@@ -117,17 +129,37 @@ ErrorValue estimate_from_groups(size_t n, const std::vector<double>& weights, Gr
             s1 += weights[g] * y[g];
             s2 += weights[g] * y[g] * y[g];
         }
+        // the two largest and the two smallest groups (strict order, the first of equal
+        // values first: cmlt.metrics.error_estimate._extremes)
+        size_t top = 0, top2 = 1, bot = 0, bot2 = 1;
+        if (y[1] > y[0]) top = 1, top2 = 0;
+        if (y[1] < y[0]) bot = 1, bot2 = 0;
+        for (size_t g = 2; g < G; ++g) {
+            if (y[g] > y[top]) top2 = top, top = g;
+            else if (y[g] > y[top2]) top2 = g;
+            if (y[g] < y[bot]) bot2 = bot, bot = g;
+            else if (y[g] < y[bot2]) bot2 = g;
+        }
         const double sv = shared_var(i);
         const double I = s1 / N;
         if (image_out) image_out[i] = float(I);
         const double v = std::max(s2 - N * I * I, 0.0) / (double(G - 1) * N);
-        total += rel_mse_term(I, v + sv);
+        // the trimmed mean (the denominator's R', file comment): without the largest and
+        // the smallest group (two different ones: where they would be the same, all the
+        // values are equal and the mean is it)
+        auto trimmed = [&](double s, double n_all, size_t t, size_t b, size_t count) {
+            const double rest = n_all - weights[t] - weights[b];
+            return count > 2 && t != b && rest > 0.0 ? (s - weights[t] * y[t] - weights[b] * y[b]) / rest : s / n_all;
+        };
+        total += rel_mse_term(I, v + sv, trimmed(s1, N, top, bot, G));
         for (size_t g = 0; g < G; ++g) {
             const double ng = N - weights[g];
             const double s1g = s1 - weights[g] * y[g], s2g = s2 - weights[g] * y[g] * y[g];
             const double Ig = s1g / ng;
             const double vg = std::max(s2g - ng * Ig * Ig, 0.0) / (double(G - 2) * ng);
-            loo[g] += rel_mse_term(Ig, vg + sv) * (ng / N);
+            // the largest and smallest of the other groups
+            const double rg = trimmed(s1g, ng, g == top ? top2 : top, g == bot ? bot2 : bot, G - 1);
+            loo[g] += rel_mse_term(Ig, vg + sv, rg) * (ng / N);
         }
     }
     out.relmse = total / double(n);

@@ -21,10 +21,11 @@ std::vector<Tile> image_tiles(int width, int height) {
 
 bool PassTarget::check(int done, double secs) {
     const size_t n = size_t(film.width()) * size_t(film.height()) * 3;
-    std::vector<float> mean(n), var(n);
-    film.develop(mean.data(), var.data());
+    std::vector<float> mean(n), var(n), robust(n);
+    film.develop(mean.data(), var.data(), robust.data());
     reached = target.reached(double(done), secs,
-                             estimate_from_variance(mean.data(), var.data(), film.width(), film.height()));
+                             estimate_from_variance(mean.data(), var.data(), robust.data(), film.width(),
+                                                    film.height()));
     return reached;
 }
 
@@ -37,9 +38,11 @@ RenderResult film_result(const Film& film, const FrameCounters& counters, const 
     const size_t n = size_t(res.width) * size_t(res.height) * 3;
     res.image.resize(n);
     res.variance.resize(n);
-    film.develop(res.image.data(), res.variance.data());
+    res.robust.resize(n);
+    film.develop(res.image.data(), res.variance.data(), res.robust.data());
     res.cancelled = cancelled;
-    const ErrorValue err = estimate_from_variance(res.image.data(), res.variance.data(), res.width, res.height);
+    const ErrorValue err =
+        estimate_from_variance(res.image.data(), res.variance.data(), res.robust.data(), res.width, res.height);
     res.error_estimate = err.relmse;
     res.error_stderr = err.stderr_;
     if (target) res.error_history = target->target.take_history();

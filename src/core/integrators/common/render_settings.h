@@ -407,6 +407,9 @@ struct RenderResult {
     int width = 0, height = 0;
     std::vector<float> image;     ///< (H, W, 3), row 0 at the top
     std::vector<float> variance;  ///< (H, W, 3), sample variance of the pixel mean
+    /// (H, W, 3), the pixel's mean without its largest and smallest pass or block (Film::develop; the
+    /// relMSE estimate's denominator, error_target.h); pssmlt/cmlt: the direct pass's
+    std::vector<float> robust;
     /// pssmlt / cmlt with a direct pass: its image (H, W, 3), already part of `image`
     /// (the rest is the chains', which the temporal driver rescales); else empty.
     std::vector<float> direct;

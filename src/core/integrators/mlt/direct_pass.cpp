@@ -107,7 +107,8 @@ PtPassImage PtPass::develop() const {
     const size_t n = size_t(m_settings.width) * size_t(m_settings.height) * 3;
     out.mean.resize(n);
     out.variance.resize(n);
-    m_film.develop(out.mean.data(), out.variance.data());
+    out.robust.resize(n);
+    m_film.develop(out.mean.data(), out.variance.data(), out.robust.data());
     out.nan_samples = m_film.nan_samples();
     return out;
 }

@@ -37,6 +37,7 @@ namespace mlt {
 struct PtPassImage {
     std::vector<float> mean;      ///< (H, W, 3)
     std::vector<float> variance;  ///< (H, W, 3), variance of each pixel's mean
+    std::vector<float> robust;    ///< (H, W, 3), mean without its largest and smallest pass (Film::develop)
     uint64_t nan_samples = 0;     ///< non-finite samples dropped
 };
 

@@ -95,6 +95,7 @@ void develop_image(RenderResult& res, const SplatFilm& film, double b, uint64_t 
     if (!direct.mean.empty()) {
         res.direct = direct.mean;
         res.variance = direct.variance;
+        res.robust = direct.robust;
     }
 }
 
@@ -159,6 +160,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     if (MltContext::chainless(settings)) {  // the direct pass's own estimate (as pt's)
         if (!direct_image.mean.empty()) {
             const ErrorValue err = estimate_from_variance(direct_image.mean.data(), direct_image.variance.data(),
+                                                          direct_image.robust.data(),
                                                           settings.width, settings.height);
             res.error_estimate = err.relmse;
             res.error_stderr = err.stderr_;
