@@ -33,23 +33,23 @@ unknown, and no function of the groups does that without bias; ``denominator`` c
   budgets: 97 % within 0.67-1.5x of the measured relMSE, plug-in 93 %, corrected 67 %;
   caustic_glass bdpt: 85 %, 75 %, 55 %);
 * ``guarded`` (the default): max(R', I / 4)^2 + eps, R' the pixel's mean without its
-  largest and its smallest pass, block or group (``robust``, a trimmed mean: one firefly
-  does not inflate it, symmetric noise does not bias it; the core's films keep each
-  pixel's largest and smallest pass or block: Film::develop). What the three above do not see is a render whose error
-  is dominated by rare paths -- a firefly, a caustic path found once -- in pixels whose
-  true value is far below the sample: I^2 - v keeps a cross term 2 R X / N for a single
-  sample X, so their denominators stay far above R^2 + eps and the estimate is low
-  (5-30x in the caustic_glass renders with a firefly); pt on caustic_glass is made of
-  such pixels. Without its largest value the pixel's mean is its other samples', near R
-  whatever the firefly (the smallest goes too, so that where the noise is symmetric R'
-  is not biased low: leaving out the largest of 8 Gaussian groups alone read 5 % high); where one value holds all of a pixel's light (a caustic pixel
-  sampled once) R' is 0 and would leave eps alone, so it may not fall below a quarter of
-  I. tests/bench/denominator_study.py compares them against the denominator with the
-  reference's own R (what the numerator alone is worth): on caustic_glass pt 128x128 in
-  blocks of 8 samples the share of renders in 0.67-1.5x went from 28 % (geometric) to
-  50 % (the reference's R: 72 %), at 128 blocks from 0 of 6 to 6 of 6; the Cornell box
-  100 % with either; door_ajar (not used to choose it) 100 % with either, its median ratio
-  at 8 blocks 0.84 -> 0.97.
+  largest and its smallest pass, block or group (``robust``, a trimmed mean; the core's
+  films keep each pixel's largest and smallest pass or block: Film::develop). What the
+  three above do not see is a render whose error is dominated by rare paths -- a
+  firefly, a caustic path found once -- in pixels whose true value is far below the
+  sample: I^2 - v keeps a cross term 2 R X / N for a single sample X, so their
+  denominators stay far above R^2 + eps and the estimate is low (3-6x in the lit pixels
+  of caustic_glass that a firefly lifts). Without its largest value the pixel's mean is
+  its other samples', near R whatever the firefly; the smallest goes too, so that
+  symmetric noise does not bias R' low (leaving out only the largest of 8 Gaussian groups
+  read 5 % high); where one value holds all of a pixel's light (a caustic pixel sampled
+  once) R' is 0 and would leave eps alone, so it may not fall below a quarter of I.
+  tests/bench/results/accuracy/calibration_denominator.md: with the reference's own R
+  in the denominator (what the numerator alone is worth) caustic_glass's renders are in
+  0.67-1.5x in 72-76 % of renders where the geometric one gave 31-56 %; the guarded one
+  47-56 % for pt, 80 % for cmlt's chain groups (geometric 60 %), door_ajar (not used to
+  choose it) 80-100 % (geometric 68-100 %); on the Cornell box's default renders it reads
+  what their numerator says, the spread of one Sobol sequence's passes, about 1.5x.
 
 Still not seen: paths no pass or group found (their error is in the numerator), and a
 bias common to all groups (MLT's start-up and normalisation bias at small budgets).
