@@ -325,7 +325,8 @@ void bind_render(nb::module_& m) {
                 "float32 (H, W, 3), sample variance of each pixel's mean")
         .def_ro("robust", &PyRenderResult::robust,
                 "float32 (H, W, 3), each pixel's mean without its largest and smallest pass or block (pssmlt/"
-                "cmlt: the direct pass's), the relMSE estimate's denominator; None without one")
+                "cmlt: the direct pass's; NaN where it has fewer than three), the relMSE estimate's "
+                "denominator; None without one")
         .def_ro("direct", &PyRenderResult::direct,
                 "pssmlt/cmlt with a direct pass: its float32 (H, W, 3) image, already part of "
                 "`image`; None otherwise")

@@ -154,7 +154,8 @@ def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
     DENOMINATORS: ``corrected`` max(I^2 - v, 0) + eps, ``plug-in`` I^2 + eps,
     ``geometric`` the geometric mean of the two, ``guarded`` max(R', I / 4)^2 + eps with
     R' = ``robust`` (the mean without the pixel's largest and smallest pass, block or
-    group; None: the image, which makes it plug-in) (the module docstring says why)."""
+    group; where it is NaN -- fewer than three -- or None, the geometric denominator)
+    (the module docstring says why)."""
     image = np.asarray(image, np.float64)
     v = np.maximum(np.asarray(var, np.float64), 0.0)
     if shared_var is not None:
@@ -170,9 +171,15 @@ def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
     elif denominator == "geometric":
         d = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
     elif denominator == "guarded":
-        r = image if robust is None else np.asarray(robust, np.float64)
-        r = np.maximum(r, ROBUST_FLOOR * image)
-        d = r * r + eps
+        # the geometric denominator where there is no trimmed mean (None, or NaN: fewer
+        # than three passes, blocks or groups)
+        geo = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
+        if robust is None:
+            d = geo
+        else:
+            r = np.asarray(robust, np.float64)
+            g = np.maximum(r, ROBUST_FLOOR * image)
+            d = np.where(np.isnan(r), geo, g * g + eps)
     else:
         raise ValueError(f"denominator {denominator!r}: choose one of {', '.join(DENOMINATORS)}")
     return v / d
@@ -219,12 +226,13 @@ def _extremes(Y):
 
 def _trimmed(Y, n, S, N, t, b, count):
     """The weighted mean (sum S, weight N) without groups t and b (per element; the mean
-    where fewer than three groups, t == b (all equal) or no weight is left)."""
+    where t == b (all equal); NaN with fewer than three groups or no weight left)."""
     yt = np.take_along_axis(Y, t[None], 0)[0]
     yb = np.take_along_axis(Y, b[None], 0)[0]
     rest = N - n[t] - n[b]
-    ok = (count > 2) & (t != b) & (rest > 0)
-    return np.where(ok, (S - n[t] * yt - n[b] * yb) / np.where(ok, rest, 1.0), S / N)
+    ok = (count > 2) & (rest > 0)
+    out = np.where(t != b, (S - n[t] * yt - n[b] * yb) / np.where(ok & (t != b), rest, 1.0), S / N)
+    return np.where(ok, out, np.nan)
 
 
 def _moments(S1, S2, N, G):
@@ -281,7 +289,8 @@ def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: in
     RenderResult.variance), standard error from ``split`` x ``split`` interleaved
     sub-images. ``passes``: the sample passes behind the variance (recorded only).
     ``robust``: each pixel's mean without its largest and smallest pass or block
-    (RenderResult.robust), the guarded denominator's R' (None: the image)."""
+    (RenderResult.robust; NaN where fewer than three), the guarded denominator's R'
+    (None: the geometric denominator everywhere)."""
     I = np.asarray(image, np.float64)
     V = np.asarray(variance, np.float64)
     if I.ndim != 3 or I.shape[-1] != 3 or V.shape != I.shape:
@@ -291,8 +300,9 @@ def estimate_from_variance(image, variance, eps: float = REL_MSE_EPS, passes: in
         raise ValueError("image or variance: non-finite values")
     if robust is not None:
         robust = np.asarray(robust, np.float64)
-        if robust.shape != I.shape or not np.isfinite(robust).all():
-            raise ValueError(f"robust: expected a finite (H, W, 3) array like the image, got {robust.shape}")
+        if robust.shape != I.shape or np.isinf(robust).any():
+            raise ValueError(f"robust: expected an (H, W, 3) array like the image (finite, or NaN "
+                             f"where there is no trimmed mean), got {robust.shape}")
     e = pixel_terms(I, V, eps, scale_rel_var, scaled, denominator, robust=robust)
     E = float(e.mean())
     H, W = I.shape[:2]

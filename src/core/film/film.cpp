@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cmlt {
 
@@ -107,12 +108,13 @@ void variance_of_mean(uint32_t n, double w, const double* m2, float* out) {
         out[c] = float(n > 1 && w > 0.0 ? std::max(0.0, m2[c] / (double(n - 1) * w)) : 0.0);
 }
 /// The weighted mean without the largest and the smallest value (`top`, `bot`, with their
-/// weights): `mean` where fewer than three values or no weight is left.
+/// weights): NaN where fewer than three values or no weight is left (none to take).
 void trimmed_mean(uint32_t n, double w, const double* mean, const double* top, double top_w, const double* bot,
                   double bot_w, float* out) {
     const double rest = w - top_w - bot_w;
     for (int c = 0; c < 3; ++c)
-        out[c] = float(n > 2 && rest > 0.0 ? (w * mean[c] - top_w * top[c] - bot_w * bot[c]) / rest : mean[c]);
+        out[c] = n > 2 && rest > 0.0 ? float((w * mean[c] - top_w * top[c] - bot_w * bot[c]) / rest)
+                                     : std::numeric_limits<float>::quiet_NaN();
 }
 }  // namespace
 

@@ -49,8 +49,8 @@ public:
 
     /// Write mean (H, W, 3) and variance of the mean (H, W, 3) as float32, row 0 on top;
     /// with `robust`, also each pixel's mean without its largest and its smallest pass
-    /// (with blocks: the finished blocks' mean without the largest and smallest block), or
-    /// its mean where it has fewer than three.
+    /// (with blocks: the finished blocks' mean without the largest and smallest block), NaN
+    /// where it has fewer than three (the estimate then takes another denominator).
     void develop(float* image, float* variance, float* robust = nullptr) const;
 
     /// Variance from blocks of `block` consecutive sample indices (file comment); 1 (the

@@ -118,6 +118,10 @@ def test_03_variance_mode_equals_groups_mode():
     a = estimate_from_groups(Y)
     b = estimate_from_variance(I, v, passes=G, robust=trimmed)
     assert a.relmse == pytest.approx(b.relmse, rel=1e-9)
+    # where there is no trimmed mean (NaN: fewer than three passes), the geometric one
+    nan = np.full_like(I, np.nan)
+    assert estimate_from_variance(I, v, robust=nan).relmse == pytest.approx(
+        estimate_from_variance(I, v, denominator="geometric").relmse, rel=1e-12)
     for d in ("geometric", "plug-in", "corrected"):               # they need no trimmed mean
         assert estimate_from_groups(Y, denominator=d).relmse == pytest.approx(
             estimate_from_variance(I, v, denominator=d).relmse, rel=1e-9)

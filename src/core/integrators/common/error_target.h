@@ -8,8 +8,10 @@
 /// trimmed denominator max(R', I / 4)² + ε, ε = 10⁻²: R' the pixel's mean without its
 /// largest and its smallest pass, block or chain group (Film::develop's `robust`), which
 /// one firefly does not inflate and symmetric noise does not bias, kept from falling
-/// below a quarter of the mean I where one pass holds all of the pixel's light; the
-/// image's estimate is the mean of e.
+/// below a quarter of the mean I where one pass holds all of the pixel's light; where a
+/// pixel has fewer than three passes, blocks or groups (R' NaN: two blocks, the fewest a
+/// targeted frame stops after) the geometric denominator sqrt((I² + ε)(max(I² − v, 0) + ε));
+/// the image's estimate is the mean of e.
 ///
 /// * passes (pt, bdpt): v is the film's variance of the mean over independent passes,
 ///   or over independent blocks of passes (Sobol points in blocks, the sampler of a
@@ -60,14 +62,19 @@ struct ErrorValue {
 constexpr double k_robust_floor = 0.25;
 
 /// e = v / D, the guarded trimmed denominator (file comment): `robust` the pixel's mean
-/// without its largest and smallest pass, block or group.
+/// without its largest and smallest pass, block or group; NaN: none, the geometric one.
 inline double rel_mse_term(double image, double var, double robust) {
-    const double v = std::max(var, 0.0), r = std::max(robust, k_robust_floor * image);
+    const double v = std::max(var, 0.0);
+    if (std::isnan(robust)) {
+        const double i2 = image * image;
+        return v / std::sqrt((i2 + k_rel_mse_eps) * (std::max(i2 - v, 0.0) + k_rel_mse_eps));
+    }
+    const double r = std::max(robust, k_robust_floor * image);
     return v / (r * r + k_rel_mse_eps);
 }
 
 /// From a (H, W, 3) mean, variance of the mean and trimmed mean (Film::develop's
-/// `robust`; null: the mean).
+/// `robust`; null or NaN: none).
 inline ErrorValue estimate_from_variance(const float* mean, const float* var, const float* robust, int W, int H) {
     constexpr int k = 4;
     const int kx = std::max(1, std::min(k, W)), ky = std::max(1, std::min(k, H));
@@ -81,7 +88,8 @@ inline ErrorValue estimate_from_variance(const float* mean, const float* var, co
             double e = 0.0;
             for (int c = 0; c < 3; ++c) {
                 const double m = double(mean[3 * p + c]);
-                e += rel_mse_term(m, double(var[3 * p + c]), robust ? double(robust[3 * p + c]) : m);
+                e += rel_mse_term(m, double(var[3 * p + c]),
+                                  robust ? double(robust[3 * p + c]) : std::numeric_limits<double>::quiet_NaN());
             }
             total += e;
             const size_t cell = size_t(y % kk) * kk + size_t(x % kk);
@@ -146,10 +154,11 @@ ErrorValue estimate_from_groups(size_t n, const std::vector<double>& weights, Gr
         const double v = std::max(s2 - N * I * I, 0.0) / (double(G - 1) * N);
         // the trimmed mean (the denominator's R', file comment): without the largest and
         // the smallest group (two different ones: where they would be the same, all the
-        // values are equal and the mean is it)
+        // values are equal and the mean is it); NaN with fewer than three groups
         auto trimmed = [&](double s, double n_all, size_t t, size_t b, size_t count) {
             const double rest = n_all - weights[t] - weights[b];
-            return count > 2 && t != b && rest > 0.0 ? (s - weights[t] * y[t] - weights[b] * y[b]) / rest : s / n_all;
+            if (!(count > 2 && rest > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+            return t != b ? (s - weights[t] * y[t] - weights[b] * y[b]) / rest : s / n_all;
         };
         total += rel_mse_term(I, v + sv, trimmed(s1, N, top, bot, G));
         for (size_t g = 0; g < G; ++g) {
