@@ -180,6 +180,7 @@ def render_part(spec: dict, shared: Optional[dict]) -> dict:
         out = {"stats": dict(r.stats), "rows": (y0, y1),
                "image": np.asarray(r.image)[y0:y1].copy(),
                "variance": np.asarray(r.variance)[y0:y1].copy(),
+               "robust": None if r.robust is None else np.asarray(r.robust)[y0:y1].copy(),
                "direct": None if r.direct is None else np.asarray(r.direct)[y0:y1].copy(),
                "part": r.mlt_part, "bootstrap_f": None}
         out["worker"] = _address()

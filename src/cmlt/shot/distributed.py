@@ -312,7 +312,7 @@ class DaskRenderer:
 
     def render(self, core, st, frame: float, reporter=None):
         """The frame ``frame`` (after :meth:`prepare`): a RenderResult-like namespace
-        (image, variance, direct, bootstrap_f, cancelled, stats)."""
+        (image, variance, robust, direct, bootstrap_f, cancelled, stats)."""
         h = self._frame
         if h is None or h["frame"] != float(frame):
             raise DistributedError(f"--dask: frame {frame:g} rendered before it was prepared")
@@ -386,11 +386,15 @@ class DaskRenderer:
                                             for r in results)
         image = np.zeros((H, W, 3), np.float32)
         variance = np.zeros((H, W, 3), np.float32)
+        # each pixel's trimmed mean (the estimate's denominator), NaN where a part has none
+        robust = np.full((H, W, 3), np.nan, np.float32)
         direct = None
         for r in results:
             y0, y1 = r["rows"]
             image[y0:y1] = r["image"]
             variance[y0:y1] = r["variance"]
+            if r.get("robust") is not None:
+                robust[y0:y1] = r["robust"]
             if r["direct"] is not None:
                 if direct is None:
                     direct = np.zeros((H, W, 3), np.float32)
@@ -408,6 +412,6 @@ class DaskRenderer:
                 bootstrap_f = np.asarray(boot, dtype=np.float64).astype(np.float32)
             else:
                 bootstrap_f = results[0]["bootstrap_f"]
-        return SimpleNamespace(image=image, variance=variance, direct=direct,
+        return SimpleNamespace(image=image, variance=variance, robust=robust, direct=direct,
                                bootstrap_f=bootstrap_f, cancelled=False, stats=stats,
                                mlt_states=None, mlt_start_states=None)

@@ -186,6 +186,10 @@ def test05_pt_frame_with_dask_local_2_flag(tmp_path, capsys):
     assert np.array_equal(a, b)
     rec = json.load(open(out.replace("####", "0001") + ".json"))
     assert rec["stats"]["dask"]["split"] == "rows" and rec["stats"]["dask"]["workers"] == 2
+    # the relMSE estimate too: the row bands carry each pixel's trimmed mean (its
+    # denominator) as they carry the variance
+    whole = json.load(open(one.written[0] + ".json"))["stats"]["error_estimate"]
+    assert rec["stats"]["error_estimate"]["relmse"] == pytest.approx(whole["relmse"], rel=1e-9)
 
 
 def test06_worker_killed_mid_frame_same_image(tmp_path, client):
