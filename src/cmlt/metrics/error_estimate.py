@@ -172,14 +172,18 @@ def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
         d = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
     elif denominator == "guarded":
         # the geometric denominator where there is no trimmed mean (None, or NaN: fewer
-        # than three passes, blocks or groups)
-        geo = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
+        # than three passes, blocks or groups); in place: a frame's arrays are large
+        none = None if robust is None else np.isnan(robust)
+        if none is None or none.any():
+            geo = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
         if robust is None:
             d = geo
         else:
-            r = np.asarray(robust, np.float64)
-            g = np.maximum(r, ROBUST_FLOOR * image)
-            d = np.where(np.isnan(r), geo, g * g + eps)
+            d = np.maximum(robust, ROBUST_FLOOR * image)     # NaN where there is none
+            np.multiply(d, d, out=d)
+            d += eps
+            if none.any():
+                d[none] = geo[none]
     else:
         raise ValueError(f"denominator {denominator!r}: choose one of {', '.join(DENOMINATORS)}")
     return v / d
