@@ -164,26 +164,24 @@ def pixel_terms(image: np.ndarray, var: np.ndarray, eps: float = REL_MSE_EPS,
         c = image if scaled is None else np.asarray(scaled, np.float64)
         v = v + float(scale_rel_var) * c * c
     i2 = image * image
+
+    def geometric():
+        return np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
     if denominator == "corrected":
         d = np.maximum(i2 - v, 0.0) + eps
     elif denominator == "plug-in":
         d = i2 + eps
-    elif denominator == "geometric":
-        d = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
+    elif denominator == "geometric" or (denominator == "guarded" and robust is None):
+        d = geometric()
     elif denominator == "guarded":
-        # the geometric denominator where there is no trimmed mean (None, or NaN: fewer
-        # than three passes, blocks or groups); in place: a frame's arrays are large
-        none = None if robust is None else np.isnan(robust)
-        if none is None or none.any():
-            geo = np.sqrt((i2 + eps) * (np.maximum(i2 - v, 0.0) + eps))
-        if robust is None:
-            d = geo
-        else:
-            d = np.maximum(robust, ROBUST_FLOOR * image)     # NaN where there is none
-            np.multiply(d, d, out=d)
-            d += eps
-            if none.any():
-                d[none] = geo[none]
+        # in place (a frame's arrays are large); the geometric denominator where there is
+        # no trimmed mean (NaN: fewer than three passes, blocks or groups)
+        d = np.maximum(robust, ROBUST_FLOOR * image)
+        np.multiply(d, d, out=d)
+        d += eps
+        none = np.isnan(d)
+        if none.any():
+            d[none] = geometric()[none]
     else:
         raise ValueError(f"denominator {denominator!r}: choose one of {', '.join(DENOMINATORS)}")
     return v / d

@@ -101,14 +101,14 @@ void PtPass::render_to(tbb::task_arena& arena, int total, FrameCounters& counter
     m_passes = total;
 }
 
-PtPassImage PtPass::develop() const {
+PtPassImage PtPass::develop(bool robust) const {
     PtPassImage out;
     if (m_passes == 0) return out;
     const size_t n = size_t(m_settings.width) * size_t(m_settings.height) * 3;
     out.mean.resize(n);
     out.variance.resize(n);
-    out.robust.resize(n);
-    m_film.develop(out.mean.data(), out.variance.data(), out.robust.data());
+    if (robust) out.robust.resize(n);
+    m_film.develop(out.mean.data(), out.variance.data(), robust ? out.robust.data() : nullptr);
     out.nan_samples = m_film.nan_samples();
     return out;
 }

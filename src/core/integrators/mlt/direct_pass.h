@@ -54,8 +54,9 @@ public:
     uint64_t evaluations() const;
     /// Render passes up to `total` (no-op if already there), rays into `counters`.
     void render_to(tbb::task_arena& arena, int total, FrameCounters& counters);
-    /// Mean and variance of the mean (H, W, 3); empty before the first pass.
-    PtPassImage develop() const;
+    /// Mean and variance of the mean (H, W, 3), with `robust` also the trimmed mean
+    /// (Film::develop); empty before the first pass.
+    PtPassImage develop(bool robust = false) const;
     /// The film the passes accumulate into.
     const Film& film() const { return m_film; }
     /// Render only rows [y0, y1) (a part of a frame, RenderSettings::partial; the other

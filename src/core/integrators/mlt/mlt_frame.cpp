@@ -149,7 +149,7 @@ bool target_round(ErrorTarget& t, ChainSchedule& schedule, const ErrorValue& e, 
 }
 
 RenderResult MltFrame::finish(PopulationResult&& chains) {
-    const PtPassImage direct_image = direct_pass.develop();
+    const PtPassImage direct_image = direct_pass.develop(true);
     const double secs = seconds_since(t0);
 
     RenderResult res;
