@@ -62,6 +62,10 @@ def main(argv=None) -> int:
     ap.add_argument("--groups", type=int, default=8, help="G of the groups mode")
     ap.add_argument("--repeats", type=int, default=8, help="renders per (integrator, budget)")
     ap.add_argument("--reference-spp", type=int, default=16384)
+    ap.add_argument("--seed-base", type=int, default=0,
+                    help="added to every render's seed (variance 1000+, render 2000+, groups "
+                         "100000+): another draw of the same renders, e.g. to check on seeds "
+                         "a choice was not made on")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--cache", default="renders/cache/accuracy")
     ap.add_argument("--out", default="renders/bench/error_estimate")
@@ -86,7 +90,7 @@ def main(argv=None) -> int:
                     for rep in range(args.repeats):
                         ests = {}
                         if mode == "variance":
-                            seed = 1000 + rep
+                            seed = args.seed_base + 1000 + rep
                             r = sf.render(spec, spp=spp, seed=seed)
                             image = r.image
                             for d in DENOMINATORS:
@@ -94,7 +98,7 @@ def main(argv=None) -> int:
                                                                  keep_pixels=False, denominator=d)
                             total = spp
                         elif mode == "render":
-                            seed = 2000 + rep
+                            seed = args.seed_base + 2000 + rep
                             st = sf.settings(spec, None, spp, seed)
                             r = sf.core.render(sf.scene, st)
                             image = np.asarray(r.image, np.float64)
@@ -103,7 +107,7 @@ def main(argv=None) -> int:
                             total = spp
                         else:
                             G = args.groups
-                            runs = [sf.render(spec, spp=spp, seed=100000 + rep * G + g)
+                            runs = [sf.render(spec, spp=spp, seed=args.seed_base + 100000 + rep * G + g)
                                     for g in range(G)]
                             Y = np.stack([x.image for x in runs])
                             image = Y.mean(0)
