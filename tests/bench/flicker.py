@@ -20,7 +20,10 @@ and GF the reference's own noise puts under every value (``reference``): a store
 TF near it measures the reference, not the render.
 
 Writes OUT/flicker.md (markdown table), OUT/flicker.json (per-frame values: ratio of
-mean brightness to the reference, relMSE, TF terms, per seed) and OUT/flicker.png (TF
+mean brightness to the reference, relMSE, TF terms, per seed; per configuration the rms
+brightness error of each frame over the seeds and ``gf_correlated``, the GF those errors
+would give if they were one draw for every frame: the floor of GF for any reuse of
+random numbers, printed too) and OUT/flicker.png (TF
 and GF per configuration and sequence, log scale), and prints the table.
 """
 import argparse
@@ -192,6 +195,18 @@ def plot(rows, seqs, configs, path, what):
     plt.close(fig)
 
 
+def correlated_gf(profile, draws: int = 20000) -> float:
+    """The expected GF of frames whose brightness errors are perfectly correlated (one
+    normal amplitude times ``profile``, the per-frame rms error e_f = mean I_f / mean R_f
+    - 1 over seeds) -- the least any reuse of random numbers can reach with those
+    per-frame errors: GF is a standard deviation over frames, so an error that comes and
+    goes (a transient: door_ajar's slit frames) is flicker however well its frames agree.
+    Monte Carlo with a fixed generator (std over frames of a x profile, mean over a)."""
+    g = np.asarray(profile, np.float64)
+    a = np.random.default_rng(12345).standard_normal((draws, 1))
+    return float((a * g).std(axis=1).mean())
+
+
 def _mean_se(values):
     v = np.asarray([x for x in values if x is not None], dtype=np.float64)
     if v.size == 0:
@@ -297,6 +312,16 @@ def main(argv=None):
                       f"relMSE {rep.mean_rel_mse:.4f}" + (f" JOD {j:.3f}" if j is not None else "")
                       + f" {dt:.2f} s/frame", file=sys.stderr)
             dseq["configs"][name] = per_seed
+            # per-frame rms brightness error over seeds, and the GF the same errors would
+            # give if every frame's were the same draw (correlated_gf)
+            err = np.array([np.asarray(p["ratio"], np.float64) - 1.0 for p in per_seed])
+            profile = np.sqrt((err ** 2).mean(axis=0))
+            dseq.setdefault("brightness_rms", {})[name] = profile.tolist()
+            dseq.setdefault("gf_correlated", {})[name] = correlated_gf(profile)
+            print(f"{seq:15s} {name:28s} rms brightness error per frame "
+                  + " ".join(f"{v:.3f}" for v in profile)
+                  + f"; GF if perfectly correlated across frames {dseq['gf_correlated'][name]:.4f}",
+                  file=sys.stderr)
             rows.append((seq, name, spp, frames) + tuple(
                 _mean_se([p[k] for p in per_seed]) for k in ("tf", "tf_mc", "gf", "rel_mse", "jod",
                                                                "s_per_frame")))
