@@ -169,9 +169,9 @@ TEST_P(FilterTest, SplatWeightTableFollowsTheProfile) {
         const double d = std::fabs(f.weight_1d(x) - f.evaluate_1d(x));
         worst = std::max(worst, d);
         ASSERT_LE(d, tol) << "x = " << x;
-        if (std::fabs(x) > r) ASSERT_EQ(f.weight_1d(x), 0.0) << x;
+        if (std::fabs(x) > r) { ASSERT_EQ(f.weight_1d(x), 0.0) << x; }
     }
-    if (!linear) EXPECT_GT(worst, 0.0);  // it is an interpolation, and the bound is not vacuous
+    if (!linear) { EXPECT_GT(worst, 0.0); }  // it is an interpolation, and the bound is not vacuous
     EXPECT_EQ(f.weight_1d(std::nan("")), 0.0);
 }
 

@@ -168,9 +168,10 @@ TEST(CylinderLight, PdfConsistentAndSolidAngle) {
             float cos_l = s.dist * s.dist / (s.pdf * l.area());
             // Below cos 0.005 (within 0.3 degrees of grazing, ~0.2% of the samples) the
             // ray may miss the surface altogether: not compared.
-            if (cos_l > 0.005f)
+            if (cos_l > 0.005f) {
                 EXPECT_NEAR(pdf, s.pdf, (cos_l > 0.05f ? 2e-3f : 5e-2f) * s.pdf)
                     << "sample " << i << " cos " << cos_l;
+            }
             EXPECT_EQ(s.li, Spectrum(2.f, 3.f, 4.f));
             sum += 1.0 / s.pdf;
             sum2 += 1.0 / (double(s.pdf) * s.pdf);
@@ -276,8 +277,8 @@ TEST(Shaping, FactorFormula) {
         float a = float(k) * float(M_PI) / 180.f;
         float f = soft.eval(Vec3(std::sin(a), 0, -std::cos(a))).x;
         EXPECT_LE(f, prev + 1e-6f);
-        if (k <= 15) EXPECT_NEAR(f, 1.f, 1e-5f);
-        if (k >= 30) EXPECT_EQ(f, 0.f);
+        if (k <= 15) { EXPECT_NEAR(f, 1.f, 1e-5f); }
+        if (k >= 30) { EXPECT_EQ(f, 0.f); }
         prev = f;
     }
     Shaping focus(Vec3(0, 0, -1), 180.f, 0.f, 3.f, Spectrum(0.2f, 0.f, 0.f));

@@ -364,9 +364,10 @@ TEST(Dome, TexturedRectLight) {
             continue;
         }
         Vec3 pl = ls.p_light;
-        if (std::fabs(pl.x) > 0.3f) EXPECT_NEAR(ls.li.x, pl.x > 0 ? 3.f : 0.f, 1e-5f);
+        if (std::fabs(pl.x) > 0.3f) { EXPECT_NEAR(ls.li.x, pl.x > 0 ? 3.f : 0.f, 1e-5f); }
         LightLeSample le_s = l.sample_le(uniform2(304, i), uniform2(305, i));
-        if (le_s.valid() && !is_black(le_s.le) && std::fabs(le_s.p.x) > 0.3f)
+        if (le_s.valid() && !is_black(le_s.le) && std::fabs(le_s.p.x) > 0.3f) {
             EXPECT_GT(le_s.p.x, 0.f);
+        }
     }
 }

@@ -118,10 +118,11 @@ inline void expect_images_agree(const RenderResult& a, const RenderResult& b, co
         res[c] = A > 0 ? zm * se / A : 0;
         EXPECT_LT(std::fabs(A - B), o.tol_mean * A + zm * se)
             << what << ": channel " << c << " mean " << A << " vs " << B << " (joint stderr " << se << ")";
-        if (o.require_resolution && A > 0)
+        if (o.require_resolution && A > 0) {
             EXPECT_LT(zm * se, o.tol_mean * A)
                 << what << ": channel " << c << " not converged enough for the "
                 << o.tol_mean * 100 << "% check";
+        }
     }
     std::printf("[%s] means rel. diff %+.4f %+.4f %+.4f (resolution %.4f %.4f %.4f), worst block |z| "
                 "%.2f (limit %.2f), %.0f%% of %d bright blocks would flag a %.0f%% error\n",

@@ -61,14 +61,14 @@ TEST(Temporal, SystematicResampleCounts) {
         std::vector<int> count(w.size(), 0);
         for (size_t k = 0; k < picks.size(); ++k) {
             ASSERT_LT(picks[k], w.size());
-            if (k) EXPECT_LE(picks[k - 1], picks[k]);
+            if (k) { EXPECT_LE(picks[k - 1], picks[k]); }
             ++count[picks[k]];
         }
         for (size_t i = 0; i < w.size(); ++i) {
             const double expect = 70.0 * w[i] / total;
             EXPECT_GE(count[i], std::floor(expect) - 1e-9) << i;
             EXPECT_LE(count[i], std::ceil(expect) + 1e-9) << i;
-            if (w[i] == 0.0) EXPECT_EQ(count[i], 0);
+            if (w[i] == 0.0) { EXPECT_EQ(count[i], 0); }
         }
     }
     EXPECT_TRUE(temporal::systematic_resample({0.0, 0.0}, 5, 0.5).empty());
@@ -202,7 +202,7 @@ TEST(Temporal, CoupledStartsAreDistributedAsFreshOnesAndKeepWhatDidNotChange) {
             count[c.picks[k]] += 1;
             // an unchanged or brighter start is always kept
             const size_t i = prev[k];
-            if (f_new[i] / sn >= f_old[i] / so) EXPECT_EQ(c.picks[k], i);
+            if (f_new[i] / sn >= f_old[i] / so) { EXPECT_EQ(c.picks[k], i); }
         }
     }
     // expected counts ∝ q: chi-square with M − 1 degrees of freedom (p = 1e-4 bound ~ 83 for 39)

@@ -102,7 +102,7 @@ TEST(Bdpt, MisWeightsSumToOne) {
         // Light tracing reaches the camera, through the lens too.
         EXPECT_GT(checked_t1, 20) << "scene " << scene_kind;
         // The walks did cross the pass-through surfaces with probability < 1.
-        if (scene_kind == 4) EXPECT_GT(crossed, 20);
+        if (scene_kind == 4) { EXPECT_GT(crossed, 20); }
         std::printf("scene %d%s: %d connections checked, %d of them t = 1, %d vertices after "
                     "crossings\n", scene_kind, direct ? " with (1, 1)" : "", checked, checked_t1,
                     crossed);

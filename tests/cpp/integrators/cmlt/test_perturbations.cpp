@@ -134,7 +134,7 @@ TEST(Perturbations, PixelMoveRedrawsTheFilmPositionUniformly) {
         ASSERT_TRUE(a >= 0.0 && a < 1.0 && b >= 0.0 && b < 1.0);
         counts[size_t(int(a * k_bins) * k_bins + int(b * k_bins))] += 1.0;
         for (size_t j = 0; j < 40; ++j)
-            if (j != film_index(0) && j != film_index(1)) ASSERT_EQ(y.value(k_seed, j), x.value(k_seed, j)) << j;
+            if (j != film_index(0) && j != film_index(1)) { ASSERT_EQ(y.value(k_seed, j), x.value(k_seed, j)) << j; }
     }
     const Chi2Result c = chi2_test(counts, expected);
     EXPECT_TRUE(c.passed(1e-3)) << c.message;

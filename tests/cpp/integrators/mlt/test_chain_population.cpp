@@ -223,7 +223,7 @@ TEST(ChainPopulation, RoundsSpendEveryBudgetReportProgressAndMergeInChainOrder) 
     ASSERT_FALSE(calls.empty());
     for (size_t i = 0; i < calls.size(); ++i) {
         EXPECT_EQ(calls[i].second, uint64_t(fx.settings.spp));
-        if (i > 0) EXPECT_GE(calls[i].first, calls[i - 1].first);
+        if (i > 0) { EXPECT_GE(calls[i].first, calls[i - 1].first); }
     }
     EXPECT_LE(calls.size(), size_t(ChainSchedule::k_rounds));
     // b: the bootstrap, then every chain's large steps in chain order

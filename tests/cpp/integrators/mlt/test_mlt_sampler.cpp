@@ -226,7 +226,7 @@ TEST(MltSampler, StreamsAreDisjointAndIndependent) {
     for (uint32_t slot = 0; slot < 100; ++slot)
         for (uint32_t k = 0; k < MltSampler::k_stream_count; ++k)
             for (uint32_t k2 = 0; k2 < MltSampler::k_stream_count; ++k2)
-                if (k != k2) EXPECT_NE(MltSampler::index(k, slot), MltSampler::index(k2, slot));
+                if (k != k2) { EXPECT_NE(MltSampler::index(k, slot), MltSampler::index(k2, slot)); }
     // reading more or fewer light-stream dimensions never changes the camera stream
     MltSampler a(21, 0.02, 0.3, RngDomain::test, 5), b(21, 0.02, 0.3, RngDomain::test, 5);
     for (int it = 0; it < 300; ++it) {
@@ -380,7 +380,7 @@ TEST(MltSampler, ExportedStateReplaysToTheSamePath) {
     const auto u2 = t.current_state();
     for (size_t k = 0; k < 3; ++k)
         for (size_t i = 0; i < std::min(u[k].size(), u2[k].size()); ++i)
-            if (!std::isnan(u[k][i])) EXPECT_EQ(float(u[k][i]), float(u2[k][i]));
+            if (!std::isnan(u[k][i])) { EXPECT_EQ(float(u[k][i]), float(u2[k][i])); }
     // and the chain goes on: small steps from the imported state
     t.start_iteration(false);
     toy_path(t);
