@@ -22,8 +22,8 @@ TF near it measures the reference, not the render.
 Writes OUT/flicker.md (markdown table), OUT/flicker.json (per-frame values: ratio of
 mean brightness to the reference, relMSE, TF terms, per seed; per configuration the rms
 brightness error of each frame over the seeds and ``gf_correlated``, the GF those errors
-would give if they were one draw for every frame: the floor of GF for any reuse of
-random numbers, printed too) and OUT/flicker.png (TF
+would give if they were one draw for every frame: with those per-frame errors, the
+floor of GF for any reuse of random numbers; printed too) and OUT/flicker.png (TF
 and GF per configuration and sequence, log scale), and prints the table.
 """
 import argparse
