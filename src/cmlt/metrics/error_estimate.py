@@ -48,9 +48,9 @@ unknown, and no function of the groups does that without bias; ``denominator`` c
   in the denominator (what the numerator alone is worth) caustic_glass's renders are in
   0.67-1.5x in 72-76 % of renders where the geometric one gave 31-56 %; the guarded one
   47-56 % for pt, 80 % for cmlt's chain groups (geometric 60 %; on a second draw of
-  seeds 55 % against 45 %), door_ajar 80-100 %
-  (geometric 68-100 %); on the Cornell box's default renders it reads
-  what their numerator says, the spread of one Sobol sequence's passes, about 1.5x.
+  seeds 55 % against 45 %), door_ajar 80-100 % (geometric 68-100 %); on the Cornell
+  box's default renders it reads what their numerator says, the spread of one Sobol
+  sequence's passes, about 1.5x.
 
 Still not seen: paths no pass or group found (their error is in the numerator), a bias
 common to all groups (MLT's start-up and normalisation bias at small budgets), and most
