@@ -7,17 +7,20 @@ chains' BDPT strategies classify differently would be counted twice or never.
 Scene: the glass-ball caustic of support/scenes.py with a near-specular metal wall
 behind it (roughness 0.05): the floor is lit through the ball (S S D: caustic), seen in
 the wall (E S D L: not caustic, the direct pass's), the ball's caustic seen in the wall
-(E S D S S L: caustic), and the wall's own caustic on the floor (L S D: caustic).
+(E S D S S L: a seen-through caustic, the chains' by default), and the wall's own caustic
+on the floor (L S D: caustic). The configuration with ``mlt_sds direct`` gives the
+seen-through caustic to the direct pass instead: the two rules draw the line between
+the estimators in different places, and both must add up.
 The pt path sampler's configuration renders it with a larger light (radius 0.3): with
 the 0.1 light its chains, which find the wall's glossy caustic only by BSDF-sampling the
 light from the floor, miss most of it at this budget with every mlt_paths, all included.
 
 Against a BDPT reference, K = 40 seeds per configuration: the mean luminance in the
 t-interval (K-1 dof, two-sided 1e-3, the reference's SE in quadrature) and 4x4 blocks
-per channel (Bonferroni, family-wise 1e-2): about 1.1e-2 per configuration, four
+per channel (Bonferroni, family-wise 1e-2): about 1.1e-2 per configuration, six
 configurations (pssmlt and cmlt on the BDPT path sampler, pssmlt on the pt path
-sampler, auto, and pssmlt with its light subpaths guided to the casters), so about
-5.5e-2 for the file with the seeds fixed (deterministic
+sampler, auto, pssmlt with its light subpaths guided to the casters, and cmlt with the
+seen-through caustics in the direct pass), so about 6.6e-2 for the file with the seeds fixed (deterministic
 keys: each check always passes or always fails). Not vacuous: the direct pass alone
 (the image without the chains) misses the caustics by many standard errors.
 
@@ -61,6 +64,7 @@ CONFIGS = {  # id -> (scene, integrator, extra settings)
     # the chains' light subpaths aimed at the casters (auto leaves this scene unguided:
     # the light is inside the wall's bounding sphere, coverage 1)
     "pssmlt-guided": ("mirror_caustic", "pssmlt", {"mlt_paths": "caustics", "emission_guiding": 0.5}),
+    "cmlt-sds-direct": ("mirror_caustic", "cmlt", {"mlt_paths": "caustics", "mlt_sds": "direct"}),
 }
 
 
@@ -172,6 +176,15 @@ def test_02_the_chains_carry_the_caustics(runs, reference):
         se = direct.std(ddof=1) / math.sqrt(SEEDS)
         print(f"{cid}: direct pass {direct.mean():.4f}, image {full.mean():.4f}, BDPT {ref_y:.4f}")
         assert ref_y - direct.mean() > 10 * math.hypot(se, lum_se(ref_var)), (cid, direct.mean(), ref_y, se)
+    # the rule moves light: the ball's caustic seen in the wall (E S D S S L) is the
+    # chains' by default and the direct pass's with mlt_sds direct
+    by_rule = {}
+    for cid in ("cmlt-sds-direct", "cmlt"):
+        d = np.array([d.reshape(-1, 3).mean(0) @ ACESCG_Y for _, d, _ in runs[cid]])
+        by_rule[cid] = (d.mean(), d.std(ddof=1) / math.sqrt(SEEDS))
+    (a, sa), (b, sb) = by_rule["cmlt-sds-direct"], by_rule["cmlt"]
+    print(f"direct pass: seen-through caustics in it {a:.5f} +- {sa:.5f}, on the chains {b:.5f} +- {sb:.5f}")
+    assert a - b > 5 * math.hypot(sa, sb), (a, sa, b, sb)
 
 
 def test_03_auto_is_none_without_specular_materials(scenes, reference):

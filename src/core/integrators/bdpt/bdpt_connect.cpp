@@ -48,15 +48,18 @@ bool BdptTracer::caustic_path(const PathVertex* light, int s, const PathVertex* 
         return v.type == VertexType::surface && m_partition->specular(v.si.material_id);
     };
     const int tc = s == 0 ? t - 1 : t;  // camera vertices before the light end
-    bool diffuse_before = false, last_specular = false, any = false;
+    bool diffuse_before = false, last_specular = false, any = false, first_specular = false;
+    int n_diffuse = 0;
     auto visit = [&](const PathVertex& v) {
         if (any) diffuse_before = diffuse_before || !last_specular;
         last_specular = specular(v);
+        if (!any) first_specular = last_specular;
+        if (!last_specular && n_diffuse < 2) ++n_diffuse;
         any = true;
     };
     for (int i = 1; i < tc; ++i) visit(camera[i]);
     for (int j = s - 1; j >= 1; --j) visit(light[j]);
-    return PathPartition::caustic(last_specular, diffuse_before);
+    return m_partition->caustic(last_specular, diffuse_before, first_specular, n_diffuse);
 }
 
 bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex* camera, int t,

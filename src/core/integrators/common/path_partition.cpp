@@ -6,7 +6,8 @@
 
 namespace cmlt {
 
-PathPartition::PathPartition(const Scene& scene, PathPart part) : m_part(part) {
+PathPartition::PathPartition(const Scene& scene, PathPart part, bool seen_through_easy)
+    : m_part(part), m_seen_through_easy(seen_through_easy) {
     if (part == PathPart::all) return;  // every path: no table needed
     m_specular.resize(scene.material_count());
     for (size_t k = 0; k < m_specular.size(); ++k)

@@ -14,6 +14,21 @@
 /// seen directly or through mirrors, direct and indirect diffuse light, glossy
 /// reflections of lit surfaces) it samples well.
 ///
+/// Seen-through caustics. A caustic the camera sees through a near-specular chain,
+/// E S+ D S+ L (x1, the vertex the camera sees, near-specular; exactly one rough vertex),
+/// is the chains' by default; RenderSettings::mlt_sds "direct" gives it to the easy part.
+/// BDPT makes such a path with one strategy only, the camera subpath that hits the light.
+/// Behind curved glass and with a small light (sequences/caustic_glass: the floor's
+/// caustic seen through the ball that throws it) a chain on such a path can sit on an
+/// island of primary sample space: moving the film position or the rough vertex's
+/// direction loses the light behind the chain, almost every proposal has f* = 0, and the
+/// chain stays for the frame. The island then keeps the share of the chains' image its
+/// start had, f*_i / Σ f* over the bootstrap — a plain Monte Carlo estimate of its light
+/// from a few hundred thousand bootstrap samples, where the direct pass has millions; no
+/// choice of f* or of the kernel changes that. Behind flat glass the chains move on such
+/// paths and do far better than the path tracer (sequences/hard/caustic_sds), hence the
+/// default; tests/bench/results/seen_through_caustics.md has both.
+///
 /// The class is a property of the path alone: a vertex counts as specular by its
 /// material (analysis/scene_probes.h's rule, roughness < 0.2 metal, mirror or glass,
 /// constant or textured), never by the lobe sampled, and pass-through crossings make no
@@ -34,7 +49,8 @@ enum class PathPart : uint8_t { all, easy, caustic };
 class PathPartition {
 public:
     PathPartition() = default;  ///< every path
-    PathPartition(const Scene& scene, PathPart part);
+    /// `seen_through_easy`: the seen-through caustics E S+ D S+ L go to the easy part.
+    PathPartition(const Scene& scene, PathPart part, bool seen_through_easy = false);
 
     PathPart part() const { return m_part; }
     /// `p` if it leaves some paths out, else null (no partition, or PathPart::all): what
@@ -54,10 +70,20 @@ public:
     /// The class from the scattering vertices: `last_specular` (the vertex next to the
     /// light) and `diffuse_before` (any rough vertex before it).
     static bool caustic(bool last_specular, bool diffuse_before) { return last_specular && diffuse_before; }
+    /// The class of this partition's rule: the caustic class above, less the seen-through
+    /// caustics (E S+ D S+ L: `first_specular`, the vertex the camera sees, near-specular
+    /// and `n_diffuse`, the rough vertices, counted up to 2, exactly 1) where the rule
+    /// gives those to the easy part (the file comment).
+    bool caustic(bool last_specular, bool diffuse_before, bool first_specular, int n_diffuse) const {
+        return last_specular && diffuse_before && !(m_seen_through_easy && first_specular && n_diffuse == 1);
+    }
+    /// Are the seen-through caustics in the easy part (RenderSettings::mlt_sds "direct")?
+    bool seen_through_easy() const { return m_seen_through_easy; }
 
 private:
     std::vector<uint8_t> m_specular;  ///< per material id: may be near-specular
     PathPart m_part = PathPart::all;
+    bool m_seen_through_easy = false;
 };
 
 }  // namespace cmlt

@@ -128,7 +128,7 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
     : PtPass(scene, s, k_direct_sample_base, MltContext::direct_max_depth(s)),
       m_enabled(MltContext::direct_spp(s) > 0),
-      m_partition(scene, MltContext::partitioned(s) ? PathPart::easy : PathPart::all) {
+      m_partition(scene, MltContext::partitioned(s) ? PathPart::easy : PathPart::all, s.mlt_sds == "direct") {
     if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
     set_partition(&m_partition);
     if (m_enabled) enable_lens_light_tracing(scene);

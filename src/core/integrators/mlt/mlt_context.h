@@ -31,7 +31,7 @@ struct MltContext {
           tracer(s.mlt_path_sampler == "bdpt" ? PssmltTracer(bdpt, camera, s.width, s.height, min_depth(s),
                                                                      camera_technique(scene, s))
                                               : PssmltTracer(pt, camera, s.width, s.height)),
-          partition(scene, partitioned(s) ? PathPart::caustic : PathPart::all) {
+          partition(scene, partitioned(s) ? PathPart::caustic : PathPart::all, s.mlt_sds == "direct") {
         pt.set_partition(&partition);
         bdpt.set_partition(&partition);
         // the chains' light subpaths aimed at the casters (bdpt_tracer.h; auto below)

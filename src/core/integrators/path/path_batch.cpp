@@ -273,7 +273,10 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         preview_frame(P, n);
         const bool lights = m_scene.light_count() > 0;
         light_samples(P, m_preview, m_preview_light, [&](size_t q, const PathState& st) {
-            return lights && (!partition || partition->wants(PathPartition::caustic(P.spec[q] != 0, st.diffuse_seen)));
+            const bool sp = P.spec[q] != 0;
+            return lights && (!partition ||
+                              partition->wants(partition->caustic(sp, st.diffuse_seen, st.depth == 0 ? sp : st.first_specular,
+                                                                  std::min(2, int(st.n_diffuse) + (sp ? 0 : 1)))));
         });
         preview_next_event(P, n);
         preview_directions(P, n);
@@ -409,6 +412,8 @@ void PathBatch::scatter_lanes(const DiffuseLanes& L, const std::vector<uint32_t>
         st.diffuse_before_last = st.diffuse_seen;
         st.diffuse_seen = st.diffuse_seen || !specular;
         st.last_specular = specular;
+        if (st.depth == 0) st.first_specular = specular;
+        if (!specular && st.n_diffuse < 2) ++st.n_diffuse;
         ++st.depth;
     }
 }

@@ -86,6 +86,8 @@ struct PathState {
     /// tracer has a partition: a rough vertex among the scattering vertices so far, one
     /// before the last of them, and the last one's material near-specular.
     bool diffuse_seen = false, diffuse_before_last = false, last_specular = false;
+    bool first_specular = false;  ///< x1's material near-specular
+    uint8_t n_diffuse = 0;        ///< rough scattering vertices so far (saturating at 2)
     /// With caustic light tracing (caustic_light_tracing.h): the camera side of r so far,
     /// 1 / (p_cam(z1) Π p⊥ forward) times the light side's reverse factors; 0 when the
     /// path cannot be of the class (z1 scattered by a Dirac lobe) or no tracer is set.

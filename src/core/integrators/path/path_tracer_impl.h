@@ -69,7 +69,8 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     // Emission seen by this ray, MIS-weighted against light sampling.
     auto add_emitted = [&](const Spectrum& le, float light_pdf_sa) {
         if (is_black(le) || st.depth < m_min_depth) return;
-        if (m_partition && !m_partition->wants(PathPartition::caustic(st.last_specular, st.diffuse_before_last)))
+        if (m_partition && !m_partition->wants(m_partition->caustic(st.last_specular, st.diffuse_before_last,
+                                                                      st.first_specular, st.n_diffuse)))
             return;
         if (st.depth == 0 || st.specular_bounce) {
             st.L += st.beta * le;
@@ -183,7 +184,9 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
 
     // Next-event estimation: one light chosen by power; its shadow ray is left pending.
     if (!last && bsdf.has_non_delta() && scene.light_count() > 0 && st.depth + 1 >= m_min_depth &&
-        (!m_partition || m_partition->wants(PathPartition::caustic(specular, st.diffuse_seen)))) {
+        (!m_partition ||
+         m_partition->wants(m_partition->caustic(specular, st.diffuse_seen, st.depth == 0 ? specular : st.first_specular,
+                                                 std::min(2, int(st.n_diffuse) + (specular ? 0 : 1)))))) {
         float pmf = 0.f;
         size_t li = scene.sample_light(u_light, &pmf);
         const Light& light = scene.light(li);
@@ -262,6 +265,8 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
     st.diffuse_before_last = st.diffuse_seen;
     st.diffuse_seen = st.diffuse_seen || !specular;
     st.last_specular = specular;
+    if (st.depth == 0) st.first_specular = specular;
+    if (!specular && st.n_diffuse < 2) ++st.n_diffuse;
 
     // Russian roulette.
     if (st.depth + 1 >= k_rr_start_depth) {

@@ -82,6 +82,9 @@ TEST(PathPartition, TheClassIsThePathsWhateverTheStrategy) {
         {{k_floor, k_glass}, true, "E D S L: the caustic"},
         {{k_floor, k_glass, k_glass}, true, "E D S S L: through both faces of the ball"},
         {{k_glass, k_floor, k_glass, k_glass}, true, "E S D S S L: the caustic seen through glass"},
+        {{k_glass, k_glass, k_floor, k_glass, k_glass}, true, "E S S D S S L: through both faces"},
+        {{k_glass, k_floor, k_floor, k_glass}, true, "E S D D S L: two rough vertices (a caustic)"},
+        {{k_floor, k_glass, k_floor, k_glass}, true, "E D S D S L: the camera sees a rough surface first"},
         {{k_glass, k_glass}, false, "E S S L: specular only"},
         {{k_floor, k_glass, k_floor}, false, "E D S D L: the last vertex rough"},
     };
@@ -90,6 +93,34 @@ TEST(PathPartition, TheClassIsThePathsWhateverTheStrategy) {
         for (size_t s_ = 0; s_ < got.size(); ++s_)
             EXPECT_EQ(got[s_], c.caustic) << c.what << ", strategy s = " << s_;
     }
+}
+
+// RenderSettings::mlt_sds "direct": the seen-through caustics E S+ D S+ L go to the
+// easy part, whatever the strategy; every other class is as before.
+TEST(PathPartition, SeenThroughCausticsGoToTheDirectPassWhenAsked) {
+    Scene s;
+    glass_scene(s);
+    const Camera cam(s.camera_desc(), 16, 16);
+    BdptTracer tr(s, cam, 16, 16, 8);
+    const PathPartition part(s, PathPart::caustic, true);
+    EXPECT_TRUE(part.seen_through_easy());
+    tr.set_partition(&part);
+    for (const auto& mats : std::vector<std::vector<uint32_t>>{{k_glass, k_floor, k_glass, k_glass},
+                                                               {k_glass, k_glass, k_floor, k_glass, k_glass}})
+        for (bool c : classes(tr, mats)) EXPECT_FALSE(c);
+    for (const auto& mats : std::vector<std::vector<uint32_t>>{{k_floor, k_glass},
+                                                               {k_glass, k_floor, k_floor, k_glass},
+                                                               {k_floor, k_glass, k_floor, k_glass}})
+        for (bool c : classes(tr, mats)) EXPECT_TRUE(c);
+    for (bool c : classes(tr, {k_glass, k_floor})) EXPECT_FALSE(c);  // E S D L: not a caustic either way
+    const PathPartition def(s, PathPart::caustic);
+    EXPECT_FALSE(def.seen_through_easy());
+    // the rule on the path tracer's summary of a path (last, rough before it, first, rough count)
+    EXPECT_TRUE(def.caustic(true, true, true, 1));
+    EXPECT_FALSE(part.caustic(true, true, true, 1));
+    EXPECT_TRUE(part.caustic(true, true, true, 2));
+    EXPECT_TRUE(part.caustic(true, true, false, 1));
+    EXPECT_FALSE(part.caustic(false, true, false, 1));
 }
 
 TEST(PathPartition, WantsSplitsThePathsBetweenTheTwoParts) {
