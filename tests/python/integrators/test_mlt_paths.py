@@ -7,10 +7,10 @@ chains' BDPT strategies classify differently would be counted twice or never.
 Scene: the glass-ball caustic of support/scenes.py with a near-specular metal wall
 behind it (roughness 0.05): the floor is lit through the ball (S S D: caustic), seen in
 the wall (E S D L: not caustic, the direct pass's), the ball's caustic seen in the wall
-(E S D S S L: a seen-through caustic, the chains' by default), and the wall's own caustic
-on the floor (L S D: caustic). The configuration with ``mlt_sds direct`` gives the
-seen-through caustic to the direct pass instead: the two rules draw the line between
-the estimators in different places, and both must add up.
+(E S D S S L: a seen-through caustic, the direct pass's by default, ``mlt_sds``), and the
+wall's own caustic on the floor (L S D: caustic). The configuration with ``mlt_sds
+chains`` gives the seen-through caustic to the chains instead: the two rules draw the
+line between the estimators in different places, and both must add up.
 The pt path sampler's configuration renders it with a larger light (radius 0.3): with
 the 0.1 light its chains, which find the wall's glossy caustic only by BSDF-sampling the
 light from the floor, miss most of it at this budget with every mlt_paths, all included.
@@ -20,7 +20,7 @@ t-interval (K-1 dof, two-sided 1e-3, the reference's SE in quadrature) and 4x4 b
 per channel (Bonferroni, family-wise 1e-2): about 1.1e-2 per configuration, six
 configurations (pssmlt and cmlt on the BDPT path sampler, pssmlt on the pt path
 sampler, auto, pssmlt with its light subpaths guided to the casters, and cmlt with the
-seen-through caustics in the direct pass), so about 6.6e-2 for the file with the seeds fixed (deterministic
+seen-through caustics on the chains), so about 6.6e-2 for the file with the seeds fixed (deterministic
 keys: each check always passes or always fails). Not vacuous: the direct pass alone
 (the image without the chains) misses the caustics by many standard errors.
 
@@ -64,7 +64,7 @@ CONFIGS = {  # id -> (scene, integrator, extra settings)
     # the chains' light subpaths aimed at the casters (auto leaves this scene unguided:
     # the light is inside the wall's bounding sphere, coverage 1)
     "pssmlt-guided": ("mirror_caustic", "pssmlt", {"mlt_paths": "caustics", "emission_guiding": 0.5}),
-    "cmlt-sds-direct": ("mirror_caustic", "cmlt", {"mlt_paths": "caustics", "mlt_sds": "direct"}),
+    "cmlt-sds-chains": ("mirror_caustic", "cmlt", {"mlt_paths": "caustics", "mlt_sds": "chains"}),
 }
 
 
@@ -177,12 +177,12 @@ def test_02_the_chains_carry_the_caustics(runs, reference):
         print(f"{cid}: direct pass {direct.mean():.4f}, image {full.mean():.4f}, BDPT {ref_y:.4f}")
         assert ref_y - direct.mean() > 10 * math.hypot(se, lum_se(ref_var)), (cid, direct.mean(), ref_y, se)
     # the rule moves light: the ball's caustic seen in the wall (E S D S S L) is the
-    # chains' by default and the direct pass's with mlt_sds direct
+    # direct pass's by default and the chains' with mlt_sds chains
     by_rule = {}
-    for cid in ("cmlt-sds-direct", "cmlt"):
+    for cid in ("cmlt", "cmlt-sds-chains"):
         d = np.array([d.reshape(-1, 3).mean(0) @ ACESCG_Y for _, d, _ in runs[cid]])
         by_rule[cid] = (d.mean(), d.std(ddof=1) / math.sqrt(SEEDS))
-    (a, sa), (b, sb) = by_rule["cmlt-sds-direct"], by_rule["cmlt"]
+    (a, sa), (b, sb) = by_rule["cmlt"], by_rule["cmlt-sds-chains"]
     print(f"direct pass: seen-through caustics in it {a:.5f} +- {sa:.5f}, on the chains {b:.5f} +- {sb:.5f}")
     assert a - b > 5 * math.hypot(sa, sb), (a, sa, b, sb)
 

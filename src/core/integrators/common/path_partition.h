@@ -16,7 +16,8 @@
 ///
 /// Seen-through caustics. A caustic the camera sees through a near-specular chain,
 /// E S+ D S+ L (x1, the vertex the camera sees, near-specular; exactly one rough vertex),
-/// is the chains' by default; RenderSettings::mlt_sds "direct" gives it to the easy part.
+/// goes to the easy part by default (RenderSettings::mlt_sds "direct"; "chains" keeps it
+/// with the caustic part).
 /// BDPT makes such a path with one strategy only, the camera subpath that hits the light.
 /// Behind curved glass and with a small light (sequences/caustic_glass: the floor's
 /// caustic seen through the ball that throws it) a chain on such a path can sit on an
@@ -25,9 +26,11 @@
 /// chain stays for the frame. The island then keeps the share of the chains' image its
 /// start had, f*_i / Σ f* over the bootstrap — a plain Monte Carlo estimate of its light
 /// from a few hundred thousand bootstrap samples, where the direct pass has millions; no
-/// choice of f* or of the kernel changes that. Behind flat glass the chains move on such
-/// paths and do far better than the path tracer (sequences/hard/caustic_sds), hence the
-/// default; tests/bench/results/seen_through_caustics.md has both.
+/// choice of f* or of the kernel changes that. In the direct pass those paths are the
+/// path tracer's (BSDF-sampled hits of the light through the chain): the expected error
+/// falls 16-38x on caustic_glass and on the held-out sequences/hard/caustic_sds, the
+/// typical frame's rises 1.6-45x (where the chains do not get stuck they do better);
+/// tests/bench/results/seen_through_caustics.md.
 ///
 /// The class is a property of the path alone: a vertex counts as specular by its
 /// material (analysis/scene_probes.h's rule, roughness < 0.2 metal, mirror or glass,
@@ -50,7 +53,7 @@ class PathPartition {
 public:
     PathPartition() = default;  ///< every path
     /// `seen_through_easy`: the seen-through caustics E S+ D S+ L go to the easy part.
-    PathPartition(const Scene& scene, PathPart part, bool seen_through_easy = false);
+    PathPartition(const Scene& scene, PathPart part, bool seen_through_easy = true);
 
     PathPart part() const { return m_part; }
     /// `p` if it leaves some paths out, else null (no partition, or PathPart::all): what
@@ -83,7 +86,7 @@ public:
 private:
     std::vector<uint8_t> m_specular;  ///< per material id: may be near-specular
     PathPart m_part = PathPart::all;
-    bool m_seen_through_easy = false;
+    bool m_seen_through_easy = true;
 };
 
 }  // namespace cmlt

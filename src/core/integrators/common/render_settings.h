@@ -122,11 +122,11 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
           "a near-specular chain; the direct pass path-traces every other path), none (no "  \
           "chains: the direct pass renders everything), auto (caustics where a material "    \
           "can be near-specular, else none; all with direct_fraction 0)")                                                \
-    TOKEN(mlt_sds, "chains", "chains direct", "cmlt:mltSds", "--mlt-sds",                    \
+    TOKEN(mlt_sds, "direct", "direct chains", "cmlt:mltSds", "--mlt-sds",                    \
           "pssmlt/cmlt with mlt_paths caustics: what renders the caustics seen through a "   \
-          "near-specular chain, E S+ D S+ L (one rough vertex): chains (default) or direct " \
-          "(the path-traced direct pass: for small lights behind curved glass, where such "  \
-          "paths are islands a chain cannot leave and a frame can get blobs)")               \
+          "near-specular chain, E S+ D S+ L (one rough vertex): direct (the path-traced "    \
+          "direct pass; default) or chains (lower error in most frames, but a chain on such " \
+          "a path can sit on an island it cannot leave, and a frame then gets a blob)")      \
     TOKEN(chainless_integrator, "auto", "auto pt bdpt", "cmlt:chainlessIntegrator",         \
           "--chainless-integrator",                                                          \
           "pssmlt/cmlt: what renders a frame that has no chains (mlt_paths none, or auto on " \

@@ -81,8 +81,8 @@ TEST(PathPartition, TheClassIsThePathsWhateverTheStrategy) {
         {{k_glass, k_floor}, false, "E S D L: a lit floor seen through glass"},
         {{k_floor, k_glass}, true, "E D S L: the caustic"},
         {{k_floor, k_glass, k_glass}, true, "E D S S L: through both faces of the ball"},
-        {{k_glass, k_floor, k_glass, k_glass}, true, "E S D S S L: the caustic seen through glass"},
-        {{k_glass, k_glass, k_floor, k_glass, k_glass}, true, "E S S D S S L: through both faces"},
+        {{k_glass, k_floor, k_glass, k_glass}, false, "E S D S S L: the caustic seen through glass (the direct pass's)"},
+        {{k_glass, k_glass, k_floor, k_glass, k_glass}, false, "E S S D S S L: through both faces (the direct pass's)"},
         {{k_glass, k_floor, k_floor, k_glass}, true, "E S D D S L: two rough vertices (a caustic)"},
         {{k_floor, k_glass, k_floor, k_glass}, true, "E D S D S L: the camera sees a rough surface first"},
         {{k_glass, k_glass}, false, "E S S L: specular only"},
@@ -95,32 +95,31 @@ TEST(PathPartition, TheClassIsThePathsWhateverTheStrategy) {
     }
 }
 
-// RenderSettings::mlt_sds "direct": the seen-through caustics E S+ D S+ L go to the
-// easy part, whatever the strategy; every other class is as before.
-TEST(PathPartition, SeenThroughCausticsGoToTheDirectPassWhenAsked) {
+// RenderSettings::mlt_sds "chains": the seen-through caustics E S+ D S+ L stay with the
+// chains, whatever the strategy; every other class is as with the default rule.
+TEST(PathPartition, SeenThroughCausticsStayWithTheChainsWhenAsked) {
     Scene s;
     glass_scene(s);
     const Camera cam(s.camera_desc(), 16, 16);
     BdptTracer tr(s, cam, 16, 16, 8);
-    const PathPartition part(s, PathPart::caustic, true);
-    EXPECT_TRUE(part.seen_through_easy());
+    const PathPartition part(s, PathPart::caustic, false);
+    EXPECT_FALSE(part.seen_through_easy());
     tr.set_partition(&part);
     for (const auto& mats : std::vector<std::vector<uint32_t>>{{k_glass, k_floor, k_glass, k_glass},
-                                                               {k_glass, k_glass, k_floor, k_glass, k_glass}})
-        for (bool c : classes(tr, mats)) EXPECT_FALSE(c);
-    for (const auto& mats : std::vector<std::vector<uint32_t>>{{k_floor, k_glass},
+                                                               {k_glass, k_glass, k_floor, k_glass, k_glass},
+                                                               {k_floor, k_glass},
                                                                {k_glass, k_floor, k_floor, k_glass},
                                                                {k_floor, k_glass, k_floor, k_glass}})
         for (bool c : classes(tr, mats)) EXPECT_TRUE(c);
     for (bool c : classes(tr, {k_glass, k_floor})) EXPECT_FALSE(c);  // E S D L: not a caustic either way
     const PathPartition def(s, PathPart::caustic);
-    EXPECT_FALSE(def.seen_through_easy());
+    EXPECT_TRUE(def.seen_through_easy());
     // the rule on the path tracer's summary of a path (last, rough before it, first, rough count)
-    EXPECT_TRUE(def.caustic(true, true, true, 1));
-    EXPECT_FALSE(part.caustic(true, true, true, 1));
-    EXPECT_TRUE(part.caustic(true, true, true, 2));
-    EXPECT_TRUE(part.caustic(true, true, false, 1));
-    EXPECT_FALSE(part.caustic(false, true, false, 1));
+    EXPECT_FALSE(def.caustic(true, true, true, 1));
+    EXPECT_TRUE(part.caustic(true, true, true, 1));
+    EXPECT_TRUE(def.caustic(true, true, true, 2));
+    EXPECT_TRUE(def.caustic(true, true, false, 1));
+    EXPECT_FALSE(def.caustic(false, true, false, 1));
 }
 
 TEST(PathPartition, WantsSplitsThePathsBetweenTheTwoParts) {
