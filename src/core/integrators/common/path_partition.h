@@ -75,7 +75,7 @@ public:
     static bool caustic(bool last_specular, bool diffuse_before) { return last_specular && diffuse_before; }
     /// The class of this partition's rule: the caustic class above, less the seen-through
     /// caustics (E S+ D S+ L: `first_specular`, the vertex the camera sees, near-specular
-    /// and `n_diffuse`, the rough vertices, counted up to 2, exactly 1) where the rule
+    /// and `n_diffuse`, the rough vertices, exactly 1; any count above 1 reads as more) where the rule
     /// gives those to the easy part (the file comment).
     bool caustic(bool last_specular, bool diffuse_before, bool first_specular, int n_diffuse) const {
         return last_specular && diffuse_before && !(m_seen_through_easy && first_specular && n_diffuse == 1);

@@ -273,10 +273,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
         preview_frame(P, n);
         const bool lights = m_scene.light_count() > 0;
         light_samples(P, m_preview, m_preview_light, [&](size_t q, const PathState& st) {
-            const bool sp = P.spec[q] != 0;
-            return lights && (!partition ||
-                              partition->wants(partition->caustic(sp, st.diffuse_seen, st.depth == 0 ? sp : st.first_specular,
-                                                                  std::min(2, int(st.n_diffuse) + (sp ? 0 : 1)))));
+            return lights && (!partition || st.wants_next_event(*partition, P.spec[q] != 0));
         });
         preview_next_event(P, n);
         preview_directions(P, n);

@@ -88,6 +88,13 @@ struct PathState {
     bool diffuse_seen = false, diffuse_before_last = false, last_specular = false;
     bool first_specular = false;  ///< x1's material near-specular
     uint8_t n_diffuse = 0;        ///< rough scattering vertices so far (saturating at 2)
+
+    /// Does `partition` want the path so far continued by a vertex whose material is
+    /// `specular` and ending on a light there (next-event estimation from that vertex)?
+    bool wants_next_event(const PathPartition& partition, bool specular) const {
+        return partition.wants(partition.caustic(specular, diffuse_seen, depth == 0 ? specular : first_specular,
+                                                 n_diffuse + (specular ? 0 : 1)));
+    }
     /// With caustic light tracing (caustic_light_tracing.h): the camera side of r so far,
     /// 1 / (p_cam(z1) Π p⊥ forward) times the light side's reverse factors; 0 when the
     /// path cannot be of the class (z1 scattered by a Dirac lobe) or no tracer is set.

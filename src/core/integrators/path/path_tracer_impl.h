@@ -184,9 +184,7 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
 
     // Next-event estimation: one light chosen by power; its shadow ray is left pending.
     if (!last && bsdf.has_non_delta() && scene.light_count() > 0 && st.depth + 1 >= m_min_depth &&
-        (!m_partition ||
-         m_partition->wants(m_partition->caustic(specular, st.diffuse_seen, st.depth == 0 ? specular : st.first_specular,
-                                                 std::min(2, int(st.n_diffuse) + (specular ? 0 : 1)))))) {
+        (!m_partition || st.wants_next_event(*m_partition, specular))) {
         float pmf = 0.f;
         size_t li = scene.sample_light(u_light, &pmf);
         const Light& light = scene.light(li);
