@@ -6,13 +6,13 @@ times the reference). A Metropolis render's error is heavy-tailed where chains c
 stuck (an island of primary sample space keeps its start's share of the image), so a few
 seeds decide the mean and three are not enough to see it: this bench draws forty.
 
-Configurations are ``cmlt.accuracy.parse_integrator`` specs (``cmlt``,
+Configurations are ``cmlt.accuracy.parse_integrator`` specs (``cmlt:mlt_sds=chains``,
 ``cmlt:mlt_sds=direct``, ``pssmlt:bootstrap_samples=1250000``, ``pt``), all at the same
 evaluations per pixel; the per-render time is printed beside them (equal evaluations, not
 equal time).
 
     .venv/bin/python tests/bench/heavy_tail.py sequences/caustic_glass/shot.usda \\
-        --configs cmlt,cmlt:mlt_sds=direct,pt --spp 512 --seeds 3000:3039 --res 128x128
+        --configs cmlt:mlt_sds=chains,cmlt,pt --spp 512 --seeds 3000:3039 --res 128x128
 
 The hard stages (``--hard caustic_sds``) are rendered at their own resolution against
 their own references (sequences/hard/make_references.py). ``--jsonl FILE`` appends every
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("shot", nargs="?", default="sequences/caustic_glass/shot.usda")
     ap.add_argument("--hard", default="", help="a hard stage's name instead of a shot")
-    ap.add_argument("--configs", default="cmlt,cmlt:mlt_sds=direct")
+    ap.add_argument("--configs", default="cmlt:mlt_sds=chains,cmlt:mlt_sds=direct")
     ap.add_argument("--spp", type=int, default=512, help="samples or path evaluations per pixel")
     ap.add_argument("--seeds", default="3000:3039", help="first:last (inclusive)")
     ap.add_argument("--res", default="128x128")
