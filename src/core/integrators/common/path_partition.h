@@ -71,10 +71,8 @@ public:
     }
 
     /// The class from the scattering vertices: `last_specular` (the vertex next to the
-    /// light) and `diffuse_before` (any rough vertex before it).
-    static bool caustic(bool last_specular, bool diffuse_before) { return last_specular && diffuse_before; }
-    /// The class of this partition's rule: the caustic class above, less the seen-through
-    /// caustics (E S+ D S+ L: `first_specular`, the vertex the camera sees, near-specular
+    /// light) and `diffuse_before` (any rough vertex before it) make a caustic path, less
+    /// the seen-through caustics (E S+ D S+ L: `first_specular`, the vertex the camera sees, near-specular
     /// and `n_diffuse`, the rough vertices, exactly 1; any count above 1 reads as more) where the rule
     /// gives those to the easy part (the file comment).
     bool caustic(bool last_specular, bool diffuse_before, bool first_specular, int n_diffuse) const {

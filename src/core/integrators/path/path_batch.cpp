@@ -286,7 +286,7 @@ void PathBatch::shade_diffuse_lanes(PathCounters& c) {
     // next-event estimation, with a partition only where it wants the path
     // (PathTracer::scatter: a Lambertian vertex is never specular, so the path through it
     // is not a caustic one)
-    const bool nee = m_scene.light_count() > 0 && (!partition || partition->wants(PathPartition::caustic(false, false)));
+    const bool nee = m_scene.light_count() > 0 && (!partition || partition->wants(partition->caustic(false, false, false, 1)));
     light_samples(L, m_diffuse, m_diffuse_light, [nee](size_t, const PathState&) { return nee; });
     diffuse_next_event(L, n);
     diffuse_sample(L, n);
