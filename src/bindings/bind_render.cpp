@@ -256,6 +256,7 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
         d["importance"] = m.importance;
         d["pilot_evaluations"] = m.pilot_evaluations;
         d["direct_evaluations"] = m.direct_evaluations;
+        d["direct_alone"] = m.direct_alone;
         d["min_depth"] = m.min_depth;
         d["camera_technique"] = m.camera_technique;
         d["paths"] = m.paths;

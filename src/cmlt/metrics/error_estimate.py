@@ -381,7 +381,8 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
       G-th of the work; ``result.group_weights`` their path evaluations): estimate_from_groups,
       with the shared-normalisation term of pssmlt/cmlt (b_stderr / b, on the chains'
       part: image minus ``result.direct``);
-    * pt, bdpt, and pssmlt/cmlt without chains (``paths`` none): estimate_from_variance
+    * pt, bdpt, and pssmlt/cmlt without chains (``paths`` none, or ``direct_alone``: no
+      chain started, the direct pass rendered the frame): estimate_from_variance
       on ``result.variance`` (the variance of the mean from independent passes, or from
       independent blocks of passes with ``sampler`` sobol-blocks; with one Sobol sequence,
       ``sobol``, it reads about what independent samples would have: conservative);
@@ -404,12 +405,15 @@ def estimate_render(result, stats: Optional[Dict[str, Any]] = None,
                                    scaled=chains, keep_pixels=keep_pixels,
                                    denominator=denominator, shared_var=shared)
         return est, "groups"
-    if integ in VARIANCE_INTEGRATORS or stats.get("paths") == "none":
-        # pt, bdpt, and pssmlt/cmlt without chains (mlt_paths none: the direct pass's
-        # independent passes are the frame)
+    if integ in VARIANCE_INTEGRATORS or stats.get("paths") == "none" or stats.get("direct_alone"):
+        # pt, bdpt, and pssmlt/cmlt without chains (mlt_paths none, or none started: the
+        # direct pass's independent passes are the frame)
+        passes = int(stats.get("spp", 0) or 0)
+        if integ not in VARIANCE_INTEGRATORS and stats.get("direct_evaluations"):
+            passes = int(stats["direct_evaluations"]) // max(1, image.shape[0] * image.shape[1])
         robust = getattr(result, "robust", None)
         est = estimate_from_variance(image, np.asarray(result.variance, dtype=np.float64),
-                                     passes=int(stats.get("spp", 0) or 0),
+                                     passes=passes,
                                      keep_pixels=keep_pixels, denominator=denominator,
                                      robust=None if robust is None else np.asarray(robust, np.float64))
         return est, "variance"

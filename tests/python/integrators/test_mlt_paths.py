@@ -239,3 +239,51 @@ def test_05_cli_says_when_a_frame_has_no_chains(tmp_path, capsys):
     assert "no caustic paths" not in capsys.readouterr().err
     st = json.load(open(tmp_path / "b.0001.exr.json"))["stats"]
     assert st["paths"] == "all" and st["mutations"] > 0
+
+
+def hidden_mirror_scene():
+    """The Cornell box with a mirror behind its back wall, facing away from it: a
+    near-specular material (mlt_paths auto resolves to caustics, the chains are planned)
+    that no light reaches, so no caustic path exists and every bootstrap is empty."""
+    fs = cornell_scene()
+    fs.materials.append(Material("/mirror", diffuse=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.02))
+    fs.meshes.append(quad("/mirror", (0, 1, -1.5), (0, 1, 0), (1, 0, 0), len(fs.materials) - 1))
+    fs.instances.append(Instance("/mirror", len(fs.meshes) - 1, np.eye(4)))
+    return fs
+
+
+@pytest.mark.parametrize("integrator", ["pssmlt", "cmlt"])
+def test_06_no_chain_started_the_direct_pass_gets_the_budget(reference, integrator):
+    """Where the bootstrap finds no path for the chains, none starts, and the direct pass
+    renders the frame with the chains' evaluations too (mlt_frame.h,
+    direct_passes_without_chains): the frame spends its whole budget, says so
+    (direct_alone), has the direct pass's own error estimate and stops at a target
+    error like a chainless frame — and agrees with BDPT."""
+    scene = SceneBridge(core).update(hidden_mirror_scene())
+    spp, pixels = 64, RES * RES
+    images = []
+    for seed in range(12):
+        r = core.render(scene, _settings(integrator, spp, seed, mlt_paths="auto"))
+        st = dict(r.stats)
+        assert st["paths"] == "caustics" and st["chains"] == 0 and st["bootstrap_nonzero"] == 0
+        assert st["direct_alone"] is True
+        assert st["path_evaluations"] == spp * pixels, st
+        planned_direct = round(0.7 * spp) * pixels
+        chain_budget = spp * pixels - st["pilot_evaluations"] - planned_direct - st["bootstrap_samples"]
+        assert chain_budget >= pixels
+        assert st["direct_evaluations"] == planned_direct + (chain_budget // pixels) * pixels
+        assert st["error_estimate"] > 0.0 and st["stop_reason"] == "budget"
+        images.append(np.asarray(r.image, np.float64))
+    ref, ref_var = reference["cornell"]  # the hidden mirror adds no light
+    _mean_check(images, ref, ref_var, f"{integrator}, no chain started")
+
+    # a target error: the pass's own estimate stops it, as a chainless frame's
+    r = core.render(scene, _settings(integrator, 1024, 0, mlt_paths="auto", target_error=0.02))
+    st = dict(r.stats)
+    assert st["direct_alone"] is True and st["stop_reason"] == "target", st["stop_reason"]
+    assert st["error_estimate"] <= 0.02 and st["direct_evaluations"] < 700 * pixels
+    assert st["error_history"]
+
+    # a frame with chains is not direct_alone
+    r = core.render(scene, _settings(integrator, spp, 0, mlt_paths="all"))
+    assert dict(r.stats)["direct_alone"] is False and dict(r.stats)["chains"] > 0

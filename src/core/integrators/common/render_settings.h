@@ -331,6 +331,8 @@ struct MltStats {
     std::string importance;                          ///< "pixel" | "luminance"
     uint64_t pilot_evaluations = 0;                  ///< budget spent on the pilot image
     uint64_t direct_evaluations = 0;                 ///< budget spent on the direct pass
+    bool direct_alone = false;                       ///< the direct pass rendered the frame
+                                                     ///< (chainless, or no chain started)
     int min_depth = 0;                               ///< shortest path the chains render
     double camera_technique = 0;                     ///< q of the camera technique (resolved)
     std::string paths;                               ///< mlt_paths (resolved: all, caustics, none)

@@ -192,6 +192,15 @@ public:
         MltFrame& fr = m_frame;
         if (MltContext::chainless(fr.settings)) {  // the direct pass renders the frame
             m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history);
+            m_direct_alone = true;
+            return;
+        }
+        if (m_chains.empty() && fr.budget.chains > 0 && fr.direct_pass.enabled()) {
+            // no chain started (the bootstrap found no path the chains render, none was
+            // carried): the direct pass renders the frame with the chains' evaluations too
+            m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history,
+                                                   fr.direct_passes_without_chains());
+            m_direct_alone = true;
             return;
         }
         ChainSchedule schedule(fr.settings, fr.t0, m_chains.size());
@@ -293,8 +302,8 @@ public:
         out.cancelled = m_cancelled;
         out.group_steps = group_steps();
         out.target_reached = m_target_reached;
-        out.error_history = MltContext::chainless(m_frame.settings) ? std::move(m_direct_history)
-                                                                   : m_target.take_history();
+        out.direct_alone = m_direct_alone;
+        out.error_history = m_direct_alone ? std::move(m_direct_history) : m_target.take_history();
         out.states = export_states(export_chain);
         out.start_states = std::move(m_start_states);
         if (m_frame.settings.partial) {
@@ -343,6 +352,7 @@ private:
     ErrorTarget m_target{m_frame.settings.target_error, 0.0};
     bool m_target_reached = false;
     std::vector<std::array<double, 4>> m_direct_history;  ///< a chainless frame's target estimates
+    bool m_direct_alone = false;  ///< the direct pass rendered the frame (run_alone)
 };
 
 }  // namespace cmlt::mlt

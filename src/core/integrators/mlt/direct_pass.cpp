@@ -161,8 +161,10 @@ void DirectSchedule::finish(bool cancelled, bool chains_ran, std::chrono::steady
 }
 
 bool DirectSchedule::run_alone(const ProgressCallback& progress, std::chrono::steady_clock::time_point t0,
-                               bool* cancelled, std::vector<std::array<double, 4>>* history) {
-    const PassSchedule schedule(settings, t0);
+                               bool* cancelled, std::vector<std::array<double, 4>>* history, int passes) {
+    RenderSettings s = settings;
+    if (passes > 0 && s.time_budget <= 0.0) s.spp = passes;
+    const PassSchedule schedule(s, t0);
     PassTarget target(settings, pass.film());
     run_passes(schedule, progress, cancelled, [&](int, int s1) { pass.render_to(arena, s1, counters); }, &target);
     if (history) *history = target.target.take_history();

@@ -143,12 +143,13 @@ struct DirectSchedule {
 
     void before_round(const ChainSchedule& rounds, uint64_t chain_evaluations);
     void finish(bool cancelled, bool chains_ran, std::chrono::steady_clock::time_point t0);
-    /// A frame without chains (mlt_paths none): the pass renders the whole budget as
-    /// pt's frame loop does — chunks of passes, a time budget, a target error from the
-    /// pass's own variance (PassTarget), `progress` able to stop it (*cancelled).
-    /// Returns whether the target error was reached; its history goes to `history`.
+    /// A frame without chains (mlt_paths none, or none started): the pass renders the
+    /// frame as pt's frame loop does — chunks of passes up to `passes` (0: the settings'
+    /// spp; with a time budget, until it is used), a target error from the pass's own
+    /// variance (PassTarget), `progress` able to stop it (*cancelled). Returns whether
+    /// the target error was reached; its history goes to `history`.
     bool run_alone(const ProgressCallback& progress, std::chrono::steady_clock::time_point t0, bool* cancelled,
-                   std::vector<std::array<double, 4>>* history);
+                   std::vector<std::array<double, 4>>* history, int passes = 0);
 };
 
 }  // namespace mlt

@@ -157,7 +157,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     res.height = settings.height;
     develop_image(res, film, chains.b.mean, chains.steps, direct_image);
     res.cancelled = chains.cancelled;
-    if (MltContext::chainless(settings)) {  // the direct pass's own estimate (as pt's)
+    if (chains.direct_alone) {  // the direct pass's own estimate (as pt's)
         if (!direct_image.mean.empty()) {
             const ErrorValue err = estimate_from_variance(direct_image.mean.data(), direct_image.variance.data(),
                                                           direct_image.robust.data(),
@@ -211,6 +211,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.importance = settings.importance;
     m.pilot_evaluations = budget.pilot;
     m.direct_evaluations = direct_pass.evaluations();
+    m.direct_alone = chains.direct_alone;
     st.lens_lights = direct_pass.lens_lights();
     m.min_depth = MltContext::min_depth(settings);
     m.camera_technique = ctx.tracer.technique().camera_probability();

@@ -17,7 +17,10 @@
 ///   3. bootstrap: min(bootstrap_samples, half of what is left) large-step samples
 ///      (bootstrap_samples 0: bootstrap_size below; its probe is reported in the
 ///      statistics' path_evaluations, not taken from the budget);
-///   4. the chains: the rest, split evenly over the chains.
+///   4. the chains: the rest, split evenly over the chains. Where none starts (the
+///      bootstrap found no path the chains render, and none was carried), the direct
+///      pass renders the frame alone with the chains' evaluations as well
+///      (direct_passes_without_chains; the sidecar's direct_alone).
 /// With a time budget the chains run until it is used up (frame_loop.h); 1–3 always run.
 #include "film/splat_film.h"
 #include "integrators/common/frame_loop.h"
@@ -104,6 +107,9 @@ struct PopulationResult {
     std::vector<mcmc::NormalisationAccumulator> part_norms;
     std::vector<double> group_steps;  ///< steps per error group (chain c in group c mod G)
     bool target_reached = false;      ///< the frame stopped at its target error
+    /// the direct pass rendered the frame alone: chainless, or no chain started (its
+    /// estimate and target are the pass's own)
+    bool direct_alone = false;
     std::vector<std::array<double, 4>> error_history;  ///< the target's estimates
 };
 
@@ -185,6 +191,15 @@ public:
     /// and the statistics both Metropolis integrators fill the same way. The caller adds
     /// its own (small / large steps, acceptance, kernel JSON, large_step_probability).
     RenderResult finish(PopulationResult&& chains);
+
+    /// Passes of the direct pass when no chain started (the bootstrap found no path the
+    /// chains render and none was carried): its own share plus the chains' evaluations,
+    /// whole passes of the frame — the frame spends its budget as planned (the pilot and
+    /// the bootstrap are spent already). Deterministic: the same bootstrap, the same passes.
+    int direct_passes_without_chains() const {
+        const uint64_t pixels = uint64_t(settings.width) * uint64_t(settings.height);
+        return MltContext::direct_spp(settings) + int(budget.chains / std::max<uint64_t>(pixels, 1));
+    }
 
     const Scene& scene;
     const RenderSettings& settings;
