@@ -485,6 +485,15 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
     if caveat and not any(w.startswith(CAVEAT_PT_TARGET) for w in job.result.warnings):
         job.warn([caveat])              # once per render (the share varies by frame)
     r, stats, image, trec, state_bytes, units = _render(job, scene, frame, width, height)
+    if stats.get("direct_alone") and stats.get("paths") != "none" and \
+            not getattr(job, "_no_chain_warned", False):
+        # the frame planned chains, but its bootstrap found no path for them: say so once
+        job._no_chain_warned = True
+        job.warn([f"{stats.get('integrator')}: frame {frame:g}: the bootstrap's "
+                  f"{int(stats.get('bootstrap_samples', 0))} samples found no path for the chains "
+                  f"(--mlt-paths {stats.get('paths')}), so no chain started and the frame was path "
+                  f"traced with their budget (light only such paths carry, if the frame has any, "
+                  f"is missing; a larger --bootstrap-samples may find it)"])
     aovs = aov_images(core, scene, job.st, r, job.aovs, opts, stats)
     stats["wall_time_s"] = time.perf_counter() - t0
     camera = fs.camera.name if fs.camera is not None else None

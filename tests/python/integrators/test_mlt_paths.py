@@ -287,3 +287,31 @@ def test_06_no_chain_started_the_direct_pass_gets_the_budget(reference, integrat
     # a frame with chains is not direct_alone
     r = core.render(scene, _settings(integrator, spp, 0, mlt_paths="all"))
     assert dict(r.stats)["direct_alone"] is False and dict(r.stats)["chains"] > 0
+
+
+def test_07_cli_says_when_no_chain_started(tmp_path, capsys):
+    """`cmlt render --integrator cmlt` on the hard stage caustic_sds (its only caustic is
+    seen through the slab: the direct pass's by default, mlt_sds): the chains are planned
+    but the bootstrap finds no path for them — one warning for the sequence, naming the
+    frame and the flag, and the sidecar says direct_alone with the whole budget spent."""
+    import json
+
+    import support
+    from cmlt.cli import main
+    shot = str(support.SEQUENCES / "hard" / "caustic_sds" / "shot.usda")
+    base = ["render", shot, "--frames", "1", "--res", "16x16", "--spp", "16", "--threads", "2",
+            "--integrator", "cmlt"]
+    assert main(base + ["--out", str(tmp_path / "a.####.exr")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("found no path for the chains") == 1, err
+    assert "frame 1" in err and "--bootstrap-samples" in err
+    st = json.load(open(tmp_path / "a.0001.exr.json"))["stats"]
+    assert st["paths"] == "caustics" and st["chains"] == 0 and st["direct_alone"] is True
+    assert st["path_evaluations"] == 16 * 16 * 16
+    # with the seen-through caustics on the chains (and a bootstrap that finds two of
+    # them: 38,912 samples at this budget, seed 1) they start, and nothing is said
+    assert main(base + ["--out", str(tmp_path / "b.####.exr"), "--mlt-sds", "chains",
+                        "--res", "32x32", "--spp", "256"]) == 0
+    assert "found no path for the chains" not in capsys.readouterr().err
+    st = json.load(open(tmp_path / "b.0001.exr.json"))["stats"]
+    assert st["chains"] > 0 and st["direct_alone"] is False
