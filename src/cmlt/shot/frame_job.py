@@ -492,8 +492,8 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         job.warn([f"{stats.get('integrator')}: frame {frame:g}: the bootstrap's "
                   f"{int(stats.get('bootstrap_samples', 0))} samples found no path for the chains "
                   f"(--mlt-paths {stats.get('paths')}), so no chain started and the frame was path "
-                  f"traced with their budget (light only such paths carry, if the frame has any, "
-                  f"is missing; a larger --bootstrap-samples may find it)"])
+                  f"traced with their budget, every path as --integrator pt does (a larger "
+                  f"--bootstrap-samples may find paths for the chains)"])
     aovs = aov_images(core, scene, job.st, r, job.aovs, opts, stats)
     stats["wall_time_s"] = time.perf_counter() - t0
     camera = fs.camera.name if fs.camera is not None else None

@@ -197,7 +197,9 @@ public:
         }
         if (m_chains.empty() && fr.budget.chains > 0 && fr.direct_pass.enabled()) {
             // no chain started (the bootstrap found no path the chains render, none was
-            // carried): the direct pass renders the frame with the chains' evaluations too
+            // carried): the direct pass renders the frame with the chains' evaluations
+            // too, and every path, as the pt integrator does (DirectPass::render_every_path)
+            fr.direct_pass.render_every_path(fr.scene);
             m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history,
                                                    fr.direct_passes_without_chains());
             m_direct_alone = true;

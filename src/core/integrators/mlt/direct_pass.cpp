@@ -6,6 +6,7 @@
 #include "integrators/mlt/mlt_context.h"
 #include "integrators/path/path_batch.h"
 #include "scene/scene.h"
+#include "util/error.h"
 
 #include <algorithm>
 #include <cmath>
@@ -28,13 +29,26 @@ uint64_t PtPass::evaluations() const {
     return uint64_t(m_passes) * uint64_t(m_settings.width) * uint64_t(m_settings.height);
 }
 
-void PtPass::enable_lens_light_tracing(const Scene& scene) {
-    auto lens = std::make_unique<LensLightTracing>(scene, m_camera, m_settings.width, m_settings.height,
-                                                   m_filter.margin());
-    if (!lens->active()) return;
+void PtPass::enable_light_tracing(const Scene& scene, bool caustic) {
+    CMLT_CHECK_MSG(m_passes == 0, "PtPass::enable_light_tracing after " << m_passes << " passes");
+    const int W = m_settings.width, H = m_settings.height;
+    auto lens = std::make_unique<LensLightTracing>(scene, m_camera, W, H, m_filter.margin());
+    std::unique_ptr<CausticLightTracing> traced;
+    if (caustic) {
+        traced = std::make_unique<CausticLightTracing>(scene, m_camera, W, H, m_filter.margin(), m_tracer.max_depth());
+        if (!traced->active()) traced.reset();
+    }
+    m_tracer.set_lens_light_tracing(lens->active() ? lens.get() : nullptr);
+    m_tracer.set_caustic_light_tracing(traced.get());
+    if (!lens->active() && !traced) {
+        m_lens_pass.reset();
+        m_caustic.reset();
+        m_lens.reset();
+        return;
+    }
+    m_lens_pass = std::make_unique<LensPass>(*lens, m_filter, W, H, traced.get());
     m_lens = std::move(lens);
-    m_lens_pass = std::make_unique<LensPass>(*m_lens, m_filter, m_settings.width, m_settings.height);
-    m_tracer.set_lens_light_tracing(m_lens.get());
+    m_caustic = std::move(traced);
 }
 
 void PtPass::set_partition(const PathPartition* partition) { m_tracer.set_partition(partition); }
@@ -128,10 +142,21 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
     : PtPass(scene, s, k_direct_sample_base, MltContext::direct_max_depth(s)),
       m_enabled(MltContext::direct_spp(s) > 0),
-      m_partition(scene, MltContext::partitioned(s) ? PathPart::easy : PathPart::all, s.mlt_sds == "direct") {
+      // the chains' caustic paths left out only where there are chains (a chainless
+      // frame's pass is the only estimator: every path)
+      m_partition(scene, MltContext::partitioned(s) && !MltContext::chainless(s) ? PathPart::easy : PathPart::all,
+                  s.mlt_sds == "direct"),
+      m_every(scene, PathPart::all) {
     if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
     set_partition(&m_partition);
-    if (m_enabled) enable_lens_light_tracing(scene);
+    // a chainless frame renders every path here: pt's caustic light tracing too
+    if (m_enabled) enable_light_tracing(scene, MltContext::chainless(s) && s.caustic_tracing);
+}
+
+void DirectPass::render_every_path(const Scene& scene) {
+    if (!m_enabled || !MltContext::partitioned(m_settings) || MltContext::chainless(m_settings)) return;
+    set_partition(&m_every);
+    enable_light_tracing(scene, m_settings.caustic_tracing);
 }
 
 int DirectPass::passes_for(uint64_t chain_evaluations) const {

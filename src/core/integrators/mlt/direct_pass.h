@@ -15,6 +15,7 @@
 #include "film/filter.h"
 #include "film/pass_splatter.h"
 #include "integrators/common/frame_loop.h"
+#include "integrators/path/caustic_light_tracing.h"
 #include "integrators/path/lens_light_tracing.h"
 #include "integrators/path/path_tracer.h"
 #include "sampling/rng_domains.h"
@@ -48,8 +49,10 @@ public:
     PtPass(const Scene& scene, const RenderSettings& s, uint32_t sample_base, int max_depth);
 
     int passes() const { return m_passes; }
-    /// Lights traced from the light side (enable_lens_light_tracing; 0 without).
+    /// Lights traced from the light side (enable_light_tracing; 0 without).
     uint32_t lens_lights() const { return m_lens ? uint32_t(m_lens->lights().size()) : 0u; }
+    /// Is the pass tracing caustics from the lights (enable_light_tracing)?
+    bool caustic_light_tracing() const { return m_caustic != nullptr; }
     /// Path evaluations so far (passes · W·H).
     uint64_t evaluations() const;
     /// Render passes up to `total` (no-op if already there), rays into `counters`.
@@ -69,9 +72,11 @@ public:
 protected:
     /// Trace the scene's sub-pixel lights from the light side too (BDPT's (1, 1)
     /// strategy, path/lens_light_tracing.h): a light sample per pixel sample, splatted,
-    /// and the camera's hits on those lights MIS-weighted against it. Nothing changes
-    /// when the scene has no such light.
-    void enable_lens_light_tracing(const Scene& scene);
+    /// and the camera's hits on those lights MIS-weighted against it; with `caustic`,
+    /// the caustics too, as the pt integrator does (path/caustic_light_tracing.h: only
+    /// for a pass that renders every path — its class must not be another estimator's).
+    /// Nothing changes when the scene has no such light or caster. Before the first pass.
+    void enable_light_tracing(const Scene& scene, bool caustic);
     /// Render only the paths of one class (PathTracer::set_partition; the object must
     /// outlive the pass).
     void set_partition(const PathPartition* partition);
@@ -89,8 +94,9 @@ private:
     Camera m_camera;
     PixelFilter m_filter;
     PathTracer m_tracer;
-    std::unique_ptr<LensLightTracing> m_lens;
-    std::unique_ptr<LensPass> m_lens_pass;  ///< its splats per pass
+    std::unique_ptr<LensLightTracing> m_lens;          ///< with light passes (active or not)
+    std::unique_ptr<CausticLightTracing> m_caustic;    ///< caustic light tracing, if on and active
+    std::unique_ptr<LensPass> m_lens_pass;             ///< the light passes' splats per pass
     bool m_motion_blur;
     Film m_film;
     std::unique_ptr<PassSplatter> m_splatter;  ///< made at the first indexed pass (rows known)
@@ -121,6 +127,12 @@ class DirectPass : public PtPass {
 public:
     DirectPass(const Scene& scene, const RenderSettings& s);
     bool enabled() const { return m_enabled; }
+    /// A frame whose chains render the caustic paths but where none started (the
+    /// bootstrap found no such path): the pass renders every path instead, with pt's
+    /// caustic light tracing (settings' caustic_tracing) — the frame is then the pt
+    /// integrator's estimator. The choice depends only on the bootstrap, whose numbers
+    /// are the pass's own, so the frame stays unbiased. Before the first pass.
+    void render_every_path(const Scene& scene);
     /// Passes a time-budgeted frame should have after `chain_evaluations`: the share
     /// direct_fraction of all evaluations (at least one).
     int passes_for(uint64_t chain_evaluations) const;
@@ -128,6 +140,7 @@ public:
 private:
     bool m_enabled;
     PathPartition m_partition;  ///< easy paths when the chains render the caustic ones
+    PathPartition m_every;      ///< every path (render_every_path)
 };
 
 /// The direct pass's slices around the chain rounds: before round r of a sample budget
