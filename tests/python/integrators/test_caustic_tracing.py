@@ -93,7 +93,8 @@ def test_a_chainless_metropolis_frame_traces_caustics_as_pt_does(frame):
     their own; the image mean over 48 seeds within 4.5 standard errors), with pt's noise
     (the per-pixel relative variance over seeds within 0.5-2x of pt's), far below the
     same pass without the light paths."""
-    on_img, _ = _images(frame, True, integrator="cmlt", mlt_paths="none")
+    on_img, casters = _images(frame, True, integrator="cmlt", mlt_paths="none")
+    assert casters == 1  # the sidecar says the pass traced the ball's caustics
     pt_img, _ = _images(frame, True)
     on, pt = on_img.mean(axis=1), pt_img.mean(axis=1)
     se = math.hypot(on.std(ddof=1), pt.std(ddof=1)) / math.sqrt(SEEDS)

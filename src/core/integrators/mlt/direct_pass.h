@@ -51,8 +51,8 @@ public:
     int passes() const { return m_passes; }
     /// Lights traced from the light side (enable_light_tracing; 0 without).
     uint32_t lens_lights() const { return m_lens ? uint32_t(m_lens->lights().size()) : 0u; }
-    /// Is the pass tracing caustics from the lights (enable_light_tracing)?
-    bool caustic_light_tracing() const { return m_caustic != nullptr; }
+    /// Casters the pass's caustic light tracing aims at (enable_light_tracing; 0: none traced).
+    uint32_t caustic_casters() const { return m_caustic ? uint32_t(m_caustic->caster_count()) : 0u; }
     /// Path evaluations so far (passes · W·H).
     uint64_t evaluations() const;
     /// Render passes up to `total` (no-op if already there), rays into `counters`.

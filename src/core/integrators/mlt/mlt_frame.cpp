@@ -213,6 +213,7 @@ RenderResult MltFrame::finish(PopulationResult&& chains) {
     m.direct_evaluations = direct_pass.evaluations();
     m.direct_alone = chains.direct_alone;
     st.lens_lights = direct_pass.lens_lights();
+    st.caustic_casters = direct_pass.caustic_casters();
     m.min_depth = MltContext::min_depth(settings);
     m.camera_technique = ctx.tracer.technique().camera_probability();
     st.emission_guiding = settings.mlt_path_sampler == "bdpt" ? ctx.bdpt.emission_guiding() : 0.0;
