@@ -190,18 +190,14 @@ public:
     template <class MakeTracer>
     void run(const ProgressCallback& progress, MakeTracer&& make_tracer) {
         MltFrame& fr = m_frame;
-        if (MltContext::chainless(fr.settings)) {  // the direct pass renders the frame
-            m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history);
-            m_direct_alone = true;
-            return;
-        }
-        if (m_chains.empty() && fr.budget.chains > 0 && fr.direct_pass.enabled()) {
-            // no chain started (the bootstrap found no path the chains render, none was
-            // carried): the direct pass renders the frame with the chains' evaluations
-            // too, and every path, as the pt integrator does (DirectPass::render_every_path)
-            fr.direct_pass.render_every_path(fr.scene);
+        // no chain started (the bootstrap found no path the chains render, none was
+        // carried): the direct pass renders the frame with the chains' evaluations too,
+        // and every path, as the pt integrator does (DirectPass::render_every_path)
+        const bool none_started = m_chains.empty() && fr.budget.chains > 0 && fr.direct_pass.enabled();
+        if (MltContext::chainless(fr.settings) || none_started) {  // the direct pass renders the frame
+            if (none_started) fr.direct_pass.render_every_path(fr.scene);
             m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history,
-                                                   fr.direct_passes_without_chains());
+                                                   none_started ? fr.direct_passes_without_chains() : 0);
             m_direct_alone = true;
             return;
         }

@@ -145,8 +145,7 @@ DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
       // the chains' caustic paths left out only where there are chains (a chainless
       // frame's pass is the only estimator: every path)
       m_partition(scene, MltContext::partitioned(s) && !MltContext::chainless(s) ? PathPart::easy : PathPart::all,
-                  s.mlt_sds == "direct"),
-      m_every(scene, PathPart::all) {
+                  s.mlt_sds == "direct") {
     if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
     set_partition(&m_partition);
     // a chainless frame renders every path here: pt's caustic light tracing too
@@ -155,7 +154,7 @@ DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
 
 void DirectPass::render_every_path(const Scene& scene) {
     if (!m_enabled || !MltContext::partitioned(m_settings) || MltContext::chainless(m_settings)) return;
-    set_partition(&m_every);
+    set_partition(nullptr);  // every path
     enable_light_tracing(scene, m_settings.caustic_tracing);
 }
 

@@ -78,7 +78,7 @@ protected:
     /// Nothing changes when the scene has no such light or caster. Before the first pass.
     void enable_light_tracing(const Scene& scene, bool caustic);
     /// Render only the paths of one class (PathTracer::set_partition; the object must
-    /// outlive the pass).
+    /// outlive the pass; null: every path).
     void set_partition(const PathPartition* partition);
 
     const RenderSettings& m_settings;
@@ -140,7 +140,6 @@ public:
 private:
     bool m_enabled;
     PathPartition m_partition;  ///< easy paths when the chains render the caustic ones
-    PathPartition m_every;      ///< every path (render_every_path)
 };
 
 /// The direct pass's slices around the chain rounds: before round r of a sample budget
