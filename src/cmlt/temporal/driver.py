@@ -49,7 +49,8 @@ CHAIN_SETTINGS = ("integrator", "spp", "max_depth", "sigma", "large_step_probabi
                   "direct_fraction", "pilot_spp", "carry_states", "smooth_normalization",
                   "seed_per_frame", "time_budget", "error_groups", "target_error",
                   "pixel_filter", "filter_radius", "mlt_camera_technique", "mlt_paths",
-                  "emission_guiding", "sampler", "chainless_integrator", "mlt_sds")
+                  "emission_guiding", "sampler", "chainless_integrator", "mlt_sds",
+                  "mlt_traced_caustics")
 #: integrators with a normalisation b (and bootstrap values, a pilot image)
 MLT_INTEGRATORS = ("pssmlt", "cmlt")
 #: Measurements behind the carry-over: tests/bench/results/flicker_baseline.md (the

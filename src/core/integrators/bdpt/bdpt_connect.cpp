@@ -59,7 +59,20 @@ bool BdptTracer::caustic_path(const PathVertex* light, int s, const PathVertex* 
     };
     for (int i = 1; i < tc; ++i) visit(camera[i]);
     for (int j = s - 1; j >= 1; --j) visit(light[j]);
-    return m_partition->caustic(last_specular, diffuse_before, first_specular, n_diffuse);
+    if (!any || !m_partition->has_traced())
+        return m_partition->caustic(last_specular, diffuse_before, first_specular, n_diffuse);
+    // The light-traced caustics: whether z1 and z_{n−1} scattered by a Dirac lobe (a
+    // vertex's `delta`, except at the connection's two ends, which scatter through the
+    // BSDF's value: never Dirac) and the light at the end.
+    auto dirac = [&](bool on_camera, int index) {
+        const bool end = s > 0 && (on_camera ? index == t - 1 : index == s - 1);
+        return !end && (on_camera ? camera[index] : light[index]).delta;
+    };
+    const bool first_dirac = tc > 1 ? dirac(true, 1) : dirac(false, s - 1);
+    const bool last_dirac = s >= 2 ? dirac(false, 1) : dirac(true, tc - 1);
+    const int32_t light_index = s == 0 ? camera[t - 1].light_index : s >= 2 ? light[0].light_index : -1;
+    return m_partition->caustic(last_specular, diffuse_before, first_specular, n_diffuse,
+                                m_partition->traced(first_dirac, last_dirac, light_index));
 }
 
 bool BdptTracer::begin_connect(const PathVertex* light, int s, const PathVertex* camera, int t,

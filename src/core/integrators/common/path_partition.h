@@ -32,6 +32,21 @@
 /// typical frame's rises 1.6-45x (where the chains do not get stuck they do better);
 /// tests/bench/results/seen_through_caustics.md.
 ///
+/// Light-traced caustics. A caustic path whose vertex next to the light, z_{n−1},
+/// scattered by a Dirac lobe, whose first vertex z1 did not, and whose light is one the
+/// direct pass's caustic light tracing traces (path/caustic_light_tracing.h: finite,
+/// non-Dirac lights, when it is active) goes to the easy part by default
+/// (RenderSettings::mlt_traced_caustics "direct", set_traced): the direct pass then
+/// renders it as the pt integrator does, camera paths MIS-weighted against light paths
+/// connected to the lens. On the stages where the chains rendered such paths the
+/// path tracer with light tracing had 2-20x less error at equal evaluations
+/// (tests/bench/results/chains_against_caustic_light_tracing.md); the chains keep what
+/// it cannot trace — dome and distant lights behind a Dirac chain, glossy chains, paths
+/// whose first vertex is Dirac. Whether a vertex scattered by a Dirac lobe is part of
+/// the path (the Dirac and the non-Dirac lobes of one material make paths of different
+/// measures): every technique that makes the path knows it (a BSDF-sampled vertex its
+/// lobe; a connection's end is never Dirac), so the class stays a property of the path.
+///
 /// The class is a property of the path alone: a vertex counts as specular by its
 /// material (analysis/scene_probes.h's rule, roughness < 0.2 metal, mirror or glass,
 /// constant or textured), never by the lobe sampled, and pass-through crossings make no
@@ -39,7 +54,9 @@
 /// strategy (s, t)) gives it the same class, MIS weights over the techniques still sum
 /// to one within each class, and the two classes' estimates add up to the image with
 /// no bias, whatever the rule is: the rule only decides which estimator does the work.
+#include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace cmlt {
@@ -75,9 +92,26 @@ public:
     /// the seen-through caustics (E S+ D S+ L: `first_specular`, the vertex the camera sees, near-specular
     /// and `n_diffuse`, the rough vertices, exactly 1; any count above 1 reads as more) where the rule
     /// gives those to the easy part (the file comment).
-    bool caustic(bool last_specular, bool diffuse_before, bool first_specular, int n_diffuse) const {
-        return last_specular && diffuse_before && !(m_seen_through_easy && first_specular && n_diffuse == 1);
+    /// `traced`: the path is a light-traced caustic one the easy part takes (traced()).
+    bool caustic(bool last_specular, bool diffuse_before, bool first_specular, int n_diffuse,
+                 bool traced = false) const {
+        return last_specular && diffuse_before && !(m_seen_through_easy && first_specular && n_diffuse == 1) &&
+               !traced;
     }
+    /// Is a path ending on light `light` (a Scene light index, -1: none) a light-traced
+    /// caustic one that goes to the easy part: z_{n−1} scattered by a Dirac lobe
+    /// (`last_dirac`), z1 not (`first_dirac`), the light traced (set_traced)?
+    bool traced(bool first_dirac, bool last_dirac, int32_t light) const {
+        return last_dirac && !first_dirac && light >= 0 && size_t(light) < m_traced.size() &&
+               m_traced[size_t(light)] != 0;
+    }
+    /// The lights the direct pass's caustic light tracing traces, per Scene light index
+    /// (CausticLightTracing::traced_lights); empty (the default): no path is a
+    /// light-traced caustic one (RenderSettings::mlt_traced_caustics "chains", or
+    /// nothing traced).
+    void set_traced(std::vector<uint8_t> traced_lights) { m_traced = std::move(traced_lights); }
+    /// Are any light-traced caustics in the easy part?
+    bool has_traced() const { return !m_traced.empty(); }
     /// Are the seen-through caustics in the easy part (RenderSettings::mlt_sds "direct")?
     bool seen_through_easy() const { return m_seen_through_easy; }
 
@@ -85,6 +119,7 @@ private:
     std::vector<uint8_t> m_specular;  ///< per material id: may be near-specular
     PathPart m_part = PathPart::all;
     bool m_seen_through_easy = true;
+    std::vector<uint8_t> m_traced;  ///< per light index: traced (set_traced)
 };
 
 }  // namespace cmlt

@@ -127,6 +127,14 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
           "near-specular chain, E S+ D S+ L (one rough vertex): direct (the path-traced "    \
           "direct pass; default) or chains (lower error in most frames, but a chain on such " \
           "a path can sit on an island it cannot leave, and a frame then gets a blob)")      \
+    TOKEN(mlt_traced_caustics, "direct", "direct chains", "cmlt:mltTracedCaustics",          \
+          "--mlt-traced-caustics",                                                           \
+          "pssmlt/cmlt with mlt_paths caustics: what renders the caustic paths the path "    \
+          "tracer's caustic light tracing makes (the light next to a mirror or glass bounce " \
+          "is a finite, non-Dirac light; the camera's first hit rough): direct (the direct " \
+          "pass, camera paths MIS-weighted against light paths as the pt integrator; "      \
+          "default) or chains (the rule before; chains keep dome and distant lights' "       \
+          "caustics and glossy chains either way)")                                          \
     TOKEN(chainless_integrator, "auto", "auto pt bdpt", "cmlt:chainlessIntegrator",         \
           "--chainless-integrator",                                                          \
           "pssmlt/cmlt: what renders a frame that has no chains (mlt_paths none, or auto on " \

@@ -148,8 +148,13 @@ DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
                   s.mlt_sds == "direct") {
     if (s.partial) set_rows(s.part_row_begin, s.part_row_end);  // a part of the frame
     set_partition(&m_partition);
-    // a chainless frame renders every path here: pt's caustic light tracing too
-    if (m_enabled) enable_light_tracing(scene, MltContext::chainless(s) && s.caustic_tracing);
+    // a chainless frame renders every path here: pt's caustic light tracing too; beside
+    // chains, the caustic paths that light tracing makes (MltContext's partition gets the
+    // same traced lights from the same tracer)
+    if (!m_enabled) return;
+    const bool traced = MltContext::traced_to_direct(s);
+    enable_light_tracing(scene, (MltContext::chainless(s) && s.caustic_tracing) || traced);
+    if (traced && caustic_light_tracing()) m_partition.set_traced(caustic_light_tracing()->traced_lights());
 }
 
 void DirectPass::render_every_path(const Scene& scene) {

@@ -53,6 +53,8 @@ public:
     uint32_t lens_lights() const { return m_lens ? uint32_t(m_lens->lights().size()) : 0u; }
     /// Casters the pass's caustic light tracing aims at (enable_light_tracing; 0: none traced).
     uint32_t caustic_casters() const { return m_caustic ? uint32_t(m_caustic->caster_count()) : 0u; }
+    /// The pass's caustic light tracing (enable_light_tracing), or null.
+    const CausticLightTracing* caustic_light_tracing() const { return m_caustic.get(); }
     /// Path evaluations so far (passes · W·H).
     uint64_t evaluations() const;
     /// Render passes up to `total` (no-op if already there), rays into `counters`.

@@ -9,6 +9,7 @@
 #include "integrators/common/render_settings.h"
 #include "integrators/mlt/pixel_importance.h"
 #include "integrators/mlt/pssmlt_tracer.h"
+#include "integrators/path/caustic_light_tracing.h"
 #include "integrators/path/path_tracer.h"
 #include "lights/emission_guide.h"
 #include "scene/scene.h"
@@ -32,6 +33,11 @@ struct MltContext {
                                                                      camera_technique(scene, s))
                                               : PssmltTracer(pt, camera, s.width, s.height)),
           partition(scene, partitioned(s) ? PathPart::caustic : PathPart::all, s.mlt_sds == "direct") {
+        // the caustic paths the direct pass's light tracing makes are its own (the same
+        // tracer as DirectPass's: camera, film window, depth; path_partition.h)
+        if (traced_to_direct(s))
+            partition.set_traced(
+                CausticLightTracing(scene, camera, s.width, s.height, filter.margin(), s.max_depth).traced_lights());
         pt.set_partition(&partition);
         bdpt.set_partition(&partition);
         // the chains' light subpaths aimed at the casters (bdpt_tracer.h; auto below)
@@ -89,6 +95,11 @@ struct MltContext {
     static bool partitioned(const RenderSettings& s) { return paths(s) != "all"; }
     /// No chains: the direct pass renders every path (mlt_paths none).
     static bool chainless(const RenderSettings& s) { return s.mlt_paths == "none"; }
+    /// Does the direct pass render the light-traced caustics (path_partition.h), with pt's
+    /// caustic light tracing, beside chains on the other caustic paths?
+    static bool traced_to_direct(const RenderSettings& s) {
+        return partitioned(s) && !chainless(s) && s.caustic_tracing && s.mlt_traced_caustics == "direct";
+    }
     /// The direct pass's share of a frame's evaluations (RenderSettings::direct_fraction
     /// with auto resolved): k_direct_fraction_all when the chains render every longer
     /// path, k_direct_fraction_partitioned when they render the caustic ones (README,

@@ -70,6 +70,14 @@ public:
     size_t light_count() const { return m_lights.size(); }
     size_t caster_count() const { return m_guide.caster_count(); }
 
+    /// Per Scene light index, 1 for a light this tracer traces (all 0 when inactive):
+    /// the light-traced caustics of the path partition (PathPartition::set_traced).
+    std::vector<uint8_t> traced_lights() const {
+        std::vector<uint8_t> t(m_slot.size(), 0);
+        if (m_active)
+            for (uint32_t i : m_lights) t[i] = 1;
+        return t;
+    }
     /// Camera side. The area density with which the camera samples z1 (point `p`,
     /// geometric normal `ng`) from lens point `p_lens`: the denominator's first factor.
     float camera_density(const Vec3& p_lens, const Vec3& p, const Vec3& ng) const;

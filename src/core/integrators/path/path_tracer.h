@@ -87,6 +87,7 @@ struct PathState {
     /// before the last of them, and the last one's material near-specular.
     bool diffuse_seen = false, diffuse_before_last = false, last_specular = false;
     bool first_specular = false;  ///< x1's material near-specular
+    bool first_dirac = false;     ///< x1 scattered by a Dirac lobe (the light-traced caustics)
     uint8_t n_diffuse = 0;        ///< rough scattering vertices so far (saturating at 2)
 
     /// Does `partition` want the path so far continued by a vertex whose material is

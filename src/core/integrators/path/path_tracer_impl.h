@@ -66,11 +66,14 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     const Ray& ray = st.ray;
     c.rays += 1;
 
-    // Emission seen by this ray, MIS-weighted against light sampling.
-    auto add_emitted = [&](const Spectrum& le, float light_pdf_sa) {
+    // Emission of light `light` (a Scene light index, -1: none) seen by this ray,
+    // MIS-weighted against light sampling.
+    auto add_emitted = [&](const Spectrum& le, float light_pdf_sa, int32_t light) {
         if (is_black(le) || st.depth < m_min_depth) return;
-        if (m_partition && !m_partition->wants(m_partition->caustic(st.last_specular, st.diffuse_before_last,
-                                                                      st.first_specular, st.n_diffuse)))
+        if (m_partition &&
+            !m_partition->wants(m_partition->caustic(st.last_specular, st.diffuse_before_last, st.first_specular,
+                                                     st.n_diffuse,
+                                                     m_partition->traced(st.first_dirac, st.specular_bounce, light))))
             return;
         if (st.depth == 0 || st.specular_bounce) {
             st.L += st.beta * le;
@@ -86,7 +89,7 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
             Spectrum le = light.le_escape_pdf(ray.d, st.prev_p, direct ? nullptr : &pdf);
             if (is_black(le)) continue;
             float pl = direct ? 0.f : scene.light_pmf(li) * pdf;
-            add_emitted(le, pl);
+            add_emitted(le, pl, int32_t(li));
         }
         st.done = true;
         return;
@@ -94,15 +97,17 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     if (hit.kind == SceneHit::Kind::light) {
         float pl = direct ? 0.f
                           : scene.light_pmf(hit.light_index) * scene.light(hit.light_index).pdf_li(st.prev_p, ray.d);
+        const int32_t light = int32_t(hit.light_index);
         if (m_lens_light && st.depth == 0) {
             // shared with the (1, 1) light samples (prev_p: the lens point)
-            add_emitted(hit.le * m_lens_light->camera_hit_weight(st.prev_p, ray.o + ray.d * hit.t, hit.light_index), pl);
+            add_emitted(hit.le * m_lens_light->camera_hit_weight(st.prev_p, ray.o + ray.d * hit.t, hit.light_index), pl,
+                        light);
         } else if (st.lt > 0.0 && st.specular_bounce) {
             // a caustic path, shared with the light paths (prev_p: the Dirac vertex)
             const float a = m_caustic->light_density(hit.light_index, ray.o + ray.d * hit.t, st.prev_p);
-            add_emitted(hit.le * CausticLightTracing::camera_weight(st.lt * double(a)), pl);
+            add_emitted(hit.le * CausticLightTracing::camera_weight(st.lt * double(a)), pl, light);
         } else {
-            add_emitted(hit.le, pl);
+            add_emitted(hit.le, pl, light);
         }
         st.done = true;  // analytic lights do not reflect
         return;
@@ -110,20 +115,17 @@ void PathTracer::step(PathState& st, const SceneHit& hit, Sampler& sampler, Path
     const SurfaceInteraction& si = hit.si;
     const Material& mat = scene.material(si.material_id);
     if (mat.is_emissive()) {
+        const int32_t li = scene.triangle_light_index(si.instance_id, si.prim_id);
         float pl = 0.f;
-        if (!direct) {
-            int32_t li = scene.triangle_light_index(si.instance_id, si.prim_id);
-            if (li >= 0)
-                pl = scene.light_pmf(size_t(li)) * scene.triangle_light(size_t(li)).pdf_li_point(st.prev_p, si.p);
-        }
+        if (!direct && li >= 0)
+            pl = scene.light_pmf(size_t(li)) * scene.triangle_light(size_t(li)).pdf_li_point(st.prev_p, si.p);
         Spectrum le = emitted_radiance(mat, si.uv, scene.textures());
         if (st.lt > 0.0 && st.specular_bounce && !is_black(le)) {
             // a caustic path, shared with the light paths
-            const int32_t li = scene.triangle_light_index(si.instance_id, si.prim_id);
             const float a = li >= 0 ? m_caustic->light_density(uint32_t(li), si.p, st.prev_p) : 0.f;
             le *= CausticLightTracing::camera_weight(st.lt * double(a));
         }
-        add_emitted(le, pl);
+        add_emitted(le, pl, li);
     }
 
     // Stop after max_depth scattering events (a pass-through surface may still be
@@ -256,6 +258,7 @@ void PathTracer::scatter(PathState& st, uint32_t bounce, const SurfacePoint& sp,
         }
     }
     st.specular_bounce = bs.is_delta;
+    if (st.depth == 0) st.first_dirac = bs.is_delta;
     if (bs.is_transmission) st.eta_scale *= bs.eta * bs.eta;
     st.prev_bsdf_pdf = bs.pdf;
     st.prev_p = sp.p;

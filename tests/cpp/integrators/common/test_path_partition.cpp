@@ -133,3 +133,79 @@ TEST(PathPartition, WantsSplitsThePathsBetweenTheTwoParts) {
     EXPECT_TRUE(caustic.wants(true));
     EXPECT_TRUE(easy.wants(false));
 }
+
+namespace {
+
+/// classes() with each scattering vertex's Dirac flag (`delta`, from the camera's side),
+/// for the strategies that can make the path: no connection at a Dirac vertex (its
+/// BSDF value is 0 there); the others' entries are left out.
+std::vector<bool> dirac_classes(const BdptTracer& tr, const std::vector<uint32_t>& mats,
+                                const std::vector<bool>& delta, int32_t light_index = 0) {
+    std::vector<PathVertex> full;
+    full.push_back(camera_vertex());
+    for (size_t i = 0; i < mats.size(); ++i) {
+        full.push_back(surface(mats[i]));
+        full.back().delta = delta[i];
+    }
+    full.push_back(light_vertex());
+    full.back().light_index = light_index;
+    const int n = int(full.size());
+    std::vector<bool> out;
+    for (int s = 0; s <= n - 1; ++s) {
+        const int t = n - s;
+        if (s > 0 && (full[size_t(t - 1)].delta || full[size_t(t)].delta)) continue;  // a Dirac connection
+        std::vector<PathVertex> camera(full.begin(), full.begin() + t);
+        std::vector<PathVertex> light;
+        for (int i = n - 1; i >= t; --i) light.push_back(full[size_t(i)]);
+        out.push_back(tr.caustic_path(light.data(), s, camera.data(), t));
+    }
+    return out;
+}
+
+}  // namespace
+
+// RenderSettings::mlt_traced_caustics "direct" (set_traced): a caustic path whose vertex
+// next to the light scattered by a Dirac lobe, whose first vertex did not, and whose
+// light is traced goes to the easy part — for every strategy that can make it (the
+// camera path hitting the light, s = 0, and light tracing, t = 1; the connections at a
+// Dirac vertex make none); glossy chains, a Dirac first vertex and untraced lights stay
+// with the chains.
+TEST(PathPartition, LightTracedCausticsGoToTheDirectPass) {
+    Scene s;
+    glass_scene(s);
+    const Camera cam(s.camera_desc(), 16, 16);
+    BdptTracer tr(s, cam, 16, 16, 8);
+    PathPartition part(s, PathPart::caustic);
+    tr.set_partition(&part);
+    auto all = [](const std::vector<bool>& v, bool want) {
+        for (bool c : v)
+            if (c != want) return false;
+        return !v.empty();
+    };
+    // E D S S L through both faces of the ball, Dirac: the chains' without a traced light
+    EXPECT_TRUE(all(dirac_classes(tr, {k_floor, k_glass, k_glass}, {false, true, true}), true));
+    part.set_traced({1});  // light 0 traced
+    EXPECT_TRUE(part.has_traced());
+    const std::vector<bool> traced = dirac_classes(tr, {k_floor, k_glass, k_glass}, {false, true, true});
+    EXPECT_EQ(traced.size(), 2u);  // s = 0 and t = 1
+    EXPECT_TRUE(all(traced, false)) << "E D S S L with a traced light: the direct pass's";
+    EXPECT_TRUE(all(dirac_classes(tr, {k_floor, k_floor, k_glass}, {false, false, true}), false))
+        << "E D D S L: the direct pass's";
+    // glossy last vertex (the same material, a non-Dirac lobe): the chains'
+    EXPECT_TRUE(all(dirac_classes(tr, {k_floor, k_glass}, {false, false}), true)) << "E D G L";
+    // Dirac first vertex: light tracing cannot connect it to the lens: the chains'
+    EXPECT_TRUE(all(dirac_classes(tr, {k_glass, k_floor, k_floor, k_glass}, {true, false, false, true}), true))
+        << "E S D D S L";
+    // a light that is not traced (index 1: not in the table)
+    EXPECT_TRUE(all(dirac_classes(tr, {k_floor, k_glass, k_glass}, {false, true, true}, 1), true));
+    // not caustic stays not caustic
+    EXPECT_TRUE(all(dirac_classes(tr, {k_glass, k_floor}, {true, false}), false)) << "E S D L";
+    // the path tracer's summary: traced() on (first Dirac, last Dirac, light)
+    EXPECT_TRUE(part.traced(false, true, 0));
+    EXPECT_FALSE(part.traced(true, true, 0));
+    EXPECT_FALSE(part.traced(false, false, 0));
+    EXPECT_FALSE(part.traced(false, true, 1));
+    EXPECT_FALSE(part.traced(false, true, -1));
+    EXPECT_FALSE(part.caustic(true, true, false, 1, true));
+    EXPECT_TRUE(part.caustic(true, true, false, 1, false));
+}
