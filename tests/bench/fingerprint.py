@@ -79,6 +79,8 @@ def run(args) -> dict:
                    "--res", args.res, "--spp", str(args.spp), "--integrator", integ,
                    "--seed", "7", "--threads", str(args.threads), "--quiet",
                    "--aov", "albedo,normal,depth"] + extra
+            if integ in ("pssmlt", "cmlt") and args.mlt_extra:
+                cmd += args.mlt_extra.split()
             if args.pixel_filter:     # not in the key: runs with and without it compare
                 cmd += ["--pixel-filter", args.pixel_filter]
             cmd = _first_two_frames(cmd, ROOT / shot)
@@ -117,6 +119,10 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", help="write the fingerprints to this JSON file")
     ap.add_argument("--compare", metavar="JSON", help="compare with an earlier run's file")
+    ap.add_argument("--mlt-extra", default="",
+                    help="more flags for every pssmlt/cmlt case, left out of the cases' keys: a "
+                         "new setting whose value reproduces the old images is checked against "
+                         "the old commit's file (e.g. --mlt-extra='--mlt-traced-caustics chains')")
     ap.add_argument("--res", default="40x30")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--threads", type=int, default=2)

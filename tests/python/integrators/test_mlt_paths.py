@@ -355,3 +355,36 @@ def test_07_cli_says_when_no_chain_started(tmp_path, capsys):
     assert "found no path for the chains" not in capsys.readouterr().err
     st = json.load(open(tmp_path / "b.0001.exr.json"))["stats"]
     assert st["chains"] > 0 and st["direct_alone"] is False
+
+
+def test_08_a_frame_without_chains_leaves_their_paths_to_their_estimate(scenes, reference):
+    """Where no chain starts (b = 0) the direct pass renders the frame with the chains'
+    evaluations too, but only its own class of paths: the chains' estimate of theirs, b
+    times their image, is 0 there, and it is unbiased counting those zeros. Rendering the
+    chains' paths in such frames too (as the pass did before) counts them P(b = 0) times
+    too often: on this scene with a 64-sample bootstrap (chains in about 70 % of frames)
+    the mean rose by about P(b = 0) times the caustics' light. So: a frame without chains
+    has the direct pass's expected image — that of the frames with chains — and is far
+    below the reference (the caustics are missing from it)."""
+    _, scene = scenes["mirror_caustic"]
+    ref, ref_var = reference["mirror_caustic"]
+    ref_y = ref.reshape(-1, 3).mean(0) @ ACESCG_Y
+    alone, direct_with_chains = [], []
+    for seed in range(80):
+        r = core.render(scene, _settings("cmlt", 64, seed, mlt_paths="caustics", mlt_traced_caustics="chains",
+                                         bootstrap_samples=64, chains=16))
+        st = dict(r.stats)
+        y = np.asarray(r.image, np.float64).reshape(-1, 3).mean(0) @ ACESCG_Y
+        if st["chains"] == 0:
+            assert st["direct_alone"] is True
+            alone.append(y)
+        else:
+            direct_with_chains.append(np.asarray(r.direct, np.float64).reshape(-1, 3).mean(0) @ ACESCG_Y)
+    assert len(alone) >= 10 and len(direct_with_chains) >= 10, (len(alone), len(direct_with_chains))
+    a, d = np.array(alone), np.array(direct_with_chains)
+    se_a, se_d = a.std(ddof=1) / math.sqrt(len(a)), d.std(ddof=1) / math.sqrt(len(d))
+    print(f"frames without chains {a.mean():.5f} +- {se_a:.5f} ({len(a)}), the direct pass of frames "
+          f"with chains {d.mean():.5f} +- {se_d:.5f}, BDPT {ref_y:.5f}")
+    t = t_critical(min(len(a), len(d)) - 1, 1e-3)
+    assert abs(a.mean() - d.mean()) < t * math.hypot(se_a, se_d), (a.mean(), d.mean())
+    assert ref_y - a.mean() > 5 * math.hypot(se_a, lum_se(ref_var)), (a.mean(), ref_y)

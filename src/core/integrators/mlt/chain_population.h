@@ -191,11 +191,13 @@ public:
     void run(const ProgressCallback& progress, MakeTracer&& make_tracer) {
         MltFrame& fr = m_frame;
         // no chain started (the bootstrap found no path the chains render, none was
-        // carried): the direct pass renders the frame with the chains' evaluations too,
-        // and every path, as the pt integrator does (DirectPass::render_every_path)
+        // carried): the direct pass renders the frame with the chains' evaluations too —
+        // its own class of paths only. The chains' estimate of theirs is b times their
+        // image, 0 with b = 0, and unbiased counting those zeros: a frame that rendered
+        // the chains' paths wherever none started would count them P(b = 0) times too
+        // often (test_mlt_paths.py, test_08).
         const bool none_started = m_chains.empty() && fr.budget.chains > 0 && fr.direct_pass.enabled();
         if (MltContext::chainless(fr.settings) || none_started) {  // the direct pass renders the frame
-            if (none_started) fr.direct_pass.render_every_path(fr.scene);
             m_target_reached = fr.direct.run_alone(progress, fr.t0, &m_cancelled, &m_direct_history,
                                                    none_started ? fr.direct_passes_without_chains() : 0);
             m_direct_alone = true;

@@ -157,12 +157,6 @@ DirectPass::DirectPass(const Scene& scene, const RenderSettings& s)
     if (traced && caustic_light_tracing()) m_partition.set_traced(caustic_light_tracing()->traced_lights());
 }
 
-void DirectPass::render_every_path(const Scene& scene) {
-    if (!m_enabled || !MltContext::partitioned(m_settings) || MltContext::chainless(m_settings)) return;
-    set_partition(nullptr);  // every path
-    enable_light_tracing(scene, m_settings.caustic_tracing);
-}
-
 int DirectPass::passes_for(uint64_t chain_evaluations) const {
     const double f = MltContext::direct_fraction(m_settings);
     const double pixels = double(m_settings.width) * double(m_settings.height);

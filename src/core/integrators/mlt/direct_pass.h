@@ -129,12 +129,6 @@ class DirectPass : public PtPass {
 public:
     DirectPass(const Scene& scene, const RenderSettings& s);
     bool enabled() const { return m_enabled; }
-    /// A frame whose chains render the caustic paths but where none started (the
-    /// bootstrap found no such path): the pass renders every path instead, with pt's
-    /// caustic light tracing (settings' caustic_tracing) — the frame is then the pt
-    /// integrator's estimator. The choice depends only on the bootstrap, whose numbers
-    /// are the pass's own, so the frame stays unbiased. Before the first pass.
-    void render_every_path(const Scene& scene);
     /// Passes a time-budgeted frame should have after `chain_evaluations`: the share
     /// direct_fraction of all evaluations (at least one).
     int passes_for(uint64_t chain_evaluations) const;
