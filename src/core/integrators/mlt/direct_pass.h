@@ -76,7 +76,8 @@ protected:
     /// strategy, path/lens_light_tracing.h): a light sample per pixel sample, splatted,
     /// and the camera's hits on those lights MIS-weighted against it; with `caustic`,
     /// the caustics too, as the pt integrator does (path/caustic_light_tracing.h: only
-    /// for a pass that renders every path — its class must not be another estimator's).
+    /// for a pass whose class holds every path the light paths make — every path, or the
+    /// easy part with the light-traced caustics, PathPartition::set_traced).
     /// Nothing changes when the scene has no such light or caster. Before the first pass.
     void enable_light_tracing(const Scene& scene, bool caustic);
     /// Render only the paths of one class (PathTracer::set_partition; the object must
@@ -123,8 +124,9 @@ std::vector<float> render_pilot(const Scene& scene, const RenderSettings& settin
 
 /// The direct pass of a Metropolis frame, keyed from k_direct_sample_base: depths 0
 /// and 1, or, when the chains render only caustic paths (mlt_paths caustics / none),
-/// every other path at every depth (path_partition.h); disabled when direct_fraction
-/// is 0 and the chains render every longer path.
+/// every other path at every depth (path_partition.h), with the caustics pt's caustic
+/// light tracing makes and that light tracing (RenderSettings::mlt_traced_caustics
+/// "direct"); disabled when direct_fraction is 0 and the chains render every longer path.
 class DirectPass : public PtPass {
 public:
     DirectPass(const Scene& scene, const RenderSettings& s);

@@ -38,24 +38,34 @@ PathVertex surface(uint32_t material) {
 }
 
 /// Every split of the path camera → mats … → light into (s, t) with s + t = its vertex
-/// count (s = 0: the last vertex is an emitter hit on the camera side), classified.
-std::vector<bool> classes(const BdptTracer& tr, const std::vector<uint32_t>& mats) {
-    // full path from the camera: E, mats..., L
+/// count (s = 0: the last vertex is an emitter hit on the camera side), classified, with
+/// each scattering vertex's Dirac flag (`delta`, from the camera's side; none: all
+/// false), for the strategies that can make the path: no connection at a Dirac vertex
+/// (its BSDF value is 0 there; those entries are left out).
+std::vector<bool> dirac_classes(const BdptTracer& tr, const std::vector<uint32_t>& mats,
+                                const std::vector<bool>& delta, int32_t light_index = 0) {
     std::vector<PathVertex> full;
     full.push_back(camera_vertex());
-    for (uint32_t m : mats) full.push_back(surface(m));
-    PathVertex end = light_vertex();
-    full.push_back(end);
+    for (size_t i = 0; i < mats.size(); ++i) {
+        full.push_back(surface(mats[i]));
+        full.back().delta = delta[i];
+    }
+    full.push_back(light_vertex());
+    full.back().light_index = light_index;
     const int n = int(full.size());
     std::vector<bool> out;
     for (int s = 0; s <= n - 1; ++s) {
         const int t = n - s;
+        if (s > 0 && (full[size_t(t - 1)].delta || full[size_t(t)].delta)) continue;  // a Dirac connection
         std::vector<PathVertex> camera(full.begin(), full.begin() + t);
         std::vector<PathVertex> light;
         for (int i = n - 1; i >= t; --i) light.push_back(full[size_t(i)]);  // light[0] is the light
         out.push_back(tr.caustic_path(light.data(), s, camera.data(), t));
     }
     return out;
+}
+std::vector<bool> classes(const BdptTracer& tr, const std::vector<uint32_t>& mats) {
+    return dirac_classes(tr, mats, std::vector<bool>(mats.size(), false));
 }
 
 }  // namespace
@@ -134,35 +144,6 @@ TEST(PathPartition, WantsSplitsThePathsBetweenTheTwoParts) {
     EXPECT_TRUE(easy.wants(false));
 }
 
-namespace {
-
-/// classes() with each scattering vertex's Dirac flag (`delta`, from the camera's side),
-/// for the strategies that can make the path: no connection at a Dirac vertex (its
-/// BSDF value is 0 there); the others' entries are left out.
-std::vector<bool> dirac_classes(const BdptTracer& tr, const std::vector<uint32_t>& mats,
-                                const std::vector<bool>& delta, int32_t light_index = 0) {
-    std::vector<PathVertex> full;
-    full.push_back(camera_vertex());
-    for (size_t i = 0; i < mats.size(); ++i) {
-        full.push_back(surface(mats[i]));
-        full.back().delta = delta[i];
-    }
-    full.push_back(light_vertex());
-    full.back().light_index = light_index;
-    const int n = int(full.size());
-    std::vector<bool> out;
-    for (int s = 0; s <= n - 1; ++s) {
-        const int t = n - s;
-        if (s > 0 && (full[size_t(t - 1)].delta || full[size_t(t)].delta)) continue;  // a Dirac connection
-        std::vector<PathVertex> camera(full.begin(), full.begin() + t);
-        std::vector<PathVertex> light;
-        for (int i = n - 1; i >= t; --i) light.push_back(full[size_t(i)]);
-        out.push_back(tr.caustic_path(light.data(), s, camera.data(), t));
-    }
-    return out;
-}
-
-}  // namespace
 
 // RenderSettings::mlt_traced_caustics "direct" (set_traced): a caustic path whose vertex
 // next to the light scattered by a Dirac lobe, whose first vertex did not, and whose
