@@ -491,9 +491,10 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
         job._no_chain_warned = True
         job.warn([f"{stats.get('integrator')}: frame {frame:g}: the bootstrap's "
                   f"{int(stats.get('bootstrap_samples', 0))} samples found no path for the chains "
-                  f"(--mlt-paths {stats.get('paths')}), so no chain started and the frame was path "
-                  f"traced with their budget, every path as --integrator pt does (a larger "
-                  f"--bootstrap-samples may find paths for the chains)"])
+                  f"(--mlt-paths {stats.get('paths')}), so no chain started and the direct pass "
+                  f"rendered its own paths with their budget too; the chains' paths add nothing "
+                  f"to this frame, as where the chains find none of them (unbiased over frames; "
+                  f"a larger --bootstrap-samples may find paths for the chains)"])
     aovs = aov_images(core, scene, job.st, r, job.aovs, opts, stats)
     stats["wall_time_s"] = time.perf_counter() - t0
     camera = fs.camera.name if fs.camera is not None else None
