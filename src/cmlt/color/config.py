@@ -446,6 +446,12 @@ def get_config() -> ColorConfig:
         return _default
 
 
+def current_config() -> Optional[ColorConfig]:
+    """The process-wide config if one is loaded or set, else None (loads nothing)."""
+    with _default_lock:
+        return _default
+
+
 def set_config(config: Optional[ColorConfig]) -> None:
     """Make ``config`` the process-wide config (``None``: reload lazily);
     the CLI calls this once with ``load_config(args.ocio_config, stage=...)``."""

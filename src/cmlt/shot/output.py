@@ -19,6 +19,7 @@ def color_setup(opts, stage):
     """Install ``--ocio-config`` and check ``--output-colorspace`` before any
     frame renders; returns (EXR header attributes, resolved colour space)."""
     from ..color import ColorError, get_config, header_attributes, load_config, set_config
+    from ..color.config import current_config
 
     # One config for the whole shot, installed before any frame is loaded (the
     # reader converts authored colours to ACEScg with it): --ocio-config, else
@@ -31,8 +32,8 @@ def color_setup(opts, stage):
         if opts.ocio_config:
             raise UsageError(f"--ocio-config {opts.ocio_config}: {exc}") from None
         raise RenderError(str(exc)) from None
-    current = get_config()
-    if (current.location, current.source, current.rendering_space) != \
+    current = current_config()  # None: nothing loaded yet (not loaded here only to compare)
+    if current is None or (current.location, current.source, current.rendering_space) != \
             (cfg.location, cfg.source, cfg.rendering_space):
         set_config(cfg)         # keep the current one (and its processor cache) if the same
     try:
