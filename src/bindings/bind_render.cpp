@@ -7,6 +7,7 @@
 #include "integrators/common/render.h"
 #include "integrators/mlt/chain_state.h"
 #include "integrators/mlt/mlt_context.h"
+#include "integrators/mlt/mlt_frame.h"
 #include "integrators/mlt/direct_pass.h"
 #include "integrators/mlt/pixel_importance.h"
 #include "integrators/path/path_tracer.h"
@@ -194,6 +195,10 @@ PyRenderResult render_py(Scene& scene, const RenderSettings& settings, nb::objec
     if (st.lane_hits > 0) d["lane_hits"] = st.lane_hits;
     if (st.lens_lights > 0) d["lens_lights"] = st.lens_lights;
     if (st.caustic_casters > 0) d["caustic_casters"] = st.caustic_casters;
+    if (st.mlt_expected_starts >= 0.0) {
+        d["mlt_expected_starts"] = st.mlt_expected_starts;
+        d["mlt_too_few_starts"] = st.mlt_too_few_starts;
+    }
     if (st.emission_guiding > 0) d["emission_guiding"] = st.emission_guiding;
     if (st.caster_coverage >= 0) d["caster_coverage"] = st.caster_coverage;
     d["busy_s"] = st.busy_s;
@@ -404,6 +409,32 @@ void bind_render(nb::module_& m) {
         "scene"_a, "settings"_a,
         "settings.mlt_paths with 'auto' resolved for this scene ('caustics' where a material "
         "can be near-specular, else 'none'), as the pssmlt/cmlt frame resolves it.");
+    m.def(
+        "mlt_probe_starts",
+        [](Scene& scene, const RenderSettings& settings) -> nb::object {
+            settings.validate();
+            if (scene.dirty()) scene.commit();
+            if (!mlt::start_probe_applies(scene, settings)) return nb::none();
+            mlt::StartProbe p;
+            {
+                nb::gil_scoped_release release;
+                p = mlt::probe_starts(scene, settings);
+            }
+            nb::dict d;
+            d["probe"] = p.probe;
+            d["probe_nonzero"] = p.nonzero;
+            d["bootstrap"] = p.bootstrap;
+            d["expected_starts"] = p.expected;
+            d["too_few"] = p.too_few;
+            d["rays"] = p.counters.rays;
+            return d;
+        },
+        "scene"_a, "settings"_a,
+        "The start probe of settings.mlt_min_starts (mlt_frame.h, probe_starts) where it "
+        "decides the frame (pssmlt/cmlt, mlt_paths auto resolving to caustics, auto bootstrap "
+        "size, no given bootstrap or states), else None: a dict of the probe's samples and "
+        "those with light, the bootstrap size, the expected starts and too_few (render the "
+        "frame with mlt_paths none).");
     m.def(
         "render_pilot",
         [](Scene& scene, const RenderSettings& settings) {

@@ -495,6 +495,17 @@ def render_frame(job: ShotJob, frame: float, path: str, prepare_temporal) -> Dic
                   f"rendered its own paths with their budget too; the chains' paths add nothing "
                   f"to this frame, as where the chains find none of them (unbiased over frames; "
                   f"a larger --bootstrap-samples may find paths for the chains)"])
+    probe = (trec or {}).get("start_probe") or {}
+    if stats.get("mlt_too_few_starts") or probe.get("too_few"):
+        expected = stats.get("mlt_expected_starts", probe.get("expected_starts", 0.0))
+        if not getattr(job, "_few_starts_warned", False):
+            # the start probe moved the frame to the chainless integrator: say so once
+            job._few_starts_warned = True
+            job.warn([f"{job.resolved.integrator}: frame {frame:g}: a probe predicts that "
+                      f"{float(expected):.3g} of the bootstrap's samples carry light for the "
+                      f"chains (fewer than --mlt-min-starts {int(job.resolved.mlt_min_starts)}), "
+                      f"so the frame is rendered without chains (as --mlt-paths none); "
+                      f"--mlt-min-starts 0 runs them"])
     aovs = aov_images(core, scene, job.st, r, job.aovs, opts, stats)
     stats["wall_time_s"] = time.perf_counter() - t0
     camera = fs.camera.name if fs.camera is not None else None

@@ -50,7 +50,7 @@ CHAIN_SETTINGS = ("integrator", "spp", "max_depth", "sigma", "large_step_probabi
                   "seed_per_frame", "time_budget", "error_groups", "target_error",
                   "pixel_filter", "filter_radius", "mlt_camera_technique", "mlt_paths",
                   "emission_guiding", "sampler", "chainless_integrator", "mlt_sds",
-                  "mlt_traced_caustics")
+                  "mlt_traced_caustics", "mlt_min_starts")
 #: integrators with a normalisation b (and bootstrap values, a pilot image)
 MLT_INTEGRATORS = ("pssmlt", "cmlt")
 #: Measurements behind the carry-over: tests/bench/results/flicker_baseline.md (the
@@ -240,7 +240,16 @@ def prepare_frame(core, scene, st, frame: float, config: dict,
         # resolves it (the bootstrap and chain counts below depend on it)
         # (from the requested value each frame: what a frame's scene allows may change)
         st.mlt_paths = config.get("mlt_paths", st.mlt_paths)
+        # the start probe (--mlt-min-starts): a frame whose chains would start from a
+        # handful of paths renders without chains, as the core decides for a frame it
+        # is handed whole (render.cpp); decided here, before the bootstrap below
+        probe = core.mlt_probe_starts(scene, st) if hasattr(core, "mlt_probe_starts") else None
         st.mlt_paths = core.mlt_resolve_paths(scene, st)
+        if probe is not None:
+            rec["start_probe"] = {k: probe[k] for k in ("probe", "probe_nonzero", "bootstrap",
+                                                         "expected_starts", "too_few")}
+            if probe["too_few"]:
+                st.mlt_paths = "none"
     if config["integrator"] in MLT_INTEGRATORS and hasattr(st, "pilot"):
         # the pixel importance's pilot, rendered once for the render and for the
         # carry-over evaluations below (f* must be the same function in all of them)

@@ -60,6 +60,19 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
         as_pt.integrator = "pt";
         use = &as_pt;
     }
+    // a pssmlt/cmlt frame whose chains would start from a handful of paths (the start
+    // probe, RenderSettings::mlt_min_starts) is rendered without chains: mlt_paths none
+    RenderSettings as_chainless;
+    mlt::StartProbe starts;
+    const bool probed = mlt::start_probe_applies(scene, *use);
+    if (probed) {
+        starts = mlt::probe_starts(scene, *use);
+        if (starts.too_few) {
+            as_chainless = *use;
+            as_chainless.mlt_paths = "none";
+            use = &as_chainless;
+        }
+    }
     // a pssmlt/cmlt frame without chains (mlt_paths none, or auto on a scene without
     // near-specular materials) rendered by BDPT where chainless_integrator asks for it:
     // the frame is then `--integrator bdpt`'s, bit for bit (the frame loop resolves
@@ -81,6 +94,13 @@ RenderResult render(Scene& scene, const RenderSettings& settings, const Progress
             res.stats.pixel_filter = filter.name();
             res.stats.filter_radius = filter.radius();
             res.stats.sampler = pixel_sequence_name(pixel_sequence(*use));
+            if (probed) {
+                res.stats.mlt_expected_starts = starts.expected;
+                res.stats.mlt_too_few_starts = starts.too_few;
+                res.stats.rays += starts.counters.rays;
+                res.stats.camera_rays += starts.counters.camera_rays;
+                res.stats.shadow_rays += starts.counters.shadow_rays;
+            }
             return res;
         }
     CMLT_THROW(SettingsError, "RenderSettings.integrator: unknown integrator '" << settings.integrator << "'");

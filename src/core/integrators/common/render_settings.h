@@ -135,6 +135,13 @@ constexpr double k_inf = std::numeric_limits<double>::infinity();
           "pass, camera paths MIS-weighted against light paths as the pt integrator; "      \
           "default) or chains (the rule before; chains keep dome and distant lights' "       \
           "caustics and glossy chains either way)")                                          \
+    INT(mlt_min_starts, 64, 0, settings_limits::k_int_max, "cmlt:mltMinStarts",               \
+        "--mlt-min-starts N",                                                                \
+        "pssmlt/cmlt with mlt_paths auto on a frame with near-specular materials and an "    \
+        "auto bootstrap size: a probe of 16384 samples (keys of their own) predicts how "    \
+        "many of the bootstrap's samples carry light for the chains; below N the frame is "  \
+        "rendered without chains, as mlt_paths none (chains resampled from a handful of "    \
+        "paths copy them, and the path-traced frame is the faster one there); 0 = off")      \
     TOKEN(chainless_integrator, "auto", "auto pt bdpt", "cmlt:chainlessIntegrator",         \
           "--chainless-integrator",                                                          \
           "pssmlt/cmlt: what renders a frame that has no chains (mlt_paths none, or auto on " \
@@ -383,6 +390,11 @@ struct RenderStats {
     /// pssmlt, cmlt with auto guiding: the casters' coverage of the lights' directions
     /// it decided on (lights/emission_guide.h, caster_coverage), else −1
     double caster_coverage = -1;
+    /// pssmlt, cmlt where the start probe ran (RenderSettings::mlt_min_starts,
+    /// mlt::probe_starts): the bootstrap samples predicted to carry light for the chains,
+    /// else −1; `mlt_too_few_starts`: below mlt_min_starts, the frame rendered without chains
+    double mlt_expected_starts = -1;
+    bool mlt_too_few_starts = false;
     std::string pixel_filter;   ///< the reconstruction filter used (film/filter.h)
     double filter_radius = 0;   ///< its radius in pixels (the default resolved)
     std::string sampler;        ///< the pixel samples' numbers: "sobol" | "sobol-blocks" | "independent" (resolved)

@@ -31,18 +31,12 @@ FrameBudget FrameBudget::plan(const RenderSettings& s) {
     return plan(s, s.bootstrap_samples > 0 ? uint64_t(s.bootstrap_samples) : k_bootstrap_default);
 }
 
-BootstrapSize bootstrap_size(const RenderSettings& s, const PssmltTracer& tracer, tbb::task_arena& arena,
-                             FrameCounters& counters) {
-    BootstrapSize out;
-    if (s.bootstrap_samples > 0) {
-        out.wanted = uint64_t(s.bootstrap_samples);
-        return out;
-    }
-    out.wanted = k_bootstrap_default;
-    // given values (the temporal driver sized them), no chains, or no room to grow: no probe
-    if (s.mlt_bootstrap_f || !MltContext::chains_needed(s)) return out;
-    uint64_t cap = uint64_t(k_bootstrap_share * double(MltContext::evaluation_budget(s)));
-    if (cap <= k_bootstrap_default) return out;
+namespace {
+
+/// Of k_bootstrap_probe samples keyed (seed, bootstrap_probe, i), those with f* > 0;
+/// `seconds`: the probe's time.
+uint64_t count_probe(const RenderSettings& s, const PssmltTracer& tracer, tbb::task_arena& arena,
+                     FrameCounters& counters, double* seconds) {
     const uint64_t n = k_bootstrap_probe;
     std::vector<uint8_t> carries(n, 0);
     const auto start = std::chrono::steady_clock::now();
@@ -58,15 +52,81 @@ BootstrapSize bootstrap_size(const RenderSettings& s, const PssmltTracer& tracer
         }
         counters.add(c, bad);
     });
-    const double seconds = seconds_since(start);
-    out.probe = n;
-    for (uint8_t v : carries) out.probe_nonzero += v;
+    *seconds = seconds_since(start);
+    uint64_t nonzero = 0;
+    for (uint8_t v : carries) nonzero += v;
+    return nonzero;
+}
+
+/// The auto bootstrap size's cap: k_bootstrap_share of the evaluations left for bootstrap
+/// and chains.
+uint64_t bootstrap_cap(const RenderSettings& s) {
+    return uint64_t(k_bootstrap_share * double(MltContext::evaluation_budget(s)));
+}
+
+/// bootstrap_size's wanted size from a probe's count (the cap above and, with a time
+/// budget, k_bootstrap_share of the seconds at the probe's rate).
+uint64_t wanted_from_probe(const RenderSettings& s, uint64_t nonzero, double seconds) {
+    uint64_t cap = bootstrap_cap(s);
+    const uint64_t n = k_bootstrap_probe;
     if (s.time_budget > 0.0 && seconds > 0.0)
         cap = std::min<uint64_t>(cap, uint64_t(k_bootstrap_share * s.time_budget * double(n) / seconds));
     // about one sample that carries light per chain (none seen: as if one had been)
-    const double want = std::ceil(double(std::max(s.chains, 1)) * double(n) /
-                                  double(std::max<uint64_t>(out.probe_nonzero, 1)));
-    out.wanted = std::max(k_bootstrap_default, std::min<uint64_t>(cap, uint64_t(std::min(want, 1e15))));
+    const double want =
+        std::ceil(double(std::max(s.chains, 1)) * double(n) / double(std::max<uint64_t>(nonzero, 1)));
+    return std::max(k_bootstrap_default, std::min<uint64_t>(cap, uint64_t(std::min(want, 1e15))));
+}
+
+}  // namespace
+
+BootstrapSize bootstrap_size(const RenderSettings& s, const PssmltTracer& tracer, tbb::task_arena& arena,
+                             FrameCounters& counters) {
+    BootstrapSize out;
+    if (s.bootstrap_samples > 0) {
+        out.wanted = uint64_t(s.bootstrap_samples);
+        return out;
+    }
+    out.wanted = k_bootstrap_default;
+    // given values (the temporal driver sized them), no chains, or no room to grow: no probe
+    if (s.mlt_bootstrap_f || !MltContext::chains_needed(s)) return out;
+    if (bootstrap_cap(s) <= k_bootstrap_default) return out;
+    double seconds = 0.0;
+    out.probe = k_bootstrap_probe;
+    out.probe_nonzero = count_probe(s, tracer, arena, counters, &seconds);
+    out.wanted = wanted_from_probe(s, out.probe_nonzero, seconds);
+    return out;
+}
+
+bool start_probe_applies(const Scene& scene, const RenderSettings& given) {
+    if (given.integrator != "pssmlt" && given.integrator != "cmlt") return false;
+    if (given.mlt_min_starts <= 0 || given.mlt_paths != "auto" || given.bootstrap_samples != 0) return false;
+    if (given.mlt_bootstrap_f || given.mlt_initial_states) return false;  // the temporal driver's frame
+    const RenderSettings resolved = MltContext::resolve_paths(scene, given);
+    return resolved.mlt_paths == "caustics" && MltContext::chains_needed(resolved);
+}
+
+StartProbe probe_starts(const Scene& scene, const RenderSettings& given) {
+    StartProbe out;
+    const RenderSettings s = MltContext::resolve_paths(scene, given);
+    // the probe's tracer without the pixel importance (f* > 0 either way; no pilot image
+    // to render); the budget below is the frame's, its pilot's cost included
+    RenderSettings luminance = s;
+    luminance.importance = "luminance";
+    PathCounters pilot;  // (none rendered)
+    const MltContext ctx(scene, luminance, pilot);
+    tbb::task_arena arena(frame_threads(s));
+    double seconds = 0.0;
+    out.probe = k_bootstrap_probe;
+    FrameCounters counters;
+    out.nonzero = count_probe(s, ctx.tracer, arena, counters, &seconds);
+    out.counters = counters.paths();
+    // the bootstrap the frame would take (bootstrap_size: no probe where the cap is the
+    // default's), and the share of it the probe saw carry light
+    const uint64_t wanted =
+        bootstrap_cap(s) <= k_bootstrap_default ? k_bootstrap_default : wanted_from_probe(s, out.nonzero, seconds);
+    out.bootstrap = FrameBudget::plan(s, wanted).bootstrap;
+    out.expected = double(out.nonzero) * double(out.bootstrap) / double(out.probe);
+    out.too_few = out.expected < double(given.mlt_min_starts);
     return out;
 }
 

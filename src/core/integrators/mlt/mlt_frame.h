@@ -89,6 +89,29 @@ struct BootstrapSize {
 BootstrapSize bootstrap_size(const RenderSettings& s, const PssmltTracer& tracer, tbb::task_arena& arena,
                              FrameCounters& counters);
 
+/// The start probe of RenderSettings::mlt_min_starts: a frame whose chains would start
+/// from a handful of the bootstrap's samples — all of its chains resampled from them,
+/// copies of a few paths, with b from as few — is rendered without chains (mlt_paths
+/// none: the direct pass, or bdpt with chainless_integrator bdpt). The decision reads a
+/// probe keyed (seed, bootstrap_probe, i), disjoint from the bootstrap's keys, so it is
+/// independent of the chains' estimate it replaces: each of the two estimators is
+/// unbiased, and so is the frame whichever the probe picks (README, "Hard cases").
+struct StartProbe {
+    uint64_t probe = 0, nonzero = 0;  ///< the probe's samples, those with f* > 0
+    uint64_t bootstrap = 0;           ///< the bootstrap size the frame would take
+    double expected = 0;              ///< nonzero / probe · bootstrap
+    bool too_few = false;             ///< expected < mlt_min_starts: render without chains
+    PathCounters counters;            ///< the probe's rays
+};
+
+/// Does the start probe decide `given`'s frame: pssmlt/cmlt, mlt_min_starts > 0,
+/// mlt_paths auto resolving to caustics with chains needed, an auto bootstrap size, no
+/// bootstrap values or chain states given (the temporal driver's frames: it probes in
+/// bootstrap_states and decides there, cmlt.temporal.driver).
+bool start_probe_applies(const Scene& scene, const RenderSettings& given);
+/// Run the probe for `given` (render.cpp, before the frame is dispatched).
+StartProbe probe_starts(const Scene& scene, const RenderSettings& given);
+
 /// What a chain population hands the frame at its end, merged in chain order
 /// (ChainPopulation::finish).
 struct PopulationResult {
